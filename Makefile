@@ -1,0 +1,30 @@
+# pathpref: the two commands a user needs are `make demo` and `make test`.
+PY ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: install test demo lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: $(STAMP)
+	MUJOCO_GL=egl $(BIN)/python -m pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check pathpref tests scripts
+
+demo: $(STAMP)
+	MUJOCO_GL=egl $(BIN)/pathpref demo --out out
+
+bench: $(STAMP)
+	$(BIN)/python scripts/bench.py
+
+clean:
+	rm -rf $(VENV) out build *.egg-info

@@ -1,0 +1,20 @@
+"""Errors a user can act on.
+
+Every error raised on bad input derives from :class:`PathprefError`; the CLI turns one into a
+single line on stderr and exit status 2. Messages name the bad field and, where there is one,
+the fix.
+"""
+
+from __future__ import annotations
+
+
+class PathprefError(Exception):
+    """Base class of every error caused by bad user input."""
+
+
+class MapError(PathprefError):
+    """A map file or map dictionary is not valid (names the obstacle/field and the problem)."""
+
+
+class ConfigError(PathprefError):
+    """An experiment, planner or CLI parameter is out of range or inconsistent."""

@@ -1,0 +1,136 @@
+"""The hyperplane arrangement of free space (paper Sec. IV-A, SPEC 2).
+
+Every obstacle row ``a . x <= b`` contributes the line ``a . x = b``; repeated lines (a row
+equal to an earlier row or to its negation) are kept once. The lines cut the map box into
+convex cells; a cell is identified by its *sign vector* ``alpha_j = [a_j . x > b_j]``. A
+*free polytope* is a cell that lies in no obstacle and holds at least one free grid cell.
+
+Each free grid cell's centre gives the sign vector of the polytope it lies in, so grouping the
+free cells by sign vector yields exactly the free polytopes that hold a cell (also in free
+components that a breadth-first search from one cell would not reach). Each polytope is then
+reduced to its essential rows (:func:`pathpref.geometry.polygon.essential_rows`).
+
+Polytope ids are 0-based, ordered by their first free cell in ``(x, y)`` lexicographic order.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .maps import MapSpec, free_cell_mask
+from .polygon import essential_rows, h_polygon
+
+SIDE_EPS = 1e-9
+
+
+def unique_hyperplanes(spec: MapSpec) -> tuple[np.ndarray, np.ndarray]:
+    """All obstacle lines ``n . x = c`` (unit normals), each once, in first-seen order.
+
+    A line is canonically oriented (first non-zero normal component positive) so that a row and
+    its negation map to the same line.
+    """
+    normals: list[np.ndarray] = []
+    offsets: list[float] = []
+    for o in spec.obstacles:
+        for a, b in zip(o.A, o.b, strict=True):
+            if a[0] < -1e-12 or (abs(a[0]) <= 1e-12 and a[1] < 0):
+                a, b = -a, -b
+            dup = any(
+                np.allclose(a, n, atol=1e-9) and abs(b - c) <= 1e-9
+                for n, c in zip(normals, offsets, strict=True)
+            )
+            if not dup:
+                normals.append(np.asarray(a, dtype=float))
+                offsets.append(float(b))
+    if not normals:
+        return np.zeros((0, 2)), np.zeros(0)
+    return np.array(normals), np.array(offsets)
+
+
+@dataclass(frozen=True)
+class Arrangement:
+    """Free polytopes of a map and the cell -> polytope look-up.
+
+    Attributes:
+        width, height: map size in cells.
+        normals, offsets: the arrangement's lines ``normals[j] . x = offsets[j]``.
+        cells: ``(n, 2)`` 1-based free cells, ordered by x then y; row i is cell index i.
+        cell_index: ``(W, H)`` array, ``cell_index[x-1, y-1]`` = cell index or -1.
+        cell_polytope: ``(n,)`` polytope id of each free cell.
+        signs: ``(P, m)`` bool sign vector of each polytope.
+        A, b: per polytope, its essential rows as ``A x <= b``.
+        rows: per polytope, the hyperplane index of each essential row.
+        polygons: per polytope, its vertices (CCW) clipped to the map box.
+    """
+
+    width: int
+    height: int
+    normals: np.ndarray
+    offsets: np.ndarray
+    cells: np.ndarray
+    cell_index: np.ndarray
+    cell_polytope: np.ndarray
+    signs: np.ndarray
+    A: tuple[np.ndarray, ...]
+    b: tuple[np.ndarray, ...]
+    rows: tuple[np.ndarray, ...]
+    polygons: tuple[np.ndarray, ...]
+
+    @property
+    def n_polytopes(self) -> int:
+        return len(self.signs)
+
+    @property
+    def n_cells(self) -> int:
+        return len(self.cells)
+
+    def polytope_cells(self, v: int) -> np.ndarray:
+        """Cell indices of polytope ``v``."""
+        return np.flatnonzero(self.cell_polytope == v)
+
+    def locate(self, point: np.ndarray) -> int:
+        """Polytope id holding a continuous point, or -1 (in an obstacle / no-cell polytope)."""
+        s = np.asarray(point, float) @ self.normals.T - self.offsets > SIDE_EPS
+        hit = np.flatnonzero(np.all(self.signs == s, axis=1))
+        return int(hit[0]) if len(hit) else -1
+
+    def constraint_rows(self, v: int) -> tuple[np.ndarray, np.ndarray]:
+        """All rows (one per line) whose intersection is polytope ``v``: ``A x <= b``."""
+        flip = np.where(self.signs[v], -1.0, 1.0)
+        return self.normals * flip[:, None], self.offsets * flip
+
+
+def build_arrangement(spec: MapSpec) -> Arrangement:
+    """Compute the free polytopes of ``spec`` (see module docstring)."""
+    normals, offsets = unique_hyperplanes(spec)
+    free = free_cell_mask(spec)
+    xs, ys = np.nonzero(free)  # x-major order
+    cells = np.stack([xs + 1, ys + 1], axis=1)
+    cell_index = -np.ones((spec.width, spec.height), dtype=int)
+    cell_index[xs, ys] = np.arange(len(cells))
+    centres = cells - 0.5
+    side = centres @ normals.T - offsets > SIDE_EPS  # (n, m)
+    # group cells by sign vector; number groups by their first cell
+    _, first, inverse = np.unique(side, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.ravel()
+    order = np.argsort(first)
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    cell_polytope = rank[inverse]
+    signs = side[first[order]]
+    As, bs, rows, polys = [], [], [], []
+    for v in range(len(signs)):
+        flip = np.where(signs[v], -1.0, 1.0)
+        A_all, b_all = normals * flip[:, None], offsets * flip
+        ess = essential_rows(A_all, b_all, spec.width, spec.height)
+        As.append(A_all[ess])
+        bs.append(b_all[ess])
+        rows.append(ess)
+        polys.append(h_polygon(A_all[ess], b_all[ess], spec.width, spec.height))
+    return Arrangement(
+        width=spec.width, height=spec.height, normals=normals, offsets=offsets, cells=cells,
+        cell_index=cell_index, cell_polytope=cell_polytope, signs=signs, A=tuple(As),
+        b=tuple(bs), rows=tuple(rows), polygons=tuple(polys),
+    )

@@ -1,0 +1,237 @@
+"""Map files: the world rectangle, convex obstacles, and optional preference and goal band.
+
+Format (JSON, or the same structure as a Python dict)::
+
+    {
+      "name": "my_map",
+      "width": 10, "height": 10,               # grid units; cells are 1-based (x, y)
+      "obstacles": [
+        {"vertices": [[2.0, 2.0], [4.0, 2.5], [3.0, 4.0]]},       # convex polygon, any order
+        {"cells": {"lower_left": [5, 5], "size": [2, 2]}}         # cell rectangle
+      ],
+      "preference": {"table": [{"from": [1, 1], "to": [5, 1]}]},  # optional, see preference.py
+      "goal_band": {"x": [2, 10], "y": [8, 9]},                    # optional, instance sampling
+      "description": "free text"                                   # optional
+    }
+
+Cell ``(x, y)`` is the unit square ``[x-1, x] x [y-1, y]`` and is free when its centre lies
+strictly outside every obstacle. Obstacles may overlap; they must lie inside the map box
+(touching the border is fine). Every obstacle is stored in H-representation ``A x <= b`` with
+unit-norm rows.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import MapError
+from .polygon import convex_vertices_to_h
+
+BUILTIN_MAPS = ("simple", "office", "classroom")
+MAX_SIDE = 500
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A convex obstacle ``{x : A x <= b}`` with its counter-clockwise vertices."""
+
+    A: np.ndarray
+    b: np.ndarray
+    vertices: np.ndarray
+
+    def contains(self, points: np.ndarray, eps: float = 1e-9) -> np.ndarray:
+        """Boolean mask of the points (N x 2) inside or on the boundary of the obstacle."""
+        return np.all(points @ self.A.T - self.b <= eps, axis=1)
+
+
+@dataclass(frozen=True)
+class MapSpec:
+    """A validated map: size, obstacles and the optional user fields, unchanged."""
+
+    name: str
+    width: int
+    height: int
+    obstacles: tuple[Obstacle, ...]
+    preference: dict[str, Any] | None = None
+    goal_band: dict[str, list[int]] | None = None
+    description: str = ""
+    source: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The map in file format (obstacles as vertex lists)."""
+        d: dict[str, Any] = {
+            "name": self.name,
+            "width": self.width,
+            "height": self.height,
+            "obstacles": [{"vertices": o.vertices.tolist()} for o in self.obstacles],
+        }
+        if self.preference is not None:
+            d["preference"] = self.preference
+        if self.goal_band is not None:
+            d["goal_band"] = self.goal_band
+        if self.description:
+            d["description"] = self.description
+        return d
+
+
+def _number(value: Any, where: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise MapError(f"{where} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise MapError(f"{where} is {value!r}; coordinates must be finite numbers")
+    return float(value)
+
+
+def _cell_pair(value: Any, where: str) -> tuple[int, int]:
+    if (
+        not isinstance(value, list | tuple)
+        or len(value) != 2
+        or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+    ):
+        raise MapError(f"{where} must be a pair of whole numbers [x, y], got {value!r}")
+    return int(value[0]), int(value[1])
+
+
+def _parse_obstacle(raw: Any, k: int, width: int, height: int) -> Obstacle:
+    where = f"obstacle {k}"
+    if not isinstance(raw, dict):
+        raise MapError(f"{where} must be an object with 'vertices' or 'cells', got {raw!r}")
+    if "vertices" in raw and "cells" in raw:
+        raise MapError(f"{where} gives both 'vertices' and 'cells'; keep one")
+    if "vertices" in raw:
+        verts = raw["vertices"]
+        if not isinstance(verts, list):
+            raise MapError(f"{where}: 'vertices' must be a list of [x, y] pairs")
+        pts = []
+        for j, p in enumerate(verts):
+            if not isinstance(p, list | tuple) or len(p) != 2:
+                raise MapError(f"{where} vertex {j + 1} must be a pair [x, y], got {p!r}")
+            pts.append([_number(p[0], f"{where} vertex {j + 1} x"),
+                        _number(p[1], f"{where} vertex {j + 1} y")])
+        try:
+            A, b, ccw = convex_vertices_to_h(np.array(pts, dtype=float).reshape(-1, 2))
+        except ValueError as e:
+            raise MapError(f"{where} {e}") from None
+    elif "cells" in raw:
+        cells = raw["cells"]
+        if not isinstance(cells, dict) or "lower_left" not in cells or "size" not in cells:
+            raise MapError(f"{where}: 'cells' must be {{'lower_left': [x, y], 'size': [w, h]}}")
+        x, y = _cell_pair(cells["lower_left"], f"{where} cells.lower_left")
+        w, h = _cell_pair(cells["size"], f"{where} cells.size")
+        if w <= 0 or h <= 0:
+            raise MapError(f"{where} cells.size must be positive, got [{w}, {h}]")
+        x0, y0 = x - 1.0, y - 1.0
+        ccw = np.array([[x0, y0], [x0 + w, y0], [x0 + w, y0 + h], [x0, y0 + h]])
+        A, b, ccw = convex_vertices_to_h(ccw)
+    else:
+        raise MapError(f"{where} needs 'vertices' (a convex polygon) or 'cells' (a rectangle)")
+    tol = 1e-9
+    bad = (ccw[:, 0] < -tol) | (ccw[:, 0] > width + tol) | (ccw[:, 1] < -tol) | (
+        ccw[:, 1] > height + tol
+    )
+    if bad.any():
+        j = int(np.argmax(bad))
+        raise MapError(
+            f"{where} extends outside the map (vertex at ({ccw[j, 0]:g}, {ccw[j, 1]:g}); the map "
+            f"is [0, {width}] x [0, {height}]): clip it to the map or enlarge the map"
+        )
+    return Obstacle(A=A, b=b, vertices=ccw)
+
+
+def _parse_goal_band(raw: Any, width: int, height: int) -> dict[str, list[int]]:
+    if not isinstance(raw, dict) or set(raw) - {"x", "y"}:
+        raise MapError("goal_band must be {'x': [lo, hi], 'y': [lo, hi]} (inclusive cell ranges)")
+    band = {}
+    for axis, side in (("x", width), ("y", height)):
+        lo, hi = _cell_pair(raw.get(axis, [1, side]), f"goal_band.{axis}")
+        if not 1 <= lo <= hi <= side:
+            raise MapError(f"goal_band.{axis} = [{lo}, {hi}] must satisfy 1 <= lo <= hi <= {side}")
+        band[axis] = [lo, hi]
+    return band
+
+
+def parse_map(raw: Any, default_name: str = "map") -> MapSpec:
+    """Validate a map dictionary and return a :class:`MapSpec`; raise :class:`MapError`."""
+    if not isinstance(raw, dict):
+        raise MapError(f"a map must be a JSON object, got {type(raw).__name__}")
+    known = {"name", "width", "height", "obstacles", "preference", "goal_band", "description"}
+    unknown = sorted(set(raw) - known)
+    if unknown:
+        raise MapError(f"unknown map field(s) {unknown}; allowed: {sorted(known)}")
+    for key in ("width", "height"):
+        if key not in raw:
+            raise MapError(f"map field '{key}' is missing (a whole number of grid cells)")
+        v = raw[key]
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise MapError(f"map field '{key}' must be a whole number of cells, got {v!r}")
+        if not 1 <= v <= MAX_SIDE:
+            raise MapError(f"map field '{key}' = {v} must be between 1 and {MAX_SIDE}")
+    width, height = int(raw["width"]), int(raw["height"])
+    name = raw.get("name", default_name)
+    if not isinstance(name, str) or not name:
+        raise MapError(f"map field 'name' must be a non-empty string, got {name!r}")
+    obstacles_raw = raw.get("obstacles", [])
+    if not isinstance(obstacles_raw, list):
+        raise MapError("map field 'obstacles' must be a list")
+    obstacles = tuple(
+        _parse_obstacle(o, k + 1, width, height) for k, o in enumerate(obstacles_raw)
+    )
+    pref = raw.get("preference")
+    if pref is not None and not isinstance(pref, dict):
+        raise MapError("map field 'preference' must be an object with 'table' or 'route'")
+    band = _parse_goal_band(raw["goal_band"], width, height) if "goal_band" in raw else None
+    desc = raw.get("description", "")
+    if not isinstance(desc, str):
+        raise MapError("map field 'description' must be a string")
+    spec = MapSpec(name=name, width=width, height=height, obstacles=obstacles,
+                   preference=pref, goal_band=band, description=desc, source=raw)
+    if not free_cell_mask(spec).any():
+        raise MapError(f"map '{name}' has no free cell: every cell centre lies in an obstacle")
+    return spec
+
+
+def free_cell_mask(spec: MapSpec) -> np.ndarray:
+    """Boolean array ``[x-1, y-1]`` (shape W x H): True where the cell centre is free."""
+    xs, ys = np.meshgrid(np.arange(spec.width) + 0.5, np.arange(spec.height) + 0.5, indexing="ij")
+    centres = np.stack([xs.ravel(), ys.ravel()], axis=1)
+    occupied = np.zeros(len(centres), dtype=bool)
+    for o in spec.obstacles:
+        occupied |= o.contains(centres)
+    return ~occupied.reshape(spec.width, spec.height)
+
+
+def builtin_map_path(name: str) -> Path:
+    """Path of a built-in map file (``simple``, ``office``, ``classroom``)."""
+    return Path(str(resources.files("pathpref.maps").joinpath(f"{name}.json")))
+
+
+def load_map(source: str | Path | dict[str, Any]) -> MapSpec:
+    """Load a map from a built-in name, a JSON file path, or a dictionary."""
+    if isinstance(source, dict):
+        return parse_map(source)
+    s = str(source)
+    if s in BUILTIN_MAPS:
+        path = builtin_map_path(s)
+    else:
+        path = Path(s)
+        if not path.exists():
+            raise MapError(
+                f"no map named '{s}': give a built-in name ({', '.join(BUILTIN_MAPS)}) "
+                "or the path of a JSON map file"
+            )
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as e:
+        raise MapError(f"cannot read map file {path}: {e}") from None
+    try:
+        raw = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise MapError(f"map file {path} is not valid JSON (line {e.lineno}: {e.msg})") from None
+    return parse_map(raw, default_name=path.stem)
