@@ -21,8 +21,9 @@ DESCRIPTIONS = {
     "classroom": "Paper Map 3: 20x20 classroom, 8 desk rows; the human goes around the desks "
     "clockwise (a route; the authors' data has no preference for this map).",
 }
-# A clockwise loop around the central desk block of the classroom, drawn as waypoints.
-CLASSROOM_ROUTE = [[2, 2], [2, 14], [6, 15], [15, 15], [19, 15], [19, 3], [15, 2], [6, 2]]
+# A clockwise loop around the desks of the classroom along the outer corridors: up the west
+# side, east along the north wall, down the east side, west along the south wall.
+CLASSROOM_ROUTE = [[1, 1], [1, 20], [20, 20], [20, 1]]
 
 
 def convert(m: dict) -> dict:

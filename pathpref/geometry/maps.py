@@ -214,7 +214,7 @@ def builtin_map_path(name: str) -> Path:
 
 def load_map(source: str | Path | dict[str, Any]) -> MapSpec:
     """Load a map from a built-in name, a JSON file path, or a dictionary."""
-    if isinstance(source, dict):
+    if not isinstance(source, str | Path):
         return parse_map(source)
     s = str(source)
     if s in BUILTIN_MAPS:

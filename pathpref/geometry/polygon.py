@@ -61,8 +61,10 @@ def convex_vertices_to_h(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     if len(v) < 3:
         raise ValueError("has fewer than 3 distinct vertices")
     area = polygon_area(v)
-    if abs(area) <= EPS:
+    if np.linalg.svd(v - v.mean(axis=0), compute_uv=False)[1] <= EPS:
         raise ValueError("has zero area (all vertices on one line)")
+    if abs(area) <= EPS:
+        raise ValueError("is self-intersecting (its edges cross; signed area is zero)")
     if area < 0:
         v = v[::-1]
     # drop collinear vertices, then check every turn is a left turn

@@ -1,0 +1,93 @@
+"""A built map: its arrangement, polytope graph, grid motion and human preference, together.
+
+``World`` is what every layer above geometry works on. Build one with :func:`load_world`
+(a built-in name, a JSON path or a dict) or :meth:`World.from_spec`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import MapError
+from .arrangement import Arrangement, build_arrangement
+from .graph import PolytopeGraph, build_graph
+from .grid import GridMotion, build_motion
+from .maps import MapSpec, load_map
+from .preference import parse_preference
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """Map + arrangement + graph + motion (+ preference, ``-1`` entries = none)."""
+
+    spec: MapSpec
+    arrangement: Arrangement
+    graph: PolytopeGraph
+    motion: GridMotion
+    preference: np.ndarray | None
+
+    @classmethod
+    def from_spec(cls, spec: MapSpec) -> World:
+        arr = build_arrangement(spec)
+        graph = build_graph(arr)
+        motion = build_motion(arr, graph)
+        pref = parse_preference(arr, graph, motion, spec.preference)
+        return cls(spec=spec, arrangement=arr, graph=graph, motion=motion, preference=pref)
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def n_cells(self) -> int:
+        return self.arrangement.n_cells
+
+    @property
+    def n_polytopes(self) -> int:
+        return self.arrangement.n_polytopes
+
+    @property
+    def cells(self) -> np.ndarray:
+        return self.arrangement.cells
+
+    @property
+    def cell_polytope(self) -> np.ndarray:
+        return self.arrangement.cell_polytope
+
+    def cell(self, xy: Any, what: str = "cell") -> int:
+        """Index of the free cell ``(x, y)`` (1-based); MapError if off the map or blocked."""
+        try:
+            x, y = (int(v) for v in xy)
+        except (TypeError, ValueError):
+            raise MapError(f"{what} must be a cell [x, y], got {xy!r}") from None
+        W, H = self.spec.width, self.spec.height
+        if not (1 <= x <= W and 1 <= y <= H):
+            raise MapError(f"{what} ({x}, {y}) is outside the {W} x {H} map '{self.name}'")
+        i = int(self.arrangement.cell_index[x - 1, y - 1])
+        if i < 0:
+            raise MapError(f"{what} ({x}, {y}) lies on an obstacle of map '{self.name}'")
+        return i
+
+    @cached_property
+    def all_distances(self) -> np.ndarray:
+        """``(n, n)`` shortest grid distance between free cells (SPEC 3 motion)."""
+        return self.motion.distances_from(np.arange(self.n_cells))
+
+    def require_preference(self) -> np.ndarray:
+        """The map's preference, or a MapError telling how to add one."""
+        if self.preference is None:
+            raise MapError(
+                f"map '{self.name}' has no 'preference'; add a table or a route to the map file"
+            )
+        return self.preference
+
+
+def load_world(source: str | Path | dict[str, Any] | MapSpec) -> World:
+    """Load and build a map (built-in name, JSON path, dict or MapSpec)."""
+    spec = source if isinstance(source, MapSpec) else load_map(source)
+    return World.from_spec(spec)

@@ -1,0 +1,183 @@
+"""Exact Bayesian belief over goal and path preference (paper Eq. 2, Sec. IV-B; SPEC 5).
+
+Given the robot's cell ``s_t``, the goal ``g`` and the preference ``p_{v(s_t)}``, an observation is
+independent of every other ``p_u`` (paper Fig. 3). With a uniform, independent prior over each
+``p_v`` the posterior therefore factorises::
+
+    P(g, theta | o_1:t)  ~  P0(g) * prod_v [ L_v(g, p_v) / deg(v) ]
+
+where ``L_v(g, k)`` is the product of the likelihoods of the observations made while in ``v``.
+:class:`PreferenceBelief` keeps one ``|Omega_g| x deg(v)`` table ``T_v`` per visited polytope
+(scaled by a per-table constant, which cancels) and the per-goal sum ``lw(g) = sum_v log r_v(g)``
+of log row means ``r_v(g) = mean_k T_v(g, k)``. The goal marginal is
+``P(g) ~ P0(g) exp(lw(g))``; an update touches one table and one entry of ``lw`` per goal, so it
+costs ``O(|Omega_g| deg(v))`` whatever the number of polytopes.
+
+:class:`GoalBelief` is the goal-only baseline (Best and Fitch): a vector over goals updated with
+the unconstrained likelihood.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .human import ObservationModel
+
+COUPLING_FLOOR = 1e-6
+
+
+def entropy(p: np.ndarray) -> float:
+    """Shannon entropy in nats of a (possibly unnormalised) non-negative array."""
+    p = np.asarray(p, dtype=float).ravel()
+    s = p.sum()
+    if s <= 0:
+        return 0.0
+    q = p[p > 0] / s
+    return float(-(q * np.log(q)).sum())
+
+
+class GoalBelief:
+    """Posterior over goal candidates alone (goal-only baseline)."""
+
+    def __init__(self, model: ObservationModel, prior: np.ndarray | None = None):
+        self.model = model
+        G = len(model.goals)
+        self.log_w = np.log(np.full(G, 1.0 / G) if prior is None else np.asarray(prior, float))
+        self.ruled_out = np.zeros(G, dtype=bool)
+
+    def update(self, cell: int, heading: int) -> None:
+        """Condition on the human's heading ``heading`` given at free cell ``cell``."""
+        self.log_w = self.log_w + np.log(self.model.goal_likelihood[cell, heading])
+        self.log_w -= self.log_w[~self.ruled_out].max(initial=0.0)
+
+    def rule_out(self, goal_index: int) -> None:
+        """The robot stood on candidate ``goal_index`` and it was not the goal."""
+        self.ruled_out[goal_index] = True
+
+    def goal_marginal(self) -> np.ndarray:
+        w = np.where(self.ruled_out, -np.inf, self.log_w)
+        w = np.exp(w - w.max())
+        return w / w.sum()
+
+    def goal_entropy(self) -> float:
+        return entropy(self.goal_marginal())
+
+
+class PreferenceBelief:
+    """Exact factored posterior over ``(g, theta)`` (see module docstring).
+
+    Args:
+        model: likelihood tables for the world and goal set.
+        prior: goal prior ``P0`` (uniform when None).
+        coupling: when True, entering ``u`` from ``v`` multiplies the weight of ``p_u = v`` by
+            ``1 - P(p_v = u | g)`` (the paper's remark: a human who wanted to go from ``v`` to
+            ``u`` rarely wants to go straight back). Off by default; floored at 1e-6 so that no
+            row of a table becomes all zeros.
+    """
+
+    def __init__(
+        self, model: ObservationModel, prior: np.ndarray | None = None, coupling: bool = False
+    ):
+        self.model = model
+        world = model.world
+        self.neighbors = world.graph.neighbors
+        self.degree = np.array([len(nb) for nb in self.neighbors])
+        G = len(model.goals)
+        p0 = np.full(G, 1.0 / G) if prior is None else np.asarray(prior, float)
+        self.log_prior = np.log(p0)
+        self.tables: dict[int, np.ndarray] = {}
+        self.log_rowmean = np.zeros(G)  # sum over visited v of log r_v(g)
+        self.ruled_out = np.zeros(G, dtype=bool)
+        self.coupling = coupling
+        self.cell_polytope = world.cell_polytope
+
+    # --- updates -------------------------------------------------------------------------
+    def _table(self, v: int) -> np.ndarray:
+        t = self.tables.get(v)
+        if t is None:
+            t = self.tables[v] = np.ones((len(self.log_prior), self.degree[v]))
+        return t
+
+    def _multiply(self, v: int, factor: np.ndarray) -> None:
+        """``T_v *= factor`` (broadcast to ``(G, deg)``), keeping ``log_rowmean`` in step."""
+        t = self._table(v)
+        old = np.log(t.mean(axis=1))
+        t *= factor
+        t /= t.max()
+        self.log_rowmean += np.log(t.mean(axis=1)) - old
+
+    def update(self, cell: int, heading: int) -> None:
+        """Condition on the heading ``heading`` (0..7) given at free cell ``cell``."""
+        v = int(self.cell_polytope[cell])
+        self._multiply(v, self.model.likelihood[cell, heading, :, : self.degree[v]])
+
+    def enter(self, v_from: int, v_to: int) -> None:
+        """Tell the belief that the robot moved from polytope ``v_from`` into ``v_to``.
+
+        Does nothing unless ``coupling`` is on.
+        """
+        if not self.coupling or v_from == v_to:
+            return
+        k_to = int(np.flatnonzero(self.neighbors[v_from] == v_to)[0])
+        k_back = int(np.flatnonzero(self.neighbors[v_to] == v_from)[0])
+        t = self._table(v_from)
+        p_went = t[:, k_to] / t.sum(axis=1)  # P(p_from = to | g)
+        factor = np.ones((len(self.log_prior), self.degree[v_to]))
+        factor[:, k_back] = np.maximum(1.0 - p_went, COUPLING_FLOOR)
+        self._multiply(v_to, factor)
+
+    def rule_out(self, goal_index: int) -> None:
+        """The robot stood on candidate ``goal_index`` and it was not the goal."""
+        self.ruled_out[goal_index] = True
+
+    # --- queries -------------------------------------------------------------------------
+    def goal_log_weights(self) -> np.ndarray:
+        w = self.log_prior + self.log_rowmean
+        return np.where(self.ruled_out, -np.inf, w)
+
+    def goal_marginal(self) -> np.ndarray:
+        """``P(g | o_1:t)``."""
+        w = self.goal_log_weights()
+        w = np.exp(w - w.max())
+        return w / w.sum()
+
+    def preference_given_goal(self, v: int) -> np.ndarray:
+        """``(G, deg v)`` table ``P(p_v = N(v)[k] | g, o_1:t)``."""
+        t = self.tables.get(v)
+        if t is None:
+            return np.full((len(self.log_prior), self.degree[v]), 1.0 / self.degree[v])
+        return t / t.sum(axis=1, keepdims=True)
+
+    def preference_marginal(self, v: int) -> np.ndarray:
+        """``P(p_v = N(v)[k] | o_1:t)`` over the neighbours of ``v``."""
+        return self.goal_marginal() @ self.preference_given_goal(v)
+
+    def joint(self, v: int) -> np.ndarray:
+        """``(G, deg v)`` joint ``P(g, p_v | o_1:t)``."""
+        return self.goal_marginal()[:, None] * self.preference_given_goal(v)
+
+    def goal_entropy(self) -> float:
+        return entropy(self.goal_marginal())
+
+    def joint_entropy(self, v: int) -> float:
+        """``H(g, p_v)`` of the joint table at polytope ``v`` (nats)."""
+        return entropy(self.joint(v))
+
+    def sample(self, rng: np.random.Generator, n: int = 1) -> tuple[np.ndarray, np.ndarray]:
+        """Draw ``n`` states ``(goal_index, theta)`` from the posterior.
+
+        Returns goal indices ``(n,)`` and neighbour slots ``(n, P)`` (``theta[v]`` is an index
+        into ``neighbors[v]``; -1 for a polytope without neighbours).
+        """
+        pg = self.goal_marginal()
+        goals = rng.choice(len(pg), size=n, p=pg)
+        P = len(self.degree)
+        theta = np.where(self.degree > 0, 0, -1)[None, :].repeat(n, axis=0)
+        u = rng.random((n, P))
+        for v in range(P):
+            deg = self.degree[v]
+            if deg <= 1:
+                continue
+            cdf = np.cumsum(self.preference_given_goal(v)[goals], axis=1)
+            theta[:, v] = np.minimum((u[:, v : v + 1] > cdf).sum(axis=1), deg - 1)
+        return goals, theta

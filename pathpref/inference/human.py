@@ -1,0 +1,177 @@
+"""The Boltzmann human observation model (paper Eq. 1 and 5, SPEC 4) and a simulated human.
+
+A human intervention is a heading, binned to one of the 8 compass moves ``h`` (the observation
+``o`` is the cell one move away, or ``s`` itself when the move is blocked). For goal ``g`` and
+preferred neighbour ``p = N(v(s))[k]`` the cost excess of heading ``h`` is::
+
+    Delta(s, h, g, k) = C_{g,k}(s, o) - C*_{g,k}(s)
+
+    o inside v(s):                 C = c(s, o) + D_{v,k}(o, g)
+    o across the preferred face:   C = c(s, o) + d(o, g)
+    o across another face:         Delta = 2 c(s, o)              (step there and back)
+    g inside v(s):                 C = c(s, o) + d(o, g) for every o (nothing constrained)
+    blocked heading:               Delta = 4                       (stay put plus the penalty)
+
+with ``C* = D_{v,k}(s, g)`` (:mod:`pathpref.inference.costs`). The likelihood is
+``P(h | s, g, k) = exp(-gamma_h Delta) / Z`` with ``Z`` the sum over the 8 headings
+(``normalize=True``, the default) or ``Z = 1`` (the authors' code, ``normalize=False``).
+Blocked headings all lead to ``o = s``; their likelihood is the same for every ``(g, k)`` up to
+the count of blocked headings, so conditioning on ``h`` or on ``o`` gives the same posterior.
+
+The goal-only model (Best and Fitch) uses the unconstrained excess
+``c(s, o) + d(o, g) - d(s, g)`` (blocked: 4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ..geometry.world import World
+from .costs import CostTables, build_cost_tables
+
+GAMMA_H = 1.5
+BLOCK_PENALTY = 4.0
+
+
+def neighbor_table(world: World) -> np.ndarray:
+    """``(P, K)`` neighbour ids per polytope, padded with -1."""
+    K = max(world.graph.max_degree, 1)
+    table = -np.ones((world.n_polytopes, K), dtype=int)
+    for v, nb in enumerate(world.graph.neighbors):
+        table[v, : len(nb)] = nb
+    return table
+
+
+def cost_excess(world: World, tables: CostTables) -> tuple[np.ndarray, np.ndarray]:
+    """``Delta`` with preference ``(n, 8, G, K)`` and goal-only ``(n, 8, G)`` (see module doc).
+
+    Padded neighbour slots (``k >= deg``) hold ``Delta = 0``; they are never read.
+    Unreachable goals get ``Delta = 0`` (uniform likelihood).
+    """
+    m = world.motion
+    n = world.n_cells
+    nxt, step, blocked = m.next_cell, m.cost, m.blocked
+    v_src = world.cell_polytope
+    v_tgt = v_src[nxt]
+    dist = tables.dist  # (G, n)
+    D = tables.constrained  # (n, K, G)
+    d_here = dist.T  # (n, G)
+    d_next = dist[:, nxt].transpose(1, 2, 0)  # (n, 8, G)
+    step_ = step[:, :, None]
+    # goal-only
+    with np.errstate(invalid="ignore"):
+        delta_u = step_ + d_next - d_here[:, None, :]
+    delta_u = np.where(blocked[:, :, None], BLOCK_PENALTY, delta_u)
+    delta_u = np.where(np.isfinite(delta_u), delta_u, 0.0)
+    # with preference
+    nbr = neighbor_table(world)[v_src]  # (n, K)
+    crossing = (~blocked) & (v_tgt != v_src[:, None])  # (n, 8)
+    to_pref = crossing[:, :, None] & (v_tgt[:, :, None] == nbr[:, None, :])  # (n, 8, K)
+    goal_inside = tables.goal_polytope[None, :] == v_src[:, None]  # (n, G)
+    Dk = D.transpose(0, 2, 1)  # (n, G, K)
+    with np.errstate(invalid="ignore"):
+        stay_in = step[:, :, None, None] + D[nxt].transpose(0, 1, 3, 2) - Dk[:, None]
+        exit_pref = (step_ + d_next)[..., None] - Dk[:, None]
+    delta = np.where(
+        crossing[:, :, None, None],
+        np.where(to_pref[:, :, None, :], exit_pref, 2.0 * step[:, :, None, None]),
+        stay_in,
+    )
+    # goal inside v(s), or constraint infeasible: the unconstrained excess
+    use_u = goal_inside[:, None, :, None] | ~tables.feasible.transpose(0, 2, 1)[:, None]
+    delta = np.where(use_u, delta_u[..., None], delta)
+    delta = np.where(blocked[:, :, None, None], BLOCK_PENALTY, delta)
+    delta = np.where(np.isfinite(delta), delta, 0.0)
+    deg = np.array([len(nb) for nb in world.graph.neighbors])[v_src]
+    pad = np.arange(delta.shape[3])[None, :] >= deg[:, None]  # (n, K)
+    delta = np.where(pad[:, None, None, :], 0.0, delta)
+    assert delta.shape == (n, 8, len(tables.goals), nbr.shape[1])
+    return delta, delta_u
+
+
+def boltzmann(delta: np.ndarray, gamma: float, normalize: bool) -> np.ndarray:
+    """``exp(-gamma Delta)``, normalised over the heading axis (axis 1) when asked."""
+    lik = np.exp(-gamma * delta)
+    if normalize:
+        lik = lik / lik.sum(axis=1, keepdims=True)
+    return lik
+
+
+@dataclass(frozen=True, eq=False)
+class ObservationModel:
+    """Likelihood tables of the human's headings for one world and goal set.
+
+    ``likelihood[s, h, g, k] = P(h | s, g, p_{v(s)} = N(v(s))[k])`` and
+    ``goal_likelihood[s, h, g] = P(h | s, g)`` (goal-only model); an update is a table look-up.
+    """
+
+    world: World
+    tables: CostTables
+    gamma: float = GAMMA_H
+    normalize: bool = True
+
+    @classmethod
+    def build(
+        cls, world: World, goals: np.ndarray, gamma: float = GAMMA_H, normalize: bool = True
+    ) -> ObservationModel:
+        return cls(world, build_cost_tables(world, goals), gamma, normalize)
+
+    @property
+    def goals(self) -> np.ndarray:
+        return self.tables.goals
+
+    @cached_property
+    def _delta(self) -> tuple[np.ndarray, np.ndarray]:
+        return cost_excess(self.world, self.tables)
+
+    @cached_property
+    def likelihood(self) -> np.ndarray:
+        return boltzmann(self._delta[0], self.gamma, self.normalize)
+
+    @cached_property
+    def goal_likelihood(self) -> np.ndarray:
+        return boltzmann(self._delta[1], self.gamma, self.normalize)
+
+    @cached_property
+    def heading_probs(self) -> np.ndarray:
+        """Normalised ``(n, 8, G, K)`` probabilities the simulated human samples from."""
+        return boltzmann(self._delta[0], self.gamma, True)
+
+    @cached_property
+    def goal_heading_probs(self) -> np.ndarray:
+        """Normalised ``(n, 8, G)`` probabilities for a human with no preference."""
+        return boltzmann(self._delta[1], self.gamma, True)
+
+
+class SimulatedHuman:
+    """Samples headings from the Boltzmann model for a true goal and preference (SPEC 4).
+
+    ``preference[v]`` is the preferred neighbour of ``v`` or -1 (no preference in ``v``: the
+    human heads for the goal by the unconstrained shortest path there).
+    """
+
+    def __init__(self, model: ObservationModel, goal_index: int, preference: np.ndarray):
+        self.model = model
+        self.goal_index = int(goal_index)
+        world = model.world
+        self.pref_slot = np.array(
+            [
+                world.graph.neighbor_index(v, int(p)) if p >= 0 else -1
+                for v, p in enumerate(preference)
+            ]
+        )
+
+    def probs(self, cell: int) -> np.ndarray:
+        """``(8,)`` heading distribution at free cell ``cell``."""
+        k = self.pref_slot[self.model.world.cell_polytope[cell]]
+        if k < 0:
+            return self.model.goal_heading_probs[cell, :, self.goal_index]
+        return self.model.heading_probs[cell, :, self.goal_index, k]
+
+    def sample(self, cell: int, rng: np.random.Generator) -> int:
+        """One heading index (0..7, N, NE, ..., NW)."""
+        p = self.probs(cell)
+        return int(rng.choice(8, p=p / p.sum()))

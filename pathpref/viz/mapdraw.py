@@ -1,0 +1,85 @@
+"""Draw a map like the paper's Fig. 2: obstacles, polytopes with ids, graph edges, preference.
+
+Plain matplotlib (Agg backend, no display needed). Fed by a :class:`~pathpref.geometry.World`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.patches import Polygon  # noqa: E402
+
+from ..geometry.world import World  # noqa: E402
+
+
+def polytope_centres(world: World) -> np.ndarray:
+    """Mean of each polytope's free-cell centres (where its id and arrows are drawn)."""
+    arr = world.arrangement
+    return np.array([(arr.cells[arr.polytope_cells(v)] - 0.5).mean(axis=0)
+                     for v in range(arr.n_polytopes)])
+
+
+def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = True,
+             show_preference: bool = True, cell_values: np.ndarray | None = None):
+    """Draw ``world`` on ``ax`` (a new figure when None) and return the axes.
+
+    ``cell_values`` (one per free cell) shades the cells, e.g. a belief or a distance field.
+    """
+    spec, arr = world.spec, world.arrangement
+    if ax is None:
+        size = 6 if max(spec.width, spec.height) <= 12 else 9
+        _, ax = plt.subplots(figsize=(size, size * spec.height / spec.width))
+    cmap = plt.get_cmap("tab20")
+    for v, poly in enumerate(arr.polygons):
+        if len(poly) >= 3:
+            ax.add_patch(Polygon(poly, closed=True, facecolor=cmap(v % 20), alpha=0.35,
+                                 edgecolor="0.4", lw=0.8))
+    if cell_values is not None:
+        img = np.full((spec.height, spec.width), np.nan)
+        img[arr.cells[:, 1] - 1, arr.cells[:, 0] - 1] = cell_values
+        ax.imshow(img, origin="lower", extent=(0, spec.width, 0, spec.height), cmap="viridis",
+                  alpha=0.6)
+    for o in spec.obstacles:
+        ax.add_patch(Polygon(o.vertices, closed=True, facecolor="0.15", edgecolor="k"))
+    centres = polytope_centres(world)
+    if show_edges:
+        for u, w in world.graph.edges:
+            ax.plot(*centres[[u, w]].T, color="0.3", lw=0.8, ls=":", zorder=3)
+    if show_preference and world.preference is not None:
+        for v, p in enumerate(world.preference):
+            if p < 0:
+                continue
+            a, b = centres[v], centres[p]
+            d = b - a
+            ax.annotate("", xy=a + 0.7 * d, xytext=a + 0.15 * d, zorder=4,
+                        arrowprops=dict(arrowstyle="-|>", color="crimson", lw=1.6))
+    if show_ids:
+        fs = 9 if arr.n_polytopes <= 30 else 6
+        for v, c in enumerate(centres):
+            ax.text(*c, str(v), ha="center", va="center", fontsize=fs, zorder=5,
+                    bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8))
+    ax.set_xlim(0, spec.width)
+    ax.set_ylim(0, spec.height)
+    ax.set_xticks(np.arange(spec.width + 1))
+    ax.set_yticks(np.arange(spec.height + 1))
+    ax.tick_params(labelsize=6)
+    ax.grid(True, color="0.85", lw=0.5, zorder=0)
+    ax.set_aspect("equal")
+    ax.set_title(f"{spec.name}: {arr.n_polytopes} polytopes, {world.graph.n_edges} edges")
+    return ax
+
+
+def save_map_figure(world: World, out: str | Path) -> Path:
+    """Draw ``world`` and write the figure (format from the suffix, e.g. .png or .pdf)."""
+    out = Path(out)
+    ax = draw_map(world)
+    fig = ax.figure
+    fig.tight_layout()
+    fig.savefig(out, dpi=130)
+    plt.close(fig)
+    return out

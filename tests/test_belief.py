@@ -1,0 +1,128 @@
+"""The factored belief is the exact posterior: brute force over all 2^8 preferences of simple."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from pathpref.inference.belief import GoalBelief, PreferenceBelief, entropy
+from pathpref.inference.human import ObservationModel, SimulatedHuman
+
+
+def brute_posterior(model, observations):
+    """(G, 256) posterior over (goal, theta) by enumeration; theta[v] in {0, 1}."""
+    w = model.world
+    P = w.n_polytopes
+    assert all(len(n) == 2 for n in w.graph.neighbors)
+    thetas = np.array(list(itertools.product([0, 1], repeat=P)))
+    G = len(model.goals)
+    logp = np.zeros((G, len(thetas)))
+    for s, h in observations:
+        v = w.cell_polytope[s]
+        lik = model.likelihood[s, h]  # (G, K)
+        logp += np.log(lik[:, thetas[:, v]])
+    p = np.exp(logp - logp.max())
+    return p / p.sum(), thetas
+
+
+def random_observations(world, model, rng, n):
+    human = SimulatedHuman(model, 0, world.preference)
+    obs = []
+    s = world.cell((1, 1))
+    for _ in range(n):
+        h = human.sample(s, rng)
+        obs.append((s, h))
+        jump = rng.random() >= 0.8
+        s = int(rng.integers(world.n_cells)) if jump else int(world.motion.next_cell[s, h])
+    return obs
+
+
+@pytest.mark.parametrize("normalize", [True, False])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_factored_equals_brute_force(simple, normalize, seed):
+    rng = np.random.default_rng(seed)
+    goals = rng.choice(simple.n_cells, size=10, replace=False)
+    model = ObservationModel.build(simple, goals, normalize=normalize)
+    obs = random_observations(simple, model, rng, 25)
+    belief = PreferenceBelief(model)
+    for s, h in obs:
+        belief.update(s, h)
+    post, thetas = brute_posterior(model, obs)
+    assert np.allclose(belief.goal_marginal(), post.sum(axis=1), atol=1e-10)
+    for v in range(simple.n_polytopes):
+        ref = np.stack([post[:, thetas[:, v] == k].sum(axis=1) for k in range(2)], axis=1)
+        assert np.allclose(belief.joint(v), ref, atol=1e-10)
+        assert np.allclose(belief.preference_marginal(v), ref.sum(axis=0), atol=1e-10)
+    v = simple.cell_polytope[obs[-1][0]]
+    assert belief.joint_entropy(v) == pytest.approx(entropy(belief.joint(v)))
+
+
+def test_goal_only_equals_brute_force(simple):
+    rng = np.random.default_rng(5)
+    goals = rng.choice(simple.n_cells, size=10, replace=False)
+    model = ObservationModel.build(simple, goals)
+    obs = random_observations(simple, model, rng, 30)
+    gb = GoalBelief(model)
+    logp = np.zeros(10)
+    for s, h in obs:
+        gb.update(s, h)
+        logp += np.log(model.goal_likelihood[s, h])
+    ref = np.exp(logp - logp.max())
+    assert np.allclose(gb.goal_marginal(), ref / ref.sum())
+
+
+def test_rule_out_and_distribution(simple):
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 11)])
+    model = ObservationModel.build(simple, goals)
+    for b in (PreferenceBelief(model), GoalBelief(model)):
+        b.update(simple.cell((1, 1)), 2)
+        b.rule_out(4)
+        p = b.goal_marginal()
+        assert p[4] == 0.0 and p.sum() == pytest.approx(1.0) and (p >= 0).all()
+        assert b.goal_entropy() < np.log(10)
+
+
+def test_evidence_concentrates_on_truth(simple):
+    """Many headings at several cells from the true (goal, preference) make both likely."""
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 11)])
+    model = ObservationModel.build(simple, goals)
+    human = SimulatedHuman(model, 0, simple.preference)
+    rng = np.random.default_rng(0)
+    b = PreferenceBelief(model)
+    cells = [simple.cell(c) for c in [(1, 1), (3, 2), (6, 2), (8, 3)]]
+    for _ in range(40):
+        for s in cells:
+            b.update(s, human.sample(s, rng))
+    v0 = simple.cell_polytope[cells[0]]
+    k = simple.graph.neighbor_index(v0, simple.preference[v0])
+    assert b.preference_marginal(v0)[k] > 0.95
+
+
+def test_coupling_lowers_going_back(simple):
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 11)])
+    model = ObservationModel.build(simple, goals)
+    s = simple.cell((3, 2))
+    v = simple.cell_polytope[s]
+    east = simple.cell_polytope[simple.cell((5, 2))]
+    off, on = PreferenceBelief(model), PreferenceBelief(model, coupling=True)
+    for b in (off, on):
+        for _ in range(5):
+            b.update(s, 2)  # east, repeatedly
+        b.enter(v, east)
+    back = simple.graph.neighbor_index(east, v)
+    assert on.preference_marginal(east)[back] < off.preference_marginal(east)[back] == 0.5
+
+
+def test_sampling_matches_marginals(simple):
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 11)])
+    model = ObservationModel.build(simple, goals)
+    b = PreferenceBelief(model)
+    for s in [(1, 1), (3, 2)]:
+        for h in (2, 1, 2):
+            b.update(simple.cell(s), h)
+    g, theta = b.sample(np.random.default_rng(0), 40000)
+    assert np.abs(np.bincount(g, minlength=10) / 40000 - b.goal_marginal()).max() < 0.01
+    v = simple.cell_polytope[simple.cell((1, 1))]
+    assert abs((theta[:, v] == 1).mean() - b.preference_marginal(v)[1]) < 0.01
