@@ -22,9 +22,13 @@ from .geometry.maps import load_map
 from .geometry.world import World
 from .inference.belief import GoalBelief, PreferenceBelief
 from .inference.human import ObservationModel
+from .planning.pomcp import POMCP
+from .planning.pomdp import default_t_max, get_preset
 
 #: the paper's Table II belief-update times (ms) for reference
 PAPER_UPDATE_MS = {"simple": 73.5, "office": 28.7, "classroom": 38.3}
+#: the paper's Table II path-preference solve times (ms)
+PAPER_SOLVE_MS = {"simple": 510.0, "office": 2847.0, "classroom": 2063.0}
 
 
 def _timeit(fn, repeat: int) -> list[float]:
@@ -65,6 +69,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         t = time.perf_counter()
         gb.update(c, h)
         t_goal.append(time.perf_counter() - t)
+    planning = bench_pomcp(world, name, quick=quick, seed=seed)
     return {
         "polytopes": world.n_polytopes,
         "edges": world.graph.n_edges,
@@ -77,6 +82,37 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         "goal_belief_update_ms": 1e3 * median(t_goal),
         "belief_updates": n_upd,
         "paper_belief_update_ms": PAPER_UPDATE_MS.get(name),
+        **planning,
+    }
+
+
+def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
+    """First-decision POMCP time: 5000 queries at depth T_max, median over random instances."""
+    preset = get_preset("paper")
+    depth = default_t_max(name)
+    n = 5 if quick else 20
+    rng = np.random.default_rng(seed + 1)
+    t_pp, t_go = [], []
+    for i in range(n + 1):
+        goals = rng.choice(world.n_cells, size=10, replace=False)
+        start = int(rng.integers(world.n_cells))
+        model = ObservationModel.build(world, goals)
+        for planner, belief, out in (
+            (POMCP(world, goals, preset.path_preference), PreferenceBelief(model), t_pp),
+            (POMCP(world, goals, preset.goal_only), GoalBelief(model), t_go),
+        ):
+            t = time.perf_counter()
+            planner.search(start, belief, depth, seed=i)
+            if i > 0:  # the first search compiles or loads the kernel
+                out.append(time.perf_counter() - t)
+    return {
+        "pomcp_queries": preset.queries,
+        "pomcp_depth": depth,
+        "pomcp_decision_ms": 1e3 * median(t_pp),
+        "pomcp_goal_only_decision_ms": 1e3 * median(t_go),
+        "pomcp_queries_per_s": preset.queries / median(t_pp),
+        "pomcp_decisions": n,
+        "paper_pomcp_decision_ms": PAPER_SOLVE_MS.get(name),
     }
 
 

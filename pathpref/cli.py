@@ -75,6 +75,102 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- experiments ----------------------------------------------------------------------------
+def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
+    from .planning.pomdp import default_t_max, get_preset
+
+    preset = get_preset(args.preset)
+    return {
+        "preset": args.preset,
+        "queries": args.queries if args.queries is not None else preset.queries,
+        "t_max": args.t_max if args.t_max is not None else default_t_max(map_name),
+        "normalize": args.likelihood == "normalized",
+        "coupling": args.coupling,
+    }
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from .experiments.report import load_records, markdown_tables
+    from .experiments.sweep import run_sweep, sweep_specs
+
+    if args.sim != "grid":
+        raise ConfigError(f"--sim {args.sim}: this version runs the grid world only (--sim grid)")
+    specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
+                        seed=args.seed, n_goals=args.goals, **_common_episode_args(args, args.map))
+    counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
+                       retry_failed=args.retry_failed, backend=args.backend)
+    print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
+          f"in {args.db}, {counts['seconds']} s")
+    recs = [r for r in load_records(args.db) if r["map"] == Path(args.map).stem or
+            r["map"] == args.map]
+    print(markdown_tables(recs))
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    from .experiments.report import load_records, markdown_tables, write_csv
+
+    if not Path(args.db).exists():
+        raise ConfigError(f"no results database at {args.db}; run 'pathpref evaluate' first")
+    recs = load_records(args.db)
+    if not recs:
+        raise ConfigError(f"{args.db} holds no episodes yet")
+    print(markdown_tables(recs))
+    csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
+    atomic_output(csv_path, lambda p: write_csv(recs, p))
+    print(f"\nwrote {csv_path}")
+    if args.figure:
+        from .viz.plots import success_figure
+
+        atomic_output(args.figure, lambda p: success_figure(recs, p))
+        print(f"wrote {args.figure}")
+    return 0
+
+
+def cmd_timing(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from .experiments.timing import time_map, timing_markdown
+
+    results = []
+    with tqdm(total=args.instances * len(args.maps), unit="inst", file=sys.stderr,
+              disable=args.no_progress) as bar:
+        for m in args.maps:
+            results.append(time_map(m, instances=args.instances, queries=args.queries,
+                                    preset=args.preset, seed=args.seed, progress=bar))
+    if args.json:
+        print(json.dumps(results))
+    else:
+        print(timing_markdown(results))
+    return 0
+
+
+def cmd_belief_curves(args: argparse.Namespace) -> int:
+    from .experiments.curves import curves_from_store
+    from .experiments.instances import FIG4
+    from .experiments.sweep import fixed_specs, run_sweep
+    from .viz.plots import belief_curves_figure
+
+    out = Path(args.out)
+    db = args.db or str(out.with_suffix(".sqlite"))
+    fixed = {"start": list(FIG4["start"]), "goals": [list(g) for g in FIG4["goals"]],
+             "true_goal": FIG4["true_goal"], "free_goal_polytope": True}
+    common = _common_episode_args(args, args.map)
+    specs = fixed_specs(args.map, ["path_preference", "goal_only"], args.delta_t, args.runs,
+                        fixed, seed=args.seed, **common)
+    run_sweep(specs, db, workers=args.workers, progress=not args.no_progress)
+    keys = {m: [s.key() for s in specs if s.method == m] for m in ("path_preference", "goal_only")}
+    curves = curves_from_store(db, keys, common["t_max"])
+    atomic_output(out, lambda p: belief_curves_figure(curves, p))
+    for m, c in curves.items():
+        t_end = common["t_max"]
+        print(f"{m:>16}: P(true goal) at t=0/5/10/{t_end}: "
+              + "/".join(f"{c['p_mean'][t]:.2f}" for t in (0, 5, 10, t_end))
+              + "; entropy: " + "/".join(f"{c['h_mean'][t]:.2f}" for t in (0, 5, 10, t_end)))
+    print(f"wrote {out} (episodes in {db})")
+    return 0
+
+
 # --- bench / demo ---------------------------------------------------------------------------
 def cmd_bench(args: argparse.Namespace) -> int:
     from .benchmarks import run_benchmarks
@@ -113,6 +209,57 @@ def build_parser() -> argparse.ArgumentParser:
     md.add_argument("map")
     md.add_argument("--out", required=True, help="output image (.png, .pdf, .svg)")
     md.set_defaults(func=cmd_map_draw)
+
+    def episode_options(sp: argparse.ArgumentParser) -> None:
+        sp.add_argument("--preset", default="paper", help="paper (default) or original")
+        sp.add_argument("--queries", type=int, default=None, help="POMCP queries (5000)")
+        sp.add_argument("--t-max", type=int, default=None, help="mission time (30; 60 classroom)")
+        sp.add_argument("--likelihood", choices=["normalized", "unnormalized"],
+                        default="normalized", help="robot's likelihood (authors: unnormalized)")
+        sp.add_argument("--coupling", action="store_true", help="back-edge belief coupling")
+        sp.add_argument("--seed", type=int, default=0)
+        sp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+        sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    ev = sub.add_parser("evaluate", help="run a sweep of episodes into a results database")
+    ev.add_argument("--map", default="simple")
+    ev.add_argument("--methods", nargs="+", default=["all"],
+                    help="compliant goal_only path_preference blended, or all")
+    ev.add_argument("--delta-t", nargs="+", type=int, default=[1, 5, 10, 20, 30])
+    ev.add_argument("--instances", type=int, default=6)
+    ev.add_argument("--runs", type=int, default=50)
+    ev.add_argument("--goals", type=int, default=10, help="goal candidates per instance")
+    ev.add_argument("--db", default="results.sqlite")
+    ev.add_argument("--sim", default="grid", help="grid (default)")
+    ev.add_argument("--backend", default="local")
+    ev.add_argument("--retry-failed", action="store_true", help="re-run failed episodes")
+    episode_options(ev)
+    ev.set_defaults(func=cmd_evaluate)
+
+    rp = sub.add_parser("report", help="Table I from a results database (Markdown + CSV)")
+    rp.add_argument("db")
+    rp.add_argument("--csv", default=None, help="CSV path (default: DB name with .csv)")
+    rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png)")
+    rp.set_defaults(func=cmd_report)
+
+    tm = sub.add_parser("timing", help="Table II: solve and update time at the first decision")
+    tm.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
+    tm.add_argument("--instances", type=int, default=100)
+    tm.add_argument("--queries", type=int, default=5000)
+    tm.add_argument("--preset", default="paper")
+    tm.add_argument("--seed", type=int, default=0)
+    tm.add_argument("--json", action="store_true")
+    tm.add_argument("--no-progress", action="store_true")
+    tm.set_defaults(func=cmd_timing)
+
+    bc = sub.add_parser("belief-curves", help="Fig. 4: P(true goal) and entropy over time")
+    bc.add_argument("--out", default="fig4.png")
+    bc.add_argument("--db", default=None, help="episode store (default: OUT with .sqlite)")
+    bc.add_argument("--map", default="simple")
+    bc.add_argument("--runs", type=int, default=50)
+    bc.add_argument("--delta-t", type=int, default=1)
+    episode_options(bc)
+    bc.set_defaults(func=cmd_belief_curves)
 
     b = sub.add_parser("bench", help="measure build, update and planning times")
     b.add_argument("--json", action="store_true", help="print one JSON object")

@@ -1,0 +1,87 @@
+"""Problem instances (SPEC 9): start, goal candidates and true goal, reproducible from a seed.
+
+Start: a uniformly drawn free cell. Candidates: ``n_goals`` cells drawn without replacement
+from the free cells other than the start that the start can reach, restricted to the map's
+``goal_band`` when it has one (office: y in 8..9). True goal: uniform among the candidates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError, MapError
+from ..geometry.world import World
+
+
+@dataclass(frozen=True)
+class Instance:
+    """Cell indices of the start and the candidates; ``true_goal`` indexes ``goals``."""
+
+    start: int
+    goals: tuple[int, ...]
+    true_goal: int
+
+    @property
+    def goal_cell(self) -> int:
+        return self.goals[self.true_goal]
+
+
+def seed_for(*parts: int) -> int:
+    """A 63-bit seed derived from integers (numpy SeedSequence), stable across platforms."""
+    return int(np.random.SeedSequence([int(p) for p in parts]).generate_state(2, np.uint64)[0]
+               >> np.uint64(1))
+
+
+def goal_pool(world: World, start: int) -> np.ndarray:
+    """Cells that may be goal candidates for this start (see module docstring)."""
+    reach = np.isfinite(world.all_distances[start])
+    pool = reach.copy()
+    pool[start] = False
+    band = world.spec.goal_band
+    if band:
+        x, y = world.cells[:, 0], world.cells[:, 1]
+        pool &= (x >= band["x"][0]) & (x <= band["x"][1]) & (y >= band["y"][0]) & (
+            y <= band["y"][1]
+        )
+    return np.flatnonzero(pool)
+
+
+def sample_instance(world: World, seed: int, n_goals: int = 10) -> Instance:
+    """Draw an instance from ``seed`` (see module docstring)."""
+    if n_goals < 1:
+        raise ConfigError(f"--goals must be at least 1, got {n_goals}")
+    rng = np.random.default_rng(seed)
+    # a start must leave enough candidates; redraw (deterministically) when it does not
+    for _ in range(1000):
+        start = int(rng.integers(world.n_cells))
+        pool = goal_pool(world, start)
+        if len(pool) >= n_goals:
+            goals = tuple(int(g) for g in rng.choice(pool, size=n_goals, replace=False))
+            return Instance(start, goals, int(rng.integers(n_goals)))
+    raise ConfigError(
+        f"map '{world.name}' has too few candidate cells for {n_goals} goal candidates "
+        f"(at most {world.n_cells - 1} free cells, fewer in the goal band); lower --goals"
+    )
+
+
+def fixed_instance(world: World, start: tuple[int, int], goals: list[tuple[int, int]],
+                   true_goal: int) -> Instance:
+    """An instance given by cells, checked: free cells, distinct, reachable from the start."""
+    s = world.cell(start, "start")
+    g = [world.cell(c, f"goal candidate {k + 1}") for k, c in enumerate(goals)]
+    if len(set(g)) != len(g) or s in g:
+        raise ConfigError("goal candidates must be distinct cells other than the start")
+    if not 0 <= true_goal < len(g):
+        raise ConfigError(f"true goal index {true_goal} is not among the {len(g)} candidates")
+    d = world.all_distances[s, g]
+    if not np.isfinite(d).all():
+        k = int(np.flatnonzero(~np.isfinite(d))[0])
+        raise MapError(f"goal candidate {tuple(goals[k])} cannot be reached from {tuple(start)}")
+    return Instance(s, tuple(g), int(true_goal))
+
+
+#: The instance of the paper's Fig. 4 on ``simple`` (start (1,1), candidates (1..10, 8),
+#: true goal (1, 8)).
+FIG4 = {"start": (1, 1), "goals": [(x, 8) for x in range(1, 11)], "true_goal": 0}

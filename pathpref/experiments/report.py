@@ -1,0 +1,118 @@
+"""Tables from a results store: success rates (Table I) with 95% confidence intervals.
+
+The interval of a success rate is the Wilson score interval (95%), which stays inside [0, 1]
+and behaves at rates near 0 or 1, unlike the normal approximation. Failed episodes (an error, not
+a mission failure) are left out of the rates and counted separately.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+from .store import ResultStore
+
+METHOD_ORDER = ["compliant", "goal_only", "path_preference", "blended"]
+METHOD_LABEL = {
+    "compliant": "compliant",
+    "goal_only": "goal only",
+    "path_preference": "path preference",
+    "blended": "path preference + blend",
+}
+#: The paper's Table I (Map 1, gamma_h = 1.5, T_max = 30).
+PAPER_TABLE_I = {
+    "compliant": {1: 0.67, 5: 0.33, 10: 0.33, 20: 0.17, 30: 0.17},
+    "goal_only": {1: 0.28, 5: 0.18, 10: 0.17, 20: 0.17, 30: 0.16},
+    "path_preference": {1: 0.55, 5: 0.42, 10: 0.41, 20: 0.34, 30: 0.30},
+    "blended": {1: 0.55, 5: 0.39, 10: 0.44, 20: 0.44, 30: 0.34},
+}
+
+
+def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95% Wilson score interval of a binomial proportion."""
+    if n == 0:
+        return (0.0, 1.0)
+    p = successes / n
+    den = 1 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def success_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One record per (map, sim, preset, method, delta_t) with n, rate, CI and flag rates."""
+    groups: dict[tuple, list[dict]] = defaultdict(list)
+    for r in rows:
+        groups[(r["map"], r["sim"], r["preset"], r["method"], r["delta_t"])].append(r)
+    out = []
+    for (m, sim, preset, method, dt), rs in sorted(groups.items(), key=lambda kv: (
+            kv[0][0], kv[0][1], kv[0][2], _order(kv[0][3]), kv[0][4])):
+        ok = [r for r in rs if r["status"] == "ok"]
+        n = len(ok)
+        k = sum(r["success"] for r in ok)
+        lo, hi = wilson(k, n)
+        out.append({
+            "map": m, "sim": sim, "preset": preset, "method": method, "delta_t": dt,
+            "n": n, "failed": len(rs) - n, "success_rate": k / n if n else float("nan"),
+            "ci_low": lo, "ci_high": hi,
+            "goal_rate": sum(r["goal_reached"] for r in ok) / n if n else float("nan"),
+            "pref_rate": sum(r["pref_followed"] for r in ok) / n if n else float("nan"),
+            "instances": len({r["instance_seed"] for r in ok}),
+        })
+    return out
+
+
+def _order(method: str) -> int:
+    return METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER)
+
+
+def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> str:
+    """Markdown: one table per (map, sim, preset), methods x Delta_T, rate [95% CI]."""
+    blocks = []
+    keys = sorted({(r["map"], r["sim"], r["preset"]) for r in records})
+    for m, sim, preset in keys:
+        recs = [r for r in records if (r["map"], r["sim"], r["preset"]) == (m, sim, preset)]
+        dts = sorted({r["delta_t"] for r in recs})
+        methods = sorted({r["method"] for r in recs}, key=_order)
+        ns = sorted({r["n"] for r in recs})
+        title = f"**{m}** ({sim}, preset {preset}; n = {'/'.join(map(str, ns))} per cell)"
+        lines = [title, "", "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
+                 "|---|" + "---|" * len(dts)]
+        for meth in methods:
+            cells = []
+            for d in dts:
+                r = next((x for x in recs if x["method"] == meth and x["delta_t"] == d), None)
+                if r is None or r["n"] == 0:
+                    cells.append("–")
+                else:
+                    cells.append(f"{r['success_rate']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]")
+            lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
+        if with_paper and m == "simple" and sim == "grid":
+            lines += ["", "Paper (Table I, Map 1):", "",
+                      "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
+                      "|---|" + "---|" * len(dts)]
+            for meth in methods:
+                if meth in PAPER_TABLE_I:
+                    vals = [PAPER_TABLE_I[meth].get(d) for d in dts]
+                    lines.append(f"| {METHOD_LABEL[meth]} | " + " | ".join(
+                        "–" if v is None else f"{v:.2f}" for v in vals) + " |")
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks)
+
+
+def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:
+    if not records:
+        Path(path).write_text("")
+        return
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(records[0]))
+        w.writeheader()
+        w.writerows(records)
+
+
+def load_records(db: str | Path) -> list[dict[str, Any]]:
+    with ResultStore(db, create=False) as store:
+        return success_table(store.episodes())

@@ -1,0 +1,145 @@
+"""SQLite results store: one row per episode (full configuration and seeds), per-step logs.
+
+Each finished episode is written at once, in one transaction (episode row and its steps
+together), so a sweep killed at any moment leaves only whole episodes; WAL journaling keeps the
+file consistent. The primary key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips
+what is done. A file written by another schema version, or not written by pathpref, is refused
+and never modified.
+"""
+
+from __future__ import annotations
+
+import json
+import sqlite3
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError
+from .episode import EpisodeResult, result_row
+
+SCHEMA_VERSION = 1
+
+EPISODE_COLUMNS = {
+    "key": "TEXT PRIMARY KEY",
+    "map": "TEXT", "sim": "TEXT", "task": "TEXT", "method": "TEXT", "delta_t": "INTEGER",
+    "instance": "INTEGER", "run": "INTEGER", "instance_seed": "INTEGER", "run_seed": "INTEGER",
+    "preset": "TEXT", "queries": "INTEGER", "t_max": "INTEGER", "n_goals": "INTEGER",
+    "normalize": "INTEGER", "coupling": "INTEGER", "fixed": "TEXT",
+    "start": "TEXT", "goals": "TEXT", "true_goal": "INTEGER",
+    "status": "TEXT", "reason": "TEXT", "goal_reached": "INTEGER", "pref_followed": "INTEGER",
+    "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
+    "wall_s": "REAL",
+}
+STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
+
+
+class ResultStore:
+    """Open (or create) a results database at ``path``."""
+
+    def __init__(self, path: str | Path, create: bool = True):
+        self.path = Path(path)
+        if not self.path.exists():
+            if not create:
+                raise ConfigError(f"no results database at {self.path}")
+            parent = self.path.parent
+            if not parent.is_dir():
+                raise ConfigError(f"cannot create {self.path}: folder {parent} does not exist")
+        self._check_existing()
+        try:
+            self.conn = sqlite3.connect(self.path, timeout=30)
+            self.conn.execute("PRAGMA journal_mode=WAL")
+            self.conn.execute("PRAGMA synchronous=NORMAL")
+        except sqlite3.Error as e:
+            raise ConfigError(f"cannot open results database {self.path}: {e}") from None
+        self._init_schema()
+
+    def _check_existing(self) -> None:
+        if not self.path.exists() or self.path.stat().st_size == 0:
+            return
+        with open(self.path, "rb") as f:
+            if f.read(16) != b"SQLite format 3\x00":
+                raise ConfigError(
+                    f"{self.path} is not a pathpref results database (not SQLite); "
+                    "give another --db path"
+                )
+
+    def _init_schema(self) -> None:
+        c = self.conn
+        tables = {r[0] for r in c.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if tables and "meta" not in tables:
+            raise ConfigError(
+                f"{self.path} is an SQLite file not written by pathpref; give another --db path"
+            )
+        if "meta" in tables:
+            row = c.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+            found = int(row[0]) if row else None
+            if found != SCHEMA_VERSION:
+                raise ConfigError(
+                    f"{self.path} was written by an incompatible pathpref (schema {found}, this "
+                    f"version reads {SCHEMA_VERSION}); use a new --db path"
+                )
+            return
+        cols = ", ".join(f"{k} {t}" for k, t in EPISODE_COLUMNS.items())
+        with c:
+            c.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
+            c.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
+            c.execute(f"CREATE TABLE episodes ({cols})")
+            c.execute(
+                "CREATE TABLE steps (key TEXT, t INTEGER, x INTEGER, y INTEGER, action INTEGER, "
+                "heading INTEGER, p_true_goal REAL, goal_entropy REAL, PRIMARY KEY (key, t))"
+            )
+
+    def done_keys(self, include_failed: bool = True) -> set[str]:
+        """Keys of the stored episodes (only successful runs when ``include_failed`` is False)."""
+        q = "SELECT key FROM episodes" + ("" if include_failed else " WHERE status = 'ok'")
+        return {r[0] for r in self.conn.execute(q)}
+
+    def add(self, res: EpisodeResult) -> None:
+        """Write one episode and its steps in one transaction (replacing a failed attempt)."""
+        row = result_row(res)
+        cols = list(EPISODE_COLUMNS)
+        vals = [row.get(k) for k in cols]
+        vals = [int(v) if isinstance(v, bool) else v for v in vals]
+        key = row["key"]
+        with self.conn:
+            self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
+            self.conn.execute(
+                f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
+                f"VALUES ({', '.join('?' for _ in cols)})",
+                vals,
+            )
+            self.conn.executemany(
+                "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
+                 for s in res.log],
+            )
+
+    def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
+        cur = self.conn.execute(f"SELECT * FROM episodes {where}", tuple(params))
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r, strict=True)) for r in cur]
+
+    def steps(self, key: str) -> list[dict[str, Any]]:
+        cur = self.conn.execute("SELECT * FROM steps WHERE key = ? ORDER BY t", (key,))
+        names = [d[0] for d in cur.description]
+        return [dict(zip(names, r, strict=True)) for r in cur]
+
+    def count(self) -> int:
+        return int(self.conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0])
+
+    def close(self) -> None:
+        self.conn.close()
+
+    def __enter__(self) -> ResultStore:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def spec_json(row: dict[str, Any]) -> str:
+    """The spec fields of a stored row as JSON (for replaying one episode)."""
+    keys = ["map", "method", "delta_t", "instance", "run", "instance_seed", "run_seed", "preset",
+            "queries", "t_max", "n_goals", "normalize", "coupling", "sim", "fixed", "task"]
+    return json.dumps({k: row[k] for k in keys})

@@ -1,0 +1,216 @@
+"""POMCP (Silver and Veness 2010) for the path-preference POMDP, compiled with numba (SPEC 7).
+
+PO-UCT with ``queries`` simulations per decision, UCB constant ``c``, search depth ``depth``
+(``T_max - t + 1``), uniform-random rollouts, a tree rebuilt at every decision.
+
+Root states come from the exact belief, not from particles: each simulation draws the goal
+``g ~ P(g | o_1:t)`` and, lazily the first time it leaves a polytope ``v``,
+``p_v ~ P(p_v | g, o_1:t)``, which is exact because the posterior factorises given ``g`` (SPEC 5).
+
+Inside the search the robot expects no human input, so the only observation is whether it
+stands on a wrong goal candidate, a function of its cell. A history is therefore fixed by its
+action sequence: each (node, action) pair has one child, and the tree is stored in flat arrays
+(``child[node, a]``, visit counts and mean returns per action).
+
+Speed (``pathpref bench``): about 10 ms for 5000 queries at depth 30 on ``simple``, against
+~500 ms for the authors' Julia code.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba as nb
+import numpy as np
+
+from ..geometry.world import World
+from ..inference.belief import GoalBelief, PreferenceBelief
+from ..inference.human import neighbor_table
+from .pomdp import Rewards
+
+
+@nb.njit(cache=True)
+def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly,
+          pref_cdf, theta, stamp, Rg, Rp, Rn, use_pref):
+    """Generative step; returns (next cell, reward, done). Samples p_v lazily into theta."""
+    s2 = next_cell[s, a]
+    r = -cost[s, a]
+    if use_pref and crossed[s, a] >= 0:
+        v = cell_poly[s]
+        if goal_poly[gi] == v:
+            r += Rn
+        else:
+            if stamp[v] != q:
+                stamp[v] = q
+                u = np.random.random()
+                k = 0
+                K = nbr.shape[1]
+                while k < K - 1 and nbr[v, k + 1] >= 0 and u > pref_cdf[gi, v, k]:
+                    k += 1
+                theta[v] = nbr[v, k]
+            if cell_poly[s2] == theta[v]:
+                r += Rp
+            else:
+                r += Rn
+    done = s2 == goal_cells[gi]
+    if done:
+        r += Rg
+    return s2, r, done
+
+
+@nb.njit(cache=True)
+def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goal_cdf,
+            pref_cdf, s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref, seed):
+    np.random.seed(seed)
+    M = queries + 2
+    n_node = np.zeros(M, np.int64)
+    n_sa = np.zeros((M, 8), np.int64)
+    q_sa = np.zeros((M, 8))
+    child = -np.ones((M, 8), np.int32)
+    n_nodes = 1
+    P = nbr.shape[0]
+    theta = -np.ones(P, np.int64)
+    stamp = -np.ones(P, np.int64)
+    path_node = np.zeros(depth + 1, np.int64)
+    path_a = np.zeros(depth + 1, np.int64)
+    path_r = np.zeros(depth + 1)
+    G = goal_cdf.shape[0]
+    for q in range(queries):
+        u = np.random.random()
+        gi = 0
+        while gi < G - 1 and u > goal_cdf[gi]:
+            gi += 1
+        s = s0
+        node = 0
+        L = 0
+        leaf = 0.0
+        while L < depth:
+            # UCB1 with untried actions first (random order among them)
+            a = -1
+            off = np.random.randint(8)
+            for j in range(8):
+                b = (off + j) % 8
+                if n_sa[node, b] == 0:
+                    a = b
+                    break
+            if a < 0:
+                best = -1e300
+                logn = np.log(n_node[node])
+                for b in range(8):
+                    val = q_sa[node, b] + c * np.sqrt(logn / n_sa[node, b])
+                    if val > best:
+                        best = val
+                        a = b
+            s2, r, done = _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr,
+                                goal_cells, goal_poly, pref_cdf, theta, stamp, Rg, Rp, Rn,
+                                use_pref)
+            path_node[L] = node
+            path_a[L] = a
+            path_r[L] = r
+            L += 1
+            s = s2
+            if done:
+                break
+            ch = child[node, a]
+            if ch < 0:
+                child[node, a] = n_nodes
+                n_nodes += 1
+                # uniform-random rollout for the remaining depth
+                disc = 1.0
+                for _ in range(depth - L):
+                    b = np.random.randint(8)
+                    s, r2, d2 = _step(s, b, gi, q, next_cell, cost, crossed, cell_poly, nbr,
+                                      goal_cells, goal_poly, pref_cdf, theta, stamp, Rg, Rp,
+                                      Rn, use_pref)
+                    leaf += disc * r2
+                    disc *= discount
+                    if d2:
+                        break
+                break
+            node = ch
+        ret = leaf
+        for i in range(L - 1, -1, -1):
+            ret = path_r[i] + discount * ret
+            nd = path_node[i]
+            b = path_a[i]
+            n_node[nd] += 1
+            n_sa[nd, b] += 1
+            q_sa[nd, b] += (ret - q_sa[nd, b]) / n_sa[nd, b]
+    best_a = 0
+    best_q = -1e300
+    for b in range(8):
+        if n_sa[0, b] > 0 and q_sa[0, b] > best_q:
+            best_q = q_sa[0, b]
+            best_a = b
+    return best_a, n_sa[0].copy(), q_sa[0].copy(), n_nodes
+
+
+@dataclass
+class SearchResult:
+    """The chosen action and the root statistics of one search."""
+
+    action: int
+    visits: np.ndarray
+    values: np.ndarray
+    nodes: int
+
+
+class POMCP:
+    """Online planner over ``(s, g, theta)`` (or ``(s, g)`` when ``rewards.use_preference`` is
+    False). The tree is rebuilt at every call of :meth:`search`.
+
+    Args:
+        world: the map.
+        goals: goal candidate cells (indices), in the order of the belief's goal axis.
+        rewards: the planner's rewards and discount.
+        queries: simulations per decision (5000 in the paper).
+        c: UCB exploration constant (1 in the paper).
+    """
+
+    def __init__(self, world: World, goals: np.ndarray, rewards: Rewards, queries: int = 5000,
+                 c: float = 1.0):
+        m = world.motion
+        self.world = world
+        self.rewards = rewards
+        self.queries = int(queries)
+        self.c = float(c)
+        self.next_cell = m.next_cell.astype(np.int64)
+        self.cost = m.cost.astype(np.float64)
+        self.crossed = m.crossed_edge.astype(np.int64)
+        self.cell_poly = world.cell_polytope.astype(np.int64)
+        self.nbr = neighbor_table(world).astype(np.int64)
+        self.goal_cells = np.asarray(goals, dtype=np.int64)
+        self.goal_poly = self.cell_poly[self.goal_cells]
+        deg = (self.nbr >= 0).sum(axis=1)
+        K = self.nbr.shape[1]
+        uniform = np.where(np.arange(K)[None, :] < deg[:, None],
+                           (np.arange(K)[None, :] + 1) / np.maximum(deg, 1)[:, None], 1.0)
+        self._uniform_cdf = uniform  # (P, K)
+
+    def preference_cdf(self, belief: PreferenceBelief | None) -> np.ndarray:
+        """``(G, P, K)`` cumulative ``P(p_v = N(v)[k] | g)`` (uniform where never observed)."""
+        G = len(self.goal_cells)
+        cdf = np.broadcast_to(self._uniform_cdf, (G, *self._uniform_cdf.shape)).copy()
+        if belief is not None:
+            for v in belief.tables:
+                cond = belief.preference_given_goal(v)
+                cdf[:, v, : cond.shape[1]] = np.cumsum(cond, axis=1)
+        return cdf
+
+    def search(self, cell: int, belief: PreferenceBelief | GoalBelief, depth: int,
+               seed: int) -> SearchResult:
+        """Plan from ``cell`` with root states drawn from ``belief``; return the best action."""
+        goal_cdf = np.cumsum(belief.goal_marginal())
+        pref = belief if isinstance(belief, PreferenceBelief) else None
+        cdf = self.preference_cdf(pref) if self.rewards.use_preference else self._dummy_cdf()
+        r = self.rewards
+        a, visits, values, nodes = _search(
+            self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,
+            self.goal_poly, goal_cdf, cdf, int(cell), int(max(depth, 1)), self.queries, self.c,
+            r.discount, r.goal, r.preferred, r.non_preferred, r.use_preference,
+            int(seed) % (2**32),
+        )
+        return SearchResult(int(a), visits, values, int(nodes))
+
+    def _dummy_cdf(self) -> np.ndarray:
+        return np.ones((len(self.goal_cells), *self._uniform_cdf.shape))

@@ -1,0 +1,110 @@
+"""The POMDP of the paper (Sec. III-B and V, SPEC 6): rewards, presets and the generative step.
+
+State ``(s, g, theta)``: the robot's cell ``s`` (observed), the goal ``g`` and the preference
+``theta`` (hidden). Transitions are the deterministic grid motion of SPEC 3. The reward of a
+move from ``s`` with action ``a`` is::
+
+    r = -c(s, a)                                      (1 straight, sqrt 2 diagonal, 1 blocked)
+        + R_p  if the move crosses the edge toward p_{v(s)} and g is not in v(s)
+        + R_n  if it crosses any other edge (every exit is non-preferred when g is in v(s))
+        + R_g  if it reaches g (terminal)
+
+discounted by ``gamma``. The goal-only planner has no ``R_p``/``R_n`` terms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Rewards:
+    """Reward and discount of one planner."""
+
+    goal: float
+    preferred: float
+    non_preferred: float
+    discount: float
+    use_preference: bool = True
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Named parameter set: the paper's values or the authors' code (SPEC 6 and 8).
+
+    Attributes:
+        path_preference: rewards of the path-preference planner.
+        goal_only: rewards of the goal-only planner.
+        momentum: compliant baseline keeps the last heading this many steps without input.
+        entropy_threshold: blended baseline follows the human when ``H(g, p_v)`` exceeds it.
+    """
+
+    name: str
+    path_preference: Rewards
+    goal_only: Rewards
+    momentum: int
+    entropy_threshold: float = 1.6
+    queries: int = 5000
+    ucb_c: float = 1.0
+
+
+PRESETS: dict[str, Preset] = {
+    "paper": Preset(
+        name="paper",
+        path_preference=Rewards(goal=50.0, preferred=15.5, non_preferred=-18.0, discount=0.95),
+        goal_only=Rewards(goal=50.0, preferred=0.0, non_preferred=0.0, discount=0.95,
+                          use_preference=False),
+        momentum=5,
+    ),
+    "original": Preset(
+        name="original",
+        path_preference=Rewards(goal=60.0, preferred=15.5, non_preferred=-18.0, discount=0.92),
+        goal_only=Rewards(goal=1000.0, preferred=0.0, non_preferred=0.0, discount=0.96,
+                          use_preference=False),
+        momentum=2,
+    ),
+}
+
+
+def get_preset(name: str, **overrides) -> Preset:
+    """A preset by name (``paper`` or ``original``), with optional field overrides."""
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
+    preset = PRESETS[name]
+    overrides = {k: v for k, v in overrides.items() if v is not None}
+    return replace(preset, **overrides) if overrides else preset
+
+
+def default_t_max(map_name: str) -> int:
+    """Mission time in decision steps: 30, or 60 on the 20x20 classroom (SPEC 6)."""
+    return 60 if map_name == "classroom" else 30
+
+
+def step_reward(
+    world, s: int, a: int, goal_cell: int, pref_neighbor: int, rewards: Rewards
+) -> tuple[int, float, bool, int]:
+    """One generative step in plain Python (reference for the compiled search).
+
+    Returns ``(next_cell, reward, reached_goal, crossed_edge)``; ``pref_neighbor`` is the
+    preferred neighbour polytope id of ``v(s)`` (or -1 for none).
+    """
+    m = world.motion
+    s2 = int(m.next_cell[s, a])
+    r = -float(m.cost[s, a])
+    e = int(m.crossed_edge[s, a])
+    if e >= 0 and rewards.use_preference:
+        v, w = int(world.cell_polytope[s]), int(world.cell_polytope[s2])
+        goal_in_v = world.cell_polytope[goal_cell] == v
+        r += rewards.preferred if (w == pref_neighbor and not goal_in_v) else rewards.non_preferred
+    done = s2 == goal_cell
+    if done:
+        r += rewards.goal
+    return s2, r, bool(done), e
+
+
+def discounted_return(rewards_seq: np.ndarray, discount: float) -> float:
+    return float(np.sum(rewards_seq * discount ** np.arange(len(rewards_seq))))

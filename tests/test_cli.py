@@ -1,0 +1,118 @@
+"""End-to-end tests of every user command, and their one-line errors with exit status 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from pathpref.cli import main
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "pathpref.cli", *args], capture_output=True,
+                          text=True, timeout=600)
+
+
+def test_map_info_json(capsys):
+    assert main(["map", "info", "office", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert {k: info[k] for k in ("name", "polytopes", "edges", "free_cells")} == {
+        "name": "office", "polytopes": 56, "edges": 73, "free_cells": 75}
+
+
+def test_map_draw_builtin_and_rotated_user_file(tmp_path, capsys):
+    out = tmp_path / "m.png"
+    assert main(["map", "draw", "classroom", "--out", str(out)]) == 0
+    assert out.stat().st_size > 10_000
+    capsys.readouterr()
+    user = tmp_path / "rotated.json"
+    user.write_text(json.dumps({"name": "rotated", "width": 12, "height": 9, "obstacles": [
+        {"vertices": [[3.0, 2.0], [5.5, 3.2], [4.3, 5.7], [1.8, 4.5]]},
+        {"vertices": [[8, 2], [10.5, 4], [7.5, 6]]}],
+        "preference": {"route": [[1, 1], [12, 1], [12, 9], [1, 9]]}}))
+    assert main(["map", "info", str(user), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["polytopes"] > 10 and info["has_preference"]
+    out2 = tmp_path / "r.png"
+    assert main(["map", "draw", str(user), "--out", str(out2)]) == 0
+    assert out2.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["map", "info", "nowhere.json"], "no map named"),
+    (["map", "draw", "simple", "--out", "/nonexistent/dir/m.png"], "does not exist"),
+    (["map", "draw", "simple", "--out", "m.txt"], ".png"),
+    (["evaluate", "--methods", "telepathy", "--db", "x.sqlite"], "unknown method"),
+    (["evaluate", "--delta-t", "0", "--db", "x.sqlite"], "delta-t"),
+    (["evaluate", "--t-max", "0", "--db", "x.sqlite"], "t-max"),
+    (["evaluate", "--goals", "500", "--db", "x.sqlite", "--instances", "1", "--runs", "1"],
+     "too few candidate"),
+    (["report", "missing.sqlite"], "no results database"),
+    (["evaluate", "--preset", "turbo", "--db", "x.sqlite"], "unknown preset"),
+])
+def test_bad_input_exits_2_with_one_line(tmp_path, args, msg):
+    p = subprocess.run([sys.executable, "-m", "pathpref.cli", *args], capture_output=True,
+                       text=True, cwd=tmp_path, timeout=300)
+    assert p.returncode == 2, p.stderr
+    lines = [ln for ln in p.stderr.strip().splitlines() if ln]
+    assert len(lines) == 1 and msg in lines[0] and "Traceback" not in p.stderr
+    assert not (tmp_path / "x.sqlite").exists()
+
+
+def test_bad_map_file_exits_2(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"width": 5, "height": 5, "obstacles": [
+        {"vertices": [[1, 1], [4, 1], [2, 2], [4, 3], [1, 3]]}]}))
+    p = run("map", "info", str(bad))
+    assert p.returncode == 2 and "obstacle 1 is not convex" in p.stderr
+
+
+def test_evaluate_report_end_to_end(tmp_path):
+    db = tmp_path / "r.sqlite"
+    p = run("evaluate", "--map", "simple", "--methods", "all", "--delta-t", "1", "10",
+            "--instances", "2", "--runs", "2", "--queries", "300", "--db", str(db),
+            "--workers", "2", "--no-progress")
+    assert p.returncode == 0, p.stderr
+    assert "| path preference |" in p.stdout and "32 episodes run" in p.stdout
+    p = run("report", str(db), "--figure", str(tmp_path / "t1.png"))
+    assert p.returncode == 0, p.stderr
+    assert (tmp_path / "t1.png").exists() and db.with_suffix(".csv").exists()
+    rows = db.with_suffix(".csv").read_text().splitlines()
+    assert len(rows) == 1 + 4 * 2
+
+
+def test_timing_and_belief_curves(tmp_path):
+    p = run("timing", "--maps", "simple", "classroom", "--instances", "3", "--queries", "300",
+            "--json", "--no-progress")
+    assert p.returncode == 0, p.stderr
+    res = json.loads(p.stdout)
+    assert [r["map"] for r in res] == ["simple", "classroom"] and res[1]["depth"] == 60
+    assert all(r["solve_path_pref_ms"] > 0 and r["update_path_pref_ms"] > 0 for r in res)
+    out = tmp_path / "fig4.png"
+    p = run("belief-curves", "--out", str(out), "--runs", "3", "--queries", "300",
+            "--no-progress", "--workers", "2")
+    assert p.returncode == 0, p.stderr
+    assert out.exists() and Path(str(out.with_suffix(".sqlite"))).exists()
+    assert "path_preference" in p.stdout
+
+
+def test_bench_json_keys():
+    p = run("bench", "--json", "--quick", "--maps", "simple")
+    assert p.returncode == 0, p.stderr
+    res = json.loads(p.stdout)
+    m = res["maps"]["simple"]
+    for k in ("arrangement_build_s", "belief_update_ms", "pomcp_decision_ms",
+              "pomcp_queries_per_s"):
+        assert m[k] > 0
+
+
+def test_demo(tmp_path):
+    p = run("demo", "--out", str(tmp_path / "out"))
+    assert p.returncode == 0, p.stderr
+    for f in ("map_simple.png", "trajectories.png", "belief.png", "summary.csv"):
+        assert (tmp_path / "out" / f).stat().st_size > 0
+    assert "| path_preference |" in p.stdout

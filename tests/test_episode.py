@@ -1,0 +1,116 @@
+"""Episodes and instances: reproducible, the paper's input schedule, flags, bad input."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from pathpref.errors import ConfigError, MapError
+from pathpref.experiments.episode import EpisodeSpec, run_episode
+from pathpref.experiments.instances import (
+    FIG4,
+    fixed_instance,
+    goal_pool,
+    sample_instance,
+    seed_for,
+)
+from pathpref.planning.policies import STAY, resolve_methods
+
+
+def spec(**kw):
+    d = dict(map="simple", method="path_preference", delta_t=5, instance=0, run=0,
+             instance_seed=seed_for(0, 0), run_seed=seed_for(0, 0, 0), queries=500)
+    d.update(kw)
+    return EpisodeSpec(**d)
+
+
+@pytest.mark.parametrize("method", ["compliant", "goal_only", "path_preference", "blended"])
+def test_episode_is_replayable(method):
+    a, b = run_episode(spec(method=method)), run_episode(spec(method=method))
+    assert [(s.x, s.y, s.action, s.heading) for s in a.log] == [
+        (s.x, s.y, s.action, s.heading) for s in b.log]
+    assert (a.success, a.goal_reached, a.violations) == (b.success, b.goal_reached, b.violations)
+
+
+@pytest.mark.parametrize("dt", [1, 3, 7])
+def test_inputs_follow_schedule(dt):
+    r = run_episode(spec(delta_t=dt, t_max=20))
+    given = [s.t for s in r.log if s.heading >= 0]
+    assert given == [t for t in range(1, r.steps + 1) if (t - 1) % dt == 0]
+    assert r.inputs == len(given)
+
+
+def test_flags_are_consistent():
+    for i in range(4):
+        r = run_episode(spec(instance=i, instance_seed=seed_for(0, i), method="compliant",
+                             delta_t=1))
+        assert r.success == (r.goal_reached and r.violations == 0)
+        last = r.log[-1]
+        goal_xy = r.instance_cells["goals"][r.instance.true_goal]
+        assert r.goal_reached == ([last.x, last.y] == goal_xy)
+        assert r.steps <= 30 and 0.0 <= last.p_true_goal <= 1.0
+
+
+def test_compliant_stops_after_momentum():
+    r = run_episode(spec(method="compliant", delta_t=30, t_max=30))
+    moves = [s.action for s in r.log[1:]]
+    # one input, then 5 steps of momentum (paper preset), then it stays
+    if not r.goal_reached:
+        assert all(a == STAY for a in moves[6:])
+        assert all(a != STAY for a in moves[:6])
+
+
+def test_instances_reproducible_and_banded(worlds):
+    w = worlds["office"]
+    a, b = sample_instance(w, 123), sample_instance(w, 123)
+    assert a == b
+    ys = w.cells[list(a.goals), 1]
+    xs = w.cells[list(a.goals), 0]
+    assert ((ys >= 8) & (ys <= 9) & (xs >= 2)).all() and a.start not in a.goals
+    assert len(set(a.goals)) == 10
+    assert len(goal_pool(w, a.start)) <= 18
+
+
+def test_fig4_instance(simple):
+    inst = fixed_instance(simple, FIG4["start"], FIG4["goals"], FIG4["true_goal"])
+    assert simple.cells[inst.goal_cell].tolist() == [1, 8]
+
+
+def test_bad_episode_input(simple):
+    with pytest.raises(ConfigError, match="delta-t"):
+        run_episode(spec(delta_t=0))
+    with pytest.raises(ConfigError, match="t-max"):
+        run_episode(spec(t_max=0))
+    with pytest.raises(ConfigError, match="unknown method"):
+        run_episode(spec(method="telepathy"))
+    with pytest.raises(ConfigError, match="unknown method"):
+        resolve_methods(["all", "nope"])
+    with pytest.raises(ConfigError, match="too few candidate"):
+        sample_instance(simple, 0, n_goals=500)
+    with pytest.raises(ConfigError, match="preset"):
+        run_episode(spec(preset="fast"))
+    with pytest.raises(MapError, match="obstacle"):
+        fixed_instance(simple, (1, 1), [(5, 5)], 0)
+
+
+def test_unreachable_goal_candidate():
+    from pathpref.geometry.world import load_world
+
+    w = load_world({"name": "split", "width": 5, "height": 3, "obstacles": [
+        {"cells": {"lower_left": [3, 1], "size": [1, 3]}}],
+        "preference": {"route": [[1, 1], [1, 3]]}})
+    with pytest.raises(MapError, match="cannot be reached"):
+        fixed_instance(w, (1, 1), [(5, 1)], 0)
+    inst = sample_instance(w, 0, n_goals=3)  # only from the start's side
+    d = w.all_distances[inst.start, list(inst.goals)]
+    assert np.isfinite(d).all()
+
+
+def test_fixed_instance_in_spec():
+    fixed = json.dumps({"start": [1, 1], "goals": [[x, 8] for x in range(1, 11)],
+                        "true_goal": 0, "free_goal_polytope": True})
+    r = run_episode(replace(spec(), fixed=fixed))
+    assert r.instance_cells["start"] == [1, 1]

@@ -1,0 +1,101 @@
+"""Results store and sweeps: resume, no duplicates, kill-and-resume, refusing foreign files."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+
+import pytest
+
+from pathpref.errors import ConfigError
+from pathpref.experiments.store import ResultStore
+from pathpref.experiments.sweep import run_sweep, sweep_specs
+
+
+def small_specs(**kw):
+    d = dict(map_name="simple", methods=["compliant", "path_preference"], delta_ts=[1, 10],
+             instances=2, runs=2, queries=200)
+    d.update(kw)
+    return sweep_specs(**d)
+
+
+def test_sweep_resumes(tmp_path):
+    db = tmp_path / "r.sqlite"
+    specs = small_specs()
+    first = run_sweep(specs[:5], str(db), workers=1, progress=False)
+    assert first["ran"] == 5
+    again = run_sweep(specs, str(db), workers=2, progress=False)
+    assert again["skipped"] == 5 and again["ran"] == len(specs) - 5
+    with ResultStore(db) as st:
+        rows = st.episodes()
+        assert len(rows) == len(specs) == len({r["key"] for r in rows})
+        assert all(st.steps(r["key"]) for r in rows)
+
+
+def test_backends_identical_rows(tmp_path):
+    """In-process and pool runs write the same results (seeds are per episode)."""
+    specs = small_specs(instances=1)
+    a, b = tmp_path / "a.sqlite", tmp_path / "b.sqlite"
+    run_sweep(specs, str(a), workers=1, progress=False)
+    run_sweep(specs, str(b), workers=2, progress=False)
+    cols = "key, success, goal_reached, violations, steps, start, goals"
+    with ResultStore(a) as sa, ResultStore(b) as sb:
+        ra = sa.conn.execute(f"SELECT {cols} FROM episodes ORDER BY key").fetchall()
+        rb = sb.conn.execute(f"SELECT {cols} FROM episodes ORDER BY key").fetchall()
+    assert ra == rb
+
+
+def test_refuses_foreign_and_incompatible_files(tmp_path):
+    text = tmp_path / "notes.sqlite"
+    text.write_text("my notes")
+    with pytest.raises(ConfigError, match="not SQLite"):
+        ResultStore(text)
+    assert text.read_text() == "my notes"
+    other = tmp_path / "other.sqlite"
+    with sqlite3.connect(other) as c:
+        c.execute("CREATE TABLE t (x)")
+    with pytest.raises(ConfigError, match="not written by pathpref"):
+        ResultStore(other)
+    old = tmp_path / "old.sqlite"
+    ResultStore(old).close()
+    with sqlite3.connect(old) as c:
+        c.execute("UPDATE meta SET value = '0' WHERE key = 'schema_version'")
+    before = old.read_bytes()
+    with pytest.raises(ConfigError, match="incompatible"):
+        ResultStore(old)
+    assert old.read_bytes() == before
+
+
+def test_kill_and_resume(tmp_path):
+    """SIGKILL the coordinator mid-sweep, start again: exactly one row per episode."""
+    db = tmp_path / "k.sqlite"
+    cmd = [sys.executable, "-m", "pathpref.cli", "evaluate", "--map", "simple", "--methods",
+           "compliant", "goal_only", "--delta-t", "1", "5", "--instances", "3", "--runs", "3",
+           "--queries", "300", "--db", str(db), "--workers", "2", "--no-progress"]
+    total = 2 * 2 * 3 * 3
+    for _ in range(2):
+        p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                             start_new_session=True)
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            time.sleep(0.2)
+            if db.exists():
+                try:
+                    with sqlite3.connect(db) as c:
+                        n = c.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+                except sqlite3.Error:
+                    continue
+                if n >= 3:
+                    break
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait()
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    with sqlite3.connect(db) as c:
+        keys = [r[0] for r in c.execute("SELECT key FROM episodes")]
+        assert c.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+    assert len(keys) == len(set(keys)) == total
