@@ -86,6 +86,7 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
         "t_max": args.t_max if args.t_max is not None else default_t_max(map_name),
         "normalize": args.likelihood == "normalized",
         "coupling": args.coupling,
+        "ucb_c": args.ucb_c,
     }
 
 
@@ -216,7 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--t-max", type=int, default=None, help="mission time (30; 60 classroom)")
         sp.add_argument("--likelihood", choices=["normalized", "unnormalized"],
                         default="normalized", help="robot's likelihood (authors: unnormalized)")
-        sp.add_argument("--coupling", action="store_true", help="back-edge belief coupling")
+        sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=True,
+                        help="back-edge belief coupling (default on, as in the authors' code)")
+        sp.add_argument("--ucb-c", type=float, default=1.0, help="POMCP UCB constant (1)")
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
         sp.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -285,6 +288,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("pathpref: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `pathpref report db | head`
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

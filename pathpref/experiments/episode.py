@@ -29,6 +29,11 @@ from .instances import Instance, fixed_instance, sample_instance
 class EpisodeSpec:
     """Everything that determines an episode. ``key()`` identifies it in the results store.
 
+    ``coupling`` (on by default for experiments, as in the authors' code) applies the paper's
+    back-edge remark to the robot's belief at every real polytope change; without it the
+    paper's reward can be farmed by crossing a confidently preferred edge back and forth
+    (see README, "Reproducing Table I").
+
     ``fixed`` optionally pins the instance: ``{"start": [x, y], "goals": [[x, y], ...],
     "true_goal": k, "free_goal_polytope": bool}``; otherwise it is drawn from
     ``instance_seed``. ``run_seed`` drives the human and the planner.
@@ -46,10 +51,11 @@ class EpisodeSpec:
     t_max: int = 30
     n_goals: int = 10
     normalize: bool = True
-    coupling: bool = False
+    coupling: bool = True
     sim: str = "grid"
     fixed: str = ""  # JSON of the pinned instance, "" for a sampled one
     task: str = "navigate"
+    ucb_c: float = 1.0
 
     def key(self) -> str:
         d = asdict(self)
@@ -62,6 +68,8 @@ class EpisodeSpec:
             raise ConfigError(f"--t-max must be at least 1, got {self.t_max}")
         if self.queries < 1:
             raise ConfigError(f"--queries must be at least 1, got {self.queries}")
+        if not self.ucb_c > 0:
+            raise ConfigError(f"--ucb-c must be positive, got {self.ucb_c}")
         get_preset(self.preset)
 
 
@@ -141,7 +149,8 @@ def run_episode(spec: EpisodeSpec, world: World | None = None) -> EpisodeResult:
     pref = human_preference(world, inst, free_goal)
     human_seq, policy_seq = np.random.SeedSequence(spec.run_seed).spawn(2)
     human_rng = np.random.default_rng(human_seq)
-    ctx = PolicyContext(world=world, model=model, preset=get_preset(spec.preset),
+    preset = get_preset(spec.preset, ucb_c=spec.ucb_c)
+    ctx = PolicyContext(world=world, model=model, preset=preset,
                         t_max=spec.t_max, queries=spec.queries,
                         rng=np.random.default_rng(policy_seq), coupling=spec.coupling)
     policy = make_policy(spec.method, ctx)

@@ -42,20 +42,30 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return (max(0.0, centre - half), min(1.0, centre + half))
 
 
+def variant(r: dict[str, Any]) -> str:
+    """The settings that make two sweeps of the same map not comparable cell by cell."""
+    parts = [f"preset {r['preset']}", f"{r['queries']} queries", f"c={r['ucb_c']:g}",
+             f"T_max={r['t_max']}"]
+    if not r["normalize"]:
+        parts.append("un-normalised likelihood")
+    parts.append("coupling" if r["coupling"] else "no coupling")
+    return ", ".join(parts)
+
+
 def success_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One record per (map, sim, preset, method, delta_t) with n, rate, CI and flag rates."""
+    """One record per (map, sim, variant, method, delta_t) with n, rate, CI and flag rates."""
     groups: dict[tuple, list[dict]] = defaultdict(list)
     for r in rows:
-        groups[(r["map"], r["sim"], r["preset"], r["method"], r["delta_t"])].append(r)
+        groups[(r["map"], r["sim"], variant(r), r["method"], r["delta_t"])].append(r)
     out = []
-    for (m, sim, preset, method, dt), rs in sorted(groups.items(), key=lambda kv: (
+    for (m, sim, var, method, dt), rs in sorted(groups.items(), key=lambda kv: (
             kv[0][0], kv[0][1], kv[0][2], _order(kv[0][3]), kv[0][4])):
         ok = [r for r in rs if r["status"] == "ok"]
         n = len(ok)
         k = sum(r["success"] for r in ok)
         lo, hi = wilson(k, n)
         out.append({
-            "map": m, "sim": sim, "preset": preset, "method": method, "delta_t": dt,
+            "map": m, "sim": sim, "variant": var, "method": method, "delta_t": dt,
             "n": n, "failed": len(rs) - n, "success_rate": k / n if n else float("nan"),
             "ci_low": lo, "ci_high": hi,
             "goal_rate": sum(r["goal_reached"] for r in ok) / n if n else float("nan"),
@@ -70,15 +80,15 @@ def _order(method: str) -> int:
 
 
 def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> str:
-    """Markdown: one table per (map, sim, preset), methods x Delta_T, rate [95% CI]."""
+    """Markdown: one table per (map, sim, variant), methods x Delta_T, rate [95% CI]."""
     blocks = []
-    keys = sorted({(r["map"], r["sim"], r["preset"]) for r in records})
-    for m, sim, preset in keys:
-        recs = [r for r in records if (r["map"], r["sim"], r["preset"]) == (m, sim, preset)]
+    keys = sorted({(r["map"], r["sim"], r["variant"]) for r in records})
+    for m, sim, var in keys:
+        recs = [r for r in records if (r["map"], r["sim"], r["variant"]) == (m, sim, var)]
         dts = sorted({r["delta_t"] for r in recs})
         methods = sorted({r["method"] for r in recs}, key=_order)
         ns = sorted({r["n"] for r in recs})
-        title = f"**{m}** ({sim}, preset {preset}; n = {'/'.join(map(str, ns))} per cell)"
+        title = f"**{m}** ({sim}; {var}; n = {'/'.join(map(str, ns))} per cell)"
         lines = [title, "", "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
                  "|---|" + "---|" * len(dts)]
         for meth in methods:

@@ -29,7 +29,7 @@ EPISODE_COLUMNS = {
     "start": "TEXT", "goals": "TEXT", "true_goal": "INTEGER",
     "status": "TEXT", "reason": "TEXT", "goal_reached": "INTEGER", "pref_followed": "INTEGER",
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
-    "wall_s": "REAL",
+    "wall_s": "REAL", "ucb_c": "REAL",
 }
 STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
 
@@ -141,5 +141,5 @@ class ResultStore:
 def spec_json(row: dict[str, Any]) -> str:
     """The spec fields of a stored row as JSON (for replaying one episode)."""
     keys = ["map", "method", "delta_t", "instance", "run", "instance_seed", "run_seed", "preset",
-            "queries", "t_max", "n_goals", "normalize", "coupling", "sim", "fixed", "task"]
+            "queries", "t_max", "n_goals", "normalize", "coupling", "sim", "fixed", "task", "ucb_c"]
     return json.dumps({k: row[k] for k in keys})

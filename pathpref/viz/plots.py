@@ -16,10 +16,10 @@ COLORS = {"compliant": "tab:orange", "goal_only": "tab:green", "path_preference"
 
 def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
     """Success rate with 95% CI against Delta_T, one line per method, a panel per map/sim."""
-    groups = sorted({(r["map"], r["sim"], r["preset"]) for r in records})
+    groups = sorted({(r["map"], r["sim"], r["variant"]) for r in records})
     fig, axes = plt.subplots(1, len(groups), figsize=(5 * len(groups), 3.8), squeeze=False)
     for ax, g in zip(axes[0], groups, strict=True):
-        recs = [r for r in records if (r["map"], r["sim"], r["preset"]) == g]
+        recs = [r for r in records if (r["map"], r["sim"], r["variant"]) == g]
         for m in sorted({r["method"] for r in recs}):
             rs = sorted((r for r in recs if r["method"] == m), key=lambda r: r["delta_t"])
             x = [r["delta_t"] for r in rs]
@@ -30,7 +30,7 @@ def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
         ax.set_xlabel("ΔT (steps between human inputs)")
         ax.set_ylabel("success rate")
         ax.set_ylim(0, 1)
-        ax.set_title(f"{g[0]} ({g[1]}, {g[2]})")
+        ax.set_title(f"{g[0]} ({g[1]})\n{g[2]}", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
