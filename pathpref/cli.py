@@ -17,14 +17,21 @@ from pathlib import Path
 from .errors import ConfigError, PathprefError
 
 
-def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
-    """Call ``write(tmp_path)`` and move the result onto ``out``; nothing is left on failure."""
+def check_writable(out: str | Path) -> Path:
+    """Fail before any work when ``out`` cannot be written."""
     out = Path(out)
     parent = out.parent if str(out.parent) else Path(".")
     if not parent.is_dir():
         raise ConfigError(f"cannot write {out}: folder {parent} does not exist")
     if not os.access(parent, os.W_OK):
         raise ConfigError(f"cannot write {out}: folder {parent} is not writable")
+    return out
+
+
+def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
+    """Call ``write(tmp_path)`` and move the result onto ``out``; nothing is left on failure."""
+    out = check_writable(out)
+    parent = out.parent if str(out.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{out.stem}.", suffix=out.suffix)
     os.close(fd)
     try:
@@ -67,7 +74,7 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
     from .viz.mapdraw import save_map_figure
 
     world = load_world(args.map)
-    out = Path(args.out)
+    out = check_writable(args.out)
     if out.suffix.lower() not in (".png", ".pdf", ".svg"):
         raise ConfigError(f"--out {out}: use a .png, .pdf or .svg file name")
     atomic_output(out, lambda p: save_map_figure(world, p))
@@ -87,6 +94,7 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
         "normalize": args.likelihood == "normalized",
         "coupling": args.coupling,
         "ucb_c": args.ucb_c,
+        "timeout_s": args.episode_timeout,
     }
 
 
@@ -99,7 +107,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, **_common_episode_args(args, args.map))
     counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
-                       retry_failed=args.retry_failed, backend=args.backend)
+                       retry_failed=args.retry_failed, backend=args.backend,
+                       address=args.address)
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
           f"in {args.db}, {counts['seconds']} s")
     recs = [r for r in load_records(args.db) if r["map"] == Path(args.map).stem or
@@ -131,8 +140,11 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_timing(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from .experiments.episode import cached_world
     from .experiments.timing import time_map, timing_markdown
 
+    for m in args.maps:  # validate every map before any work
+        cached_world(m).require_preference()
     results = []
     with tqdm(total=args.instances * len(args.maps), unit="inst", file=sys.stderr,
               disable=args.no_progress) as bar:
@@ -152,7 +164,7 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
     from .experiments.sweep import fixed_specs, run_sweep
     from .viz.plots import belief_curves_figure
 
-    out = Path(args.out)
+    out = check_writable(args.out)
     db = args.db or str(out.with_suffix(".sqlite"))
     fixed = {"start": list(FIG4["start"]), "goals": [list(g) for g in FIG4["goals"]],
              "true_goal": FIG4["true_goal"], "free_goal_polytope": True}
@@ -192,8 +204,15 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
 
 # --- parser ---------------------------------------------------------------------------------
+class OneLineParser(argparse.ArgumentParser):
+    """Usage errors as one line (``pathpref: error: ...``) and exit status 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"pathpref: error: {message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = OneLineParser(
         prog="pathpref",
         description="Infer a person's goal and path preference from sparse nudges "
         "(Peltzer et al. 2023).",
@@ -220,6 +239,8 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=True,
                         help="back-edge belief coupling (default on, as in the authors' code)")
         sp.add_argument("--ucb-c", type=float, default=1.0, help="POMCP UCB constant (1)")
+        sp.add_argument("--episode-timeout", type=float, default=0.0,
+                        help="record an episode as failed after this many seconds (0: none)")
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
         sp.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -234,7 +255,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--goals", type=int, default=10, help="goal candidates per instance")
     ev.add_argument("--db", default="results.sqlite")
     ev.add_argument("--sim", default="grid", help="grid (default)")
-    ev.add_argument("--backend", default="local")
+    ev.add_argument("--backend", default="local", help="local (process pool) or ray")
+    ev.add_argument("--address", default=None,
+                    help="Ray cluster address (auto, ray://host:10001); default: start locally")
     ev.add_argument("--retry-failed", action="store_true", help="re-run failed episodes")
     episode_options(ev)
     ev.set_defaults(func=cmd_evaluate)

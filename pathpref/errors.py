@@ -18,3 +18,7 @@ class MapError(PathprefError):
 
 class ConfigError(PathprefError):
     """An experiment, planner or CLI parameter is out of range or inconsistent."""
+
+
+class EpisodeError(RuntimeError):
+    """An episode could not finish (timeout, non-finite belief); recorded as a failed episode."""

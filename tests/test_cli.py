@@ -53,6 +53,22 @@ def test_map_draw_builtin_and_rotated_user_file(tmp_path, capsys):
      "too few candidate"),
     (["report", "missing.sqlite"], "no results database"),
     (["evaluate", "--preset", "turbo", "--db", "x.sqlite"], "unknown preset"),
+    (["evaluate", "--runs", "abc", "--db", "x.sqlite"], "invalid int value"),
+    (["evaluate", "--runs", "0", "--db", "x.sqlite"], "at least 1"),
+    (["evaluate", "--workers", "0", "--db", "x.sqlite", "--runs", "1", "--instances", "1"],
+     "--workers"),
+    (["evaluate", "--backend", "cloud", "--db", "x.sqlite", "--runs", "1", "--instances", "1"],
+     "unknown backend"),
+    (["evaluate", "--ucb-c", "0", "--db", "x.sqlite"], "--ucb-c"),
+    (["evaluate", "--episode-timeout", "-1", "--db", "x.sqlite"], "--episode-timeout"),
+    (["evaluate", "--queries", "0", "--db", "x.sqlite"], "--queries"),
+    (["evaluate", "--map", "nomap.json", "--db", "x.sqlite"], "no map named"),
+    (["evaluate", "--db", "/nonexistent/dir/x.sqlite", "--runs", "1", "--instances", "1"],
+     "does not exist"),
+    (["map", "info"], "the following arguments are required"),
+    (["frobnicate"], "invalid choice"),
+    (["timing", "--maps", "nomap", "--instances", "1"], "no map named"),
+    (["belief-curves", "--out", "/nonexistent/f.png", "--runs", "1"], "does not exist"),
 ])
 def test_bad_input_exits_2_with_one_line(tmp_path, args, msg):
     p = subprocess.run([sys.executable, "-m", "pathpref.cli", *args], capture_output=True,
@@ -61,6 +77,56 @@ def test_bad_input_exits_2_with_one_line(tmp_path, args, msg):
     lines = [ln for ln in p.stderr.strip().splitlines() if ln]
     assert len(lines) == 1 and msg in lines[0] and "Traceback" not in p.stderr
     assert not (tmp_path / "x.sqlite").exists()
+
+
+def one_line_error(p: subprocess.CompletedProcess, msg: str) -> None:
+    assert p.returncode == 2, p.stderr
+    lines = [ln for ln in p.stderr.strip().splitlines() if ln]
+    assert len(lines) == 1 and msg in lines[0] and "Traceback" not in p.stderr
+
+
+def test_databases_from_elsewhere_are_refused_and_untouched(tmp_path):
+    notes = tmp_path / "notes.sqlite"
+    notes.write_text("not a database")
+    one_line_error(run("report", str(notes)), "not SQLite")
+    one_line_error(run("evaluate", "--db", str(notes), "--runs", "1", "--instances", "1"),
+                   "not SQLite")
+    assert notes.read_text() == "not a database"
+    import sqlite3
+
+    from pathpref.experiments.store import ResultStore
+
+    old = tmp_path / "old.sqlite"
+    ResultStore(old).close()
+    with sqlite3.connect(old) as c:
+        c.execute("UPDATE meta SET value = '99' WHERE key = 'schema_version'")
+    before = old.read_bytes()
+    one_line_error(run("evaluate", "--db", str(old), "--runs", "1", "--instances", "1"),
+                   "incompatible")
+    one_line_error(run("report", str(old)), "incompatible")
+    assert old.read_bytes() == before
+
+
+def test_map_without_preference_and_no_partial_outputs(tmp_path):
+    m = tmp_path / "nopref.json"
+    m.write_text(json.dumps({"name": "nopref", "width": 6, "height": 6, "obstacles": []}))
+    p = subprocess.run([sys.executable, "-m", "pathpref.cli", "evaluate", "--map", str(m),
+                        "--db", "r.sqlite", "--runs", "1", "--instances", "1"],
+                       capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    one_line_error(p, "has no 'preference'")
+    assert not (tmp_path / "r.sqlite").exists()
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        import os
+
+        if os.access(ro, os.W_OK):  # running as root: permissions do not bind
+            return
+        one_line_error(run("map", "draw", "simple", "--out", str(ro / "m.png")), "not writable")
+        assert list(ro.iterdir()) == []
+    finally:
+        ro.chmod(0o700)
 
 
 def test_bad_map_file_exits_2(tmp_path):

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, EpisodeError
 from ..geometry.world import World, load_world
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.policies import STAY, PolicyContext, make_policy
@@ -56,9 +56,12 @@ class EpisodeSpec:
     fixed: str = ""  # JSON of the pinned instance, "" for a sampled one
     task: str = "navigate"
     ucb_c: float = 1.0
+    #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
+    timeout_s: float = field(default=0.0, compare=False)
 
     def key(self) -> str:
         d = asdict(self)
+        d.pop("timeout_s")
         return "|".join(f"{k}={d[k]}" for k in sorted(d))
 
     def validate(self) -> None:
@@ -68,6 +71,8 @@ class EpisodeSpec:
             raise ConfigError(f"--t-max must be at least 1, got {self.t_max}")
         if self.queries < 1:
             raise ConfigError(f"--queries must be at least 1, got {self.queries}")
+        if not self.timeout_s >= 0:
+            raise ConfigError(f"--episode-timeout must be >= 0 seconds, got {self.timeout_s}")
         if not self.ucb_c > 0:
             raise ConfigError(f"--ucb-c must be positive, got {self.ucb_c}")
         get_preset(self.preset)
@@ -165,6 +170,10 @@ def run_episode(spec: EpisodeSpec, world: World | None = None) -> EpisodeResult:
 
     def log(t: int, a: int, h: int) -> None:
         p = policy.belief.goal_marginal()
+        if not np.isfinite(p).all():
+            raise EpisodeError(f"belief became non-finite at step {t}")
+        if spec.timeout_s and time.perf_counter() - t0 > spec.timeout_s:
+            raise EpisodeError(f"timeout: episode exceeded {spec.timeout_s:g} s at step {t}")
         x, y = world.cells[s]
         res.log.append(StepLog(t, int(x), int(y), a, h, float(p[inst.true_goal]),
                                float(policy.belief.goal_entropy())))

@@ -45,41 +45,53 @@ class ResultStore:
             parent = self.path.parent
             if not parent.is_dir():
                 raise ConfigError(f"cannot create {self.path}: folder {parent} does not exist")
-        self._check_existing()
+        existing = self._check_existing()  # read-only: a refused file is never modified
         try:
             self.conn = sqlite3.connect(self.path, timeout=30)
             self.conn.execute("PRAGMA journal_mode=WAL")
             self.conn.execute("PRAGMA synchronous=NORMAL")
         except sqlite3.Error as e:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
-        self._init_schema()
+        if not existing:
+            self._create_schema()
 
-    def _check_existing(self) -> None:
+    def _check_existing(self) -> bool:
+        """True for a compatible pathpref database, False for a new/empty file, else raise."""
         if not self.path.exists() or self.path.stat().st_size == 0:
-            return
+            return False
         with open(self.path, "rb") as f:
             if f.read(16) != b"SQLite format 3\x00":
                 raise ConfigError(
                     f"{self.path} is not a pathpref results database (not SQLite); "
                     "give another --db path"
                 )
-
-    def _init_schema(self) -> None:
-        c = self.conn
-        tables = {r[0] for r in c.execute("SELECT name FROM sqlite_master WHERE type='table'")}
-        if tables and "meta" not in tables:
+        try:
+            ro = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=30)
+            try:
+                tables = {r[0] for r in ro.execute(
+                    "SELECT name FROM sqlite_master WHERE type='table'")}
+                row = (ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                       if "meta" in tables else None)
+            finally:
+                ro.close()
+        except sqlite3.Error as e:
+            raise ConfigError(f"cannot read results database {self.path}: {e}") from None
+        if "meta" not in tables:
+            if not tables:
+                return False
             raise ConfigError(
                 f"{self.path} is an SQLite file not written by pathpref; give another --db path"
             )
-        if "meta" in tables:
-            row = c.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-            found = int(row[0]) if row else None
-            if found != SCHEMA_VERSION:
-                raise ConfigError(
-                    f"{self.path} was written by an incompatible pathpref (schema {found}, this "
-                    f"version reads {SCHEMA_VERSION}); use a new --db path"
-                )
-            return
+        found = int(row[0]) if row else None
+        if found != SCHEMA_VERSION:
+            raise ConfigError(
+                f"{self.path} was written by an incompatible pathpref (schema {found}, this "
+                f"version reads {SCHEMA_VERSION}); use a new --db path"
+            )
+        return True
+
+    def _create_schema(self) -> None:
+        c = self.conn
         cols = ", ".join(f"{k} {t}" for k, t in EPISODE_COLUMNS.items())
         with c:
             c.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")

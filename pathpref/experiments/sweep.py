@@ -9,19 +9,17 @@ store, as results arrive; a rerun with the same database runs only the missing e
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
 import sys
 import time
-import traceback
-from collections.abc import Iterator
 from dataclasses import replace
 
 from tqdm import tqdm
 
-from ..errors import ConfigError, PathprefError
+from ..errors import ConfigError
 from ..planning.policies import resolve_methods
-from .episode import EpisodeResult, EpisodeSpec, cached_world, episode_instance, run_episode
-from .instances import Instance, seed_for
+from .backends import BACKENDS, iter_results
+from .episode import EpisodeSpec, cached_world, episode_instance
+from .instances import seed_for
 from .store import ResultStore
 
 
@@ -59,36 +57,15 @@ def check_specs(specs: list[EpisodeSpec]) -> None:
         episode_instance(world, s)
 
 
-def safe_run(spec: EpisodeSpec) -> EpisodeResult:
-    """Run an episode; an error becomes a failed episode with its reason."""
-    try:
-        return run_episode(spec)
-    except Exception as e:  # noqa: BLE001 - recorded, the sweep goes on
-        res = EpisodeResult(spec=spec, instance=Instance(-1, (), -1), status="failed",
-                            reason=f"{type(e).__name__}: {e}")
-        if not isinstance(e, PathprefError):
-            res.reason += " | " + traceback.format_exc(limit=3).replace("\n", " ")[-500:]
-        return res
-
-
-def iter_local(specs: list[EpisodeSpec], workers: int) -> Iterator[EpisodeResult]:
-    """Results in completion order from a process pool (in-process when ``workers == 1``)."""
-    if workers <= 1:
-        for s in specs:
-            yield safe_run(s)
-        return
-    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-    with ctx.Pool(workers) as pool:
-        yield from pool.imap_unordered(safe_run, specs, chunksize=1)
-
-
 def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: bool = True,
-              retry_failed: bool = False, backend: str = "local") -> dict[str, int]:
-    """Run the episodes of ``specs`` missing from ``db``; returns counts."""
+              retry_failed: bool = False, backend: str = "local",
+              address: str | None = None) -> dict[str, int]:
+    """Run the episodes of ``specs`` missing from ``db`` (failed ones too when
+    ``retry_failed``); results are written as they arrive. Returns counts."""
     if workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
-    if backend != "local":
-        raise ConfigError(f"unknown backend '{backend}'; this version supports 'local'")
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
     check_specs(specs)
     with ResultStore(db) as store:
         done = store.done_keys(include_failed=not retry_failed)
@@ -97,7 +74,7 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
         bar = tqdm(total=len(todo), disable=not progress, unit="ep", dynamic_ncols=True,
                    desc="episodes", file=sys.stderr)
         t0 = time.perf_counter()
-        for res in iter_local(todo, workers):
+        for res in iter_results(todo, backend, workers, address):
             store.add(res)
             counts["ran"] += 1
             counts["failed"] += res.status != "ok"

@@ -81,7 +81,9 @@ class PreferenceBelief:
         self.model = model
         world = model.world
         self.neighbors = world.graph.neighbors
-        self.degree = np.array([len(nb) for nb in self.neighbors])
+        # table width per polytope: its degree, or one "no preference" slot when it has none
+        self.degree = np.maximum([len(nb) for nb in self.neighbors], 1)
+        self.has_neighbors = np.array([len(nb) > 0 for nb in self.neighbors])
         G = len(model.goals)
         p0 = np.full(G, 1.0 / G) if prior is None else np.asarray(prior, float)
         self.log_prior = np.log(p0)
@@ -172,7 +174,7 @@ class PreferenceBelief:
         pg = self.goal_marginal()
         goals = rng.choice(len(pg), size=n, p=pg)
         P = len(self.degree)
-        theta = np.where(self.degree > 0, 0, -1)[None, :].repeat(n, axis=0)
+        theta = np.where(self.has_neighbors, 0, -1)[None, :].repeat(n, axis=0)
         u = rng.random((n, P))
         for v in range(P):
             deg = self.degree[v]

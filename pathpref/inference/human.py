@@ -48,7 +48,8 @@ def neighbor_table(world: World) -> np.ndarray:
 def cost_excess(world: World, tables: CostTables) -> tuple[np.ndarray, np.ndarray]:
     """``Delta`` with preference ``(n, 8, G, K)`` and goal-only ``(n, 8, G)`` (see module doc).
 
-    Padded neighbour slots (``k >= deg``) hold ``Delta = 0``; they are never read.
+    Padded neighbour slots (``k >= deg``) hold ``Delta = 0``; they are never read, except slot 0
+    of a polytope without neighbours, which holds the goal-only excess.
     Unreachable goals get ``Delta = 0`` (uniform likelihood).
     """
     m = world.motion
@@ -88,6 +89,9 @@ def cost_excess(world: World, tables: CostTables) -> tuple[np.ndarray, np.ndarra
     deg = np.array([len(nb) for nb in world.graph.neighbors])[v_src]
     pad = np.arange(delta.shape[3])[None, :] >= deg[:, None]  # (n, K)
     delta = np.where(pad[:, None, None, :], 0.0, delta)
+    # a polytope without neighbours has one "no preference" slot: the unconstrained model
+    lone = deg == 0
+    delta[lone, :, :, 0] = delta_u[lone]
     assert delta.shape == (n, 8, len(tables.goals), nbr.shape[1])
     return delta, delta_u
 
