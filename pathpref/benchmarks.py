@@ -124,7 +124,41 @@ def machine_info() -> dict[str, Any]:
     }
 
 
+def bench_ray(n: int = 24, queries: int = 2000) -> dict[str, Any]:
+    """Episode throughput: one worker in-process vs Ray on a local 2-CPU cluster.
+
+    The same ``n`` goal-only episodes on ``simple`` both ways; Ray's start-up and a warm-up
+    batch (workers importing pathpref and loading the compiled kernel) are not timed.
+    """
+    try:
+        import ray
+    except ImportError:
+        return {"ray_speedup": None, "ray_note": "ray not installed (pip install pathpref[ray])"}
+    from .experiments.backends import iter_local, iter_ray
+    from .experiments.sweep import sweep_specs
+
+    specs = sweep_specs("simple", ["goal_only"], [5], instances=n, runs=1, seed=3,
+                        queries=queries)
+    list(iter_local(specs[:2], workers=1))  # warm this process
+    t = time.perf_counter()
+    list(iter_local(specs, workers=1))
+    t_local = time.perf_counter() - t
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        list(iter_ray(specs[:4]))  # warm the workers
+        t = time.perf_counter()
+        list(iter_ray(specs))
+        t_ray = time.perf_counter() - t
+    finally:
+        ray.shutdown()
+    return {"ray_speedup": t_local / t_ray, "ray_episodes": n,
+            "single_worker_episodes_per_s": n / t_local, "ray_episodes_per_s": n / t_ray}
+
+
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False) -> dict[str, Any]:
-    """All benchmarks as one JSON-ready dictionary."""
+    """All benchmarks as one JSON-ready dictionary (``scale`` is skipped with ``quick``)."""
     maps = maps or ["simple", "office", "classroom"]
-    return {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
+    out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
+    if not quick:
+        out["scale"] = bench_ray()
+    return out

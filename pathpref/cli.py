@@ -102,10 +102,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .experiments.report import load_records, markdown_tables
     from .experiments.sweep import run_sweep, sweep_specs
 
-    if args.sim != "grid":
-        raise ConfigError(f"--sim {args.sim}: this version runs the grid world only (--sim grid)")
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
-                        seed=args.seed, n_goals=args.goals, **_common_episode_args(args, args.map))
+                        seed=args.seed, n_goals=args.goals, sim=args.sim,
+                        **_common_episode_args(args, args.map))
     counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
                        retry_failed=args.retry_failed, backend=args.backend,
                        address=args.address)
@@ -254,7 +253,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--runs", type=int, default=50)
     ev.add_argument("--goals", type=int, default=10, help="goal candidates per instance")
     ev.add_argument("--db", default="results.sqlite")
-    ev.add_argument("--sim", default="grid", help="grid (default)")
+    ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
+                    help="grid world (default) or the MuJoCo base with force cues")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")

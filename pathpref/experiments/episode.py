@@ -1,10 +1,15 @@
-"""One grid-world episode of the paper's protocol (SPEC 9), fully determined by its spec.
+"""One episode of the paper's protocol (SPEC 9), fully determined by its spec.
 
 Step ``t = 1..T_max``: when ``(t - 1) mod Delta_T == 0`` the simulated human gives a heading at the
-robot's cell and the robot updates its belief; the policy acts; the robot moves (SPEC 3). Standing
-on a wrong candidate rules it out; reaching the true goal ends the episode. Success = goal
-reached within ``T_max`` AND every polytope transition followed the human's preference (a
-polytope where the human has no preference, ``-1``, accepts any exit).
+robot's cell and the robot updates its belief with what it observed; the policy acts; the robot
+moves. Standing on a wrong candidate rules it out; reaching the true goal ends the episode.
+Success = goal reached within ``T_max`` AND every polytope change followed the human's
+preference (a polytope where the human has no preference, ``-1``, accepts any exit).
+
+The robot's body is a *mover*: :class:`GridMover` (SPEC 3 moves, headings observed exactly) or
+the MuJoCo base of :mod:`pathpref.sim.mover` (pushes detected from a force sensor, moves
+tracked at physics rate), chosen by ``spec.sim``. Seeds: ``run_seed`` spawns three streams
+(human, policy, simulator noise), so the human's draws do not depend on the simulator.
 """
 
 from __future__ import annotations
@@ -140,72 +145,154 @@ def human_preference(world: World, inst: Instance, free_goal_polytope: bool) -> 
     return pref
 
 
-def run_episode(spec: EpisodeSpec, world: World | None = None) -> EpisodeResult:
-    """Run one episode (see module docstring) and return its flags and per-step log."""
-    t0 = time.perf_counter()
-    spec.validate()
-    if world is None:
-        world = cached_world(spec.map)
-        inst, free_goal = episode_instance(world, spec)
-        model = cached_model(spec.map, inst.goals, spec.normalize)
-    else:
-        inst, free_goal = episode_instance(world, spec)
-        model = ObservationModel.build(world, np.array(inst.goals), normalize=spec.normalize)
-    pref = human_preference(world, inst, free_goal)
-    human_seq, policy_seq = np.random.SeedSequence(spec.run_seed).spawn(2)
-    human_rng = np.random.default_rng(human_seq)
-    preset = get_preset(spec.preset, ucb_c=spec.ucb_c)
-    ctx = PolicyContext(world=world, model=model, preset=preset,
-                        t_max=spec.t_max, queries=spec.queries,
-                        rng=np.random.default_rng(policy_seq), coupling=spec.coupling)
-    policy = make_policy(spec.method, ctx)
-    human = SimulatedHuman(model, inst.true_goal, pref)
-    res = EpisodeResult(spec=spec, instance=inst, instance_cells={
-        "start": world.cells[inst.start].tolist(),
-        "goals": world.cells[list(inst.goals)].tolist(),
-    })
-    goal_index = {g: k for k, g in enumerate(inst.goals)}
-    motion, poly = world.motion, world.cell_polytope
-    s = inst.start
+class GridMover:
+    """The grid world's embodiment: headings are observed exactly, moves follow SPEC 3."""
 
-    def log(t: int, a: int, h: int) -> None:
-        p = policy.belief.goal_marginal()
+    def __init__(self, world: World, spec: EpisodeSpec, rng: np.random.Generator):
+        self.world = world
+
+    def reset(self, cell: int) -> None:
+        self.cell = cell
+
+    def human_input(self, heading: int) -> int | None:
+        """The heading the robot observes when the human gives ``heading``."""
+        return heading
+
+    def move(self, action: int) -> int:
+        """Execute ``action`` (or STAY) from the current cell; return the cell reached."""
+        if action != STAY:
+            self.cell = int(self.world.motion.next_cell[self.cell, action])
+        return self.cell
+
+
+#: simulators by name: a class, or "module:Class" imported on first use (so that this layer
+#: does not import a simulator)
+MOVERS: dict[str, Any] = {"grid": GridMover, "mujoco": "pathpref.sim.mover:MujocoMover"}
+
+
+def make_mover(spec: EpisodeSpec, world: World, rng: np.random.Generator):
+    entry = MOVERS.get(spec.sim)
+    if entry is None:
+        raise ConfigError(f"unknown simulator '{spec.sim}'; choose one of {', '.join(MOVERS)}")
+    if isinstance(entry, str):
+        import importlib
+
+        module, name = entry.split(":")
+        entry = getattr(importlib.import_module(module), name)
+    return entry(world, spec, rng)
+
+
+class EpisodeRunner:
+    """One episode, advanced one decision step at a time (see module docstring).
+
+    ``pending_heading`` is the heading the robot observed for the coming step (None when no
+    input was due or none was detected); :meth:`step` takes the policy's action unless one is
+    given (the dm_env task passes the agent's action).
+    """
+
+    def __init__(self, spec: EpisodeSpec, world: World | None = None, mover=None):
+        self.t0 = time.perf_counter()
+        spec.validate()
+        self.spec = spec
+        if world is None:
+            world = cached_world(spec.map)
+            inst, free_goal = episode_instance(world, spec)
+            model = cached_model(spec.map, inst.goals, spec.normalize)
+        else:
+            inst, free_goal = episode_instance(world, spec)
+            model = ObservationModel.build(world, np.array(inst.goals), normalize=spec.normalize)
+        self.world, self.instance, self.model = world, inst, model
+        self.pref = human_preference(world, inst, free_goal)
+        human_seq, policy_seq, sim_seq = np.random.SeedSequence(spec.run_seed).spawn(3)
+        self.human_rng = np.random.default_rng(human_seq)
+        preset = get_preset(spec.preset, ucb_c=spec.ucb_c)
+        ctx = PolicyContext(world=world, model=model, preset=preset, t_max=spec.t_max,
+                            queries=spec.queries, rng=np.random.default_rng(policy_seq),
+                            coupling=spec.coupling)
+        self.policy = make_policy(spec.method, ctx)
+        self.human = SimulatedHuman(model, inst.true_goal, self.pref)
+        self.mover = mover if mover is not None else make_mover(
+            spec, world, np.random.default_rng(sim_seq))
+        self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
+            "start": world.cells[inst.start].tolist(),
+            "goals": world.cells[list(inst.goals)].tolist(),
+        })
+        self.goal_index = {g: k for k, g in enumerate(inst.goals)}
+        self.cell = inst.start
+        self.t = 0
+        self.given_heading: int | None = None  # what the human intended this step
+        self.pending_heading: int | None = None
+        self.mover.reset(self.cell)
+        self._log(STAY, -1)
+        self._human_phase()
+
+    @property
+    def done(self) -> bool:
+        return self.result.goal_reached or self.t >= self.spec.t_max
+
+    def _log(self, action: int, heading: int) -> None:
+        p = self.policy.belief.goal_marginal()
         if not np.isfinite(p).all():
-            raise EpisodeError(f"belief became non-finite at step {t}")
-        if spec.timeout_s and time.perf_counter() - t0 > spec.timeout_s:
-            raise EpisodeError(f"timeout: episode exceeded {spec.timeout_s:g} s at step {t}")
-        x, y = world.cells[s]
-        res.log.append(StepLog(t, int(x), int(y), a, h, float(p[inst.true_goal]),
-                               float(policy.belief.goal_entropy())))
+            raise EpisodeError(f"belief became non-finite at step {self.t}")
+        if self.spec.timeout_s and time.perf_counter() - self.t0 > self.spec.timeout_s:
+            raise EpisodeError(
+                f"timeout: episode exceeded {self.spec.timeout_s:g} s at step {self.t}")
+        x, y = self.world.cells[self.cell]
+        self.result.log.append(StepLog(self.t, int(x), int(y), action, heading,
+                                       float(p[self.instance.true_goal]),
+                                       float(self.policy.belief.goal_entropy())))
 
-    log(0, STAY, -1)
-    for t in range(1, spec.t_max + 1):
-        heading = None
-        if (t - 1) % spec.delta_t == 0:
-            heading = human.sample(s, human_rng)
-            policy.observe(s, heading)
-            res.inputs += 1
-        a = int(policy.act(t, s, heading))
-        if a != STAY:
-            s2 = int(motion.next_cell[s, a])
-            if motion.crossed_edge[s, a] >= 0:
-                v, w = int(poly[s]), int(poly[s2])
-                if pref[v] >= 0 and pref[v] != w:
-                    res.violations += 1
-                policy.enter(v, w)
-            s = s2
-        res.steps = t
-        k = goal_index.get(s)
+    def _human_phase(self) -> None:
+        """Before step t+1: the human gives an input when one is due; the robot updates."""
+        self.given_heading = self.pending_heading = None
+        if self.done or self.t % self.spec.delta_t != 0:
+            return
+        self.given_heading = self.human.sample(self.cell, self.human_rng)
+        self.result.inputs += 1
+        observed = self.mover.human_input(self.given_heading)
+        if observed is not None:
+            self.policy.observe(self.cell, observed)
+        self.pending_heading = observed
+
+    def step(self, action: int | None = None) -> StepLog:
+        """Advance one decision step; returns its log entry."""
+        if self.done:
+            raise EpisodeError("the episode is over; start a new one")
+        t = self.t + 1
+        heading = self.pending_heading
+        if action is None:
+            action = int(self.policy.act(t, self.cell, heading))
+        elif action != STAY and not 0 <= int(action) < 8:
+            raise ConfigError(f"action must be 0..7 (N, NE, ..., NW), got {action!r}")
+        action = int(action)
+        before = self.cell
+        self.cell = int(self.mover.move(action))
+        v, w = int(self.world.cell_polytope[before]), int(self.world.cell_polytope[self.cell])
+        if v != w:
+            if self.pref[v] >= 0 and self.pref[v] != w:
+                self.result.violations += 1
+            if self.world.graph.edge_id[v, w] >= 0:
+                self.policy.enter(v, w)
+        self.t = t
+        self.result.steps = t
+        k = self.goal_index.get(self.cell)
         if k is not None:
-            if k == inst.true_goal:
-                res.goal_reached = True
+            if k == self.instance.true_goal:
+                self.result.goal_reached = True
             else:
-                policy.rule_out(k)
-        log(t, a, -1 if heading is None else heading)
-        if res.goal_reached:
-            break
-    res.wall_s = time.perf_counter() - t0
-    return res
+                self.policy.rule_out(k)
+        self._log(action, -1 if heading is None else heading)
+        self._human_phase()
+        self.result.wall_s = time.perf_counter() - self.t0
+        return self.result.log[-1]
+
+
+def run_episode(spec: EpisodeSpec, world: World | None = None) -> EpisodeResult:
+    """Run one episode to the end (see module docstring) and return its flags and log."""
+    runner = EpisodeRunner(spec, world)
+    while not runner.done:
+        runner.step()
+    return runner.result
 
 
 def result_row(res: EpisodeResult) -> dict[str, Any]:

@@ -18,7 +18,7 @@ from tqdm import tqdm
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
 from .backends import BACKENDS, iter_results
-from .episode import EpisodeSpec, cached_world, episode_instance
+from .episode import MOVERS, EpisodeSpec, cached_world, episode_instance
 from .instances import seed_for
 from .store import ResultStore
 
@@ -41,6 +41,8 @@ def sweep_specs(map_name: str, methods: list[str], delta_ts: list[int], instance
                                     **common)
                     s.validate()
                     specs.append(s)
+    if specs and specs[0].sim not in MOVERS:
+        raise ConfigError(f"unknown simulator '{specs[0].sim}'; choose one of {', '.join(MOVERS)}")
     return specs
 
 

@@ -1,0 +1,69 @@
+"""The simulated human's push (after Bajcsy et al., CoRL 2017), applied through ``xfrc_applied``.
+
+When an input is due, the human draws a heading from the Boltzmann model (SPEC 4), adds angle
+noise ``N(0, sigma)``, and pushes the handle horizontally with a half-sine force
+``F(t) = F_peak sin(pi t / T)`` for ``0 <= t <= T`` (defaults: 30 N, 0.3 s, sigma 10 degrees).
+``xfrc_applied`` is not cleared by MuJoCo, so :meth:`HumanPush.apply` writes it every substep.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..geometry.grid import ACTION_ANGLES
+
+
+@dataclass(frozen=True)
+class PushProfile:
+    """Shape of a push: peak force (N), duration (s) and heading noise (degrees, 1 sigma)."""
+
+    peak_n: float = 30.0
+    duration_s: float = 0.3
+    noise_deg: float = 10.0
+
+    def __post_init__(self):
+        for name in ("peak_n", "duration_s", "noise_deg"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0 or (name != "noise_deg" and v == 0):
+                raise ConfigError(f"push {name} must be a positive finite number, got {v}")
+
+    def magnitude(self, t: float) -> float:
+        """Half-sine force magnitude at time ``t`` since the push began."""
+        if t < 0 or t > self.duration_s:
+            return 0.0
+        return float(self.peak_n * np.sin(np.pi * t / self.duration_s))
+
+
+@dataclass
+class HumanPush:
+    """One push along ``angle`` (radians, world frame) that starts at simulation time ``t0``."""
+
+    angle: float
+    t0: float
+    profile: PushProfile
+    intended_heading: int
+
+    @classmethod
+    def sample(cls, heading: int, t0: float, profile: PushProfile,
+               rng: np.random.Generator) -> HumanPush:
+        noise = np.deg2rad(profile.noise_deg) * rng.standard_normal()
+        return cls(float(ACTION_ANGLES[heading] + noise), t0, profile, heading)
+
+    def force(self, t: float) -> np.ndarray:
+        """World-frame force (3,) at simulation time ``t``."""
+        f = self.profile.magnitude(t - self.t0)
+        return np.array([f * np.cos(self.angle), f * np.sin(self.angle), 0.0])
+
+    def active(self, t: float) -> bool:
+        return self.t0 <= t <= self.t0 + self.profile.duration_s
+
+    def apply(self, data, body_id: int) -> None:
+        """Write this substep's force on ``body_id`` (and clear the rest of its wrench)."""
+        f = self.force(float(data.time))
+        if not np.isfinite(f).all():
+            raise ConfigError("push force is not finite; check the push parameters")
+        data.xfrc_applied[body_id, :] = 0.0
+        data.xfrc_applied[body_id, :3] = f

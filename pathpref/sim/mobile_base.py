@@ -1,0 +1,107 @@
+"""The physical robot: a planar base in a MuJoCo scene, driven cell to cell, pushed by a human.
+
+Two operations make up a decision step:
+
+* :meth:`MobileBase.receive_push`: the base holds its cell while the simulated human pushes the
+  handle; the robot's :class:`~pathpref.sim.cue_detector.CueDetector`, fed only by the handle
+  force sensor, returns the detected cue (or None when nothing was detected);
+* :meth:`MobileBase.move_to`: the tracking controller drives to a cell centre at physics rate
+  until the base settles or the time limit passes; collisions are MuJoCo contacts.
+
+Hooks (``on_substep``) see every physics step, e.g. a renderer or a logger.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import mujoco
+import numpy as np
+
+from ..errors import EpisodeError
+from .controller import TrackingController
+from .cue_detector import Cue, CueDetector
+from .force_cue import HumanPush, PushProfile
+from .scene import Scene
+from .sensing import HandleSensor
+
+RELEASE_WINDOW_S = 0.4  # how long after a push ends the detector may still release
+
+
+class MobileBase:
+    def __init__(self, scene: Scene, controller: TrackingController | None = None,
+                 profile: PushProfile | None = None, data: mujoco.MjData | None = None):
+        self.scene = scene
+        self.model = scene.model
+        self.data = data if data is not None else mujoco.MjData(self.model)
+        self.controller = controller or TrackingController()
+        self.profile = profile or PushProfile()
+        self.sensor = HandleSensor(self.model)
+        self.handle = int(self.model.body("handle").id)
+        self.dt = float(self.model.opt.timestep)
+        self.detector = CueDetector(self.dt)
+        self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
+        self.target = np.zeros(2)
+        self.push: HumanPush | None = None
+        self.false_cues = 0  # cues detected while driving, with no push given
+
+    # --- state ---------------------------------------------------------------------------
+    def reset(self, cell: int) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:2] = self.scene.cell_centre(cell)
+        self.target = self.scene.cell_centre(cell)
+        mujoco.mj_forward(self.model, self.data)
+        self.detector.reset()
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.data.qpos[:2].copy()
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.data.qvel[:2].copy()
+
+    @property
+    def cell(self) -> int:
+        return self.scene.cell_at(self.position)
+
+    # --- stepping ------------------------------------------------------------------------
+    def substep(self, push: HumanPush | None = None) -> Cue | None:
+        """One physics step: controller, optional push, sensing and detection."""
+        d = self.data
+        d.ctrl[:3] = self.controller.command(d.qpos[:2], d.qpos[2], self.target)
+        if push is not None and push.active(float(d.time)):
+            push.apply(d, self.handle)
+        else:
+            d.xfrc_applied[self.handle, :] = 0.0
+        mujoco.mj_step(self.model, d)
+        if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
+            raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
+        cue = self.detector.update(self.sensor.force_xy(d))
+        for hook in self.on_substep:
+            hook(self, push)
+        return cue
+
+    def receive_push(self, push: HumanPush) -> Cue | None:
+        """Hold the current cell while ``push`` acts; return the detected cue or None."""
+        self.target = self.scene.cell_centre(self.cell)
+        push.t0 = float(self.data.time)
+        self.push = push
+        end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
+        cue = None
+        while self.data.time < end and cue is None:
+            cue = self.substep(push)
+        self.push = None
+        self.detector.reset()
+        return cue
+
+    def move_to(self, cell: int) -> int:
+        """Drive to the centre of ``cell``; return the cell the base ends in."""
+        self.target = self.scene.cell_centre(cell)
+        t_end = self.data.time + self.controller.time_limit_s
+        while self.data.time < t_end:
+            if self.substep() is not None:
+                self.false_cues += 1
+            if self.controller.settled(self.data.qpos[:2], self.data.qvel[:2], self.target):
+                break
+        return self.cell

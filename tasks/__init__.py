@@ -1,0 +1,32 @@
+"""dm_control tasks of pathpref, installed as the package ``pathpref_tasks``.
+
+    from pathpref_tasks import load
+    env = load("navigate", map="simple", method="path_preference", delta_t=5, seed=0)
+    ts = env.reset()
+    while not ts.last():
+        ts = env.step(env.task.policy_action())   # or any agent's action in 0..7
+
+Tasks: ``navigate`` (the planar base, human force cues through its handle).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from pathpref.errors import ConfigError  # noqa: E402
+
+from . import navigate  # noqa: E402
+
+TASKS = {"navigate": navigate.load}
+
+
+def load(name: str, **kwargs):
+    """Build a dm_env environment by task name (see module docstring for the arguments)."""
+    if name not in TASKS:
+        raise ConfigError(f"unknown task '{name}'; choose one of {', '.join(TASKS)}")
+    return TASKS[name](**kwargs)
+
+
+__all__ = ["TASKS", "load"]

@@ -1,0 +1,165 @@
+"""``navigate``: reach an unknown goal by the human's preferred path, with force cues.
+
+A dm_env environment (dm_control's ``control.Environment``). One environment step is one
+decision step of the paper: the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a
+move to a neighbouring cell that the base's controller tracks at physics rate; then, when an input is due,
+the simulated human pushes the handle and the robot's detector and belief process it.
+
+Observations: the base's position (m), its cell, the heading the robot detected for the coming
+step (one-hot over 8 headings, all zero when none), the goal belief, the candidates' cells,
+the current polytope and the joint entropy ``H(g, p_v)``.
+
+Reward (paper, SPEC 6, with the human's true preference): ``-c(move)`` plus ``R_p`` or ``R_n`` on
+a polytope change plus ``R_g`` on reaching the goal. The episode ends at the goal (discount 0)
+or after ``T_max`` decisions (discount 1, a time limit). Seeds: the ``k``-th episode after
+``load(seed=s)`` draws its instance from ``seed_for(s, k)`` and its run from
+``seed_for(s, k, 0)``, so a task is reproducible episode by episode.
+
+``env.task.policy_action()`` is the loaded method's own choice (its planner and belief), which
+makes the environment runnable end to end without an external agent.
+"""
+
+from __future__ import annotations
+
+import collections
+
+import numpy as np
+from dm_control import mujoco as dm_mujoco
+from dm_control.mujoco.wrapper import core
+from dm_control.rl import control
+from dm_control.suite import base
+from dm_env import specs
+
+from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, cached_world
+from pathpref.experiments.instances import seed_for
+from pathpref.geometry.grid import MOVE_COST
+from pathpref.planning.policies import STAY
+from pathpref.planning.pomdp import default_t_max, get_preset
+from pathpref.sim.mover import MujocoMover, scene_for
+
+
+#: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
+STAY_ACTION = 8
+
+
+class Physics(dm_mujoco.Physics):
+    """Named accessors for the navigation scene."""
+
+    def base_position(self) -> np.ndarray:
+        return self.data.qpos[:2].copy()
+
+    def base_velocity(self) -> np.ndarray:
+        return self.data.qvel[:2].copy()
+
+
+class Navigate(base.Task):
+    def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
+                 seed: int = 0, preset: str = "paper", queries: int = 5000,
+                 t_max: int | None = None, coupling: bool = True, n_goals: int = 10):
+        super().__init__(random=seed)
+        self.world = cached_world(map)
+        self.seed = seed
+        self.template = EpisodeSpec(
+            map=map, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
+            run_seed=0, preset=preset, queries=queries,
+            t_max=t_max or default_t_max(self.world.name), n_goals=n_goals, coupling=coupling,
+            sim="mujoco")
+        self.template.validate()
+        self.rewards = get_preset(preset).path_preference
+        self.episode = -1
+        self.runner: EpisodeRunner | None = None
+        self._reward = 0.0
+
+    # --- episode -------------------------------------------------------------------------
+    def initialize_episode(self, physics: Physics) -> None:
+        from dataclasses import replace
+
+        self.episode += 1
+        spec = replace(self.template, instance=self.episode,
+                       instance_seed=seed_for(self.seed, self.episode),
+                       run_seed=seed_for(self.seed, self.episode, 0))
+        rng = np.random.default_rng(np.random.SeedSequence(spec.run_seed).spawn(3)[2])
+        mover = MujocoMover(self.world, spec, rng, scene=scene_for(self.world),
+                            data=physics.data.ptr)
+        self.runner = EpisodeRunner(spec, self.world, mover)
+        self._reward = 0.0
+
+    def before_step(self, action, physics: Physics) -> None:
+        r = self.runner
+        a = int(np.asarray(action).item())
+        if a == STAY_ACTION:
+            a = STAY
+        before = r.cell
+        r.step(a)
+        self._reward = self._step_reward(before, r.cell, a)
+
+    def _step_reward(self, before: int, after: int, a: int) -> float:
+        w = self.world
+        if a == STAY:
+            rew = 0.0
+        else:
+            rew = -(1.0 if w.motion.blocked[before, a] else float(MOVE_COST[a]))
+        v, u = int(w.cell_polytope[before]), int(w.cell_polytope[after])
+        if v != u:
+            goal_in_v = w.cell_polytope[self.runner.instance.goal_cell] == v
+            pref = self.runner.pref[v]
+            ok = (not goal_in_v) and pref == u
+            rew += self.rewards.preferred if ok else self.rewards.non_preferred
+        if self.runner.result.goal_reached:
+            rew += self.rewards.goal
+        return rew
+
+    # --- dm_env interface ----------------------------------------------------------------
+    def action_spec(self, physics: Physics) -> specs.BoundedArray:
+        return specs.BoundedArray(shape=(), dtype=np.int32, minimum=0, maximum=STAY_ACTION,
+                                  name="move")
+
+    def observation_spec(self, physics: Physics) -> collections.OrderedDict:
+        G = self.template.n_goals
+        shapes = {"position": (2,), "cell": (2,), "heading": (8,), "goal_belief": (G,),
+                  "goal_cells": (G, 2), "polytope": (1,), "entropy": (1,)}
+        return collections.OrderedDict(
+            (k, specs.Array(shape=v, dtype=np.float64, name=k)) for k, v in shapes.items())
+
+    def get_observation(self, physics: Physics) -> collections.OrderedDict:
+        r = self.runner
+        heading = np.zeros(8)
+        if r.pending_heading is not None:
+            heading[r.pending_heading] = 1.0
+        v = int(self.world.cell_polytope[r.cell])
+        obs = collections.OrderedDict()
+        obs["position"] = physics.base_position()
+        obs["cell"] = self.world.cells[r.cell].astype(np.float64)
+        obs["heading"] = heading
+        obs["goal_belief"] = r.policy.belief.goal_marginal().astype(np.float64)
+        obs["goal_cells"] = self.world.cells[list(r.instance.goals)].astype(np.float64)
+        obs["polytope"] = np.array([v], dtype=np.float64)
+        ent = (r.policy.belief.joint_entropy(v) if hasattr(r.policy.belief, "joint_entropy")
+               else r.policy.belief.goal_entropy())
+        obs["entropy"] = np.array([ent])
+        return obs
+
+    def get_reward(self, physics: Physics) -> float:
+        return float(self._reward)
+
+    def get_termination(self, physics: Physics):
+        if self.runner.result.goal_reached:
+            return 0.0
+        if self.runner.t >= self.runner.spec.t_max:
+            return 1.0
+        return None
+
+    def policy_action(self) -> int:
+        """The loaded method's action for the coming step (its planner on its belief)."""
+        r = self.runner
+        a = int(r.policy.act(r.t + 1, r.cell, r.pending_heading))
+        return STAY_ACTION if a == STAY else a
+
+
+def load(map: str = "simple", method: str = "path_preference", delta_t: int = 5, seed: int = 0,
+         **kwargs) -> control.Environment:
+    """The ``navigate`` environment (see module docstring)."""
+    task = Navigate(map=map, method=method, delta_t=delta_t, seed=seed, **kwargs)
+    # dm_control wraps a compiled mujoco.MjModel; the wrapper copies nothing
+    physics = Physics.from_model(core.MjModel(scene_for(task.world).model))
+    return control.Environment(physics, task, n_sub_steps=1)
