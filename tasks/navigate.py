@@ -1,9 +1,10 @@
 """``navigate``: reach an unknown goal by the human's preferred path, with force cues.
 
 A dm_env environment (dm_control's ``control.Environment``). One environment step is one
-decision step of the paper: the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a
-move to a neighbouring cell that the base's controller tracks at physics rate; then, when an input is due,
-the simulated human pushes the handle and the robot's detector and belief process it.
+decision step of the paper: the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay)
+is a move to a neighbouring cell that the base's controller tracks at physics rate; then, when an
+input is due, the simulated human pushes the handle and the robot's detector and belief process
+it.
 
 Observations: the base's position (m), its cell, the heading the robot detected for the coming
 step (one-hot over 8 headings, all zero when none), the goal belief, the candidates' cells,
@@ -36,7 +37,6 @@ from pathpref.geometry.grid import MOVE_COST
 from pathpref.planning.policies import STAY
 from pathpref.planning.pomdp import default_t_max, get_preset
 from pathpref.sim.mover import MujocoMover, scene_for
-
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8

@@ -10,9 +10,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from dm_env import test_utils  # noqa: E402
+from pathpref_tasks import load  # noqa: E402
 
 from pathpref.errors import ConfigError  # noqa: E402
-from pathpref_tasks import load  # noqa: E402
 
 
 class NavigateConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
