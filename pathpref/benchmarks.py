@@ -155,10 +155,15 @@ def bench_ray(n: int = 24, queries: int = 2000) -> dict[str, Any]:
             "single_worker_episodes_per_s": n / t_local, "ray_episodes_per_s": n / t_ray}
 
 
-def run_benchmarks(maps: list[str] | None = None, quick: bool = False) -> dict[str, Any]:
+def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
+                   physics: bool = True) -> dict[str, Any]:
     """All benchmarks as one JSON-ready dictionary (``scale`` is skipped with ``quick``)."""
     maps = maps or ["simple", "office", "classroom"]
     out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
+    if physics:
+        from .sim.bench import bench_physics
+
+        out["physics"] = bench_physics(quick=quick)
     if not quick:
         out["scale"] = bench_ray()
     return out

@@ -183,11 +183,58 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_render(args: argparse.Namespace) -> int:
+    from .experiments.episode import EpisodeSpec
+    from .experiments.instances import seed_for
+    from .sim.rollout import record_rollout
+
+    if args.task != "navigate":
+        raise ConfigError(f"--task {args.task}: available tasks: navigate")
+    out = check_writable(args.out) if args.out else None
+    if out is not None and out.suffix.lower() != ".mp4":
+        raise ConfigError(f"--out {out}: videos are written as .mp4")
+    if args.rerun:
+        check_writable(args.rerun)
+    if out is None and not args.rerun:
+        raise ConfigError("give --out video.mp4 and/or --rerun recording.rrd")
+    common = _common_episode_args(args, args.map)
+    spec = EpisodeSpec(map=args.map, method=args.method, delta_t=args.delta_t, instance=0,
+                       run=0, instance_seed=seed_for(args.seed, 0),
+                       run_seed=seed_for(args.seed, 0, 0), sim="mujoco", **common)
+    tmp = out.with_name(f".{out.stem}.partial.mp4") if out else None
+    try:
+        rec = record_rollout(spec, video=tmp, rerun=args.rerun, width=args.width,
+                             height=args.height)
+        if tmp is not None:
+            os.replace(tmp, out)
+    finally:
+        if tmp is not None and tmp.exists():
+            tmp.unlink()
+    r = rec.result
+    print(f"{args.method} on {args.map}: goal reached {r.goal_reached}, preference followed "
+          f"{r.pref_followed}, {r.steps} steps, {r.inputs} pushes; {rec.frames} frames")
+    for path in (out, args.rerun):
+        if path:
+            print(f"wrote {path}")
+    return 0
+
+
+def cmd_interact(args: argparse.Namespace) -> int:
+    os.environ.setdefault("MUJOCO_GL", "glfw")  # the viewer needs a windowing backend
+    from .sim.interact import InteractiveSession, run_viewer
+
+    session = InteractiveSession(map=args.map, method=args.method, seed=args.seed,
+                                 queries=args.queries)
+    print("Double-click the orange handle, then Ctrl + right-drag to push the robot.")
+    run_viewer(session)
+    return 0
+
+
 # --- bench / demo ---------------------------------------------------------------------------
 def cmd_bench(args: argparse.Namespace) -> int:
     from .benchmarks import run_benchmarks
 
-    result = run_benchmarks(maps=args.maps, quick=args.quick)
+    result = run_benchmarks(maps=args.maps, quick=args.quick, physics=not args.no_physics)
     if args.json:
         print(json.dumps(result))
     else:
@@ -198,7 +245,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
 def cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
-    run_demo(out=Path(args.out), seed=args.seed)
+    out = Path(args.out)
+    check_writable(out / "summary.csv" if out.is_dir() else out)
+    run_demo(out=out, seed=args.seed, sim=args.sim)
     return 0
 
 
@@ -287,15 +336,36 @@ def build_parser() -> argparse.ArgumentParser:
     episode_options(bc)
     bc.set_defaults(func=cmd_belief_curves)
 
+    rd = sub.add_parser("render", help="render a MuJoCo rollout to MP4 and/or a rerun file")
+    rd.add_argument("--map", default="simple")
+    rd.add_argument("--method", default="path_preference")
+    rd.add_argument("--delta-t", type=int, default=5)
+    rd.add_argument("--task", default="navigate")
+    rd.add_argument("--out", default=None, help="video file (.mp4)")
+    rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
+    rd.add_argument("--width", type=int, default=480, help="width of each of the two views")
+    rd.add_argument("--height", type=int, default=360)
+    episode_options(rd)
+    rd.set_defaults(func=cmd_render)
+
+    it = sub.add_parser("interact", help="push the robot yourself in the MuJoCo viewer")
+    it.add_argument("--map", default="office")
+    it.add_argument("--method", default="path_preference")
+    it.add_argument("--seed", type=int, default=0)
+    it.add_argument("--queries", type=int, default=2000)
+    it.set_defaults(func=cmd_interact)
+
     b = sub.add_parser("bench", help="measure build, update and planning times")
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
     b.add_argument("--quick", action="store_true", help="fewer repetitions (smoke test)")
+    b.add_argument("--no-physics", action="store_true", help="skip the MuJoCo figures")
     b.set_defaults(func=cmd_bench)
 
     d = sub.add_parser("demo", help="the main job: run the demo and write its outputs")
     d.add_argument("--out", default="out", help="output folder (default: out)")
     d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--sim", default="mujoco", choices=["mujoco", "grid"])
     d.set_defaults(func=cmd_demo)
     return p
 

@@ -31,7 +31,7 @@ from dm_control.rl import control
 from dm_control.suite import base
 from dm_env import specs
 
-from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, cached_world
+from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
 from pathpref.experiments.instances import seed_for
 from pathpref.geometry.grid import MOVE_COST
 from pathpref.planning.policies import STAY
@@ -78,10 +78,10 @@ class Navigate(base.Task):
         spec = replace(self.template, instance=self.episode,
                        instance_seed=seed_for(self.seed, self.episode),
                        run_seed=seed_for(self.seed, self.episode, 0))
-        rng = np.random.default_rng(np.random.SeedSequence(spec.run_seed).spawn(3)[2])
-        mover = MujocoMover(self.world, spec, rng, scene=scene_for(self.world),
+        mover = MujocoMover(self.world, spec, simulator_rng(spec), scene=scene_for(self.world),
                             data=physics.data.ptr)
         self.runner = EpisodeRunner(spec, self.world, mover)
+        self.runner.begin()
         self._reward = 0.0
 
     def before_step(self, action, physics: Physics) -> None:

@@ -174,10 +174,13 @@ def test_bench_json_keys():
     for k in ("arrangement_build_s", "belief_update_ms", "pomcp_decision_ms",
               "pomcp_queries_per_s"):
         assert m[k] > 0
+    ph = res["physics"]
+    assert ph["cue_sector_accuracy_no_noise"] == 1.0 and ph["cue_sector_accuracy"] >= 0.9
+    assert ph["false_cues_per_hour"] == 0 and ph["episode_s"] > 0 and ph["render_fps"] > 0
 
 
-def test_demo(tmp_path):
-    p = run("demo", "--out", str(tmp_path / "out"))
+def test_demo_grid(tmp_path):
+    p = run("demo", "--out", str(tmp_path / "out"), "--sim", "grid")
     assert p.returncode == 0, p.stderr
     for f in ("map_simple.png", "trajectories.png", "belief.png", "summary.csv"):
         assert (tmp_path / "out" / f).stat().st_size > 0

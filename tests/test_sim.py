@@ -152,3 +152,35 @@ def test_physics_episode_end_to_end():
         assert [(s.x, s.y) for s in a.log] == [(s.x, s.y) for s in b.log]  # deterministic
         assert a.inputs == len([t for t in range(a.steps) if t % 3 == 0])
         assert a.success == (a.goal_reached and a.violations == 0)
+
+
+def test_study_mode_pipeline_headless():
+    """A scripted 'viewer' drags the handle east during the first drive: the robot detects it
+    with the same pipeline, feeds it to the belief and replans (study mode, no window)."""
+    from pathpref.sim.interact import InteractiveSession
+
+    session = InteractiveSession(map="office", method="path_preference", seed=0, queries=300,
+                                 t_max=6)
+    base = session.base
+    m, d = base.model, base.data
+    pert = mujoco.MjvPerturb()
+    pert.select = base.handle
+    pert.active = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
+    pert.localmass = m.body_subtreemass[base.handle]
+    state = {"k": 0}
+
+    def viewer_like(b, push):
+        state["k"] += 1
+        d.xfrc_applied[:] = 0.0  # what the viewer's sync does before applying the perturbation
+        if 50 <= state["k"] < 200:
+            pert.refselpos[:] = d.xpos[base.handle] + np.array([1.5, 0.0, 0.0])
+            mujoco.mjv_applyPerturbForce(m, d, pert)
+
+    base.on_substep.append(viewer_like)
+    belief = session.runner.policy.belief
+    assert not belief.tables  # nothing observed yet
+    session.step()
+    assert session.observed and session.observed[0] == 2  # E
+    assert belief.tables  # the push reached the belief (a polytope's preference table)
+    session.step()  # replans with the updated belief and keeps going
+    assert session.runner.t == 2

@@ -182,12 +182,18 @@ def make_mover(spec: EpisodeSpec, world: World, rng: np.random.Generator):
     return entry(world, spec, rng)
 
 
+def simulator_rng(spec: EpisodeSpec) -> np.random.Generator:
+    """The simulator's noise stream of an episode (the third stream of ``run_seed``)."""
+    return np.random.default_rng(np.random.SeedSequence(spec.run_seed).spawn(3)[2])
+
+
 class EpisodeRunner:
     """One episode, advanced one decision step at a time (see module docstring).
 
-    ``pending_heading`` is the heading the robot observed for the coming step (None when no
-    input was due or none was detected); :meth:`step` takes the policy's action unless one is
-    given (the dm_env task passes the agent's action).
+    :meth:`begin` gives the human's first input (hooks on the mover may be attached between
+    construction and ``begin``). ``pending_heading`` is the heading the robot observed for the
+    coming step (None when no input was due or none was detected); :meth:`step` takes the
+    policy's action unless one is given (the dm_env task passes the agent's action).
     """
 
     def __init__(self, spec: EpisodeSpec, world: World | None = None, mover=None):
@@ -203,7 +209,7 @@ class EpisodeRunner:
             model = ObservationModel.build(world, np.array(inst.goals), normalize=spec.normalize)
         self.world, self.instance, self.model = world, inst, model
         self.pref = human_preference(world, inst, free_goal)
-        human_seq, policy_seq, sim_seq = np.random.SeedSequence(spec.run_seed).spawn(3)
+        human_seq, policy_seq, _ = np.random.SeedSequence(spec.run_seed).spawn(3)
         self.human_rng = np.random.default_rng(human_seq)
         preset = get_preset(spec.preset, ucb_c=spec.ucb_c)
         ctx = PolicyContext(world=world, model=model, preset=preset, t_max=spec.t_max,
@@ -211,8 +217,9 @@ class EpisodeRunner:
                             coupling=spec.coupling)
         self.policy = make_policy(spec.method, ctx)
         self.human = SimulatedHuman(model, inst.true_goal, self.pref)
-        self.mover = mover if mover is not None else make_mover(
-            spec, world, np.random.default_rng(sim_seq))
+        if mover is None:
+            mover = make_mover(spec, world, simulator_rng(spec))
+        self.mover = mover
         self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
             "start": world.cells[inst.start].tolist(),
             "goals": world.cells[list(inst.goals)].tolist(),
@@ -222,9 +229,15 @@ class EpisodeRunner:
         self.t = 0
         self.given_heading: int | None = None  # what the human intended this step
         self.pending_heading: int | None = None
+        self.started = False
         self.mover.reset(self.cell)
         self._log(STAY, -1)
-        self._human_phase()
+
+    def begin(self) -> None:
+        """The human's input before step 1 (when due); :meth:`step` calls it if needed."""
+        if not self.started:
+            self.started = True
+            self._human_phase()
 
     @property
     def done(self) -> bool:
@@ -258,6 +271,7 @@ class EpisodeRunner:
         """Advance one decision step; returns its log entry."""
         if self.done:
             raise EpisodeError("the episode is over; start a new one")
+        self.begin()
         t = self.t + 1
         heading = self.pending_heading
         if action is None:

@@ -1,0 +1,18 @@
+"""The MuJoCo layer. Importing it sets ``MUJOCO_GL=egl`` when unset (headless rendering),
+before any submodule imports mujoco: mujoco picks its GL backend at import time, and fails
+there when that backend's system library is missing, so the import is checked here."""
+
+import os
+
+from ..errors import ConfigError
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+GL_HELP = ("no working OpenGL backend for headless rendering (MUJOCO_GL={gl}): on Debian "
+           "install libegl1 libgl1-mesa-dri libopengl0 for EGL, or libosmesa6 and set "
+           "MUJOCO_GL=osmesa (MUJOCO_GL=disable runs physics without rendering)")
+
+try:
+    import mujoco  # noqa: F401
+except (ImportError, AttributeError, OSError) as e:
+    raise ConfigError(GL_HELP.format(gl=os.environ.get("MUJOCO_GL")) + f" ({e})") from None

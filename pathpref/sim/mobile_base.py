@@ -44,6 +44,10 @@ class MobileBase:
         self.target = np.zeros(2)
         self.push: HumanPush | None = None
         self.false_cues = 0  # cues detected while driving, with no push given
+        self.detected: list[Cue] = []  # those cues, for study mode (a person pushing live)
+        #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
+        #: simulated push is active
+        self.external_forces = False
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
@@ -72,7 +76,7 @@ class MobileBase:
         d.ctrl[:3] = self.controller.command(d.qpos[:2], d.qpos[2], self.target)
         if push is not None and push.active(float(d.time)):
             push.apply(d, self.handle)
-        else:
+        elif not self.external_forces:
             d.xfrc_applied[self.handle, :] = 0.0
         mujoco.mj_step(self.model, d)
         if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
@@ -100,8 +104,10 @@ class MobileBase:
         self.target = self.scene.cell_centre(cell)
         t_end = self.data.time + self.controller.time_limit_s
         while self.data.time < t_end:
-            if self.substep() is not None:
+            cue = self.substep()
+            if cue is not None:
                 self.false_cues += 1
+                self.detected.append(cue)
             if self.controller.settled(self.data.qpos[:2], self.data.qvel[:2], self.target):
                 break
         return self.cell

@@ -9,17 +9,14 @@ from its H-representation's vertices. Four walls bound the map.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from ..errors import ConfigError
 from ..geometry.world import World
-
-os.environ.setdefault("MUJOCO_GL", "egl")
-import mujoco  # noqa: E402
 
 MJCF_DIR = Path(__file__).resolve().parents[2] / "mjcf"
 OBSTACLE_HEIGHT = 0.6

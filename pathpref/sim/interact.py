@@ -1,0 +1,100 @@
+"""Study mode (``pathpref interact``): a person pushes the robot's handle in the MuJoCo viewer
+and the robot infers and replans live.
+
+The viewer's mouse perturbation (double-click the orange handle, then Ctrl + right-drag)
+becomes ``xfrc_applied`` on the handle when the viewer syncs; the robot senses it exactly like a
+simulated push: handle force sensor -> cue detector -> heading -> belief update. Cues detected
+while the base drives are given to the belief before the next decision, and the planner plans
+from the updated belief. The simulated human is not used.
+
+:class:`InteractiveSession` holds the loop without any window, so it is tested headlessly with a
+scripted perturbation (``mjv_applyPerturbForce``, as the viewer does).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..experiments.episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
+from ..experiments.instances import seed_for
+from .mover import MujocoMover
+
+
+class ViewerMover(MujocoMover):
+    """A mover whose human input comes from the person's pushes, not from the model."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.base.external_forces = True
+
+    def human_input(self, heading: int) -> int | None:
+        cues, self.base.detected = self.base.detected, []
+        self.last_cue = cues[-1] if cues else None
+        return None if self.last_cue is None else self.last_cue.heading
+
+
+class InteractiveSession:
+    def __init__(self, map: str = "office", method: str = "path_preference", seed: int = 0,
+                 queries: int = 2000, t_max: int = 200):
+        world = cached_world(map)
+        self.spec = EpisodeSpec(map=map, method=method, delta_t=1, instance=0, run=0,
+                                instance_seed=seed_for(seed, 0), run_seed=seed_for(seed, 0, 0),
+                                sim="mujoco", queries=queries, t_max=t_max)
+        self.mover = ViewerMover(world, self.spec, simulator_rng(self.spec))
+        self.runner = EpisodeRunner(self.spec, world, self.mover)
+        self.observed: list[int] = []
+
+    @property
+    def base(self):
+        return self.mover.base
+
+    def step(self) -> None:
+        """One decision: plan from the belief, drive; pushes felt on the way update it."""
+        self.runner.begin()
+        self.runner.step()
+        if self.runner.pending_heading is not None:
+            self.observed.append(self.runner.pending_heading)
+
+
+def run_viewer(session: InteractiveSession, realtime: bool = True) -> None:
+    """Open the MuJoCo viewer on the session (needs a display)."""
+    import os
+
+    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise ConfigError("pathpref interact needs a display (DISPLAY is not set): run it in a "
+                          "desktop session, or on a virtual screen with xvfb-run")
+    try:
+        import mujoco.viewer
+    except Exception as e:  # noqa: BLE001
+        raise ConfigError(f"the MuJoCo viewer is unavailable: {e}") from None
+    base = session.base
+    try:
+        viewer = mujoco.viewer.launch_passive(base.model, base.data)
+    except Exception as e:  # noqa: BLE001 - GLFW raises several types
+        raise ConfigError(
+            "pathpref interact needs a display: run it in a desktop session (or under "
+            f"xvfb-run for a virtual screen) with MUJOCO_GL=glfw ({e})") from None
+    clock = {"wall": time.perf_counter(), "sim": float(base.data.time), "k": 0}
+
+    def sync(b, push) -> None:
+        clock["k"] += 1
+        if clock["k"] % 8:
+            return
+        viewer.sync()
+        if realtime:
+            ahead = (b.data.time - clock["sim"]) - (time.perf_counter() - clock["wall"])
+            if ahead > 0:
+                time.sleep(ahead)
+
+    base.on_substep.append(sync)
+    with viewer:
+        while viewer.is_running() and not session.runner.done:
+            session.step()
+            r = session.runner
+            print(f"t={r.t:3d} cell={tuple(r.world.cells[r.cell])} "
+                  f"P(goal)={np.round(r.policy.belief.goal_marginal(), 2)}", flush=True)
+
+

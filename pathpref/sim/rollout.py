@@ -1,0 +1,93 @@
+"""Record one physics episode as a video and/or a rerun file (``pathpref render``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..experiments.episode import (
+    EpisodeResult,
+    EpisodeRunner,
+    EpisodeSpec,
+    cached_world,
+    simulator_rng,
+)
+from .mover import MujocoMover
+from .render import RolloutRenderer, write_video
+
+VIDEO_FPS = 25
+
+
+@dataclass
+class Recording:
+    result: EpisodeResult
+    frames: int
+    video: Path | None
+    rerun: Path | None
+
+
+def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
+                   rerun: str | Path | None = None, width: int = 480, height: int = 360,
+                   speed: float = 2.0) -> Recording:
+    """Run ``spec`` in MuJoCo; render a frame every ``speed / VIDEO_FPS`` s of simulated time
+    (the video plays ``speed`` times faster than real time, pushes in real time) and log to
+    rerun."""
+    world = cached_world(spec.map)
+    mover = MujocoMover(world, spec, simulator_rng(spec))
+    base = mover.base
+    every = max(1, int(round(speed / VIDEO_FPS / base.dt)))
+    every_push = max(1, int(round(1.0 / VIDEO_FPS / base.dt)))  # pushes play in real time
+    frames: list[np.ndarray] = []
+    renderer = RolloutRenderer(mover.scene, width, height) if video else None
+    state: dict = {"runner": None, "k": 0}
+    polygons = world.arrangement.polygons
+
+    def hook(b, push) -> None:
+        state["k"] += 1
+        if state["k"] % (every_push if push is not None else every):
+            return
+        r = state["runner"]
+        if logger is not None:
+            logger.log_frame(b.data.time, b.position)
+        if renderer is None or r is None:
+            return
+        force = push.force(float(b.data.time)) if push is not None else None
+        frames.append(renderer.frame(
+            b.data, goal_cells=world.cells[list(r.instance.goals)],
+            belief=r.policy.belief.goal_marginal(), true_goal=r.instance.true_goal,
+            polygon=polygons[world.cell_polytope[b.cell]],
+            push_origin=b.data.site_xpos[b.model.site("handle_site").id].copy(),
+            push_force=force))
+
+    logger = None
+    base.on_substep.append(hook)
+    runner = EpisodeRunner(spec, world, mover)
+    state["runner"] = runner
+    if rerun:
+        from ..viz.rerun_log import RerunLogger
+
+        logger = RerunLogger(world, world.cells[list(runner.instance.goals)],
+                             runner.instance.true_goal, rerun, mover.scene.cell_size)
+
+    def log_step() -> None:
+        if logger is None:
+            return
+        cue = mover.last_cue if runner.pending_heading is not None else None
+        b = runner.policy.belief
+        logger.log_step(runner.t, base.position, b.goal_marginal(),
+                        float(b.goal_marginal()[runner.instance.true_goal]), b.goal_entropy(),
+                        None if cue is None else cue.impulse)
+
+    runner.begin()
+    log_step()
+    while not runner.done:
+        runner.step()
+        log_step()
+    if renderer is not None:
+        renderer.close()
+    if logger is not None:
+        logger.close()
+    out_video = write_video(frames, video, VIDEO_FPS) if video else None
+    return Recording(runner.result, len(frames), out_video, Path(rerun) if rerun else None)
