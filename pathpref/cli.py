@@ -117,7 +117,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .experiments.report import load_records, markdown_tables, write_csv
+    from .experiments.report import load_records, markdown_tables, side_by_side, write_csv
 
     if not Path(args.db).exists():
         raise ConfigError(f"no results database at {args.db}; run 'pathpref evaluate' first")
@@ -125,6 +125,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     if not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
     print(markdown_tables(recs))
+    both = side_by_side(recs)
+    if both:
+        print("\n" + both)
     csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
     atomic_output(csv_path, lambda p: write_csv(recs, p))
     print(f"\nwrote {csv_path}")

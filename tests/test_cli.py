@@ -185,3 +185,17 @@ def test_demo_grid(tmp_path):
     for f in ("map_simple.png", "trajectories.png", "belief.png", "summary.csv"):
         assert (tmp_path / "out" / f).stat().st_size > 0
     assert "| path_preference |" in p.stdout
+
+
+def test_report_puts_grid_and_physics_side_by_side(tmp_path):
+    db = tmp_path / "both.sqlite"
+    for sim in ("grid", "mujoco"):
+        p = run("evaluate", "--map", "simple", "--methods", "compliant", "--delta-t", "2",
+                "--instances", "1", "--runs", "2", "--db", str(db), "--sim", sim,
+                "--workers", "2", "--no-progress")
+        assert p.returncode == 0, p.stderr
+    p = run("report", str(db))
+    assert p.returncode == 0, p.stderr
+    assert "grid / mujoco side by side" in p.stdout
+    row = next(ln for ln in p.stdout.splitlines() if ln.startswith("| compliant |") and "/" in ln)
+    assert len(row.split("/")) == 2

@@ -113,6 +113,34 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
     return "\n\n".join(blocks)
 
 
+def side_by_side(records: list[dict[str, Any]]) -> str:
+    """For every (map, variant) run in more than one simulator: one table, each cell
+    ``sim1 rate / sim2 rate`` (e.g. grid / mujoco), so the two are read together."""
+    blocks = []
+    for m, var in sorted({(r["map"], r["variant"]) for r in records}):
+        recs = [r for r in records if (r["map"], r["variant"]) == (m, var)]
+        sims = sorted({r["sim"] for r in recs})
+        if len(sims) < 2:
+            continue
+        dts = sorted({r["delta_t"] for r in recs})
+        methods = sorted({r["method"] for r in recs}, key=_order)
+        lines = [f"**{m}**: {' / '.join(sims)} side by side ({var})", "",
+                 "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
+                 "|---|" + "---|" * len(dts)]
+        for meth in methods:
+            cells = []
+            for d in dts:
+                vals = []
+                for sim in sims:
+                    r = next((x for x in recs if (x["method"], x["delta_t"], x["sim"]) ==
+                              (meth, d, sim)), None)
+                    vals.append("–" if r is None or not r["n"] else f"{r['success_rate']:.2f}")
+                cells.append(" / ".join(vals))
+            lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks)
+
+
 def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:
     if not records:
         Path(path).write_text("")
