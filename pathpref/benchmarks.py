@@ -161,9 +161,10 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
     maps = maps or ["simple", "office", "classroom"]
     out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
     if physics:
-        from .sim.bench import bench_physics
+        from .sim.bench import bench_arm, bench_physics
 
         out["physics"] = bench_physics(quick=quick)
+        out["arm"] = bench_arm(quick=quick)
     if not quick:
         out["scale"] = bench_ray()
     return out

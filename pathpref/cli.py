@@ -103,7 +103,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     from .experiments.sweep import run_sweep, sweep_specs
 
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
-                        seed=args.seed, n_goals=args.goals, sim=args.sim,
+                        seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
                         **_common_episode_args(args, args.map))
     counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
                        retry_failed=args.retry_failed, backend=args.backend,
@@ -191,8 +191,6 @@ def cmd_render(args: argparse.Namespace) -> int:
     from .experiments.instances import seed_for
     from .sim.rollout import record_rollout
 
-    if args.task != "navigate":
-        raise ConfigError(f"--task {args.task}: available tasks: navigate")
     out = check_writable(args.out) if args.out else None
     if out is not None and out.suffix.lower() != ".mp4":
         raise ConfigError(f"--out {out}: videos are written as .mp4")
@@ -203,7 +201,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     common = _common_episode_args(args, args.map)
     spec = EpisodeSpec(map=args.map, method=args.method, delta_t=args.delta_t, instance=0,
                        run=0, instance_seed=seed_for(args.seed, 0),
-                       run_seed=seed_for(args.seed, 0, 0), sim="mujoco", **common)
+                       run_seed=seed_for(args.seed, 0, 0), sim="mujoco", task=args.task,
+                       **common)
     tmp = out.with_name(f".{out.stem}.partial.mp4") if out else None
     try:
         rec = record_rollout(spec, video=tmp, rerun=args.rerun, width=args.width,
@@ -307,6 +306,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--db", default="results.sqlite")
     ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
                     help="grid world (default) or the MuJoCo base with force cues")
+    ev.add_argument("--task", default="navigate", choices=["navigate", "carry"],
+                    help="navigate, or carry (arm on the base; needs --sim mujoco)")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
@@ -343,7 +344,8 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--map", default="simple")
     rd.add_argument("--method", default="path_preference")
     rd.add_argument("--delta-t", type=int, default=5)
-    rd.add_argument("--task", default="navigate")
+    rd.add_argument("--task", default="navigate", choices=["navigate", "carry"],
+                    help="navigate (base) or carry (arm on the base, mink IK)")
     rd.add_argument("--out", default=None, help="video file (.mp4)")
     rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
     rd.add_argument("--width", type=int, default=480, help="width of each of the two views")

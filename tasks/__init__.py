@@ -6,7 +6,8 @@
     while not ts.last():
         ts = env.step(env.task.policy_action())   # or any agent's action in 0..7
 
-Tasks: ``navigate`` (the planar base, human force cues through its handle).
+Tasks: ``navigate`` (the planar base, human force cues through its handle) and ``carry``
+(a Jaco arm on the base carries a tray; pushes on the tray; mink IK).
 """
 
 from __future__ import annotations
@@ -17,9 +18,9 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 from pathpref.errors import ConfigError  # noqa: E402
 
-from . import navigate  # noqa: E402
+from . import carry, navigate  # noqa: E402
 
-TASKS = {"navigate": navigate.load}
+TASKS = {"navigate": navigate.load, "carry": carry.load}
 
 
 def load(name: str, **kwargs):

@@ -55,7 +55,8 @@ class Physics(dm_mujoco.Physics):
 class Navigate(base.Task):
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
                  seed: int = 0, preset: str = "paper", queries: int = 5000,
-                 t_max: int | None = None, coupling: bool = True, n_goals: int = 10):
+                 t_max: int | None = None, coupling: bool = True, n_goals: int = 10,
+                 task: str = "navigate"):
         super().__init__(random=seed)
         self.world = cached_world(map)
         self.seed = seed
@@ -63,7 +64,7 @@ class Navigate(base.Task):
             map=map, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
             t_max=t_max or default_t_max(self.world.name), n_goals=n_goals, coupling=coupling,
-            sim="mujoco")
+            sim="mujoco", task=task)
         self.template.validate()
         self.rewards = get_preset(preset).path_preference
         self.episode = -1
@@ -78,8 +79,8 @@ class Navigate(base.Task):
         spec = replace(self.template, instance=self.episode,
                        instance_seed=seed_for(self.seed, self.episode),
                        run_seed=seed_for(self.seed, self.episode, 0))
-        mover = MujocoMover(self.world, spec, simulator_rng(spec), scene=scene_for(self.world),
-                            data=physics.data.ptr)
+        mover = MujocoMover(self.world, spec, simulator_rng(spec),
+                            scene=scene_for(self.world, 0.5, spec.task), data=physics.data.ptr)
         self.runner = EpisodeRunner(spec, self.world, mover)
         self.runner.begin()
         self._reward = 0.0
@@ -156,10 +157,15 @@ class Navigate(base.Task):
         return STAY_ACTION if a == STAY else a
 
 
+def environment(task: Navigate) -> control.Environment:
+    """Wrap a task over the compiled scene of its map (and variant) in dm_control."""
+    scene = scene_for(task.world, 0.5, task.template.task)
+    # dm_control wraps a compiled mujoco.MjModel; the wrapper copies nothing
+    return control.Environment(Physics.from_model(core.MjModel(scene.model)), task,
+                               n_sub_steps=1)
+
+
 def load(map: str = "simple", method: str = "path_preference", delta_t: int = 5, seed: int = 0,
          **kwargs) -> control.Environment:
     """The ``navigate`` environment (see module docstring)."""
-    task = Navigate(map=map, method=method, delta_t=delta_t, seed=seed, **kwargs)
-    # dm_control wraps a compiled mujoco.MjModel; the wrapper copies nothing
-    physics = Physics.from_model(core.MjModel(scene_for(task.world).model))
-    return control.Environment(physics, task, n_sub_steps=1)
+    return environment(Navigate(map=map, method=method, delta_t=delta_t, seed=seed, **kwargs))

@@ -78,6 +78,10 @@ class EpisodeSpec:
             raise ConfigError(f"--queries must be at least 1, got {self.queries}")
         if not self.timeout_s >= 0:
             raise ConfigError(f"--episode-timeout must be >= 0 seconds, got {self.timeout_s}")
+        if self.task not in ("navigate", "carry"):
+            raise ConfigError(f"unknown task '{self.task}'; choose navigate or carry")
+        if self.task == "carry" and self.sim != "mujoco":
+            raise ConfigError("the carry task needs the arm: use --sim mujoco")
         if not self.ucb_c > 0:
             raise ConfigError(f"--ucb-c must be positive, got {self.ucb_c}")
         get_preset(self.preset)
@@ -107,6 +111,7 @@ class EpisodeResult:
     status: str = "ok"
     reason: str = ""
     log: list[StepLog] = field(default_factory=list)
+    metrics: dict[str, float] = field(default_factory=dict)
 
     @property
     def pref_followed(self) -> bool:
@@ -298,6 +303,8 @@ class EpisodeRunner:
         self._log(action, -1 if heading is None else heading)
         self._human_phase()
         self.result.wall_s = time.perf_counter() - self.t0
+        if self.done and hasattr(self.mover, "metrics"):
+            self.result.metrics = self.mover.metrics()
         return self.result.log[-1]
 
 
@@ -328,4 +335,5 @@ def result_row(res: EpisodeResult) -> dict[str, Any]:
         "inputs": res.inputs,
         "violations": res.violations,
         "wall_s": res.wall_s,
+        "metrics": json.dumps(res.metrics, sort_keys=True),
     }

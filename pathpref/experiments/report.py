@@ -46,6 +46,8 @@ def variant(r: dict[str, Any]) -> str:
     """The settings that make two sweeps of the same map not comparable cell by cell."""
     parts = [f"preset {r['preset']}", f"{r['queries']} queries", f"c={r['ucb_c']:g}",
              f"T_max={r['t_max']}"]
+    if r.get("task", "navigate") != "navigate":
+        parts.insert(0, f"task {r['task']}")
     if not r["normalize"]:
         parts.append("un-normalised likelihood")
     parts.append("coupling" if r["coupling"] else "no coupling")

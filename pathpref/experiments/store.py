@@ -18,7 +18,7 @@ from typing import Any
 from ..errors import ConfigError
 from .episode import EpisodeResult, result_row
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: per-episode physical metrics (JSON)
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
@@ -29,7 +29,7 @@ EPISODE_COLUMNS = {
     "start": "TEXT", "goals": "TEXT", "true_goal": "INTEGER",
     "status": "TEXT", "reason": "TEXT", "goal_reached": "INTEGER", "pref_followed": "INTEGER",
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
-    "wall_s": "REAL", "ucb_c": "REAL",
+    "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT",
 }
 STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
 

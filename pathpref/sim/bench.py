@@ -84,3 +84,43 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "episode_max_s": max(times),
         "render_fps": render_fps(frames=20 if quick else 60),
     }
+
+
+def bench_arm(quick: bool = False) -> dict[str, Any]:
+    """IK rate, tray tilt over pushed episodes, detection through the end-effector."""
+    from .arm import ArmBase
+
+    world = cached_world("simple")
+    arm = ArmBase(scene_for(world, 0.5, "carry"))
+    arm.reset(world.cell((3, 3)))
+    n = 200 if quick else 1000
+    t = time.perf_counter()
+    for _ in range(n):
+        arm.solve_ik()
+    ik_rate = n / (time.perf_counter() - t)
+    rng = np.random.default_rng(0)
+    pushes, hits = (40 if quick else 200), 0
+    for _ in range(pushes):
+        h = int(rng.integers(8))
+        cue = arm.receive_push(HumanPush.sample(h, 0.0, PushProfile(), rng))
+        hits += cue is not None and cue.heading == h
+        arm.move_to(arm.cell)
+    tilts, pens, times = [], [], []
+    for i in range(2 if quick else 5):
+        spec = EpisodeSpec(map="simple", method="path_preference", delta_t=3, instance=i,
+                           run=0, instance_seed=seed_for(13, i), run_seed=seed_for(13, i, 0),
+                           sim="mujoco", task="carry")
+        t = time.perf_counter()
+        res = run_episode(spec)
+        times.append(time.perf_counter() - t)
+        tilts.append(res.metrics["tilt_rms_deg"])
+        pens.append(res.metrics["max_penetration_mm"])
+    return {
+        "ik_solves_per_s": ik_rate,
+        "cue_sector_accuracy": hits / pushes,
+        "cue_pushes": pushes,
+        "tilt_rms_deg": max(tilts),
+        "tilt_rms_deg_mean": float(np.mean(tilts)),
+        "max_penetration_mm": max(pens),
+        "episode_s": median(times),
+    }

@@ -73,7 +73,7 @@ class MobileBase:
     def substep(self, push: HumanPush | None = None) -> Cue | None:
         """One physics step: controller, optional push, sensing and detection."""
         d = self.data
-        d.ctrl[:3] = self.controller.command(d.qpos[:2], d.qpos[2], self.target)
+        self._control()
         if push is not None and push.active(float(d.time)):
             push.apply(d, self.handle)
         elif not self.external_forces:
@@ -85,6 +85,11 @@ class MobileBase:
         for hook in self.on_substep:
             hook(self, push)
         return cue
+
+    def _control(self) -> None:
+        """Actuator commands for this physics step (the base's tracking controller)."""
+        d = self.data
+        d.ctrl[:3] = self.controller.command(d.qpos[:2], d.qpos[2], self.target)
 
     def receive_push(self, push: HumanPush) -> Cue | None:
         """Hold the current cell while ``push`` acts; return the detected cue or None."""

@@ -50,7 +50,8 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
             return
         r = state["runner"]
         if logger is not None:
-            logger.log_frame(b.data.time, b.position)
+            ee = b.data.xpos[b.tray] if hasattr(b, "tray") else None
+            logger.log_frame(b.data.time, b.position, ee)
         if renderer is None or r is None:
             return
         force = push.force(float(b.data.time)) if push is not None else None
@@ -58,7 +59,7 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
             b.data, goal_cells=world.cells[list(r.instance.goals)],
             belief=r.policy.belief.goal_marginal(), true_goal=r.instance.true_goal,
             polygon=polygons[world.cell_polytope[b.cell]],
-            push_origin=b.data.site_xpos[b.model.site("handle_site").id].copy(),
+            push_origin=b.data.xpos[b.handle].copy(),  # the pushed body: handle or tray
             push_force=force))
 
     logger = None

@@ -4,7 +4,8 @@ Entities: ``map/obstacles``, ``map/polytopes`` (outlines, labelled with ids), ``
 (edges between polytope centres), ``map/goals``; per decision step (timeline ``step``):
 ``robot/path``, ``robot/position``, ``human/push`` (the detected impulse as an arrow),
 ``belief/goals`` (bar chart), ``belief/p_true_goal`` and ``belief/entropy`` (scalars);
-per physics frame (timeline ``sim_time``): ``robot/trajectory``. Map units: metres.
+per physics frame (timeline ``sim_time``): ``robot/trajectory`` and, for the arm,
+``robot/ee_trajectory`` and ``robot/ee_height``. Map units: metres.
 """
 
 from __future__ import annotations
@@ -42,9 +43,14 @@ class RerunLogger:
         rec.log("map/goals", rr.Points2D(g, radii=0.08, colors=colors,
                                          labels=[f"g{k}" for k in range(len(g))]), static=True)
 
-    def log_frame(self, sim_time: float, xy: np.ndarray) -> None:
+    def log_frame(self, sim_time: float, xy: np.ndarray, ee: np.ndarray | None = None) -> None:
+        """The base (and, for the arm, the end-effector) position at a physics frame."""
         self.rec.set_time("sim_time", duration=float(sim_time))
         self.rec.log("robot/trajectory", rr.Points2D([xy], radii=0.03, colors=[30, 110, 220]))
+        if ee is not None:
+            self.rec.log("robot/ee_trajectory", rr.Points2D([np.asarray(ee)[:2]], radii=0.02,
+                                                            colors=[240, 170, 30]))
+            self.rec.log("robot/ee_height", rr.Scalars(float(np.asarray(ee)[2])))
 
     def log_step(self, t: int, xy: np.ndarray, belief: np.ndarray, p_true: float,
                  entropy: float, push: np.ndarray | None) -> None:

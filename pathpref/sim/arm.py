@@ -1,0 +1,191 @@
+"""The arm-on-base variant: a Kinova Jaco (dm_control's offline assets) on the planar base,
+carrying a tray (``mjcf/carry_tool.xml``), driven by whole-body differential IK with mink.
+
+Model: ``mjcf/navigate.xml`` + the map (``scene.build_spec``) + ``jaco_arm.xml`` attached to a
+site on the base + the tray attached to the arm's last link. The arm's bodies are gravity
+compensated and its six joints have position servos (stiff enough to hold the tray, soft
+enough to yield to a push and recover after it).
+
+IK (mink, solver named explicitly: ``daqp``), every ``ik_period`` seconds, over all nine
+joints (base x, y, yaw + arm)::
+
+    tray task     FrameTask(tool/tray): a level pose at a fixed offset from the base, in the
+                  base's commanded heading (position cost 1, orientation cost 5)
+    base task     FrameTask(base): the planner's cell centre (cost 1, z ignored), yaw 0
+                  (cost 10)
+    posture       PostureTask: the arm's home posture (cost 1e-2)
+    limits        ConfigurationLimit, VelocityLimit (base 0.8 m/s, 1 rad/s; shoulder and
+                  elbow 2 rad/s, wrist 6 rad/s),
+                  CollisionAvoidanceLimit (arm and tray geoms vs obstacles and walls)
+
+The base velocity actuators receive the IK's base velocities; the arm servos receive
+``q + v dt`` from the measured ``q``, so the IK itself corrects the tray's orientation when a
+push deflects the soft shoulder (solved at 100 Hz; with 50 Hz and equal costs the tray tilted
+up to 15 degrees under a 30 N push, now about 5). Pushes are applied to the tray; the robot
+senses them with the force sensor between the tray and the arm (``tool/tool_force``), through
+the same detector as the handle.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import mink
+import mujoco
+import numpy as np
+
+from ..errors import EpisodeError
+from ..geometry.world import World
+from .mobile_base import MobileBase
+from .scene import Scene, build_spec, mjcf_path
+from .sensing import HandleSensor
+
+#: the arm's home posture: the IK solution for TRAY_OFFSET with the widest margin from the
+#: joint limits (0.30 rad), found by random restarts
+ARM_HOME = np.array([-4.429, 3.997, 5.648, -0.675, 2.026, -2.53])
+#: tray position relative to the base body (m): nearly over the base, so that the arm stays
+#: within the base's footprint (a tray 0.25 m ahead reached over walls, where the collision
+#: limit made the target infeasible and the IK unstable)
+TRAY_OFFSET = np.array([0.05, 0.0, 0.75])
+ARM_JOINTS = [f"jaco/joint_{k}" for k in range(1, 7)]
+#: servo gains (kp, kv) per joint: a soft shoulder and elbow let the tray yield to a push, a
+#: stiff wrist keeps it level while it does
+ARM_GAINS = [(120.0, 10.0)] * 3 + [(250.0, 12.0)] * 3
+
+
+def jaco_xml() -> Path:
+    import dm_control
+
+    path = Path(dm_control.__file__).parent / "third_party" / "kinova" / "jaco_arm.xml"
+    if not path.exists():
+        from ..errors import ConfigError
+
+        raise ConfigError(f"dm_control's Kinova Jaco assets are missing ({path}); reinstall "
+                          "dm-control==1.0.50")
+    return path
+
+
+def build_arm_scene(world: World, cell_size: float = 0.5) -> Scene:
+    """Compile the arm-on-base scene of ``world`` (see module docstring)."""
+    spec = build_spec(world, cell_size)
+    mount = spec.body("base").add_site(name="arm_mount", pos=[0.0, 0.0, 0.08])
+    spec.attach(mujoco.MjSpec.from_file(str(jaco_xml())), prefix="jaco/", site=mount)
+    flange = spec.body("jaco/b_6").add_site(name="flange", pos=[0.0, 0.0, 0.0])
+    spec.attach(mujoco.MjSpec.from_file(str(mjcf_path("carry_tool.xml"))), prefix="tool/",
+                site=flange)
+    for b in spec.bodies:
+        if b.name.startswith(("jaco/", "tool/")):
+            b.gravcomp = 1.0
+    for j, (kp, kv) in zip(ARM_JOINTS, ARM_GAINS, strict=True):
+        a = spec.add_actuator(name=f"servo_{j.split('/')[1]}", target=j,
+                              trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_position(kp=kp, kv=kv)
+        a.forcerange = [-60.0, 60.0]
+        a.forcelimited = 1
+    return Scene(world=world, model=spec.compile(), cell_size=cell_size)
+
+
+def tilt_deg(data: mujoco.MjData, body: int) -> float:
+    """Angle between the tray's normal and the vertical (degrees)."""
+    z = data.xmat[body].reshape(3, 3)[:, 2]
+    return float(np.degrees(np.arccos(np.clip(z[2], -1.0, 1.0))))
+
+
+class ArmBase(MobileBase):
+    """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
+
+    def __init__(self, scene: Scene, ik_period: float = 0.01, **kwargs):
+        super().__init__(scene, **kwargs)
+        m = self.model
+        self.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
+        self.handle = int(m.body("tool/tray").id)
+        self.tray = self.handle
+        self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
+        self.arm_ctrl = np.array([m.actuator(f"servo_{j.split('/')[1]}").id for j in ARM_JOINTS])
+        self.ik_every = max(1, int(round(ik_period / self.dt)))
+        self.ik_dt = self.ik_every * self.dt
+        self.cfg = mink.Configuration(m)
+        self.tray_task = mink.FrameTask("tool/tray", "body", position_cost=1.0,
+                                        orientation_cost=5.0)
+        self.base_task = mink.FrameTask("base", "body", position_cost=[1.0, 1.0, 0.0],
+                                        orientation_cost=[0.0, 0.0, 10.0])
+        self.posture = mink.PostureTask(m, cost=1e-2)
+        home = np.zeros(m.nq)
+        home[self.arm_qpos] = ARM_HOME
+        self.posture.set_target(home)
+        arm_geoms = [i for i in range(m.ngeom)
+                     if m.geom(i).name.startswith(("jaco/", "tool/"))
+                     or m.body(m.geom_bodyid[i]).name.startswith(("jaco/", "tool/"))]
+        arm_geoms = [g for g in arm_geoms if m.geom_contype[g] or m.geom_conaffinity[g]]
+        self.obstacle_geoms = [i for i in range(m.ngeom) if m.geom(i).name.startswith(
+            ("obstacle_", "wall_"))]
+        self.arm_geoms = arm_geoms
+        vel = {"slide_x": [0.8], "slide_y": [0.8], "yaw": [1.0]}
+        vel.update({j: [2.0 if k < 3 else 6.0] for k, j in enumerate(ARM_JOINTS)})
+        self.limits = [
+            mink.ConfigurationLimit(m),
+            mink.VelocityLimit(m, vel),
+            mink.CollisionAvoidanceLimit(m, geom_pairs=[(arm_geoms, self.obstacle_geoms)],
+                                         minimum_distance_from_collisions=0.03,
+                                         collision_detection_distance=0.15),
+        ]
+        self._k = 0
+        self.tilts: list[float] = []
+        self.ik_solves = 0
+
+    def reset(self, cell: int) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:2] = self.scene.cell_centre(cell)
+        self.data.qpos[self.arm_qpos] = ARM_HOME
+        self.data.ctrl[self.arm_ctrl] = ARM_HOME
+        self.target = self.scene.cell_centre(cell)
+        mujoco.mj_forward(self.model, self.data)
+        self.detector.reset()
+        self._k = 0
+        self.tilts = []
+
+    def tray_target(self) -> mink.SE3:
+        """Level, at ``TRAY_OFFSET`` from the base's measured position, in the base's
+        *commanded* heading (yaw 0). Using the measured yaw closes a loop: where the collision
+        limit keeps the tray from its target, the IK turns the base, which turns the target."""
+        base = self.data.xpos[self.model.body("base").id]
+        return mink.SE3.from_rotation_and_translation(mink.SO3.identity(), base + TRAY_OFFSET)
+
+    def solve_ik(self) -> np.ndarray:
+        """One whole-body IK solve from the measured state; returns joint velocities."""
+        d = self.data
+        self.cfg.update(d.qpos.copy())
+        self.tray_task.set_target(self.tray_target())
+        self.base_task.set_target(mink.SE3.from_rotation_and_translation(
+            mink.SO3.identity(), np.array([self.target[0], self.target[1], 0.1])))
+        try:
+            v = mink.solve_ik(self.cfg, [self.tray_task, self.base_task, self.posture],
+                              self.ik_dt, solver="daqp", damping=1e-3, limits=self.limits)
+        except mink.NoSolutionFound as e:
+            raise EpisodeError(f"IK found no solution at t = {d.time:.2f} s: {e}") from None
+        if not np.isfinite(v).all():
+            raise EpisodeError(f"IK returned a non-finite velocity at t = {d.time:.2f} s")
+        self.ik_solves += 1
+        return v
+
+    def _control(self) -> None:
+        d = self.data
+        if self._k % self.ik_every == 0:
+            v = self.solve_ik()
+            d.ctrl[:3] = np.clip(v[:3], [-1, -1, -2], [1, 1, 2])
+            d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + v[3:9] * self.ik_dt
+        self._k += 1
+        self.tilts.append(tilt_deg(d, self.tray))
+
+    def tilt_rms(self) -> float:
+        return float(np.sqrt(np.mean(np.square(self.tilts)))) if self.tilts else 0.0
+
+    def max_penetration(self) -> float:
+        """Deepest current contact between arm/tray geoms and obstacles (m, >= 0)."""
+        d, arm, obs = self.data, set(self.arm_geoms), set(self.obstacle_geoms)
+        worst = 0.0
+        for c in d.contact[: d.ncon]:
+            pair = {int(c.geom1), int(c.geom2)}
+            if pair & arm and pair & obs:
+                worst = max(worst, -float(c.dist))
+        return worst

@@ -1,0 +1,116 @@
+"""The arm-on-base variant: mink IK convergence, a level tray under pushes, detection through
+the end-effector, no penetration, the carry task, IK failures recorded."""
+
+from __future__ import annotations
+
+import os
+import unittest
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mink  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from dm_env import test_utils  # noqa: E402
+from pathpref_tasks import load  # noqa: E402
+
+from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec  # noqa: E402
+from pathpref.experiments.instances import seed_for  # noqa: E402
+from pathpref.sim.arm import TRAY_OFFSET, ArmBase, build_arm_scene  # noqa: E402
+from pathpref.sim.force_cue import HumanPush, PushProfile  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def arm(worlds):
+    return ArmBase(build_arm_scene(worlds["simple"]))
+
+
+def carry_spec(seed, **kw):
+    d = dict(map="simple", method="path_preference", delta_t=3, instance=0, run=0,
+             instance_seed=seed_for(seed, 0), run_seed=seed_for(seed, 0, 0), sim="mujoco",
+             task="carry", queries=1000)
+    d.update(kw)
+    return EpisodeSpec(**d)
+
+
+def test_ik_converges_and_follows_the_base(worlds, arm):
+    w = worlds["simple"]
+    arm.reset(w.cell((2, 2)))
+    arm.data.qpos[arm.arm_qpos] += 0.1  # start away from the solution (inside the limits)
+    for _ in range(1500):  # 3 s; the joints' friction leaves a ~5 mm dead band
+        arm.substep()
+    base = arm.data.xpos[arm.model.body("base").id]
+    assert np.linalg.norm(arm.data.xpos[arm.tray] - (base + TRAY_OFFSET)) < 0.01
+    assert arm.move_to(w.cell((3, 3))) == w.cell((3, 3))
+    base = arm.data.xpos[arm.model.body("base").id]
+    assert np.linalg.norm(arm.data.xpos[arm.tray] - (base + TRAY_OFFSET)) < 0.02
+
+
+def test_detection_through_the_arm_and_tilt(worlds, arm):
+    w = worlds["simple"]
+    rng = np.random.default_rng(4)
+    arm.reset(w.cell((3, 3)))
+    hits, n = 0, 60
+    for _ in range(n):
+        h = int(rng.integers(8))
+        cue = arm.receive_push(HumanPush.sample(h, 0.0, PushProfile(), rng))
+        hits += cue is not None and cue.heading == h
+        arm.move_to(arm.cell)
+    assert hits / n >= 0.9
+    assert arm.tilt_rms() <= 3.0
+
+
+def test_arm_yields_and_recovers(worlds, arm):
+    w = worlds["simple"]
+    arm.reset(w.cell((3, 3)))
+    for _ in range(300):
+        arm.substep()
+    p0 = arm.data.xpos[arm.tray].copy()
+    push = HumanPush(angle=np.pi / 2, t0=float(arm.data.time), profile=PushProfile(),
+                     intended_heading=0)
+    moved = 0.0
+    for _ in range(200):
+        arm.substep(push)
+        moved = max(moved, np.linalg.norm(arm.data.xpos[arm.tray] - p0))
+    for _ in range(1000):
+        arm.substep()
+    assert moved > 0.01  # compliant during the push
+    assert np.linalg.norm(arm.data.xpos[arm.tray] - p0) < 0.02  # and back afterwards
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_carry_episode_level_and_no_penetration(seed):
+    r = EpisodeRunner(carry_spec(seed))
+    r.begin()
+    while not r.done:
+        r.step()
+    m = r.result.metrics
+    assert m["tilt_rms_deg"] <= 3.0 and m["max_penetration_mm"] <= 5.0
+    assert r.result.inputs >= 1
+
+
+def test_ik_failure_and_nan_are_recorded(monkeypatch):
+    from pathpref.experiments.backends import safe_run
+
+    def no_solution(*a, **k):
+        raise mink.NoSolutionFound("daqp")
+
+    monkeypatch.setattr(mink, "solve_ik", no_solution)
+    res = safe_run(carry_spec(1))
+    assert res.status == "failed" and "IK found no solution" in res.reason
+    monkeypatch.setattr(mink, "solve_ik", lambda *a, **k: np.full(9, np.nan))
+    res = safe_run(carry_spec(1))
+    assert res.status == "failed" and "non-finite" in res.reason
+
+
+class CarryConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    def make_object_under_test(self):
+        return load("carry", map="simple", method="goal_only", delta_t=3, seed=0, queries=200,
+                    t_max=5)
+
+
+def test_carry_observes_the_tray():
+    env = load("carry", map="simple", method="compliant", delta_t=2, seed=1, t_max=4)
+    ts = env.reset()
+    assert ts.observation["tray_tilt"].shape == (1,) and ts.observation["tray_tilt"][0] < 5
+    assert ts.observation["tray_position"][2] > 0.5
