@@ -124,11 +124,12 @@ def machine_info() -> dict[str, Any]:
     }
 
 
-def bench_ray(n: int = 24, queries: int = 2000) -> dict[str, Any]:
+def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
     """Episode throughput: one worker in-process vs Ray on a local 2-CPU cluster.
 
-    The same ``n`` goal-only episodes on ``simple`` both ways; Ray's start-up and a warm-up
-    batch (workers importing pathpref and loading the compiled kernel) are not timed.
+    The same ``n`` goal-only episodes on ``simple`` (the paper's 5000 queries per decision)
+    both ways; Ray's start-up and a warm-up batch (workers importing pathpref and loading the
+    compiled kernel) are not timed.
     """
     try:
         import ray
