@@ -25,7 +25,7 @@ from ..geometry.world import World
 from ..inference.belief import GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel
 from .pomcp import POMCP
-from .pomdp import Preset
+from .pomdp import Preset, Rewards
 
 STAY = -1
 
@@ -70,34 +70,37 @@ class Policy(ABC):
         return int(self.ctx.rng.integers(2**31))
 
 
-class PathPreferencePolicy(Policy):
+class PlannerPolicy(Policy):
+    """POMCP from the policy's belief with the given rewards, depth ``T_max - t + 1``."""
+
+    def __init__(self, ctx: PolicyContext, belief: PreferenceBelief | GoalBelief,
+                 rewards: Rewards):
+        super().__init__(ctx, belief)
+        self.planner = POMCP(ctx.world, ctx.model.goals, rewards, queries=ctx.queries,
+                             c=ctx.preset.ucb_c)
+
+    def act(self, t: int, cell: int, heading: int | None) -> int:
+        depth = self.ctx.t_max - t + 1
+        return self.planner.search(cell, self.belief, depth, self._seed()).action
+
+
+class PathPreferencePolicy(PlannerPolicy):
     """The paper's method: POMCP over ``(g, theta)`` with the exact factored belief."""
 
     name = "path_preference"
 
     def __init__(self, ctx: PolicyContext):
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling))
-        self.planner = POMCP(ctx.world, ctx.model.goals, ctx.preset.path_preference,
-                             queries=ctx.queries, c=ctx.preset.ucb_c)
-
-    def act(self, t: int, cell: int, heading: int | None) -> int:
-        depth = self.ctx.t_max - t + 1
-        return self.planner.search(cell, self.belief, depth, self._seed()).action
+        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling),
+                         ctx.preset.path_preference)
 
 
-class GoalOnlyPolicy(Policy):
+class GoalOnlyPolicy(PlannerPolicy):
     """Goal-only baseline: POMCP over ``g`` alone, no preference reward, goal-only belief."""
 
     name = "goal_only"
 
     def __init__(self, ctx: PolicyContext):
-        super().__init__(ctx, GoalBelief(ctx.model))
-        self.planner = POMCP(ctx.world, ctx.model.goals, ctx.preset.goal_only,
-                             queries=ctx.queries, c=ctx.preset.ucb_c)
-
-    def act(self, t: int, cell: int, heading: int | None) -> int:
-        depth = self.ctx.t_max - t + 1
-        return self.planner.search(cell, self.belief, depth, self._seed()).action
+        super().__init__(ctx, GoalBelief(ctx.model), ctx.preset.goal_only)
 
 
 class CompliantPolicy(Policy):

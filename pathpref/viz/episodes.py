@@ -13,7 +13,7 @@ import numpy as np  # noqa: E402
 from ..geometry.grid import MOVES  # noqa: E402
 from ..geometry.world import World  # noqa: E402
 from .mapdraw import draw_map  # noqa: E402
-from .plots import COLORS  # noqa: E402
+from .plots import COLORS, finish_belief_axes  # noqa: E402
 
 
 def trajectories_figure(world: World, results, out: str | Path) -> None:
@@ -51,12 +51,4 @@ def belief_figure(results, out: str | Path) -> None:
         col = COLORS.get(r.spec.method)
         axes[0].plot(t, [s.p_true_goal for s in r.log], color=col, label=r.spec.method)
         axes[1].plot(t, [s.goal_entropy for s in r.log], color=col, label=r.spec.method)
-    axes[0].set_ylabel("P(true goal)")
-    axes[1].set_ylabel("goal entropy (nats)")
-    for ax in axes:
-        ax.set_xlabel("time step")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8)
-    fig.tight_layout()
-    fig.savefig(out, dpi=120)
-    plt.close(fig)
+    finish_belief_axes(fig, axes, out, dpi=120)

@@ -47,6 +47,11 @@ def belief_curves_figure(curves: dict[str, dict[str, Any]], out: str | Path) -> 
             mu, sd = c[f"{key}_mean"], c[f"{key}_std"]
             ax.plot(c["t"], mu, color=col, label=f"{m} ({c['runs']} runs)")
             ax.fill_between(c["t"], mu - sd, mu + sd, color=col, alpha=0.2)
+    finish_belief_axes(fig, axes, out)
+
+
+def finish_belief_axes(fig, axes, out: str | Path, dpi: int = 130) -> None:
+    """Label a (P(true goal), goal entropy) pair of axes over time and write the figure."""
     axes[0].set_ylabel("P(true goal)")
     axes[1].set_ylabel("goal entropy (nats)")
     for ax in axes:
@@ -54,5 +59,5 @@ def belief_curves_figure(curves: dict[str, dict[str, Any]], out: str | Path) -> 
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(out, dpi=130)
+    fig.savefig(out, dpi=dpi)
     plt.close(fig)
