@@ -87,7 +87,12 @@ class Navigate(base.Task):
 
     def before_step(self, action, physics: Physics) -> None:
         r = self.runner
-        a = int(np.asarray(action).item())
+        a = np.asarray(action).item()
+        if not (np.isfinite(a) and float(a).is_integer() and 0 <= a <= STAY_ACTION):
+            from pathpref.errors import ConfigError
+
+            raise ConfigError(f"action must be 0..{STAY_ACTION} (8 = stay), got {action!r}")
+        a = int(a)
         if a == STAY_ACTION:
             a = STAY
         before = r.cell

@@ -109,8 +109,9 @@ def test_bad_forces_and_actions(worlds):
 
     r = EpisodeRunner(EpisodeSpec(map="simple", method="compliant", delta_t=5, instance=0,
                                   run=0, instance_seed=seed_for(0, 0), run_seed=1, sim="mujoco"))
-    with pytest.raises(ConfigError, match="action must be"):
-        r.step(11)
+    for bad in (11, -3, float("nan"), 2.5, "N"):
+        with pytest.raises(ConfigError, match="action must be"):
+            r.step(bad)
 
 
 def test_viewer_style_perturbation_is_detected(worlds):

@@ -51,6 +51,14 @@ def test_goal_gives_goal_reward_and_zero_discount():
     pytest.fail("compliant with input every step never reached a goal in 6 episodes")
 
 
+def test_bad_actions_are_clear_errors():
+    env = load("navigate", map="simple", method="compliant", delta_t=5, seed=0, t_max=3)
+    env.reset()
+    for bad in (np.nan, 9, -1):
+        with pytest.raises(ConfigError, match="action must be"):
+            env.step(bad)
+
+
 def test_unknown_task():
     with pytest.raises(ConfigError, match="unknown task"):
         load("fly")

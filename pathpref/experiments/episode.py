@@ -281,8 +281,13 @@ class EpisodeRunner:
         heading = self.pending_heading
         if action is None:
             action = int(self.policy.act(t, self.cell, heading))
-        elif action != STAY and not 0 <= int(action) < 8:
-            raise ConfigError(f"action must be 0..7 (N, NE, ..., NW), got {action!r}")
+        else:
+            try:
+                a = float(action)
+            except (TypeError, ValueError):
+                a = float("nan")
+            if not (np.isfinite(a) and a == int(a) and (int(a) == STAY or 0 <= int(a) < 8)):
+                raise ConfigError(f"action must be 0..7 (N, NE, ..., NW), got {action!r}")
         action = int(action)
         before = self.cell
         self.cell = int(self.mover.move(action))

@@ -16,7 +16,7 @@ joints (base x, y, yaw + arm)::
     posture       PostureTask: the arm's home posture (cost 1e-2)
     limits        ConfigurationLimit, VelocityLimit (base 0.8 m/s, 1 rad/s; shoulder and
                   elbow 2 rad/s, wrist 6 rad/s),
-                  CollisionAvoidanceLimit (arm and tray geoms vs obstacles and walls)
+                  CollisionAvoidanceLimit (arm and base geoms vs obstacles and walls)
 
 The base velocity actuators receive the IK's base velocities; the arm servos receive
 ``q + v dt`` from the measured ``q``, so the IK itself corrects the tray's orientation when a
@@ -117,6 +117,7 @@ class ArmBase(MobileBase):
                      if m.geom(i).name.startswith(("jaco/", "tool/"))
                      or m.body(m.geom_bodyid[i]).name.startswith(("jaco/", "tool/"))]
         arm_geoms = [g for g in arm_geoms if m.geom_contype[g] or m.geom_conaffinity[g]]
+        arm_geoms.append(int(m.geom("base_geom").id))  # the base too: arm/base vs obstacles
         self.obstacle_geoms = [i for i in range(m.ngeom) if m.geom(i).name.startswith(
             ("obstacle_", "wall_"))]
         self.arm_geoms = arm_geoms
