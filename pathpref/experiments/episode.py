@@ -232,7 +232,6 @@ class EpisodeRunner:
         self.goal_index = {g: k for k, g in enumerate(inst.goals)}
         self.cell = inst.start
         self.t = 0
-        self.given_heading: int | None = None  # what the human intended this step
         self.pending_heading: int | None = None
         self.started = False
         self.mover.reset(self.cell)
@@ -262,12 +261,12 @@ class EpisodeRunner:
 
     def _human_phase(self) -> None:
         """Before step t+1: the human gives an input when one is due; the robot updates."""
-        self.given_heading = self.pending_heading = None
+        self.pending_heading = None
         if self.done or self.t % self.spec.delta_t != 0:
             return
-        self.given_heading = self.human.sample(self.cell, self.human_rng)
+        intended = self.human.sample(self.cell, self.human_rng)
         self.result.inputs += 1
-        observed = self.mover.human_input(self.given_heading)
+        observed = self.mover.human_input(intended)
         if observed is not None:
             self.policy.observe(self.cell, observed)
         self.pending_heading = observed

@@ -9,14 +9,14 @@ and never modified.
 
 from __future__ import annotations
 
-import json
+import dataclasses
 import sqlite3
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
-from .episode import EpisodeResult, result_row
+from .episode import EpisodeResult, EpisodeSpec, result_row
 
 SCHEMA_VERSION = 2  # 2: per-episode physical metrics (JSON)
 
@@ -31,7 +31,6 @@ EPISODE_COLUMNS = {
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT",
 }
-STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
 
 
 class ResultStore:
@@ -137,9 +136,6 @@ class ResultStore:
         names = [d[0] for d in cur.description]
         return [dict(zip(names, r, strict=True)) for r in cur]
 
-    def count(self) -> int:
-        return int(self.conn.execute("SELECT COUNT(*) FROM episodes").fetchone()[0])
-
     def close(self) -> None:
         self.conn.close()
 
@@ -150,8 +146,9 @@ class ResultStore:
         self.close()
 
 
-def spec_json(row: dict[str, Any]) -> str:
-    """The spec fields of a stored row as JSON (for replaying one episode)."""
-    keys = ["map", "method", "delta_t", "instance", "run", "instance_seed", "run_seed", "preset",
-            "queries", "t_max", "n_goals", "normalize", "coupling", "sim", "fixed", "task", "ucb_c"]
-    return json.dumps({k: row[k] for k in keys})
+def row_spec(row: dict[str, Any]) -> EpisodeSpec:
+    """The :class:`EpisodeSpec` of a stored row: ``run_episode(row_spec(row))`` replays it."""
+    names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
+    spec = {k: row[k] for k in names}
+    spec["normalize"], spec["coupling"] = bool(spec["normalize"]), bool(spec["coupling"])
+    return EpisodeSpec(**spec)

@@ -90,12 +90,6 @@ class Arrangement:
         """Cell indices of polytope ``v``."""
         return np.flatnonzero(self.cell_polytope == v)
 
-    def locate(self, point: np.ndarray) -> int:
-        """Polytope id holding a continuous point, or -1 (in an obstacle / no-cell polytope)."""
-        s = np.asarray(point, float) @ self.normals.T - self.offsets > SIDE_EPS
-        hit = np.flatnonzero(np.all(self.signs == s, axis=1))
-        return int(hit[0]) if len(hit) else -1
-
     def constraint_rows(self, v: int) -> tuple[np.ndarray, np.ndarray]:
         """All rows (one per line) whose intersection is polytope ``v``: ``A x <= b``."""
         flip = np.where(self.signs[v], -1.0, 1.0)

@@ -93,12 +93,6 @@ def convex_vertices_to_h(vertices: np.ndarray) -> tuple[np.ndarray, np.ndarray, 
     return A, b, v
 
 
-def normalise_rows(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Scale each row of ``A x <= b`` so that ``|a_i| = 1``."""
-    n = np.linalg.norm(A, axis=1)
-    return A / n[:, None], b / n
-
-
 def clip_polygon(poly: np.ndarray, a: np.ndarray, b: float) -> np.ndarray:
     """Clip a convex polygon (CCW vertices) by the half-plane ``a . x <= b``."""
     if len(poly) == 0:

@@ -46,13 +46,6 @@ class CostTables:
     feasible: np.ndarray
 
 
-def polytope_distances(world: World, v: int) -> tuple[np.ndarray, np.ndarray]:
-    """Cells of polytope ``v`` and their all-pairs grid distance using only cells of ``v``."""
-    cells = world.arrangement.polytope_cells(v)
-    sub = world.motion.adjacency()[cells][:, cells]
-    return cells, dijkstra(sub, directed=True)
-
-
 def build_cost_tables(world: World, goals: np.ndarray) -> CostTables:
     """Compute :class:`CostTables` for the goal cells ``goals`` (see module docstring)."""
     goals = np.asarray(goals, dtype=int)

@@ -16,8 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from ..errors import ConfigError
 
 
@@ -105,6 +103,3 @@ def step_reward(
         r += rewards.goal
     return s2, r, bool(done), e
 
-
-def discounted_return(rewards_seq: np.ndarray, discount: float) -> float:
-    return float(np.sum(rewards_seq * discount ** np.arange(len(rewards_seq))))

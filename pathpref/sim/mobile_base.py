@@ -42,7 +42,6 @@ class MobileBase:
         self.detector = CueDetector(self.dt)
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
         self.target = np.zeros(2)
-        self.push: HumanPush | None = None
         self.false_cues = 0  # cues detected while driving, with no push given
         self.detected: list[Cue] = []  # those cues, for study mode (a person pushing live)
         #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
@@ -60,10 +59,6 @@ class MobileBase:
     @property
     def position(self) -> np.ndarray:
         return self.data.qpos[:2].copy()
-
-    @property
-    def velocity(self) -> np.ndarray:
-        return self.data.qvel[:2].copy()
 
     @property
     def cell(self) -> int:
@@ -95,12 +90,10 @@ class MobileBase:
         """Hold the current cell while ``push`` acts; return the detected cue or None."""
         self.target = self.scene.cell_centre(self.cell)
         push.t0 = float(self.data.time)
-        self.push = push
         end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
         cue = None
         while self.data.time < end and cue is None:
             cue = self.substep(push)
-        self.push = None
         self.detector.reset()
         return cue
 

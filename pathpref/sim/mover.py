@@ -52,7 +52,6 @@ class MujocoMover:
         else:
             self.base = MobileBase(self.scene, profile=profile, data=data)
         self.profile = self.base.profile
-        self.last_push: HumanPush | None = None
         self.last_cue = None
         self.max_penetration = 0.0
 
@@ -62,7 +61,6 @@ class MujocoMover:
 
     def human_input(self, heading: int) -> int | None:
         push = HumanPush.sample(heading, float(self.base.data.time), self.profile, self.rng)
-        self.last_push = push
         self.last_cue = cue = self.base.receive_push(push)
         self.cell = self.base.cell
         return None if cue is None else cue.heading
