@@ -294,7 +294,7 @@ class EpisodeRunner:
         if v != w:
             if self.pref[v] >= 0 and self.pref[v] != w:
                 self.result.violations += 1
-            if self.world.graph.edge_id[v, w] >= 0:
+            if self.world.graph.edge_between(v, w) >= 0:
                 self.policy.enter(v, w)
         self.t = t
         self.result.steps = t

@@ -36,7 +36,7 @@ def seed_for(*parts: int) -> int:
 
 def goal_pool(world: World, start: int) -> np.ndarray:
     """Cells that may be goal candidates for this start (see module docstring)."""
-    reach = np.isfinite(world.all_distances[start])
+    reach = np.isfinite(world.motion.distances_from(np.array([start]))[0])
     pool = reach.copy()
     pool[start] = False
     band = world.spec.goal_band
@@ -75,7 +75,7 @@ def fixed_instance(world: World, start: tuple[int, int], goals: list[tuple[int, 
         raise ConfigError("goal candidates must be distinct cells other than the start")
     if not 0 <= true_goal < len(g):
         raise ConfigError(f"true goal index {true_goal} is not among the {len(g)} candidates")
-    d = world.all_distances[s, g]
+    d = world.motion.distances_from(np.array([s]))[0, g]
     if not np.isfinite(d).all():
         k = int(np.flatnonzero(~np.isfinite(d))[0])
         raise MapError(f"goal candidate {tuple(goals[k])} cannot be reached from {tuple(start)}")

@@ -46,6 +46,14 @@ class PolytopeGraph:
     def max_degree(self) -> int:
         return max((len(n) for n in self.neighbors), default=0)
 
+    def edge_between(self, v: int, w: int) -> int:
+        """Id of the edge joining polytopes ``v`` and ``w`` (-1 when not adjacent)."""
+        return int(self.edge_id[v, w])
+
+    def edges_between(self, v: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Vectorised :meth:`edge_between` over arrays of polytope ids (-1: not adjacent)."""
+        return self.edge_id[np.asarray(v), np.asarray(w)]
+
     def neighbor_index(self, v: int, w: int) -> int:
         """Position of ``w`` in ``neighbors[v]`` (-1 when not adjacent)."""
         hit = np.flatnonzero(self.neighbors[v] == w)

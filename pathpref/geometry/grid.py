@@ -85,7 +85,7 @@ def build_motion(arr: Arrangement, graph: PolytopeGraph) -> GridMotion:
     src = np.repeat(np.arange(n)[:, None], 8, axis=1)
     v_src = arr.cell_polytope[src]
     v_tgt = np.where(free, arr.cell_polytope[np.maximum(t_idx, 0)], -1)
-    edge = np.where(free, graph.edge_id[v_src, np.maximum(v_tgt, 0)], -1)
+    edge = np.where(free, graph.edges_between(v_src, np.maximum(v_tgt, 0)), -1)
     ok = free & ((v_src == v_tgt) | (edge >= 0))
     next_cell = np.where(ok, t_idx, src)
     cost = np.where(ok, MOVE_COST[None, :], BLOCKED_COST)

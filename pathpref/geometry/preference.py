@@ -55,7 +55,7 @@ def preference_from_table(
             raise MapError(f"{where} must be {{'from': [x, y], 'to': [x, y]}}, got {entry!r}")
         v = int(arr.cell_polytope[_cell(arr, entry["from"], f"{where}.from")])
         w = int(arr.cell_polytope[_cell(arr, entry["to"], f"{where}.to")])
-        if graph.edge_id[v, w] < 0:
+        if graph.edge_between(v, w) < 0:
             raise MapError(
                 f"{where}: polytope {v} (cell {entry['from']}) and polytope {w} (cell "
                 f"{entry['to']}) are not neighbours; 'to' must lie in a polytope next to 'from'"
