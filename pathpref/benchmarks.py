@@ -23,7 +23,7 @@ from .geometry.world import World
 from .inference.belief import GoalBelief, PreferenceBelief
 from .inference.human import ObservationModel
 from .planning.pomcp import POMCP
-from .planning.pomdp import default_t_max, get_preset
+from .planning.pomdp import get_preset
 
 #: the paper's Table II belief-update times (ms) for reference
 PAPER_UPDATE_MS = {"simple": 73.5, "office": 28.7, "classroom": 38.3}
@@ -89,7 +89,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
 def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
     """First-decision POMCP time: 5000 queries at depth T_max, median over random instances."""
     preset = get_preset("paper")
-    depth = default_t_max(name)
+    depth = world.spec.t_max
     n = 5 if quick else 20
     rng = np.random.default_rng(seed + 1)
     t_pp, t_go = [], []

@@ -45,10 +45,13 @@ def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
 
 # --- map ------------------------------------------------------------------------------------
 def cmd_map_info(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from .geometry.world import load_world
 
     world = load_world(args.map)
     deg = [len(n) for n in world.graph.neighbors]
+    comp = np.bincount(world.motion.components())
     info = {
         "name": world.name,
         "width": world.spec.width,
@@ -58,14 +61,22 @@ def cmd_map_info(args: argparse.Namespace) -> int:
         "polytopes": world.n_polytopes,
         "edges": world.graph.n_edges,
         "free_cells": world.n_cells,
+        "move_edges": world.graph.n_move_edges,
+        "components": len(comp),
+        "largest_component_cells": int(comp.max()),
         "max_degree": max(deg, default=0),
         "has_preference": world.preference is not None,
+        "t_max": world.spec.t_max,
+        "map_hash": world.spec.content_hash,
     }
     if args.json:
         print(json.dumps(info))
     else:
         for k, v in info.items():
-            print(f"{k:>15}: {v}")
+            print(f"{k:>23}: {v}")
+        if len(comp) > 1:
+            print(f"note: free space splits into {len(comp)} parts that the robot cannot move "
+                  "between; instances draw goals only from the start's part")
     return 0
 
 
@@ -82,15 +93,36 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- db -------------------------------------------------------------------------------------
+def cmd_db_upgrade(args: argparse.Namespace) -> int:
+    from .experiments.migrate import upgrade_database
+
+    remap = {}
+    for item in args.map or []:
+        old, sep, new = item.partition("=")
+        if not sep or not old or not new:
+            raise ConfigError(f"--map {item!r}: write it as OLD=NEW (a stored map name = a file)")
+        remap[old] = new
+    r = upgrade_database(args.db, remap)
+    if r["backup"] is None:
+        print(f"{args.db} is already at schema {r['to']} ({r['episodes']} episodes); nothing to do")
+    else:
+        print(f"upgraded {args.db} from schema {r['from']} to {r['to']}: {r['episodes']} episodes, "
+              f"{r['steps']} steps ({r['merged']} duplicate rows of one map under two paths "
+              f"merged); the old file is {r['backup']}")
+    return 0
+
+
 # --- experiments ----------------------------------------------------------------------------
 def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
-    from .planning.pomdp import default_t_max, get_preset
+    from .experiments.episode import cached_map
+    from .planning.pomdp import get_preset
 
     preset = get_preset(args.preset)
     return {
         "preset": args.preset,
         "queries": args.queries if args.queries is not None else preset.queries,
-        "t_max": args.t_max if args.t_max is not None else default_t_max(map_name),
+        "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",
         "coupling": args.coupling,
         "ucb_c": args.ucb_c,
@@ -110,8 +142,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                        address=args.address)
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
           f"in {args.db}, {counts['seconds']} s")
-    recs = [r for r in load_records(args.db) if r["map"] == Path(args.map).stem or
-            r["map"] == args.map]
+    from .experiments.episode import cached_map
+
+    recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]
     print(markdown_tables(recs))
     return 0
 
@@ -283,7 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
     def episode_options(sp: argparse.ArgumentParser) -> None:
         sp.add_argument("--preset", default="paper", help="paper (default) or original")
         sp.add_argument("--queries", type=int, default=None, help="POMCP queries (5000)")
-        sp.add_argument("--t-max", type=int, default=None, help="mission time (30; 60 classroom)")
+        sp.add_argument("--t-max", type=int, default=None,
+                        help="mission time in decision steps (default: the map's t_max field, "
+                        "else 3 x its longer side: 30 on simple/office, 60 on classroom)")
         sp.add_argument("--likelihood", choices=["normalized", "unnormalized"],
                         default="normalized", help="robot's likelihood (authors: unnormalized)")
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=True,
@@ -294,6 +329,14 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--seed", type=int, default=0)
         sp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
         sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    dbp = sub.add_parser("db", help="maintain results databases")
+    dbsub = dbp.add_subparsers(dest="db_command", required=True)
+    du = dbsub.add_parser("upgrade", help="migrate a database of an older schema (keeps a .bak)")
+    du.add_argument("db", help="results database (.sqlite)")
+    du.add_argument("--map", action="append", metavar="OLD=NEW",
+                    help="point a stored map name at a file (when it has moved); repeatable")
+    du.set_defaults(func=cmd_db_upgrade)
 
     ev = sub.add_parser("evaluate", help="run a sweep of episodes into a results database")
     ev.add_argument("--map", default="simple")

@@ -52,6 +52,7 @@ def convert(m: dict) -> dict:
         out["preference"] = {"route": CLASSROOM_ROUTE, "closed": True}
     if name == "office":
         out["goal_band"] = {"x": [2, 10], "y": [8, 9]}
+    out["t_max"] = 60 if name == "classroom" else 30  # paper Sec. V-B (SPEC 6)
     return out
 
 

@@ -80,9 +80,10 @@ def test_invariants(worlds, name):
         A, b = w.arrangement.A[v], w.arrangement.b[v]
         centres = w.cells[w.arrangement.polytope_cells(v)] - 0.5
         assert (centres @ A.T - b <= 1e-9).all()
-    # adjacency symmetric, edges cross exactly one line
-    E = w.graph.edge_id
-    assert (E == E.T).all()
+    # adjacency symmetric, edges cross exactly one line (no move edges on the paper's maps)
+    assert w.graph.n_move_edges == 0
+    for (u, v), e in zip(w.graph.edges, range(w.graph.n_edges)):
+        assert w.graph.edge_between(u, v) == w.graph.edge_between(v, u) == e
     for (u, v), h in zip(w.graph.edges, w.graph.edge_hyperplane):
         diff = np.flatnonzero(w.arrangement.signs[u] != w.arrangement.signs[v])
         assert diff.tolist() == [h]
@@ -110,24 +111,33 @@ def test_rotated_obstacles():
     w = load_world({"name": "rot", "width": 10, "height": 8,
                     "obstacles": [{"vertices": square}, {"vertices": tri[::-1]}]})
     assert w.n_polytopes > 8
+    signs = w.arrangement.signs
     for (u, v), h in zip(w.graph.edges, w.graph.edge_hyperplane):
-        diff = np.flatnonzero(w.arrangement.signs[u] != w.arrangement.signs[v])
-        assert diff.tolist() == [h]
-    # every non-blocked move that changes polytope crosses the edge between them
+        diff = np.flatnonzero(signs[u] != signs[v])
+        if h >= 0:  # facet edge: one line
+            assert diff.tolist() == [h]
+        else:  # move edge: a straight move across several lines
+            assert len(diff) >= 2
+    # every non-blocked move that changes polytope crosses the edge between them; a diagonal
+    # move never crosses more than one line (the corner rule)
     m = w.motion
     for i in range(w.n_cells):
         for a in range(8):
             j = m.next_cell[i, a]
             u, v = w.cell_polytope[i], w.cell_polytope[j]
             if u != v:
-                assert m.crossed_edge[i, a] == w.graph.edge_id[u, v] >= 0
+                assert m.crossed_edge[i, a] == w.graph.edge_between(u, v) >= 0
+                if a % 2 == 1:
+                    assert (signs[u] != signs[v]).sum() == 1
             else:
                 assert m.crossed_edge[i, a] == -1
-    # no move passes through an obstacle: sample points along every allowed segment
+    # no move inside a polytope or across a facet passes through an obstacle (a straight move
+    # across several lines may clip an obstacle thinner than a cell, as on the 4-connected grid)
     obs = w.spec.obstacles
     for i in range(w.n_cells):
         for a in range(8):
-            if m.blocked[i, a]:
+            e = m.crossed_edge[i, a]
+            if m.blocked[i, a] or (e >= 0 and w.graph.edge_hyperplane[e] < 0):
                 continue
             p0, p1 = w.cells[i] - 0.5, w.cells[m.next_cell[i, a]] - 0.5
             pts = p0 + np.linspace(0, 1, 21)[:, None] * (p1 - p0)

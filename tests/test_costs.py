@@ -15,7 +15,7 @@ def brute_constrained(world, o: int, k: int, g: int) -> float:
     m, cp = world.motion, world.cell_polytope
     v = cp[o]
     if cp[g] == v:
-        return float(world.all_distances[o, g])
+        return float(world.motion.distances_from(np.array([o]))[0, g])
     p = world.graph.neighbors[v][k]
     dist = {(o, 0): 0.0}
     heap = [(0.0, o, 0)]
@@ -44,9 +44,20 @@ def brute_constrained(world, o: int, k: int, g: int) -> float:
     return np.inf
 
 
-@pytest.mark.parametrize("name", ["simple", "office", "classroom"])
-def test_constrained_costs_match_brute_force(worlds, name):
-    w = worlds[name]
+@pytest.fixture(scope="module")
+def rotated_world():
+    """A floor plan with rotated obstacles: thin polytopes, move edges, multi-line moves."""
+    from pathpref.geometry.generate import random_floor_plan
+    from pathpref.geometry.world import load_world
+
+    w = load_world(random_floor_plan(14, 12, 6, n_boxes=1, seed=4))
+    assert w.graph.n_move_edges > 0
+    return w
+
+
+@pytest.mark.parametrize("name", ["simple", "office", "classroom", "rotated"])
+def test_constrained_costs_match_brute_force(worlds, rotated_world, name):
+    w = rotated_world if name == "rotated" else worlds[name]
     rng = np.random.default_rng(3)
     goals = rng.choice(w.n_cells, size=6, replace=False)
     t = build_cost_tables(w, goals)
@@ -59,6 +70,9 @@ def test_constrained_costs_match_brute_force(worlds, name):
                 if np.isfinite(ref):
                     assert t.constrained[o, k, gi] == pytest.approx(ref)
                     assert t.feasible[o, k, gi]
+                else:  # constraint cannot be met: the table falls back to the plain distance
+                    assert not t.feasible[o, k, gi]
+                    assert t.constrained[o, k, gi] == t.dist[gi, o]
 
 
 def test_unconstrained_distance_is_octile_on_empty_map():

@@ -23,7 +23,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, EpisodeError
-from ..geometry.world import World, load_world
+from ..geometry.maps import MapSpec, load_map
+from ..geometry.world import World
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.policies import STAY, PolicyContext, make_policy
 from ..planning.pomdp import get_preset
@@ -64,9 +65,19 @@ class EpisodeSpec:
     #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
     timeout_s: float = field(default=0.0, compare=False)
 
+    @property
+    def map_hash(self) -> str:
+        """Content hash of the map (:attr:`MapSpec.content_hash`): the map's identity."""
+        return cached_map(self.map).content_hash
+
     def key(self) -> str:
+        """The episode's identity: every field but the map's path and the timeout, plus the
+        map's content hash (so an edited map runs new episodes and the same map under another
+        path reuses them)."""
         d = asdict(self)
         d.pop("timeout_s")
+        d.pop("map")
+        d["map_hash"] = self.map_hash
         return "|".join(f"{k}={d[k]}" for k in sorted(d))
 
     def validate(self) -> None:
@@ -122,10 +133,16 @@ class EpisodeResult:
         return self.goal_reached and self.pref_followed and self.status == "ok"
 
 
+@lru_cache(maxsize=64)
+def cached_map(source: str) -> MapSpec:
+    """Map files are read once per process."""
+    return load_map(source)
+
+
 @lru_cache(maxsize=8)
 def cached_world(source: str) -> World:
     """Worlds are built once per process."""
-    return load_world(source)
+    return World.from_spec(cached_map(source))
 
 
 @lru_cache(maxsize=128)
@@ -327,6 +344,7 @@ def result_row(res: EpisodeResult) -> dict[str, Any]:
     return {
         **d,
         "key": res.spec.key(),
+        "map_hash": res.spec.map_hash,
         "start": json.dumps(res.instance_cells.get("start")),
         "goals": json.dumps(res.instance_cells.get("goals")),
         "true_goal": inst.true_goal,

@@ -57,8 +57,10 @@ def variant(r: dict[str, Any]) -> str:
 def success_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One record per (map, sim, variant, method, delta_t) with n, rate, CI and flag rates."""
     groups: dict[tuple, list[dict]] = defaultdict(list)
+    label: dict[str, str] = {}  # a map is its content: rows of one hash share the first path
     for r in rows:
-        groups[(r["map"], r["sim"], variant(r), r["method"], r["delta_t"])].append(r)
+        m = label.setdefault(r["map_hash"], r["map"])
+        groups[(m, r["sim"], variant(r), r["method"], r["delta_t"])].append(r)
     out = []
     for (m, sim, var, method, dt), rs in sorted(groups.items(), key=lambda kv: (
             kv[0][0], kv[0][1], kv[0][2], _order(kv[0][3]), kv[0][4])):
@@ -67,7 +69,8 @@ def success_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         k = sum(r["success"] for r in ok)
         lo, hi = wilson(k, n)
         out.append({
-            "map": m, "sim": sim, "variant": var, "method": method, "delta_t": dt,
+            "map": m, "map_hash": rs[0]["map_hash"], "sim": sim, "variant": var,
+            "method": method, "delta_t": dt,
             "n": n, "failed": len(rs) - n, "success_rate": k / n if n else float("nan"),
             "ci_low": lo, "ci_high": hi,
             "goal_rate": sum(r["goal_reached"] for r in ok) / n if n else float("nan"),

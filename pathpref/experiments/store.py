@@ -18,11 +18,12 @@ from typing import Any
 from ..errors import ConfigError
 from .episode import EpisodeResult, EpisodeSpec, result_row
 
-SCHEMA_VERSION = 2  # 2: per-episode physical metrics (JSON)
+SCHEMA_VERSION = 3  # 2: per-episode physical metrics (JSON); 3: keys by map content hash
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
-    "map": "TEXT", "sim": "TEXT", "task": "TEXT", "method": "TEXT", "delta_t": "INTEGER",
+    "map": "TEXT", "map_hash": "TEXT", "sim": "TEXT", "task": "TEXT", "method": "TEXT",
+    "delta_t": "INTEGER",
     "instance": "INTEGER", "run": "INTEGER", "instance_seed": "INTEGER", "run_seed": "INTEGER",
     "preset": "TEXT", "queries": "INTEGER", "t_max": "INTEGER", "n_goals": "INTEGER",
     "normalize": "INTEGER", "coupling": "INTEGER", "fixed": "TEXT",
@@ -82,6 +83,11 @@ class ResultStore:
                 f"{self.path} is an SQLite file not written by pathpref; give another --db path"
             )
         found = int(row[0]) if row else None
+        if found is not None and 2 <= found < SCHEMA_VERSION:
+            raise ConfigError(
+                f"{self.path} was written by an older pathpref (schema {found}, this version "
+                f"reads {SCHEMA_VERSION}); run 'pathpref db upgrade {self.path}' to migrate it"
+            )
         if found != SCHEMA_VERSION:
             raise ConfigError(
                 f"{self.path} was written by an incompatible pathpref (schema {found}, this "

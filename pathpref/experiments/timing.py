@@ -17,7 +17,7 @@ import numpy as np
 from ..inference.belief import GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.pomcp import POMCP
-from ..planning.pomdp import default_t_max, get_preset
+from ..planning.pomdp import get_preset
 from .episode import cached_world
 from .instances import sample_instance, seed_for
 
@@ -42,7 +42,7 @@ def time_map(map_name: str, instances: int = 100, queries: int = 5000, preset: s
     world = cached_world(map_name)
     pref = world.require_preference()
     p = get_preset(preset)
-    depth = t_max or default_t_max(map_name)
+    depth = t_max or world.spec.t_max
     out: dict[str, list[float]] = {k: [] for k in
                                     ("solve_goal_only", "solve_path_pref", "update_goal_only",
                                      "update_path_pref")}

@@ -8,7 +8,8 @@ convex cells; a cell is identified by its *sign vector* ``alpha_j = [a_j . x > b
 Each free grid cell's centre gives the sign vector of the polytope it lies in, so grouping the
 free cells by sign vector yields exactly the free polytopes that hold a cell (also in free
 components that a breadth-first search from one cell would not reach). Each polytope is then
-reduced to its essential rows (:func:`pathpref.geometry.polygon.essential_rows`).
+reduced to its essential rows (:func:`pathpref.geometry.polygon.essential_rows`: the rows
+carrying a facet of its polygon).
 
 Polytope ids are 0-based, ordered by their first free cell in ``(x, y)`` lexicographic order.
 """
@@ -19,10 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import MapError
 from .maps import MapSpec, free_cell_mask
-from .polygon import essential_rows, h_polygon
+from .polygon import facet_rows, h_polygon
 
 SIDE_EPS = 1e-9
+#: free cells x lines above which a map is refused before any allocation (the sign-vector table
+#: has one byte per pair; temporaries take a few times that)
+MAX_CELL_LINES = 400_000_000
 
 
 def unique_hyperplanes(spec: MapSpec) -> tuple[np.ndarray, np.ndarray]:
@@ -31,22 +36,20 @@ def unique_hyperplanes(spec: MapSpec) -> tuple[np.ndarray, np.ndarray]:
     A line is canonically oriented (first non-zero normal component positive) so that a row and
     its negation map to the same line.
     """
-    normals: list[np.ndarray] = []
-    offsets: list[float] = []
-    for o in spec.obstacles:
-        for a, b in zip(o.A, o.b, strict=True):
-            if a[0] < -1e-12 or (abs(a[0]) <= 1e-12 and a[1] < 0):
-                a, b = -a, -b
-            dup = any(
-                np.allclose(a, n, atol=1e-9) and abs(b - c) <= 1e-9
-                for n, c in zip(normals, offsets, strict=True)
-            )
-            if not dup:
-                normals.append(np.asarray(a, dtype=float))
-                offsets.append(float(b))
-    if not normals:
-        return np.zeros((0, 2)), np.zeros(0)
-    return np.array(normals), np.array(offsets)
+    rows = [(np.asarray(a, dtype=float), float(b)) for o in spec.obstacles
+            for a, b in zip(o.A, o.b, strict=True)]
+    normals = np.zeros((len(rows), 2))
+    offsets = np.zeros(len(rows))
+    m = 0
+    for a, b in rows:
+        if a[0] < -1e-12 or (abs(a[0]) <= 1e-12 and a[1] < 0):
+            a, b = -a, -b
+        # the same test as np.allclose(a, n, atol=1e-9) and |b - c| <= 1e-9, against all kept
+        close = np.abs(a - normals[:m]) <= 1e-9 + 1e-5 * np.abs(normals[:m])
+        if not (close.all(axis=1) & (np.abs(b - offsets[:m]) <= 1e-9)).any():
+            normals[m], offsets[m] = a, b
+            m += 1
+    return normals[:m].copy(), offsets[:m].copy()
 
 
 @dataclass(frozen=True)
@@ -100,6 +103,12 @@ def build_arrangement(spec: MapSpec) -> Arrangement:
     """Compute the free polytopes of ``spec`` (see module docstring)."""
     normals, offsets = unique_hyperplanes(spec)
     free = free_cell_mask(spec)
+    size = int(free.sum()) * len(normals)
+    if size > MAX_CELL_LINES:
+        raise MapError(
+            f"map '{spec.name}' is too large to build: {int(free.sum())} free cells x "
+            f"{len(normals)} distinct obstacle lines = {size:,} exceeds the limit "
+            f"{MAX_CELL_LINES:,}; use fewer or simpler obstacles, or a coarser grid")
     xs, ys = np.nonzero(free)  # x-major order
     cells = np.stack([xs + 1, ys + 1], axis=1)
     cell_index = -np.ones((spec.width, spec.height), dtype=int)
@@ -107,7 +116,8 @@ def build_arrangement(spec: MapSpec) -> Arrangement:
     centres = cells - 0.5
     side = centres @ normals.T - offsets > SIDE_EPS  # (n, m)
     # group cells by sign vector; number groups by their first cell
-    _, first, inverse = np.unique(side, axis=0, return_index=True, return_inverse=True)
+    packed = np.packbits(side, axis=1)  # rows of bytes: the same groups, far faster to sort
+    _, first, inverse = np.unique(packed, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     order = np.argsort(first)
     rank = np.empty_like(order)
@@ -118,11 +128,12 @@ def build_arrangement(spec: MapSpec) -> Arrangement:
     for v in range(len(signs)):
         flip = np.where(signs[v], -1.0, 1.0)
         A_all, b_all = normals * flip[:, None], offsets * flip
-        ess = essential_rows(A_all, b_all, spec.width, spec.height)
+        poly = h_polygon(A_all, b_all, spec.width, spec.height)
+        ess = facet_rows(poly, A_all, b_all, spec.width, spec.height)
         As.append(A_all[ess])
         bs.append(b_all[ess])
         rows.append(ess)
-        polys.append(h_polygon(A_all[ess], b_all[ess], spec.width, spec.height))
+        polys.append(poly)
     return Arrangement(
         width=spec.width, height=spec.height, normals=normals, offsets=offsets, cells=cells,
         cell_index=cell_index, cell_polytope=cell_polytope, signs=signs, A=tuple(As),

@@ -1,15 +1,21 @@
-"""Grid motion (paper Sec. V "Transition model", SPEC 3).
+"""Grid motion (paper Sec. V "Transition model", SPEC 3, extended to any convex obstacles).
 
 Eight compass actions, in this order (index = heading index everywhere in pathpref)::
 
     0 N (0, +1)   1 NE (+1, +1)   2 E (+1, 0)   3 SE (+1, -1)
     4 S (0, -1)   5 SW (-1, -1)   6 W (-1, 0)   7 NW (-1, +1)
 
-Straight moves cost 1, diagonal moves sqrt(2). A move is *blocked* (the robot stays, cost 1)
-when the target is outside the map or not free, or when it changes polytope other than across
-one graph edge. The last rule is the paper's corner rule generalised: a diagonal move through an
-arrangement vertex crosses two lines at once; so does any segment that cuts an obstacle corner
-or a polytope holding no cell. ``crossed_edge[s, a]`` is the graph edge a move crosses (-1: none).
+Straight moves cost 1, diagonal moves sqrt(2). A move is *blocked* (the robot stays, cost 1) when
+the target is outside the map or not free, and, for a diagonal move only, when it changes polytope
+across more than one line (the paper's corner rule: a diagonal through an arrangement vertex,
+past an obstacle corner, or through a polytope that holds no cell). A straight move between two
+free cells is never blocked: it crosses the lines on which the sign vectors of its two polytopes
+differ, in one step, and records the polytope it left and the one it entered (a facet edge when
+that is one line, a move edge of :mod:`pathpref.geometry.graph` otherwise). Hence two free cells
+connected on the 4-connected grid of free cells are connected under this rule, whatever the
+obstacles' rotation. On the paper's axis-aligned maps a straight move crosses at most one line,
+so the rule is the paper's. ``crossed_edge[s, a]`` is the graph edge a move crosses (-1: none).
+See ``docs/motion_rule.md`` for a picture.
 """
 
 from __future__ import annotations
@@ -18,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .arrangement import Arrangement
 from .graph import PolytopeGraph
@@ -66,6 +72,12 @@ class GridMotion:
         ok = ~self.blocked.ravel()
         return csr_matrix((w[ok], (src[ok], dst[ok])), shape=(n, n))
 
+    def components(self) -> np.ndarray:
+        """``(n,)`` label of each cell's connected component under the motion rule (0-based,
+        numbered by first cell). Moves are symmetric, so weak and strong components agree."""
+        _, labels = connected_components(self.adjacency(), directed=False)
+        return labels
+
     def distances_from(self, sources: np.ndarray) -> np.ndarray:
         """Shortest grid distance from each source cell to every cell (inf: unreachable)."""
         return dijkstra(self.adjacency(), directed=True, indices=np.asarray(sources))
@@ -85,8 +97,13 @@ def build_motion(arr: Arrangement, graph: PolytopeGraph) -> GridMotion:
     src = np.repeat(np.arange(n)[:, None], 8, axis=1)
     v_src = arr.cell_polytope[src]
     v_tgt = np.where(free, arr.cell_polytope[np.maximum(t_idx, 0)], -1)
-    edge = np.where(free, graph.edges_between(v_src, np.maximum(v_tgt, 0)), -1)
-    ok = free & ((v_src == v_tgt) | (edge >= 0))
+    change = free & (v_src != v_tgt)
+    edge = -np.ones((n, 8), dtype=int)
+    edge[change] = graph.edges_between(v_src[change], v_tgt[change])
+    diagonal = (MOVES[:, 0] != 0) & (MOVES[:, 1] != 0)
+    lines = np.zeros((n, 8), dtype=int)
+    lines[change] = (arr.signs[v_src[change]] != arr.signs[v_tgt[change]]).sum(axis=1)
+    ok = free & ((v_src == v_tgt) | ((edge >= 0) & ~(diagonal[None, :] & (lines > 1))))
     next_cell = np.where(ok, t_idx, src)
     cost = np.where(ok, MOVE_COST[None, :], BLOCKED_COST)
     crossed = np.where(ok & (v_src != v_tgt), edge, -1)

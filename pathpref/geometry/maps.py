@@ -11,6 +11,7 @@ Format (JSON, or the same structure as a Python dict)::
       ],
       "preference": {"table": [{"from": [1, 1], "to": [5, 1]}]},  # optional, see preference.py
       "goal_band": {"x": [2, 10], "y": [8, 9]},                    # optional, instance sampling
+      "t_max": 30,                                                  # optional, mission time
       "description": "free text"                                   # optional
     }
 
@@ -18,10 +19,17 @@ Cell ``(x, y)`` is the unit square ``[x-1, x] x [y-1, y]`` and is free when its 
 strictly outside every obstacle. Obstacles may overlap; they must lie inside the map box
 (touching the border is fine). Every obstacle is stored in H-representation ``A x <= b`` with
 unit-norm rows.
+
+Mission time ``t_max`` (decision steps) is a map field; without it the rule
+``t_max = 3 * max(width, height)`` applies, which gives the paper's 30 on its 10 x 10 maps and 60
+on the 20 x 20 classroom (the built-in maps also state it). A map's identity is
+:attr:`MapSpec.content_hash`, a hash of its canonical form (see :meth:`MapSpec.canonical`), so the
+same map under another path or name is the same map, and an edited map is a new one.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -36,6 +44,12 @@ from .polygon import convex_vertices_to_h
 
 BUILTIN_MAPS = ("simple", "office", "classroom")
 MAX_SIDE = 500
+MAX_T_MAX = 100_000
+
+
+def default_t_max(width: int, height: int) -> int:
+    """Mission time of a map without a ``t_max`` field: ``3 * max(width, height)`` steps."""
+    return 3 * max(width, height)
 
 
 @dataclass(frozen=True)
@@ -63,6 +77,30 @@ class MapSpec:
     goal_band: dict[str, list[int]] | None = None
     description: str = ""
     source: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
+    t_max: int = 0  # 0: the size rule, see default_t_max
+
+    def __post_init__(self) -> None:
+        if not self.t_max:
+            object.__setattr__(self, "t_max", default_t_max(self.width, self.height))
+
+    def canonical(self) -> dict[str, Any]:
+        """What determines an episode on this map: size, obstacles (counter-clockwise vertices,
+        starting at the lowest-leftmost one, in file order: the order numbers the lines),
+        preference and goal band. Name, description and ``t_max`` (stored with each episode)
+        are left out."""
+        obstacles = []
+        for o in self.obstacles:
+            v = o.vertices
+            k = min(range(len(v)), key=lambda i: (v[i, 1], v[i, 0]))
+            obstacles.append(np.roll(v, -k, axis=0).tolist())
+        return {"width": self.width, "height": self.height, "obstacles": obstacles,
+                "preference": self.preference, "goal_band": self.goal_band}
+
+    @property
+    def content_hash(self) -> str:
+        """First 16 hex digits of the SHA-256 of :meth:`canonical` as sorted, compact JSON."""
+        text = json.dumps(self.canonical(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     def to_dict(self) -> dict[str, Any]:
         """The map in file format (obstacles as vertex lists)."""
@@ -78,6 +116,7 @@ class MapSpec:
             d["goal_band"] = self.goal_band
         if self.description:
             d["description"] = self.description
+        d["t_max"] = self.t_max
         return d
 
 
@@ -161,7 +200,8 @@ def parse_map(raw: Any, default_name: str = "map") -> MapSpec:
     """Validate a map dictionary and return a :class:`MapSpec`; raise :class:`MapError`."""
     if not isinstance(raw, dict):
         raise MapError(f"a map must be a JSON object, got {type(raw).__name__}")
-    known = {"name", "width", "height", "obstacles", "preference", "goal_band", "description"}
+    known = {"name", "width", "height", "obstacles", "preference", "goal_band", "description",
+             "t_max"}
     unknown = sorted(set(raw) - known)
     if unknown:
         raise MapError(f"unknown map field(s) {unknown}; allowed: {sorted(known)}")
@@ -190,8 +230,14 @@ def parse_map(raw: Any, default_name: str = "map") -> MapSpec:
     desc = raw.get("description", "")
     if not isinstance(desc, str):
         raise MapError("map field 'description' must be a string")
+    t_max = raw.get("t_max", 0)
+    if "t_max" in raw and (isinstance(t_max, bool) or not isinstance(t_max, int)
+                           or not 1 <= t_max <= MAX_T_MAX):
+        raise MapError(f"map field 't_max' must be a whole number of decision steps in "
+                       f"1..{MAX_T_MAX}, got {t_max!r}")
     spec = MapSpec(name=name, width=width, height=height, obstacles=obstacles,
-                   preference=pref, goal_band=band, description=desc, source=raw)
+                   preference=pref, goal_band=band, description=desc, source=raw,
+                   t_max=int(t_max))
     if not free_cell_mask(spec).any():
         raise MapError(f"map '{name}' has no free cell: every cell centre lies in an obstacle")
     return spec

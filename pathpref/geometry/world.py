@@ -7,7 +7,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -72,11 +71,6 @@ class World:
         if i < 0:
             raise MapError(f"{what} ({x}, {y}) lies on an obstacle of map '{self.name}'")
         return i
-
-    @cached_property
-    def all_distances(self) -> np.ndarray:
-        """``(n, n)`` shortest grid distance between free cells (SPEC 3 motion)."""
-        return self.motion.distances_from(np.arange(self.n_cells))
 
     def require_preference(self) -> np.ndarray:
         """The map's preference, or a MapError telling how to add one."""

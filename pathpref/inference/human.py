@@ -29,11 +29,15 @@ from functools import cached_property
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..geometry.world import World
 from .costs import CostTables, build_cost_tables
 
 GAMMA_H = 1.5
 BLOCK_PENALTY = 4.0
+#: likelihood tables larger than this are refused before allocation (bytes; the excess, the
+#: likelihood and the goal-only tables are held together)
+MAX_TABLE_BYTES = 6 * 2**30
 
 
 def neighbor_table(world: World) -> np.ndarray:
@@ -45,22 +49,37 @@ def neighbor_table(world: World) -> np.ndarray:
     return table
 
 
-def cost_excess(world: World, tables: CostTables) -> tuple[np.ndarray, np.ndarray]:
+def cost_excess(world: World, tables: CostTables, chunk: int = 2048
+                ) -> tuple[np.ndarray, np.ndarray]:
     """``Delta`` with preference ``(n, 8, G, K)`` and goal-only ``(n, 8, G)`` (see module doc).
 
     Padded neighbour slots (``k >= deg``) hold ``Delta = 0``; they are never read, except slot 0
     of a polytope without neighbours, which holds the goal-only excess.
-    Unreachable goals get ``Delta = 0`` (uniform likelihood).
+    Unreachable goals get ``Delta = 0`` (uniform likelihood). Computed ``chunk`` cells at a
+    time (every entry depends on its own cell and the cells one move away), so the temporaries
+    stay small on large maps.
     """
+    n, G = world.n_cells, len(tables.goals)
+    nbr_all = neighbor_table(world)
+    delta = np.empty((n, 8, G, nbr_all.shape[1]))
+    delta_u = np.empty((n, 8, G))
+    for lo in range(0, n, chunk):
+        sl = slice(lo, min(lo + chunk, n))
+        delta[sl], delta_u[sl] = _cost_excess_rows(world, tables, nbr_all, sl)
+    return delta, delta_u
+
+
+def _cost_excess_rows(world: World, tables: CostTables, nbr_all: np.ndarray, sl: slice
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cost_excess` for the cells ``sl``."""
     m = world.motion
-    n = world.n_cells
-    nxt, step, blocked = m.next_cell, m.cost, m.blocked
-    v_src = world.cell_polytope
-    v_tgt = v_src[nxt]
+    nxt, step, blocked = m.next_cell[sl], m.cost[sl], m.blocked[sl]
+    v_src = world.cell_polytope[sl]
+    v_tgt = world.cell_polytope[nxt]
     dist = tables.dist  # (G, n)
     D = tables.constrained  # (n, K, G)
-    d_here = dist.T  # (n, G)
-    d_next = dist[:, nxt].transpose(1, 2, 0)  # (n, 8, G)
+    d_here = dist[:, sl].T  # (c, G)
+    d_next = dist[:, nxt].transpose(1, 2, 0)  # (c, 8, G)
     step_ = step[:, :, None]
     # goal-only
     with np.errstate(invalid="ignore"):
@@ -68,11 +87,11 @@ def cost_excess(world: World, tables: CostTables) -> tuple[np.ndarray, np.ndarra
     delta_u = np.where(blocked[:, :, None], BLOCK_PENALTY, delta_u)
     delta_u = np.where(np.isfinite(delta_u), delta_u, 0.0)
     # with preference
-    nbr = neighbor_table(world)[v_src]  # (n, K)
-    crossing = (~blocked) & (v_tgt != v_src[:, None])  # (n, 8)
-    to_pref = crossing[:, :, None] & (v_tgt[:, :, None] == nbr[:, None, :])  # (n, 8, K)
-    goal_inside = tables.goal_polytope[None, :] == v_src[:, None]  # (n, G)
-    Dk = D.transpose(0, 2, 1)  # (n, G, K)
+    nbr = nbr_all[v_src]  # (c, K)
+    crossing = (~blocked) & (v_tgt != v_src[:, None])  # (c, 8)
+    to_pref = crossing[:, :, None] & (v_tgt[:, :, None] == nbr[:, None, :])  # (c, 8, K)
+    goal_inside = tables.goal_polytope[None, :] == v_src[:, None]  # (c, G)
+    Dk = D[sl].transpose(0, 2, 1)  # (c, G, K)
     with np.errstate(invalid="ignore"):
         stay_in = step[:, :, None, None] + D[nxt].transpose(0, 1, 3, 2) - Dk[:, None]
         exit_pref = (step_ + d_next)[..., None] - Dk[:, None]
@@ -82,17 +101,16 @@ def cost_excess(world: World, tables: CostTables) -> tuple[np.ndarray, np.ndarra
         stay_in,
     )
     # goal inside v(s), or constraint infeasible: the unconstrained excess
-    use_u = goal_inside[:, None, :, None] | ~tables.feasible.transpose(0, 2, 1)[:, None]
+    use_u = goal_inside[:, None, :, None] | ~tables.feasible[sl].transpose(0, 2, 1)[:, None]
     delta = np.where(use_u, delta_u[..., None], delta)
     delta = np.where(blocked[:, :, None, None], BLOCK_PENALTY, delta)
     delta = np.where(np.isfinite(delta), delta, 0.0)
     deg = np.array([len(nb) for nb in world.graph.neighbors])[v_src]
-    pad = np.arange(delta.shape[3])[None, :] >= deg[:, None]  # (n, K)
+    pad = np.arange(delta.shape[3])[None, :] >= deg[:, None]  # (c, K)
     delta = np.where(pad[:, None, None, :], 0.0, delta)
     # a polytope without neighbours has one "no preference" slot: the unconstrained model
     lone = deg == 0
     delta[lone, :, :, 0] = delta_u[lone]
-    assert delta.shape == (n, 8, len(tables.goals), nbr.shape[1])
     return delta, delta_u
 
 
@@ -121,6 +139,15 @@ class ObservationModel:
     def build(
         cls, world: World, goals: np.ndarray, gamma: float = GAMMA_H, normalize: bool = True
     ) -> ObservationModel:
+        """Cost tables and likelihoods for ``goals``; a ConfigError (before allocating) when
+        the tables would exceed :data:`MAX_TABLE_BYTES`."""
+        n, G, K = world.n_cells, len(goals), max(world.graph.max_degree, 1)
+        need = 3 * n * 8 * G * (K + 1) * 8
+        if need > MAX_TABLE_BYTES:
+            raise ConfigError(
+                f"map '{world.name}': likelihood tables for {n} cells x {G} goals x {K} "
+                f"neighbour slots need {need / 2**30:.1f} GiB, above the limit "
+                f"{MAX_TABLE_BYTES / 2**30:.0f} GiB; use fewer goal candidates or a smaller map")
         return cls(world, build_cost_tables(world, goals), gamma, normalize)
 
     @property
@@ -142,11 +169,13 @@ class ObservationModel:
     @cached_property
     def heading_probs(self) -> np.ndarray:
         """Normalised ``(n, 8, G, K)`` probabilities the simulated human samples from."""
-        return boltzmann(self._delta[0], self.gamma, True)
+        return self.likelihood if self.normalize else boltzmann(self._delta[0], self.gamma, True)
 
     @cached_property
     def goal_heading_probs(self) -> np.ndarray:
         """Normalised ``(n, 8, G)`` probabilities for a human with no preference."""
+        if self.normalize:
+            return self.goal_likelihood
         return boltzmann(self._delta[1], self.gamma, True)
 
 

@@ -77,11 +77,6 @@ def get_preset(name: str, **overrides) -> Preset:
     return replace(preset, **overrides) if overrides else preset
 
 
-def default_t_max(map_name: str) -> int:
-    """Mission time in decision steps: 30, or 60 on the 20x20 classroom (SPEC 6)."""
-    return 60 if map_name == "classroom" else 30
-
-
 def step_reward(
     world, s: int, a: int, goal_cell: int, pref_neighbor: int, rewards: Rewards
 ) -> tuple[int, float, bool, int]:
