@@ -35,7 +35,7 @@ from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, cached_worl
 from pathpref.experiments.instances import seed_for
 from pathpref.geometry.grid import MOVE_COST
 from pathpref.planning.policies import STAY
-from pathpref.planning.pomdp import default_t_max, get_preset
+from pathpref.planning.pomdp import get_preset
 from pathpref.sim.mover import MujocoMover, scene_for
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
@@ -63,7 +63,7 @@ class Navigate(base.Task):
         self.template = EpisodeSpec(
             map=map, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
-            t_max=t_max or default_t_max(self.world.name), n_goals=n_goals, coupling=coupling,
+            t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
             sim="mujoco", task=task)
         self.template.validate()
         self.rewards = get_preset(preset).path_preference
