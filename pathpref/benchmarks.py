@@ -156,6 +156,74 @@ def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
             "single_worker_episodes_per_s": n / t_local, "ray_episodes_per_s": n / t_ray}
 
 
+SCALE_MAP = {"width": 200, "height": 200, "n_rotated": 20, "n_boxes": 40, "seed": 0,
+             "size_range": (2.0, 12.0)}
+
+
+def scale_map() -> dict[str, Any]:
+    """The 200 x 200 benchmark floor plan: 60 obstacles, a third of them rotated, with a loop
+    preference around the map."""
+    from .geometry.generate import random_floor_plan, with_loop_preference
+
+    return with_loop_preference(random_floor_plan(name="floor_200", **SCALE_MAP))
+
+
+def _scale_setup_child() -> None:
+    """Run in a fresh interpreter: arrangement + graph + cost tables for 10 goals on the
+    benchmark floor plan; prints ``seconds peak_MB``."""
+    import resource
+
+    from .experiments.instances import sample_instance
+    from .inference.costs import build_cost_tables
+
+    raw = scale_map()
+    World.from_spec(load_map({"width": 12, "height": 12, "obstacles": []}))  # JIT warm-up
+    t = time.perf_counter()
+    world = World.from_spec(load_map(raw))
+    build_cost_tables(world, np.array(sample_instance(world, 0, 10).goals))
+    dt = time.perf_counter() - t
+    print(dt, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+
+
+def bench_scale(queries: int = 1000) -> dict[str, Any]:
+    """Large-map figures: the 200 x 200 floor plan's setup time and peak memory (fresh process),
+    one path-preference episode on it, and the 40 x 40 rotated maps' reachable fraction."""
+    import json
+    import subprocess
+    import sys
+    import tempfile
+
+    from .experiments.episode import EpisodeSpec, run_episode
+    from .geometry.generate import four_connected_components, random_floor_plan
+    from .geometry.maps import free_cell_mask
+
+    code = "from pathpref.benchmarks import _scale_setup_child; _scale_setup_child()"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    res: dict[str, Any] = {"map_200_setup_s": float(out[0]), "map_200_peak_mb": float(out[1])}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "floor_200.json")
+        with open(path, "w") as f:
+            json.dump(scale_map(), f)
+        spec = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=0, run=0,
+                           instance_seed=1, run_seed=2, queries=queries,
+                           t_max=load_map(path).t_max)
+        t = time.perf_counter()
+        ep = run_episode(spec)
+        res["map_200_episode_s"] = time.perf_counter() - t
+        res["map_200_episode_steps"] = ep.steps
+        res["map_200_episode_goal_reached"] = ep.goal_reached
+    fractions = []
+    for n in (32, 64):
+        for seed in range(3):
+            world = World.from_spec(load_map(random_floor_plan(40, 40, n, seed=seed)))
+            lab, _ = four_connected_components(free_cell_mask(world.spec))
+            largest4 = np.bincount(lab[lab > 0]).max()
+            fractions.append(np.bincount(world.motion.components()).max() / largest4)
+    res["rotated_40_reachable_fraction"] = float(min(fractions))
+    return res
+
+
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
                    physics: bool = True) -> dict[str, Any]:
     """All benchmarks as one JSON-ready dictionary (``scale`` is skipped with ``quick``)."""
@@ -167,5 +235,5 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
         out["physics"] = bench_physics(quick=quick)
         out["arm"] = bench_arm(quick=quick)
     if not quick:
-        out["scale"] = bench_ray()
+        out["scale"] = {**bench_ray(), **bench_scale()}
     return out

@@ -62,3 +62,21 @@ def four_connected_components(free: np.ndarray) -> tuple[np.ndarray, int]:
     """Labels (``0`` = blocked, ``1..k`` = components) of a ``(W, H)`` free mask, 4-connected."""
     labels, k = label(free, structure=np.array([[0, 1, 0], [1, 1, 1], [0, 1, 0]]))
     return labels, int(k)
+
+
+def with_loop_preference(raw: dict[str, Any]) -> dict[str, Any]:
+    """``raw`` plus a closed-route preference around the map (a loop through the free cells
+    nearest to the four corners, all in the largest 4-connected part of free space)."""
+    from .maps import free_cell_mask, parse_map
+
+    spec = parse_map(raw)
+    labels, _ = four_connected_components(free_cell_mask(spec))
+    biggest = np.bincount(labels[labels > 0]).argmax()
+    xs, ys = np.nonzero(labels == biggest)
+    corners = [(0, 0), (spec.width - 1, 0), (spec.width - 1, spec.height - 1),
+               (0, spec.height - 1)]
+    route = []
+    for cx, cy in corners:
+        k = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
+        route.append([int(xs[k]) + 1, int(ys[k]) + 1])
+    return {**raw, "preference": {"route": route, "closed": True}}
