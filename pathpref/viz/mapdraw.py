@@ -47,9 +47,10 @@ def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = Tr
     for o in spec.obstacles:
         ax.add_patch(Polygon(o.vertices, closed=True, facecolor="0.15", edgecolor="k"))
     centres = polytope_centres(world)
-    if show_edges:
-        for u, w in world.graph.edges:
-            ax.plot(*centres[[u, w]].T, color="0.3", lw=0.8, ls=":", zorder=3)
+    if show_edges:  # facet edges dotted grey, move edges (multi-line moves) dashed blue
+        for (u, w), h in zip(world.graph.edges, world.graph.edge_hyperplane, strict=True):
+            style = dict(color="0.3", ls=":") if h >= 0 else dict(color="tab:blue", ls="--")
+            ax.plot(*centres[[u, w]].T, lw=0.8, zorder=3, **style)
     if show_preference and world.preference is not None:
         for v, p in enumerate(world.preference):
             if p < 0:
