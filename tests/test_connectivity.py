@@ -4,6 +4,7 @@ route still tells its homotopy class (paper Sec. IV-B), on random floor plans.""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.sparse.csgraph import dijkstra
@@ -28,10 +29,11 @@ def four_labels(world):
 
 @SETTINGS
 @given(st.integers(8, 24), st.integers(8, 24), st.integers(1, 14), st.integers(0, 3),
-       st.integers(0, 2**31 - 1))
-def test_motion_keeps_every_four_connected_component(W, H, n_rot, n_box, seed):
+       st.integers(0, 2**31 - 1), st.sampled_from(["arrangement", "coarse"]))
+def test_motion_keeps_every_four_connected_component(W, H, n_rot, n_box, seed, decomposition):
     """Two free cells connected on the 4-connected grid are connected under the motion rule."""
-    world = load_world(random_floor_plan(W, H, n_rot, n_box, seed=seed, size_range=(0.6, 4.0)))
+    raw = random_floor_plan(W, H, n_rot, n_box, seed=seed, size_range=(0.6, 4.0))
+    world = load_world({**raw, "decomposition": decomposition})
     four = four_labels(world)
     motion = world.motion.components()
     for label in np.unique(four):
@@ -98,7 +100,7 @@ def touches_obstacle(world, cells: list[int]) -> bool:
     return False
 
 
-def homotopy_pairs_checked(seed: int) -> int:
+def homotopy_pairs_checked(seed: int, decomposition: str = "arrangement") -> int:
     """Paper Sec. IV-B: same ends, different homotopy class -> different vertex sequence;
     returns how many non-homotopic pairs were compared on one random map.
 
@@ -106,7 +108,8 @@ def homotopy_pairs_checked(seed: int) -> int:
     different classes when the loop they make winds around some obstacle; routes that pass
     through an obstacle thinner than a cell have no class and are skipped."""
     rng = np.random.default_rng(seed)
-    world = load_world(random_floor_plan(16, 14, 5, n_boxes=1, seed=seed, size_range=(1.5, 4.0)))
+    raw = random_floor_plan(16, 14, 5, n_boxes=1, seed=seed, size_range=(1.5, 4.0))
+    world = load_world({**raw, "decomposition": decomposition})
     adj = world.motion.adjacency()
     comp = world.motion.components()
     big = np.flatnonzero(comp == np.bincount(comp).argmax())
@@ -126,6 +129,7 @@ def homotopy_pairs_checked(seed: int) -> int:
     return checked
 
 
-def test_routes_in_different_homotopy_classes_cross_different_polytope_sequences():
-    checked = sum(homotopy_pairs_checked(seed) for seed in range(30))
+@pytest.mark.parametrize("decomposition", ["arrangement", "coarse"])
+def test_routes_in_different_homotopy_classes_cross_different_polytope_sequences(decomposition):
+    checked = sum(homotopy_pairs_checked(seed, decomposition) for seed in range(30))
     assert checked >= 30  # enough non-homotopic pairs were actually compared

@@ -12,6 +12,7 @@ Format (JSON, or the same structure as a Python dict)::
       "preference": {"table": [{"from": [1, 1], "to": [5, 1]}]},  # optional, see preference.py
       "goal_band": {"x": [2, 10], "y": [8, 9]},                    # optional, instance sampling
       "t_max": 30,                                                  # optional, mission time
+      "decomposition": "arrangement",                  # optional: or "coarse" (see coarse.py)
       "description": "free text"                                   # optional
     }
 
@@ -45,6 +46,7 @@ from .polygon import convex_vertices_to_h
 BUILTIN_MAPS = ("simple", "office", "classroom")
 MAX_SIDE = 500
 MAX_T_MAX = 100_000
+DECOMPOSITIONS = ("arrangement", "coarse")
 
 
 def default_t_max(width: int, height: int) -> int:
@@ -78,6 +80,7 @@ class MapSpec:
     description: str = ""
     source: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)
     t_max: int = 0  # 0: the size rule, see default_t_max
+    decomposition: str = "arrangement"
 
     def __post_init__(self) -> None:
         if not self.t_max:
@@ -86,7 +89,7 @@ class MapSpec:
     def canonical(self) -> dict[str, Any]:
         """What determines an episode on this map: size, obstacles (counter-clockwise vertices,
         starting at the lowest-leftmost one, in file order: the order numbers the lines),
-        preference and goal band. Name, description and ``t_max`` (stored with each episode)
+        preference, goal band and decomposition. Name, description and ``t_max`` (stored with each episode)
         are left out."""
         obstacles = []
         for o in self.obstacles:
@@ -94,7 +97,8 @@ class MapSpec:
             k = min(range(len(v)), key=lambda i: (v[i, 1], v[i, 0]))
             obstacles.append(np.roll(v, -k, axis=0).tolist())
         return {"width": self.width, "height": self.height, "obstacles": obstacles,
-                "preference": self.preference, "goal_band": self.goal_band}
+                "preference": self.preference, "goal_band": self.goal_band,
+                "decomposition": self.decomposition}
 
     @property
     def content_hash(self) -> str:
@@ -117,6 +121,8 @@ class MapSpec:
         if self.description:
             d["description"] = self.description
         d["t_max"] = self.t_max
+        if self.decomposition != "arrangement":
+            d["decomposition"] = self.decomposition
         return d
 
 
@@ -201,7 +207,7 @@ def parse_map(raw: Any, default_name: str = "map") -> MapSpec:
     if not isinstance(raw, dict):
         raise MapError(f"a map must be a JSON object, got {type(raw).__name__}")
     known = {"name", "width", "height", "obstacles", "preference", "goal_band", "description",
-             "t_max"}
+             "t_max", "decomposition"}
     unknown = sorted(set(raw) - known)
     if unknown:
         raise MapError(f"unknown map field(s) {unknown}; allowed: {sorted(known)}")
@@ -235,9 +241,13 @@ def parse_map(raw: Any, default_name: str = "map") -> MapSpec:
                            or not 1 <= t_max <= MAX_T_MAX):
         raise MapError(f"map field 't_max' must be a whole number of decision steps in "
                        f"1..{MAX_T_MAX}, got {t_max!r}")
+    decomposition = raw.get("decomposition", "arrangement")
+    if decomposition not in DECOMPOSITIONS:
+        raise MapError(f"map field 'decomposition' must be one of {list(DECOMPOSITIONS)}, "
+                       f"got {decomposition!r}")
     spec = MapSpec(name=name, width=width, height=height, obstacles=obstacles,
                    preference=pref, goal_band=band, description=desc, source=raw,
-                   t_max=int(t_max))
+                   t_max=int(t_max), decomposition=decomposition)
     if not free_cell_mask(spec).any():
         raise MapError(f"map '{name}' has no free cell: every cell centre lies in an obstacle")
     return spec

@@ -55,6 +55,10 @@ def preference_from_table(
             raise MapError(f"{where} must be {{'from': [x, y], 'to': [x, y]}}, got {entry!r}")
         v = int(arr.cell_polytope[_cell(arr, entry["from"], f"{where}.from")])
         w = int(arr.cell_polytope[_cell(arr, entry["to"], f"{where}.to")])
+        if v == w:
+            raise MapError(
+                f"{where}: cells {entry['from']} and {entry['to']} lie in the same polytope "
+                f"({v}); 'to' must lie in a neighbouring one (see 'pathpref map draw')")
         if graph.edge_between(v, w) < 0:
             raise MapError(
                 f"{where}: polytope {v} (cell {entry['from']}) and polytope {w} (cell "

@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import MapError
 from .arrangement import Arrangement, build_arrangement
 from .graph import PolytopeGraph, build_graph
+from .coarse import coarsen
 from .grid import GridMotion, build_motion
 from .maps import MapSpec, load_map
 from .preference import parse_preference
@@ -35,6 +36,8 @@ class World:
         arr = build_arrangement(spec)
         graph = build_graph(arr)
         motion = build_motion(arr, graph)
+        if spec.decomposition == "coarse":
+            arr, graph, motion = coarsen(spec, arr, graph, motion)
         pref = parse_preference(arr, graph, motion, spec.preference)
         return cls(spec=spec, arrangement=arr, graph=graph, motion=motion, preference=pref)
 
