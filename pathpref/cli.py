@@ -61,6 +61,7 @@ def cmd_map_info(args: argparse.Namespace) -> int:
         "polytopes": world.n_polytopes,
         "edges": world.graph.n_edges,
         "free_cells": world.n_cells,
+        "decomposition": world.spec.decomposition,
         "move_edges": world.graph.n_move_edges,
         "components": len(comp),
         "largest_component_cells": int(comp.max()),

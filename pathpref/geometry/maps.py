@@ -34,6 +34,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -89,8 +90,8 @@ class MapSpec:
     def canonical(self) -> dict[str, Any]:
         """What determines an episode on this map: size, obstacles (counter-clockwise vertices,
         starting at the lowest-leftmost one, in file order: the order numbers the lines),
-        preference, goal band and decomposition. Name, description and ``t_max`` (stored with each episode)
-        are left out."""
+        preference, goal band and decomposition. Name, description and ``t_max`` (stored with
+        each episode) are left out."""
         obstacles = []
         for o in self.obstacles:
             v = o.vertices
@@ -100,7 +101,7 @@ class MapSpec:
                 "preference": self.preference, "goal_band": self.goal_band,
                 "decomposition": self.decomposition}
 
-    @property
+    @cached_property
     def content_hash(self) -> str:
         """First 16 hex digits of the SHA-256 of :meth:`canonical` as sorted, compact JSON."""
         text = json.dumps(self.canonical(), sort_keys=True, separators=(",", ":"))

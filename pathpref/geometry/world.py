@@ -14,8 +14,8 @@ import numpy as np
 
 from ..errors import MapError
 from .arrangement import Arrangement, build_arrangement
-from .graph import PolytopeGraph, build_graph
 from .coarse import coarsen
+from .graph import PolytopeGraph, build_graph
 from .grid import GridMotion, build_motion
 from .maps import MapSpec, load_map
 from .preference import parse_preference
