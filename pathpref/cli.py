@@ -301,6 +301,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Infer a person's goal and path preference from sparse nudges "
         "(Peltzer et al. 2023).",
     )
+    from . import __version__
+
+    p.add_argument("--version", action="version", version=f"pathpref {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
 
     mp = sub.add_parser("map", help="inspect and draw maps")

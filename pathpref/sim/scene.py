@@ -10,6 +10,7 @@ from its H-representation's vertices. Four walls bound the map.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from importlib import resources
 from pathlib import Path
 
 import mujoco
@@ -18,7 +19,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..geometry.world import World
 
-MJCF_DIR = Path(__file__).resolve().parents[2] / "mjcf"
+MJCF_DIR = Path(str(resources.files("pathpref.mjcf")))
 OBSTACLE_HEIGHT = 0.6
 WALL_THICKNESS = 0.1
 
@@ -27,8 +28,8 @@ def mjcf_path(name: str) -> Path:
     """Path of a hand-written MJCF file in ``mjcf/``; a clear error when it is missing."""
     path = MJCF_DIR / name
     if not path.exists():
-        raise ConfigError(f"MJCF file {path} is missing; reinstall pathpref from its source tree "
-                          "(pip install -e .) so that mjcf/ is next to the package")
+        raise ConfigError(f"MJCF file {path} is missing; reinstall pathpref (its wheel ships "
+                          "mjcf/ as the package pathpref.mjcf)")
     return path
 
 
