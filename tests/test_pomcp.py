@@ -91,3 +91,19 @@ def test_preference_changes_the_plan(simple):
 
     assert share_east("E") >= 0.7
     assert share_east("N") <= 0.1
+
+
+def test_paper_searches_are_pinned():
+    """Paper-preset decisions (action, root visits, tree size) of 24 searches on the three maps
+    equal those pinned before the robust planner was added (scripts/paper_pomcp_golden.py)."""
+    import json
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(root / "scripts"))
+    from paper_pomcp_golden import cases, run
+
+    golden = json.loads((root / "tests/data/paper_pomcp_golden.json").read_text())
+    got = [{"map": c[0], "planner": c[7], **run(*c[1:])} for c in cases()]
+    assert got == golden
