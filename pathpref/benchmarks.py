@@ -89,17 +89,24 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
 def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
     """First-decision POMCP time: 5000 queries at depth T_max, median over random instances."""
     preset = get_preset("paper")
+    robust = get_preset("robust")
     depth = world.spec.t_max
     n = 5 if quick else 20
     rng = np.random.default_rng(seed + 1)
-    t_pp, t_go = [], []
+    t_pp, t_go, t_rb, t_rb_go = [], [], [], []
     for i in range(n + 1):
         goals = rng.choice(world.n_cells, size=10, replace=False)
         start = int(rng.integers(world.n_cells))
         model = ObservationModel.build(world, goals)
+        pushed = PreferenceBelief(model, coupling=False)
+        pushed.update(start, int(rng.integers(8)))  # one push: the start polytope is known
         for planner, belief, out in (
             (POMCP(world, goals, preset.path_preference), PreferenceBelief(model), t_pp),
             (POMCP(world, goals, preset.goal_only), GoalBelief(model), t_go),
+            (POMCP(world, goals, robust.path_preference.for_mission(depth),
+                   tables=model.tables), pushed, t_rb),
+            (POMCP(world, goals, robust.goal_only.for_mission(depth), tables=model.tables),
+             GoalBelief(model), t_rb_go),
         ):
             t = time.perf_counter()
             planner.search(start, belief, depth, seed=i)
@@ -113,6 +120,8 @@ def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> 
         "pomcp_queries_per_s": preset.queries / median(t_pp),
         "pomcp_decisions": n,
         "paper_pomcp_decision_ms": PAPER_SOLVE_MS.get(name),
+        "robust_decision_ms": 1e3 * median(t_rb),
+        "robust_goal_only_decision_ms": 1e3 * median(t_rb_go),
     }
 
 

@@ -15,6 +15,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from .errors import ConfigError, PathprefError
+from .planning.pomdp import DEFAULT_PRESET, PRESETS
 
 
 def check_writable(out: str | Path) -> Path:
@@ -120,12 +121,19 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
     from .planning.pomdp import get_preset
 
     preset = get_preset(args.preset)
+    if args.time_budget_ms is not None and not args.time_budget_ms > 0:
+        raise ConfigError(f"--time-budget-ms must be a positive number of milliseconds, got "
+                          f"{args.time_budget_ms:g}")
+    if args.time_budget_ms is not None and preset.search != "robust":
+        raise ConfigError("--time-budget-ms needs the robust search: add --preset robust")
     return {
         "preset": args.preset,
+        "time_budget_ms": args.time_budget_ms or 0.0,
+        "human": args.human,
         "queries": args.queries if args.queries is not None else preset.queries,
         "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",
-        "coupling": args.coupling,
+        "coupling": preset.coupling if args.coupling is None else args.coupling,
         "ucb_c": args.ucb_c,
         "timeout_s": args.episode_timeout,
     }
@@ -283,7 +291,9 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     check_writable(out / "summary.csv" if out.is_dir() else out)
-    run_demo(out=out, seed=args.seed, sim=args.sim)
+    if args.runs < 1:
+        raise ConfigError(f"--runs must be at least 1, got {args.runs}")
+    run_demo(out=out, seed=args.seed, sim=args.sim, runs=args.runs, preset=args.preset)
     return 0
 
 
@@ -317,16 +327,25 @@ def build_parser() -> argparse.ArgumentParser:
     md.add_argument("--out", required=True, help="output image (.png, .pdf, .svg)")
     md.set_defaults(func=cmd_map_draw)
 
-    def episode_options(sp: argparse.ArgumentParser) -> None:
-        sp.add_argument("--preset", default="paper", help="paper (default) or original")
+    def episode_options(sp: argparse.ArgumentParser, preset: str = DEFAULT_PRESET) -> None:
+        sp.add_argument("--preset", default=preset, choices=sorted(PRESETS),
+                        help=f"robust (guided search, exact belief), paper (the paper's "
+                        f"planner) or original (the authors' code); default {preset}")
+        sp.add_argument("--time-budget-ms", type=float, default=None,
+                        help="robust search: wall time per decision (anytime; default: the "
+                        "query count only)")
+        sp.add_argument("--human", choices=["map", "consistent"], default="map",
+                        help="the human's preference: the map's (the paper's protocol, "
+                        "default) or consistent with its goal (goals the preference leads to)")
         sp.add_argument("--queries", type=int, default=None, help="POMCP queries (5000)")
         sp.add_argument("--t-max", type=int, default=None,
                         help="mission time in decision steps (default: the map's t_max field, "
                         "else 3 x its longer side: 30 on simple/office, 60 on classroom)")
         sp.add_argument("--likelihood", choices=["normalized", "unnormalized"],
                         default="normalized", help="robot's likelihood (authors: unnormalized)")
-        sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=True,
-                        help="back-edge belief coupling (default on, as in the authors' code)")
+        sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
+                        help="back-edge belief coupling (default: the preset's; on for paper "
+                        "and original as in the authors' code, off for robust)")
         sp.add_argument("--ucb-c", type=float, default=1.0, help="POMCP UCB constant (1)")
         sp.add_argument("--episode-timeout", type=float, default=0.0,
                         help="record an episode as failed after this many seconds (0: none)")
@@ -345,7 +364,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("evaluate", help="run a sweep of episodes into a results database")
     ev.add_argument("--map", default="simple")
     ev.add_argument("--methods", nargs="+", default=["all"],
-                    help="compliant goal_only path_preference blended, or all")
+                    help="compliant goal_only path_preference blended oracle goal_known; "
+                    "all (the paper's four) or reference (oracle, goal_known)")
     ev.add_argument("--delta-t", nargs="+", type=int, default=[1, 5, 10, 20, 30])
     ev.add_argument("--instances", type=int, default=6)
     ev.add_argument("--runs", type=int, default=50)
@@ -372,7 +392,7 @@ def build_parser() -> argparse.ArgumentParser:
     tm.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
     tm.add_argument("--instances", type=int, default=100)
     tm.add_argument("--queries", type=int, default=5000)
-    tm.add_argument("--preset", default="paper")
+    tm.add_argument("--preset", default="paper", choices=sorted(PRESETS))
     tm.add_argument("--seed", type=int, default=0)
     tm.add_argument("--json", action="store_true")
     tm.add_argument("--no-progress", action="store_true")
@@ -384,7 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
     bc.add_argument("--map", default="simple")
     bc.add_argument("--runs", type=int, default=50)
     bc.add_argument("--delta-t", type=int, default=1)
-    episode_options(bc)
+    episode_options(bc, preset="paper")
     bc.set_defaults(func=cmd_belief_curves)
 
     rd = sub.add_parser("render", help="render a MuJoCo rollout to MP4 and/or a rerun file")
@@ -418,6 +438,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--out", default="out", help="output folder (default: out)")
     d.add_argument("--seed", type=int, default=0)
     d.add_argument("--sim", default="mujoco", choices=["mujoco", "grid"])
+    d.add_argument("--runs", type=int, default=30, help="grid runs per method behind the rates")
+    d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS))
     d.set_defaults(func=cmd_demo)
     return p
 

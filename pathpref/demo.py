@@ -1,49 +1,80 @@
-"""The main job (``make demo``): one episode per method on the paper's Fig. 4 instance, in
-MuJoCo with force cues (``--sim grid`` for the grid world only).
+"""The main job (``make demo``): on the paper's Fig. 4 instance, success rates of every method
+over many runs (grid world), then one representative episode per method of the paper, in
+MuJoCo with force cues (``--sim grid`` for the grid world only). Preset: ``robust`` (the
+applications' default); ``--preset paper`` for the paper's planner.
 
 Writes to the output folder:
 
 * ``rollout_<method>.mp4`` (MuJoCo): top-down and perspective views, belief-tinted goals, pushes;
 * ``rollout_path_preference.rrd``: a rerun recording (open with ``rerun FILE``);
 * ``map_simple.png``: the map with polytopes, graph and the human's preference;
-* ``trajectories.png``: the path of each method, with the human's pushes as arrows;
-* ``belief.png``: P(true goal) and goal entropy along each episode;
-* ``summary.csv`` and a table on stdout: success, goal reached, preference followed, steps.
+* ``trajectories.png``: the path of each rendered episode, with the human's pushes as arrows;
+* ``belief.png``: P(true goal) and goal entropy along each rendered episode;
+* ``rates.csv``: per method, runs reaching the goal by the preferred route (success), by another
+  route, or not at all, with the success rate's 95% Wilson interval;
+* ``summary.csv`` and a table on stdout: the rendered episodes, and one line per method saying
+  what it did.
 """
 
 from __future__ import annotations
 
 import csv
 import json
+from collections import Counter
 from pathlib import Path
 
 from .experiments.episode import EpisodeResult, EpisodeSpec, cached_world, run_episode
 from .experiments.instances import FIG4, seed_for
-from .planning.policies import METHODS
+from .experiments.report import wilson
+from .planning.policies import METHODS, REFERENCE_METHODS
+from .planning.pomdp import DEFAULT_PRESET
 
 DEMO_DELTA_T = 3
+#: grid-world runs per method behind the demo's rates
+DEMO_RUNS = 30
+OUTCOMES = ("by the preferred route", "by another route", "not at all")
 
 
-def demo_spec(method: str, seed: int = 0, delta_t: int = DEMO_DELTA_T,
-              sim: str = "mujoco") -> EpisodeSpec:
+def demo_spec(method: str, seed: int = 0, delta_t: int = DEMO_DELTA_T, sim: str = "mujoco",
+              preset: str = DEFAULT_PRESET) -> EpisodeSpec:
     fixed = json.dumps({"start": list(FIG4["start"]), "goals": [list(g) for g in FIG4["goals"]],
                         "true_goal": FIG4["true_goal"], "free_goal_polytope": True},
                        sort_keys=True)
     return EpisodeSpec(map="simple", method=method, delta_t=delta_t, instance=0, run=seed,
                        instance_seed=seed_for(seed, 0), run_seed=seed_for(seed, 0, 0),
-                       fixed=fixed, sim=sim)
+                       fixed=fixed, sim=sim, preset=preset)
 
 
-def run_demo(out: Path, seed: int = 0, sim: str = "mujoco") -> list[EpisodeResult]:
-    """Run the demo episodes, write videos, figures and the table (see module docstring)."""
+def outcome(r: EpisodeResult) -> str:
+    """Which of :data:`OUTCOMES` an episode had."""
+    return OUTCOMES[0] if r.success else OUTCOMES[1] if r.goal_reached else OUTCOMES[2]
+
+
+def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUNS,
+             preset: str = DEFAULT_PRESET) -> list[EpisodeResult]:
+    """Run the demo, write videos, figures and tables (see module docstring)."""
     from .viz.episodes import belief_figure, trajectories_figure
     from .viz.mapdraw import save_map_figure
 
     out.mkdir(parents=True, exist_ok=True)
     world = cached_world("simple")
-    results = []
+    print(f"pathpref demo: {runs} grid runs per method (preset {preset})", flush=True)
+    rates, pick = [], {}
     for m in METHODS:
-        spec = demo_spec(m, seed, sim=sim)
+        res = [run_episode(demo_spec(m, seed + k, sim="grid", preset=preset))
+               for k in range(runs)]
+        kinds = Counter(outcome(r) for r in res)
+        typical = kinds.most_common(1)[0][0]
+        pick[m] = seed + next(k for k, r in enumerate(res) if outcome(r) == typical)
+        wins = kinds[OUTCOMES[0]]
+        lo, hi = wilson(wins, runs)
+        rates.append({"method": m, "runs": runs, "success": wins / runs, "ci_low": round(lo, 3),
+                      "ci_high": round(hi, 3), "other_route": kinds[OUTCOMES[1]],
+                      "not_reached": kinds[OUTCOMES[2]], "rendered_run": pick[m]})
+        print(f"  {m}: success {wins}/{runs}", flush=True)
+    results = []
+    for m in (m for m in METHODS if m not in REFERENCE_METHODS):
+        spec = demo_spec(m, pick[m], sim=sim, preset=preset)
         if sim == "mujoco":
             from .sim.rollout import record_rollout
 
@@ -63,8 +94,19 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco") -> list[EpisodeResul
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         w.writerows(rows)
-    print(f"\npathpref demo ({sim}): map 'simple', start (1,1), 10 candidates on row 8, true goal "
-          f"(1,8), human push every {DEMO_DELTA_T} steps (seed {seed})\n")
+    with open(out / "rates.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rates[0]))
+        w.writeheader()
+        w.writerows(rates)
+    print(f"\npathpref demo ({sim}, preset {preset}): map 'simple', start (1,1), 10 candidates "
+          f"on row 8, true goal (1,8), human push every {DEMO_DELTA_T} steps (seed {seed})\n")
+    print(f"Over {runs} grid runs per method (success rate, 95% Wilson interval):\n")
+    for r in rates:
+        print(f"- {r['method']}: reached the goal by the preferred route in "
+              f"{round(r['success'] * runs)}/{runs} runs ({r['success']:.2f} "
+              f"[{r['ci_low']:.2f}, {r['ci_high']:.2f}]), by another route in "
+              f"{r['other_route']}, not at all in {r['not_reached']}")
+    print("\nRendered episodes (each method's most common outcome):\n")
     print("| method | success | goal reached | preference followed | steps | P(true goal) |")
     print("|---|---|---|---|---|---|")
     for r in rows:

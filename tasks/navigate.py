@@ -35,7 +35,7 @@ from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, cached_worl
 from pathpref.experiments.instances import seed_for
 from pathpref.geometry.grid import MOVE_COST
 from pathpref.planning.policies import STAY
-from pathpref.planning.pomdp import get_preset
+from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset
 from pathpref.sim.mover import MujocoMover, scene_for
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
@@ -54,8 +54,8 @@ class Physics(dm_mujoco.Physics):
 
 class Navigate(base.Task):
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
-                 seed: int = 0, preset: str = "paper", queries: int = 5000,
-                 t_max: int | None = None, coupling: bool = True, n_goals: int = 10,
+                 seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
+                 t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate"):
         super().__init__(random=seed)
         self.world = cached_world(map)
@@ -66,7 +66,8 @@ class Navigate(base.Task):
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
             sim="mujoco", task=task)
         self.template.validate()
-        self.rewards = get_preset(preset).path_preference
+        # the environment's reward is the paper's (SPEC 6) whatever preset the planner uses
+        self.rewards = get_preset("paper").path_preference
         self.episode = -1
         self.runner: EpisodeRunner | None = None
         self._reward = 0.0

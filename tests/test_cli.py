@@ -52,7 +52,7 @@ def test_map_draw_builtin_and_rotated_user_file(tmp_path, capsys):
     (["evaluate", "--goals", "500", "--db", "x.sqlite", "--instances", "1", "--runs", "1"],
      "too few candidate"),
     (["report", "missing.sqlite"], "no results database"),
-    (["evaluate", "--preset", "turbo", "--db", "x.sqlite"], "unknown preset"),
+    (["evaluate", "--preset", "turbo", "--db", "x.sqlite"], "invalid choice: 'turbo'"),
     (["evaluate", "--runs", "abc", "--db", "x.sqlite"], "invalid int value"),
     (["evaluate", "--runs", "0", "--db", "x.sqlite"], "at least 1"),
     (["evaluate", "--workers", "0", "--db", "x.sqlite", "--runs", "1", "--instances", "1"],
@@ -60,6 +60,9 @@ def test_map_draw_builtin_and_rotated_user_file(tmp_path, capsys):
     (["evaluate", "--backend", "cloud", "--db", "x.sqlite", "--runs", "1", "--instances", "1"],
      "unknown backend"),
     (["evaluate", "--ucb-c", "0", "--db", "x.sqlite"], "--ucb-c"),
+    (["evaluate", "--time-budget-ms", "0", "--db", "x.sqlite"], "--time-budget-ms"),
+    (["evaluate", "--time-budget-ms", "-5", "--db", "x.sqlite"], "--time-budget-ms"),
+    (["evaluate", "--human", "friendly", "--db", "x.sqlite"], "invalid choice: 'friendly'"),
     (["evaluate", "--episode-timeout", "-1", "--db", "x.sqlite"], "--episode-timeout"),
     (["evaluate", "--queries", "0", "--db", "x.sqlite"], "--queries"),
     (["evaluate", "--map", "nomap.json", "--db", "x.sqlite"], "no map named"),
@@ -113,6 +116,12 @@ def test_map_without_preference_and_no_partial_outputs(tmp_path):
     p = subprocess.run([sys.executable, "-m", "pathpref.cli", "evaluate", "--map", str(m),
                         "--db", "r.sqlite", "--runs", "1", "--instances", "1"],
                        capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    one_line_error(p, "has no 'preference'")
+    assert not (tmp_path / "r.sqlite").exists()
+    p = subprocess.run([sys.executable, "-m", "pathpref.cli", "evaluate", "--map", str(m),
+                        "--methods", "oracle", "--db", "r.sqlite", "--runs", "1",
+                        "--instances", "1"], capture_output=True, text=True, cwd=tmp_path,
+                       timeout=300)
     one_line_error(p, "has no 'preference'")
     assert not (tmp_path / "r.sqlite").exists()
     ro = tmp_path / "ro"
@@ -183,11 +192,20 @@ def test_bench_json_keys():
 
 
 def test_demo_grid(tmp_path):
-    p = run("demo", "--out", str(tmp_path / "out"), "--sim", "grid")
+    p = run("demo", "--out", str(tmp_path / "out"), "--sim", "grid", "--runs", "4")
     assert p.returncode == 0, p.stderr
-    for f in ("map_simple.png", "trajectories.png", "belief.png", "summary.csv"):
+    for f in ("map_simple.png", "trajectories.png", "belief.png", "summary.csv", "rates.csv"):
         assert (tmp_path / "out" / f).stat().st_size > 0
     assert "| path_preference |" in p.stdout
+    import csv
+
+    rates = {r["method"]: r for r in csv.DictReader(open(tmp_path / "out" / "rates.csv"))}
+    assert rates["oracle"]["success"] == "1.0"  # the demo's human is consistent by design
+    for m, r in rates.items():
+        wins = round(float(r["success"]) * 4)
+        assert wins + int(r["other_route"]) + int(r["not_reached"]) == 4
+        line = next(ln for ln in p.stdout.splitlines() if ln.startswith(f"- {m}: "))
+        assert f"by the preferred route in {wins}/4 runs" in line
 
 
 def test_report_puts_grid_and_physics_side_by_side(tmp_path):

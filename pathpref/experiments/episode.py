@@ -27,8 +27,8 @@ from ..geometry.maps import MapSpec, load_map
 from ..geometry.world import World
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.policies import STAY, PolicyContext, make_policy
-from ..planning.pomdp import get_preset
-from .instances import Instance, fixed_instance, sample_instance
+from ..planning.pomdp import PRESETS, get_preset
+from .instances import HUMANS, Instance, fixed_instance, sample_instance
 
 
 @dataclass(frozen=True)
@@ -57,13 +57,23 @@ class EpisodeSpec:
     t_max: int = 30
     n_goals: int = 10
     normalize: bool = True
-    coupling: bool = True
+    coupling: bool | None = None  # None: the preset's (paper, original: on; robust: off)
     sim: str = "grid"
     fixed: str = ""  # JSON of the pinned instance, "" for a sampled one
     task: str = "navigate"
     ucb_c: float = 1.0
+    #: robust search's wall-time budget per decision (0: the query count only)
+    time_budget_ms: float = 0.0
+    #: the human's preference: "map" (the map's, the paper's protocol) or "consistent" (the
+    #: true goal is drawn among candidates the map's preference leads to; see instances.py)
+    human: str = "map"
     #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
     timeout_s: float = field(default=0.0, compare=False)
+
+    def __post_init__(self) -> None:
+        if self.coupling is None:
+            object.__setattr__(self, "coupling", get_preset(self.preset).coupling
+                               if self.preset in PRESETS else True)
 
     @property
     def map_hash(self) -> str:
@@ -95,6 +105,11 @@ class EpisodeSpec:
             raise ConfigError("the carry task needs the arm: use --sim mujoco")
         if not self.ucb_c > 0:
             raise ConfigError(f"--ucb-c must be positive, got {self.ucb_c}")
+        if not self.time_budget_ms >= 0:
+            raise ConfigError(f"--time-budget-ms must be positive, got {self.time_budget_ms}")
+        if self.human not in HUMANS:
+            raise ConfigError(f"unknown human preference '{self.human}'; choose "
+                              f"{' or '.join(HUMANS)}")
         get_preset(self.preset)
 
 
@@ -116,6 +131,7 @@ class EpisodeResult:
     instance_cells: dict[str, Any] = field(default_factory=dict)
     goal_reached: bool = False
     violations: int = 0
+    back_crossings: int = 0
     steps: int = 0
     inputs: int = 0
     wall_s: float = 0.0
@@ -157,7 +173,8 @@ def episode_instance(world: World, spec: EpisodeSpec) -> tuple[Instance, bool]:
         inst = fixed_instance(world, tuple(f["start"]), [tuple(g) for g in f["goals"]],
                               int(f["true_goal"]))
         return inst, bool(f.get("free_goal_polytope", False))
-    return sample_instance(world, spec.instance_seed, spec.n_goals), False
+    return sample_instance(world, spec.instance_seed, spec.n_goals,
+                           consistent=spec.human == "consistent", t_max=spec.t_max), False
 
 
 def human_preference(world: World, inst: Instance, free_goal_polytope: bool) -> np.ndarray:
@@ -236,7 +253,8 @@ class EpisodeRunner:
         preset = get_preset(spec.preset, ucb_c=spec.ucb_c)
         ctx = PolicyContext(world=world, model=model, preset=preset, t_max=spec.t_max,
                             queries=spec.queries, rng=np.random.default_rng(policy_seq),
-                            coupling=spec.coupling)
+                            coupling=spec.coupling, time_budget_ms=spec.time_budget_ms,
+                            true_goal=inst.true_goal, true_preference=self.pref)
         self.policy = make_policy(spec.method, ctx)
         self.human = SimulatedHuman(model, inst.true_goal, self.pref)
         if mover is None:
@@ -248,6 +266,7 @@ class EpisodeRunner:
         })
         self.goal_index = {g: k for k, g in enumerate(inst.goals)}
         self.cell = inst.start
+        self.last_crossing: tuple[int, int] | None = None
         self.t = 0
         self.pending_heading: int | None = None
         self.started = False
@@ -311,6 +330,9 @@ class EpisodeRunner:
         if v != w:
             if self.pref[v] >= 0 and self.pref[v] != w:
                 self.result.violations += 1
+            if self.last_crossing == (w, v):  # straight back through the face just crossed
+                self.result.back_crossings += 1
+            self.last_crossing = (v, w)
             if self.world.graph.edge_between(v, w) >= 0:
                 self.policy.enter(v, w)
         self.t = t
@@ -356,6 +378,7 @@ def result_row(res: EpisodeResult) -> dict[str, Any]:
         "steps": res.steps,
         "inputs": res.inputs,
         "violations": res.violations,
+        "back_crossings": res.back_crossings,
         "wall_s": res.wall_s,
         "metrics": json.dumps(res.metrics, sort_keys=True),
     }

@@ -2,7 +2,17 @@
 
 Start: a uniformly drawn free cell. Candidates: ``n_goals`` cells drawn without replacement
 from the free cells other than the start that the start can reach, restricted to the map's
-``goal_band`` when it has one (office: y in 8..9). True goal: uniform among the candidates.
+``goal_band`` when it has one (office: x in 2..10, y in 8..9). True goal: uniform among the
+candidates (the paper's protocol, ``human="map"``).
+
+With ``human="consistent"`` the true goal is drawn uniformly among the candidates that the
+map's preference leads to: those reachable from the start within ``t_max`` by a path that
+leaves every polytope ``v`` only toward ``p_v``
+(:func:`~pathpref.geometry.following.preference_following_distance`).
+A human never prefers a route that cannot reach where they want to go; under the paper's draw
+such instances exist (on ``classroom`` the clockwise loop misses the goal's polytope in about
+40% of instances) and no method can succeed on them. When no candidate qualifies, the start and
+candidates are drawn again from the same seed stream.
 """
 
 from __future__ import annotations
@@ -12,7 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, MapError
+from ..geometry.following import preference_following_distance
 from ..geometry.world import World
+
+#: how the human's preference relates to its goal (see module docstring)
+HUMANS = ("map", "consistent")
 
 
 @dataclass(frozen=True)
@@ -48,7 +62,8 @@ def goal_pool(world: World, start: int) -> np.ndarray:
     return np.flatnonzero(pool)
 
 
-def sample_instance(world: World, seed: int, n_goals: int = 10) -> Instance:
+def sample_instance(world: World, seed: int, n_goals: int = 10,
+                    consistent: bool = False, t_max: float = np.inf) -> Instance:
     """Draw an instance from ``seed`` (see module docstring)."""
     if n_goals < 1:
         raise ConfigError(f"--goals must be at least 1, got {n_goals}")
@@ -59,11 +74,23 @@ def sample_instance(world: World, seed: int, n_goals: int = 10) -> Instance:
         pool = goal_pool(world, start)
         if len(pool) >= n_goals:
             goals = tuple(int(g) for g in rng.choice(pool, size=n_goals, replace=False))
-            return Instance(start, goals, int(rng.integers(n_goals)))
+            if not consistent:
+                return Instance(start, goals, int(rng.integers(n_goals)))
+            ok = np.flatnonzero([_following(world, g)[start] <= t_max for g in goals])
+            if len(ok):
+                return Instance(start, goals, int(ok[rng.integers(len(ok))]))
+    if consistent:
+        raise ConfigError(
+            f"map '{world.name}': in 1000 draws no start had a goal candidate that its "
+            "preference leads to; check the map's preference or use the map's human")
     raise ConfigError(
         f"map '{world.name}' has too few candidate cells for {n_goals} goal candidates "
         f"(at most {world.n_cells - 1} free cells, fewer in the goal band); lower --goals"
     )
+
+
+def _following(world: World, goal: int) -> np.ndarray:
+    return preference_following_distance(world, world.require_preference(), goal)
 
 
 def fixed_instance(world: World, start: tuple[int, int], goals: list[tuple[int, int]],

@@ -30,7 +30,8 @@ EPISODE_COLUMNS = {
     "start": "TEXT", "goals": "TEXT", "true_goal": "INTEGER",
     "status": "TEXT", "reason": "TEXT", "goal_reached": "INTEGER", "pref_followed": "INTEGER",
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
-    "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT",
+    "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
+    "human": "TEXT", "back_crossings": "INTEGER",
 }
 
 

@@ -42,7 +42,9 @@ class GoalBelief:
     def __init__(self, model: ObservationModel, prior: np.ndarray | None = None):
         self.model = model
         G = len(model.goals)
-        self.log_w = np.log(np.full(G, 1.0 / G) if prior is None else np.asarray(prior, float))
+        with np.errstate(divide="ignore"):  # a zero prior is log 0 = -inf: ruled out
+            self.log_w = np.log(np.full(G, 1.0 / G) if prior is None
+                                else np.asarray(prior, float))
         self.ruled_out = np.zeros(G, dtype=bool)
 
     def update(self, cell: int, heading: int) -> None:
@@ -86,7 +88,8 @@ class PreferenceBelief:
         self.has_neighbors = np.array([len(nb) > 0 for nb in self.neighbors])
         G = len(model.goals)
         p0 = np.full(G, 1.0 / G) if prior is None else np.asarray(prior, float)
-        self.log_prior = np.log(p0)
+        with np.errstate(divide="ignore"):  # a zero prior is log 0 = -inf: ruled out
+            self.log_prior = np.log(p0)
         self.tables: dict[int, np.ndarray] = {}
         self.log_rowmean = np.zeros(G)  # sum over visited v of log r_v(g)
         self.ruled_out = np.zeros(G, dtype=bool)

@@ -1,4 +1,5 @@
-"""The four methods of the paper (Sec. V-A, SPEC 8) behind one small interface.
+"""The four methods of the paper (Sec. V-A, SPEC 8) and two reference methods (``oracle``,
+``goal_known``: they know what the others infer) behind one small interface.
 
 A :class:`Policy` is told what the robot observes and asked for an action:
 
@@ -21,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..geometry.following import preference_following_distance
 from ..geometry.world import World
 from ..inference.belief import GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel
@@ -32,7 +34,11 @@ STAY = -1
 
 @dataclass
 class PolicyContext:
-    """Everything a policy may use: the map, likelihood tables, parameters, randomness."""
+    """Everything a policy may use: the map, likelihood tables, parameters, randomness.
+
+    ``true_goal`` (index into the goal candidates) and ``true_preference`` (the human's, per
+    polytope, -1 = none) are given to every policy but read only by the reference methods
+    ``oracle`` and ``goal_known``, which exist to show what is possible."""
 
     world: World
     model: ObservationModel
@@ -41,6 +47,9 @@ class PolicyContext:
     queries: int
     rng: np.random.Generator
     coupling: bool = False
+    time_budget_ms: float = 0.0
+    true_goal: int = -1
+    true_preference: np.ndarray | None = None
 
 
 class Policy(ABC):
@@ -71,17 +80,28 @@ class Policy(ABC):
 
 
 class PlannerPolicy(Policy):
-    """POMCP from the policy's belief with the given rewards, depth ``T_max - t + 1``."""
+    """POMCP from the policy's belief with the given rewards, depth ``T_max - t + 1``.
+
+    Under the ``robust`` preset the search is :mod:`pathpref.planning.guided` (given the cost
+    tables, the time budget and the episode's transitions so far)."""
 
     def __init__(self, ctx: PolicyContext, belief: PreferenceBelief | GoalBelief,
                  rewards: Rewards):
         super().__init__(ctx, belief)
-        self.planner = POMCP(ctx.world, ctx.model.goals, rewards, queries=ctx.queries,
-                             c=ctx.preset.ucb_c)
+        robust = ctx.preset.search == "robust"
+        self.planner = POMCP(ctx.world, ctx.model.goals, rewards.for_mission(ctx.t_max),
+                             queries=ctx.queries, c=ctx.preset.ucb_c,
+                             tables=ctx.model.tables if robust else None,
+                             budget_ms=ctx.time_budget_ms if robust else 0.0)
+        self.history: list[tuple[int, int]] = []
+
+    def enter(self, v_from: int, v_to: int) -> None:
+        super().enter(v_from, v_to)
+        self.history.append((v_from, v_to))
 
     def act(self, t: int, cell: int, heading: int | None) -> int:
         depth = self.ctx.t_max - t + 1
-        return self.planner.search(cell, self.belief, depth, self._seed()).action
+        return self.planner.search(cell, self.belief, depth, self._seed(), self.history).action
 
 
 class PathPreferencePolicy(PlannerPolicy):
@@ -92,6 +112,56 @@ class PathPreferencePolicy(PlannerPolicy):
     def __init__(self, ctx: PolicyContext):
         super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling),
                          ctx.preset.path_preference)
+
+
+class GoalKnownPolicy(PlannerPolicy):
+    """Reference: knows the true goal (a one-hot goal prior), infers the preference, plans with
+    the preset's path-preference search."""
+
+    name = "goal_known"
+
+    def __init__(self, ctx: PolicyContext):
+        if ctx.true_goal < 0:
+            raise ConfigError("goal_known needs the episode's true goal")
+        prior = np.zeros(len(ctx.model.goals))
+        prior[ctx.true_goal] = 1.0
+        super().__init__(ctx, PreferenceBelief(ctx.model, prior=prior, coupling=ctx.coupling),
+                         ctx.preset.path_preference)
+
+
+class OraclePolicy(Policy):
+    """Reference ceiling: knows goal and preference and follows the shortest path that obeys
+    the preference (leave ``v`` only toward ``p_v``; anywhere from a polytope without one).
+
+    ``togo[s]`` is that path's length from ``s`` (one Dijkstra from the goal over the allowed
+    moves, reversed); the oracle takes the move minimising ``c(s, a) + togo[s']``. Where no
+    such path exists (the preference never leads to the goal) it takes the unconstrained
+    shortest path: it then reaches the goal but cannot succeed."""
+
+    name = "oracle"
+
+    def __init__(self, ctx: PolicyContext):
+        if ctx.true_goal < 0 or ctx.true_preference is None:
+            raise ConfigError("oracle needs the episode's true goal and the map's preference")
+        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling))
+        goal = int(ctx.model.goals[ctx.true_goal])
+        self.togo = preference_following_distance(ctx.world, ctx.true_preference, goal)
+        self.dist = ctx.model.tables.dist[ctx.true_goal]
+
+    def act(self, t: int, cell: int, heading: int | None) -> int:
+        m = self.ctx.world.motion
+        allowed = ~m.blocked[cell]
+        field = self.dist
+        if np.isfinite(self.togo[cell]):  # follow the preference: leave v only toward p_v
+            field = self.togo
+            poly = self.ctx.world.cell_polytope
+            v, w = poly[cell], poly[m.next_cell[cell]]
+            p = self.ctx.true_preference[v]
+            allowed &= (w == v) | (p < 0) | (w == p)
+        score = np.where(allowed, m.cost[cell] + field[m.next_cell[cell]], np.inf)
+        if not np.isfinite(score).any():
+            return STAY
+        return int(np.argmin(score))
 
 
 class GoalOnlyPolicy(PlannerPolicy):
@@ -145,7 +215,11 @@ METHODS: dict[str, Callable[[PolicyContext], Policy]] = {
     "goal_only": GoalOnlyPolicy,
     "path_preference": PathPreferencePolicy,
     "blended": BlendedPolicy,
+    "goal_known": GoalKnownPolicy,
+    "oracle": OraclePolicy,
 }
+#: the reference methods (they know what the others infer); 'all' leaves them out
+REFERENCE_METHODS = ("goal_known", "oracle")
 
 
 def register_method(name: str, factory: Callable[[PolicyContext], Policy]) -> None:
@@ -155,18 +229,20 @@ def register_method(name: str, factory: Callable[[PolicyContext], Policy]) -> No
 
 def make_policy(name: str, ctx: PolicyContext) -> Policy:
     if name not in METHODS:
-        raise ConfigError(f"unknown method '{name}'; choose from {', '.join(METHODS)} or 'all'")
+        raise ConfigError(f"unknown method '{name}'; choose from {', '.join(METHODS)}")
     return METHODS[name](ctx)
 
 
 def resolve_methods(names: list[str]) -> list[str]:
     """Expand 'all' and check every name."""
     out: list[str] = []
+    everyday = [m for m in METHODS if m not in REFERENCE_METHODS]
     for n in names:
-        for m in (list(METHODS) if n == "all" else [n]):
+        for m in ({"all": everyday, "reference": list(REFERENCE_METHODS)}.get(n, [n])):
             if m not in METHODS:
                 raise ConfigError(
-                    f"unknown method '{m}'; choose from {', '.join(METHODS)} or 'all'"
+                    f"unknown method '{m}'; choose from {', '.join(METHODS)}, 'all' (the four "
+                    "methods of the paper) or 'reference' (oracle, goal_known)"
                 )
             if m not in out:
                 out.append(m)

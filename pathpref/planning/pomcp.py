@@ -23,13 +23,16 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from ..errors import ConfigError
 from ..geometry.world import World
 from ..inference.belief import GoalBelief, PreferenceBelief
+from ..inference.costs import CostTables
 from ..inference.human import neighbor_table
+from .guided import search_robust
 from .pomdp import Rewards
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, inline="always")
 def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly,
           pref_cdf, theta, stamp, Rg, Rp, Rn, use_pref):
     """Generative step; returns (next cell, reward, done). Samples p_v lazily into theta."""
@@ -153,6 +156,7 @@ class SearchResult:
     visits: np.ndarray
     values: np.ndarray
     nodes: int
+    queries: int = 0
 
 
 class POMCP:
@@ -163,12 +167,16 @@ class POMCP:
         world: the map.
         goals: goal candidate cells (indices), in the order of the belief's goal axis.
         rewards: the planner's rewards and discount.
-        queries: simulations per decision (5000 in the paper).
+        queries: simulations per decision (5000 in the paper; the cap under a time budget).
         c: UCB exploration constant (1 in the paper).
+        tables: the human model's cost tables; given, the search is the `robust` one of
+            :mod:`pathpref.planning.guided` (guided rollouts, scaled exploration, preferred
+            crossings paid once per episode); None is the paper's search.
+        budget_ms: wall-time budget per decision for the robust search (0: ``queries`` only).
     """
 
     def __init__(self, world: World, goals: np.ndarray, rewards: Rewards, queries: int = 5000,
-                 c: float = 1.0):
+                 c: float = 1.0, tables: CostTables | None = None, budget_ms: float = 0.0):
         m = world.motion
         self.world = world
         self.rewards = rewards
@@ -186,6 +194,18 @@ class POMCP:
         uniform = np.where(np.arange(K)[None, :] < deg[:, None],
                            (np.arange(K)[None, :] + 1) / np.maximum(deg, 1)[:, None], 1.0)
         self._uniform_cdf = uniform  # (P, K)
+        if (tables is not None) != (rewards.model == "success"):
+            raise ConfigError("the robust search (cost tables given) plans with the success "
+                              "reward, the paper's search with the additive one")
+        self.tables = tables
+        self.budget_s = float(budget_ms) / 1000.0
+        if tables is not None:
+            self.blocked = m.blocked.copy()
+            v_next = self.cell_poly[self.next_cell]
+            slot = (self.nbr[self.cell_poly][:, None, :] == v_next[:, :, None])  # (n, 8, K)
+            self.cross_slot = np.where(self.crossed >= 0, slot.argmax(axis=2), -1)
+            self.ctg = np.ascontiguousarray(tables.constrained, dtype=np.float64)
+            self.dist = np.ascontiguousarray(tables.dist, dtype=np.float64)
 
     def preference_cdf(self, belief: PreferenceBelief | None) -> np.ndarray:
         """``(G, P, K)`` cumulative ``P(p_v = N(v)[k] | g)`` (uniform where never observed)."""
@@ -198,19 +218,45 @@ class POMCP:
         return cdf
 
     def search(self, cell: int, belief: PreferenceBelief | GoalBelief, depth: int,
-               seed: int) -> SearchResult:
-        """Plan from ``cell`` with root states drawn from ``belief``; return the best action."""
+               seed: int, history: list[tuple[int, int]] = ()) -> SearchResult:
+        """Plan from ``cell`` with root states drawn from ``belief``; return the best action.
+
+        ``history``: the episode's polytope transitions ``(v, w)`` so far (robust search: they
+        count toward the success reward)."""
         goal_cdf = np.cumsum(belief.goal_marginal())
         pref = belief if isinstance(belief, PreferenceBelief) else None
         cdf = self.preference_cdf(pref) if self.rewards.use_preference else self._dummy_cdf()
         r = self.rewards
+        if self.tables is not None:
+            a, visits, values, nodes, done = search_robust(
+                self.next_cell, self.cost, self.blocked, self.cross_slot, self.cell_poly,
+                self.nbr, self.goal_cells, goal_cdf, cdf, self._known(pref), self.ctg,
+                self.dist, *self._history(history), int(cell), int(max(depth, 1)),
+                self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
+                r.use_preference, int(seed) % (2**32), self.budget_s)
+            return SearchResult(int(a), visits, values, int(nodes), int(done))
         a, visits, values, nodes = _search(
             self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,
             self.goal_poly, goal_cdf, cdf, int(cell), int(max(depth, 1)), self.queries, self.c,
             r.discount, r.goal, r.preferred, r.non_preferred, r.use_preference,
             int(seed) % (2**32),
         )
-        return SearchResult(int(a), visits, values, int(nodes))
+        return SearchResult(int(a), visits, values, int(nodes), self.queries)
+
+    def _known(self, belief: PreferenceBelief | None) -> np.ndarray:
+        """``(P,)`` True for the polytopes with at least one observation in ``belief``."""
+        known = np.zeros(len(self.nbr), dtype=bool)
+        if belief is not None:
+            known[list(belief.tables)] = True
+        return known
+
+    def _history(self, history) -> tuple[np.ndarray, np.ndarray]:
+        """``(hist_v, hist_k)``: each transition ``v -> w`` as ``v`` and the slot of ``w`` in
+        ``N(v)``."""
+        hv = np.array([v for v, _ in history], dtype=np.int64)
+        hk = np.array([int(np.flatnonzero(self.nbr[v] == w)[0]) for v, w in history],
+                      dtype=np.int64)
+        return hv, hk
 
     def _dummy_cdf(self) -> np.ndarray:
         return np.ones((len(self.goal_cells), *self._uniform_cdf.shape))

@@ -10,6 +10,10 @@ move from ``s`` with action ``a`` is::
         + R_g  if it reaches g (terminal)
 
 discounted by ``gamma``. The goal-only planner has no ``R_p``/``R_n`` terms.
+
+The ``robust`` preset replaces this additive reward by the *success reward* of
+:mod:`.guided`: ``R_g gamma^L`` at the goal, times ``rho`` if a transition on the way was not
+the preferred one, nothing else.
 """
 
 from __future__ import annotations
@@ -28,6 +32,20 @@ class Rewards:
     non_preferred: float
     discount: float
     use_preference: bool = True
+    #: when True, ``discount`` is replaced by ``1 - 1 / T_max`` (a horizon that matches the
+    #: mission time, so a goal at the far end of a large map still outweighs one crossing)
+    horizon_discount: bool = False
+    #: ``additive`` (the paper's reward above) or ``success`` (:mod:`.guided`)
+    model: str = "additive"
+    #: success reward only: what reaching the goal is worth after a non-preferred transition,
+    #: as a fraction ``rho`` of ``goal``
+    goal_after_violation: float = 0.1
+
+    def for_mission(self, t_max: int) -> Rewards:
+        """These rewards with the discount resolved for a mission of ``t_max`` steps."""
+        if not self.horizon_discount:
+            return self
+        return replace(self, discount=1.0 - 1.0 / max(int(t_max), 2), horizon_discount=False)
 
 
 @dataclass(frozen=True)
@@ -39,6 +57,11 @@ class Preset:
         goal_only: rewards of the goal-only planner.
         momentum: compliant baseline keeps the last heading this many steps without input.
         entropy_threshold: blended baseline follows the human when ``H(g, p_v)`` exceeds it.
+        search: ``paper`` (PO-UCT with uniform rollouts, :mod:`.pomcp`) or ``robust``
+            (guided rollouts, scaled exploration, preferred crossings paid once per episode,
+            anytime budget: :mod:`.guided`).
+        coupling: the back-edge coupling of the belief (a heuristic; ``robust`` keeps the
+            exact posterior under the independent prior instead).
     """
 
     name: str
@@ -48,6 +71,8 @@ class Preset:
     entropy_threshold: float = 1.6
     queries: int = 5000
     ucb_c: float = 1.0
+    search: str = "paper"
+    coupling: bool = True
 
 
 PRESETS: dict[str, Preset] = {
@@ -65,11 +90,25 @@ PRESETS: dict[str, Preset] = {
                           use_preference=False),
         momentum=2,
     ),
+    "robust": Preset(
+        name="robust",
+        path_preference=Rewards(goal=1.0, preferred=0.0, non_preferred=0.0, discount=0.95,
+                                horizon_discount=True, model="success",
+                                goal_after_violation=0.1),
+        goal_only=Rewards(goal=1.0, preferred=0.0, non_preferred=0.0, discount=0.95,
+                          use_preference=False, horizon_discount=True, model="success"),
+        momentum=5,
+        search="robust",
+        coupling=False,
+    ),
 }
+
+#: the preset of applications (render, demo, interact, tasks, evaluate without --preset)
+DEFAULT_PRESET = "robust"
 
 
 def get_preset(name: str, **overrides) -> Preset:
-    """A preset by name (``paper`` or ``original``), with optional field overrides."""
+    """A preset by name (``paper``, ``original`` or ``robust``), with optional field overrides."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
     preset = PRESETS[name]

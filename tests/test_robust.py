@@ -1,0 +1,139 @@
+"""The `robust` preset: its search (:mod:`pathpref.planning.guided`), the reference methods
+(``oracle``, ``goal_known``) and the consistent human."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from scipy.sparse.csgraph import shortest_path
+
+from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, run_episode
+from pathpref.experiments.instances import sample_instance, seed_for
+from pathpref.geometry.following import preference_following_distance
+from pathpref.geometry.grid import ACTION_NAMES
+from pathpref.geometry.world import load_world
+from pathpref.inference.belief import GoalBelief, PreferenceBelief
+from pathpref.inference.human import ObservationModel
+from pathpref.planning.pomcp import POMCP
+from pathpref.planning.pomdp import get_preset
+
+ROBUST = get_preset("robust")
+
+
+def test_goal_only_search_takes_shortest_moves(simple):
+    """Goal known, no preference: the success reward ``gamma^(L-1)`` counts steps, so every
+    chosen move must be on a path with the fewest steps (``n(s') = n(s) - 1``, ``n`` the
+    breadth-first step count to the goal), from cells all over the map."""
+    goal = simple.cell((9, 9))
+    model = ObservationModel.build(simple, np.array([goal]))
+    planner = POMCP(simple, np.array([goal]), ROBUST.goal_only.for_mission(30), queries=2000,
+                    tables=model.tables)
+    m = simple.motion
+    d = shortest_path(m.adjacency(), unweighted=True, indices=goal)  # symmetric moves
+    rng = np.random.default_rng(0)
+    for s in rng.choice(np.flatnonzero(np.arange(simple.n_cells) != goal), 12, replace=False):
+        a = planner.search(int(s), GoalBelief(model), 30, int(s)).action
+        assert not m.blocked[s, a]
+        assert d[m.next_cell[s, a]] == d[s] - 1, simple.cells[s]
+
+
+def test_known_preference_beats_the_shortest_exit(simple):
+    """Goal (1,8) known, robot at (4,2) beside the face to the polytope under the table. Sure
+    that the human prefers that face (east), the robust planner takes it although the shortest
+    way is north; sure of north, it never turns east. Without the success reward's violation
+    term (goal-only rewards) it goes north either way."""
+    goal = simple.cell((1, 8))
+    model = ObservationModel.build(simple, np.array([goal]))
+    s = simple.cell((4, 2))
+    east = {"E", "NE", "SE"}
+
+    def share_east(heading: str, rewards) -> float:
+        b = PreferenceBelief(model, coupling=False)
+        for _ in range(20):
+            b.update(simple.cell((1, 1)), ACTION_NAMES.index(heading))
+        planner = POMCP(simple, np.array([goal]), rewards.for_mission(30), queries=3000,
+                        tables=model.tables)
+        return np.mean([ACTION_NAMES[planner.search(s, b, 30, seed).action] in east
+                        for seed in range(8)])
+
+    assert share_east("E", ROBUST.path_preference) >= 0.75
+    assert share_east("N", ROBUST.path_preference) == 0.0
+    assert share_east("E", ROBUST.goal_only) <= 0.25
+
+
+def test_the_episode_history_counts_toward_success(simple):
+    """Sure that the human prefers to leave ``v`` northward, the robot has crossed east into
+    ``w``. Told of that crossing, every simulation has already violated the preference, so no
+    action is worth more than ``rho`` (the goal after a violation); told nothing, going back
+    through ``v`` and out northward still succeeds (``w`` is unknown, its exits all allowed), so
+    some action is worth more than ``rho``."""
+    goal = simple.cell((1, 8))
+    model = ObservationModel.build(simple, np.array([goal]))
+    poly = simple.cell_polytope
+    v = poly[simple.cell((4, 2))]
+    s = simple.cell((5, 2))
+    w = poly[s]
+    assert v != w and w in simple.graph.neighbors[v]
+    b = PreferenceBelief(model, coupling=False)
+    for _ in range(20):
+        b.update(simple.cell((1, 1)), ACTION_NAMES.index("N"))
+    rewards = ROBUST.path_preference.for_mission(30)
+    rho = rewards.goal_after_violation
+    planner = POMCP(simple, np.array([goal]), rewards, queries=3000, tables=model.tables)
+    told = planner.search(s, b, 29, 0, [(v, w)])
+    assert told.values.max() <= rho + 1e-12
+    assert planner.search(s, b, 29, 0, []).values.max() > 2 * rho
+
+
+def test_time_budget_stops_the_search(simple):
+    goal = simple.cell((9, 9))
+    model = ObservationModel.build(simple, np.array([goal]))
+    planner = POMCP(simple, np.array([goal]), ROBUST.goal_only.for_mission(30),
+                    queries=2_000_000, tables=model.tables, budget_ms=5.0)
+    planner.search(simple.cell((1, 1)), GoalBelief(model), 30, 0)  # compile
+    t0 = time.perf_counter()
+    res = planner.search(simple.cell((1, 1)), GoalBelief(model), 30, 1)
+    assert time.perf_counter() - t0 < 0.5
+    assert 32 <= res.queries < 2_000_000
+
+
+@pytest.mark.parametrize("map_name", ["simple", "office", "classroom"])
+def test_consistent_human_goal_is_reachable_by_its_preference(map_name):
+    """The consistent human's true goal is reached from the start within T_max by a path
+    that follows the map's preference; the map's human keeps the paper's draw."""
+    w = load_world(map_name)
+    t_max = w.spec.t_max
+    pref = w.require_preference()
+    for i in range(4):
+        seed = seed_for(1, i)
+        inst = sample_instance(w, seed, 10, consistent=True, t_max=t_max)
+        d = preference_following_distance(w, pref, inst.goal_cell)
+        assert d[inst.start] <= t_max
+        paper = sample_instance(w, seed, 10)
+        assert paper == sample_instance(w, seed, 10, consistent=False)
+
+
+@pytest.mark.parametrize("map_name", ["simple", "office"])
+def test_oracle_succeeds_whenever_the_human_is_consistent(map_name):
+    """The oracle follows the preference exactly: with a consistent human it succeeds in every
+    episode, without a single non-preferred transition."""
+    t_max = load_world(map_name).spec.t_max
+    for i in range(4):
+        res = run_episode(EpisodeSpec(map=map_name, method="oracle", delta_t=5, instance=i,
+                                      run=0, instance_seed=seed_for(7, i), run_seed=i,
+                                      preset="robust", human="consistent", t_max=t_max))
+        assert res.success and res.violations == 0 and res.back_crossings == 0
+
+
+def test_goal_known_plans_with_a_one_hot_goal():
+    runner = EpisodeRunner(EpisodeSpec(map="simple", method="goal_known", delta_t=1, instance=0,
+                                       run=0, instance_seed=seed_for(3, 0), run_seed=1,
+                                       preset="robust", queries=500))
+    marginal = runner.policy.belief.goal_marginal()
+    assert marginal[runner.instance.true_goal] == 1.0 and marginal.sum() == 1.0
+    while not runner.done:
+        runner.step()
+    assert runner.result.goal_reached
+    assert runner.policy.belief.goal_marginal()[runner.instance.true_goal] == 1.0
