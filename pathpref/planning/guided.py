@@ -46,6 +46,8 @@ import time
 import numba as nb
 import numpy as np
 
+from .tree import best_root_action, new_tree, sample_index, sample_slot
+
 EPS_RANDOM = 0.1
 
 
@@ -62,12 +64,7 @@ def _theta(v, gi, q, nbr, pref_cdf, theta, stamp):
     ``P(p_v | g)`` (cumulative ``pref_cdf[gi, v]``)."""
     if stamp[v] != q:
         stamp[v] = q
-        u = np.random.random()
-        k = 0
-        K = nbr.shape[1]
-        while k < K - 1 and nbr[v, k + 1] >= 0 and u > pref_cdf[gi, v, k]:
-            k += 1
-        theta[v] = k
+        theta[v] = sample_slot(v, gi, nbr, pref_cdf)
     return theta[v]
 
 
@@ -130,11 +127,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     ``(best action, root visits, root values, nodes, queries run)``."""
     np.random.seed(seed)
     t0 = _clock()
-    M = queries + 2
-    n_node = np.zeros(M, np.int64)
-    n_sa = np.zeros((M, 8), np.int64)
-    q_sa = np.zeros((M, 8))
-    child = -np.ones((M, 8), np.int32)
+    n_node, n_sa, q_sa, child = new_tree(queries)
     n_nodes = 1
     P = nbr.shape[0]
     theta = -np.ones(P, np.int64)
@@ -142,17 +135,13 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     made_q = -np.ones(P, np.int64)
     path_node = np.zeros(depth + 1, np.int64)
     path_a = np.zeros(depth + 1, np.int64)
-    G = goal_cdf.shape[0]
     ret_lo, ret_hi = 1e300, -1e300
     done_q = 0
     for q in range(queries):
         if budget_s > 0 and q % 32 == 0 and q > 0 and _clock() - t0 > budget_s:
             break
         done_q += 1
-        u = np.random.random()
-        gi = 0
-        while gi < G - 1 and u > goal_cdf[gi]:
-            gi += 1
+        gi = sample_index(goal_cdf)
         s = s0
         node = 0
         L = 0
@@ -223,10 +212,4 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
             n_sa[nd, b] += 1
             q_sa[nd, b] += (back - q_sa[nd, b]) / n_sa[nd, b]
             back /= discount
-    best_a = 0
-    best_q = -1e300
-    for b in range(8):
-        if n_sa[0, b] > 0 and q_sa[0, b] > best_q:
-            best_q = q_sa[0, b]
-            best_a = b
-    return best_a, n_sa[0].copy(), q_sa[0].copy(), n_nodes, done_q
+    return best_root_action(n_sa, q_sa), n_sa[0].copy(), q_sa[0].copy(), n_nodes, done_q

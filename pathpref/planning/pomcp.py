@@ -30,6 +30,7 @@ from ..inference.costs import CostTables
 from ..inference.human import neighbor_table
 from .guided import search_robust
 from .pomdp import Rewards
+from .tree import best_root_action, new_tree, sample_index, sample_slot
 
 
 @nb.njit(cache=True, inline="always")
@@ -45,12 +46,7 @@ def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goa
         else:
             if stamp[v] != q:
                 stamp[v] = q
-                u = np.random.random()
-                k = 0
-                K = nbr.shape[1]
-                while k < K - 1 and nbr[v, k + 1] >= 0 and u > pref_cdf[gi, v, k]:
-                    k += 1
-                theta[v] = nbr[v, k]
+                theta[v] = nbr[v, sample_slot(v, gi, nbr, pref_cdf)]
             if cell_poly[s2] == theta[v]:
                 r += Rp
             else:
@@ -65,11 +61,7 @@ def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goa
 def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goal_cdf,
             pref_cdf, s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref, seed):
     np.random.seed(seed)
-    M = queries + 2
-    n_node = np.zeros(M, np.int64)
-    n_sa = np.zeros((M, 8), np.int64)
-    q_sa = np.zeros((M, 8))
-    child = -np.ones((M, 8), np.int32)
+    n_node, n_sa, q_sa, child = new_tree(queries)
     n_nodes = 1
     P = nbr.shape[0]
     theta = -np.ones(P, np.int64)
@@ -77,12 +69,8 @@ def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goa
     path_node = np.zeros(depth + 1, np.int64)
     path_a = np.zeros(depth + 1, np.int64)
     path_r = np.zeros(depth + 1)
-    G = goal_cdf.shape[0]
     for q in range(queries):
-        u = np.random.random()
-        gi = 0
-        while gi < G - 1 and u > goal_cdf[gi]:
-            gi += 1
+        gi = sample_index(goal_cdf)
         s = s0
         node = 0
         L = 0
@@ -139,13 +127,7 @@ def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goa
             n_node[nd] += 1
             n_sa[nd, b] += 1
             q_sa[nd, b] += (ret - q_sa[nd, b]) / n_sa[nd, b]
-    best_a = 0
-    best_q = -1e300
-    for b in range(8):
-        if n_sa[0, b] > 0 and q_sa[0, b] > best_q:
-            best_q = q_sa[0, b]
-            best_a = b
-    return best_a, n_sa[0].copy(), q_sa[0].copy(), n_nodes
+    return best_root_action(n_sa, q_sa), n_sa[0].copy(), q_sa[0].copy(), n_nodes
 
 
 @dataclass
