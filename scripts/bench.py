@@ -5,7 +5,7 @@
 
 import sys
 
-from pathpref.cli import main
+from pathpref.apps.cli import main
 
 if __name__ == "__main__":
     sys.exit(main(["bench", "--json", *sys.argv[1:]]))

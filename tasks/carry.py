@@ -21,25 +21,30 @@ TILT_PENALTY = 50.0
 
 
 class Carry(Navigate):
+    """The ``carry`` task (module docstring)."""
+
     def __init__(self, **kwargs):
         super().__init__(task="carry", **kwargs)
 
     def before_step(self, action, physics: Physics) -> None:
-        base = self.runner.mover.base
+        """The navigate step, minus the tilt penalty over its physics steps."""
+        base = self.runner.body.base
         start = len(base.tilts)
         super().before_step(action, physics)
         tilts = np.radians(base.tilts[start:]) if len(base.tilts) > start else np.zeros(1)
         self._reward -= TILT_PENALTY * float(np.mean(np.square(tilts)))
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
+        """Navigate's observations plus the tray's tilt and position."""
         obs = super().observation_spec(physics)
         obs["tray_tilt"] = specs.Array(shape=(1,), dtype=np.float64, name="tray_tilt")
         obs["tray_position"] = specs.Array(shape=(3,), dtype=np.float64, name="tray_position")
         return obs
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
+        """Navigate's observations plus the tray's tilt (degrees) and position (m)."""
         obs = super().get_observation(physics)
-        base = self.runner.mover.base
+        base = self.runner.body.base
         from pathpref.sim.arm import tilt_deg
 
         obs["tray_tilt"] = np.array([tilt_deg(base.data, base.tray)])

@@ -31,12 +31,11 @@ from dm_control.rl import control
 from dm_control.suite import base
 from dm_env import specs
 
-from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
-from pathpref.experiments.instances import seed_for
-from pathpref.geometry.grid import MOVE_COST
-from pathpref.planning.policies import STAY
-from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset
-from pathpref.sim.mover import MujocoMover, scene_for
+from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
+from pathpref.errors import ConfigError
+from pathpref.geometry.grid import STAY
+from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
+from pathpref.sim.body import MujocoBody, scene_for
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
@@ -46,18 +45,18 @@ class Physics(dm_mujoco.Physics):
     """Named accessors for the navigation scene."""
 
     def base_position(self) -> np.ndarray:
-        return self.data.qpos[:2].copy()
-
-    def base_velocity(self) -> np.ndarray:
-        return self.data.qvel[:2].copy()
+        """The base's planar position (m), read from the joints ``slide_x``, ``slide_y``."""
+        return self.named.data.qpos[["slide_x", "slide_y"]].copy()
 
 
 class Navigate(base.Task):
+    """The ``navigate`` task (module docstring); ``task="carry"`` gives the arm's scene."""
+
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate"):
-        super().__init__(random=seed)
+        super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.world = cached_world(map)
         self.seed = seed
         self.template = EpisodeSpec(
@@ -74,24 +73,27 @@ class Navigate(base.Task):
 
     # --- episode -------------------------------------------------------------------------
     def initialize_episode(self, physics: Physics) -> None:
-        from dataclasses import replace
+        """Draw the next episode's instance and run (see module docstring for seeds)."""
+        from dataclasses import asdict
 
         self.episode += 1
-        spec = replace(self.template, instance=self.episode,
-                       instance_seed=seed_for(self.seed, self.episode),
-                       run_seed=seed_for(self.seed, self.episode, 0))
-        mover = MujocoMover(self.world, spec, simulator_rng(spec),
-                            scene=scene_for(self.world, 0.5, spec.task), data=physics.data.ptr)
-        self.runner = EpisodeRunner(spec, self.world, mover)
+        fields = {k: v for k, v in asdict(self.template).items()
+                  if k not in ("map", "method", "delta_t", "instance", "run", "instance_seed",
+                               "run_seed")}
+        spec = EpisodeSpec.single(self.template.map, self.template.method,
+                                  self.template.delta_t, seed=self.seed, instance=self.episode,
+                                  **fields)
+        body = MujocoBody(self.world, spec, simulator_rng(spec),
+                          scene=scene_for(self.world, 0.5, spec.task), data=physics.data.ptr)
+        self.runner = EpisodeRunner(spec, self.world, body)
         self.runner.begin()
         self._reward = 0.0
 
     def before_step(self, action, physics: Physics) -> None:
+        """Run the decision step with the agent's action and keep its reward."""
         r = self.runner
         a = np.asarray(action).item()
         if not (np.isfinite(a) and float(a).is_integer() and 0 <= a <= STAY_ACTION):
-            from pathpref.errors import ConfigError
-
             raise ConfigError(f"action must be 0..{STAY_ACTION} (8 = stay), got {action!r}")
         a = int(a)
         if a == STAY_ACTION:
@@ -101,27 +103,20 @@ class Navigate(base.Task):
         self._reward = self._step_reward(before, r.cell, a)
 
     def _step_reward(self, before: int, after: int, a: int) -> float:
-        w = self.world
-        if a == STAY:
-            rew = 0.0
-        else:
-            rew = -(1.0 if w.motion.blocked[before, a] else float(MOVE_COST[a]))
-        v, u = int(w.cell_polytope[before]), int(w.cell_polytope[after])
-        if v != u:
-            goal_in_v = w.cell_polytope[self.runner.instance.goal_cell] == v
-            pref = self.runner.pref[v]
-            ok = (not goal_in_v) and pref == u
-            rew += self.rewards.preferred if ok else self.rewards.non_preferred
-        if self.runner.result.goal_reached:
-            rew += self.rewards.goal
-        return rew
+        """The paper's reward (SPEC 6) of the move, with the human's true preference."""
+        r = self.runner
+        v = int(self.world.cell_polytope[before])
+        return transition_reward(self.world, before, after, a, r.instance.goal_cell,
+                                 int(r.pref[v]), self.rewards)
 
     # --- dm_env interface ----------------------------------------------------------------
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
+        """0..7: the eight moves (N, NE, ..., NW); 8: stay."""
         return specs.BoundedArray(shape=(), dtype=np.int32, minimum=0, maximum=STAY_ACTION,
                                   name="move")
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
+        """Shapes of the observations (module docstring)."""
         G = self.template.n_goals
         shapes = {"position": (2,), "cell": (2,), "heading": (8,), "goal_belief": (G,),
                   "goal_cells": (G, 2), "polytope": (1,), "entropy": (1,)}
@@ -129,6 +124,7 @@ class Navigate(base.Task):
             (k, specs.Array(shape=v, dtype=np.float64, name=k)) for k, v in shapes.items())
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
+        """Position, cell, detected heading, goal belief, candidates, polytope, entropy."""
         r = self.runner
         heading = np.zeros(8)
         if r.pending_heading is not None:
@@ -141,15 +137,15 @@ class Navigate(base.Task):
         obs["goal_belief"] = r.policy.belief.goal_marginal().astype(np.float64)
         obs["goal_cells"] = self.world.cells[list(r.instance.goals)].astype(np.float64)
         obs["polytope"] = np.array([v], dtype=np.float64)
-        ent = (r.policy.belief.joint_entropy(v) if hasattr(r.policy.belief, "joint_entropy")
-               else r.policy.belief.goal_entropy())
-        obs["entropy"] = np.array([ent])
+        obs["entropy"] = np.array([r.policy.belief.joint_entropy(v)])
         return obs
 
     def get_reward(self, physics: Physics) -> float:
+        """The reward of the last step (:meth:`_step_reward`)."""
         return float(self._reward)
 
     def get_termination(self, physics: Physics):
+        """0 (terminal) at the goal, 1 (time limit) after ``T_max`` decisions, else None."""
         if self.runner.result.goal_reached:
             return 0.0
         if self.runner.t >= self.runner.spec.t_max:

@@ -14,8 +14,8 @@ import pytest  # noqa: E402
 from dm_env import test_utils  # noqa: E402
 from pathpref_tasks import load  # noqa: E402
 
-from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec  # noqa: E402
-from pathpref.experiments.instances import seed_for  # noqa: E402
+from pathpref.episode import EpisodeRunner, EpisodeSpec  # noqa: E402
+from pathpref.episode.instances import seed_for  # noqa: E402
 from pathpref.sim.arm import TRAY_OFFSET, ArmBase, build_arm_scene  # noqa: E402
 from pathpref.sim.force_cue import HumanPush, PushProfile  # noqa: E402
 

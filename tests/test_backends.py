@@ -102,7 +102,7 @@ def test_ten_random_kills_during_200_episode_sweep(tmp_path):
     """SIGKILL the coordinator or a worker 10 times at random moments, then finish: exactly one
     row per episode, no gaps, an intact database."""
     db = tmp_path / "k.sqlite"
-    cmd = [sys.executable, "-m", "pathpref.cli", "evaluate", "--map", "simple", "--methods",
+    cmd = [sys.executable, "-m", "pathpref", "evaluate", "--map", "simple", "--methods",
            "compliant", "goal_only", "--delta-t", "1", "5", "10", "20", "30", "--instances", "4",
            "--runs", "5", "--queries", "100", "--db", str(db), "--workers", "2", "--no-progress"]
     total = 2 * 5 * 4 * 5

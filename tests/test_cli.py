@@ -9,11 +9,11 @@ from pathlib import Path
 
 import pytest
 
-from pathpref.cli import main
+from pathpref.apps.cli import main
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "pathpref.cli", *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "pathpref", *args], capture_output=True,
                           text=True, timeout=600)
 
 
@@ -74,7 +74,7 @@ def test_map_draw_builtin_and_rotated_user_file(tmp_path, capsys):
     (["belief-curves", "--out", "/nonexistent/f.png", "--runs", "1"], "does not exist"),
 ])
 def test_bad_input_exits_2_with_one_line(tmp_path, args, msg):
-    p = subprocess.run([sys.executable, "-m", "pathpref.cli", *args], capture_output=True,
+    p = subprocess.run([sys.executable, "-m", "pathpref", *args], capture_output=True,
                        text=True, cwd=tmp_path, timeout=300)
     assert p.returncode == 2, p.stderr
     lines = [ln for ln in p.stderr.strip().splitlines() if ln]
@@ -113,12 +113,12 @@ def test_databases_from_elsewhere_are_refused_and_untouched(tmp_path):
 def test_map_without_preference_and_no_partial_outputs(tmp_path):
     m = tmp_path / "nopref.json"
     m.write_text(json.dumps({"name": "nopref", "width": 6, "height": 6, "obstacles": []}))
-    p = subprocess.run([sys.executable, "-m", "pathpref.cli", "evaluate", "--map", str(m),
+    p = subprocess.run([sys.executable, "-m", "pathpref", "evaluate", "--map", str(m),
                         "--db", "r.sqlite", "--runs", "1", "--instances", "1"],
                        capture_output=True, text=True, cwd=tmp_path, timeout=300)
     one_line_error(p, "has no 'preference'")
     assert not (tmp_path / "r.sqlite").exists()
-    p = subprocess.run([sys.executable, "-m", "pathpref.cli", "evaluate", "--map", str(m),
+    p = subprocess.run([sys.executable, "-m", "pathpref", "evaluate", "--map", str(m),
                         "--methods", "oracle", "--db", "r.sqlite", "--runs", "1",
                         "--instances", "1"], capture_output=True, text=True, cwd=tmp_path,
                        timeout=300)

@@ -8,16 +8,18 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from pathpref.errors import ConfigError, MapError
-from pathpref.experiments.episode import EpisodeSpec, run_episode
-from pathpref.experiments.instances import (
+from pathpref.episode import EpisodeSpec, run_episode
+from pathpref.episode.instances import (
     FIG4,
+    episode_instance,
     fixed_instance,
     goal_pool,
     sample_instance,
     seed_for,
 )
-from pathpref.planning.policies import STAY, resolve_methods
+from pathpref.errors import ConfigError, MapError
+from pathpref.geometry.grid import STAY
+from pathpref.planning.policies import resolve_methods
 
 
 def spec(**kw):
@@ -75,8 +77,10 @@ def test_instances_reproducible_and_banded(worlds):
 
 
 def test_fig4_instance(simple):
-    inst = fixed_instance(simple, FIG4["start"], FIG4["goals"], FIG4["true_goal"])
+    inst, free_goal = episode_instance(simple, FIG4, 0, 10, "map", 30)
+    assert simple.cells[inst.start].tolist() == [1, 1] and free_goal
     assert simple.cells[inst.goal_cell].tolist() == [1, 8]
+    assert simple.cells[list(inst.goals)].tolist() == [[x, 8] for x in range(1, 11)]
 
 
 def test_bad_episode_input(simple):

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pathpref.cli import main
+from pathpref.apps.cli import main
+from pathpref.episode import EpisodeSpec, cached_map, run_episode
 from pathpref.errors import ConfigError, MapError
-from pathpref.experiments.episode import EpisodeSpec, cached_map, run_episode
 from pathpref.experiments.store import ResultStore, row_spec
 from pathpref.geometry.maps import load_map, parse_map
 

@@ -12,11 +12,11 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from pathpref.apps.rollout import record_rollout  # noqa: E402
+from pathpref.episode import EpisodeSpec  # noqa: E402
+from pathpref.episode.instances import seed_for  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
-from pathpref.experiments.episode import EpisodeSpec  # noqa: E402
-from pathpref.experiments.instances import seed_for  # noqa: E402
 from pathpref.sim.render import RolloutRenderer, write_video  # noqa: E402
-from pathpref.sim.rollout import record_rollout  # noqa: E402
 from pathpref.sim.scene import build_scene  # noqa: E402
 
 
@@ -61,7 +61,7 @@ def test_blank_video_is_refused(tmp_path):
 
 def test_render_command_and_missing_gl(tmp_path):
     out = tmp_path / "v.mp4"
-    base = [sys.executable, "-m", "pathpref.cli", "render", "--map", "simple", "--method",
+    base = [sys.executable, "-m", "pathpref", "render", "--map", "simple", "--method",
             "compliant", "--delta-t", "2", "--t-max", "4", "--width", "160", "--height", "120"]
     p = subprocess.run([*base, "--out", str(out)], capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr

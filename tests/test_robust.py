@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy.sparse.csgraph import shortest_path
 
-from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec, run_episode
-from pathpref.experiments.instances import sample_instance, seed_for
+from pathpref.episode import EpisodeRunner, EpisodeSpec, run_episode
+from pathpref.episode.instances import sample_instance, seed_for
 from pathpref.geometry.following import preference_following_distance
 from pathpref.geometry.grid import ACTION_NAMES
 from pathpref.geometry.world import load_world

@@ -16,7 +16,7 @@ import sqlite3
 
 import pytest
 
-from pathpref.experiments.episode import run_episode
+from pathpref.episode import run_episode
 from pathpref.experiments.store import row_spec
 
 SAVED = "tests/data/saved_sweep.sqlite"

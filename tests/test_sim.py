@@ -66,13 +66,13 @@ def test_no_false_cues_while_driving(worlds, simple_base):
     w, base = worlds["simple"], simple_base
     rng = np.random.default_rng(2)
     base.reset(w.cell((1, 1)))
-    base.false_cues = 0
+    base.cues_while_driving = []
     t0 = base.data.time
     while base.data.time - t0 < 100.0:  # 100 s of driving between random neighbours
         s = base.cell
         moves = np.flatnonzero(~w.motion.blocked[s])
         base.move_to(int(w.motion.next_cell[s, rng.choice(moves)]))
-    assert base.false_cues == 0
+    assert base.cues_while_driving == []
 
 
 def test_base_yields_and_recovers(worlds, simple_base):
@@ -104,8 +104,8 @@ def test_collisions_are_physics(worlds, simple_base):
 def test_bad_forces_and_actions(worlds):
     with pytest.raises(ConfigError, match="positive finite"):
         PushProfile(peak_n=float("nan"))
-    from pathpref.experiments.episode import EpisodeRunner, EpisodeSpec
-    from pathpref.experiments.instances import seed_for
+    from pathpref.episode import EpisodeRunner, EpisodeSpec
+    from pathpref.episode.instances import seed_for
 
     r = EpisodeRunner(EpisodeSpec(map="simple", method="compliant", delta_t=5, instance=0,
                                   run=0, instance_seed=seed_for(0, 0), run_seed=1, sim="mujoco"))
@@ -123,14 +123,14 @@ def test_viewer_style_perturbation_is_detected(worlds):
     base.reset(w.cell((3, 2)))
     m, d = base.model, base.data
     pert = mujoco.MjvPerturb()
-    pert.select = base.handle
+    pert.select = base.pushed_body
     pert.active = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
-    pert.localmass = m.body_subtreemass[base.handle]  # the viewer sets it on selection
+    pert.localmass = m.body_subtreemass[base.pushed_body]  # the viewer sets it on selection
     cue = None
     for k in range(400):
         mujoco.mj_forward(m, d)
         on = k < 150
-        pert.refselpos[:] = d.xpos[base.handle] + (np.array([0.0, 1.0, 0.0]) if on else 0.0)
+        pert.refselpos[:] = d.xpos[base.pushed_body] + (np.array([0.0, 1.0, 0.0]) if on else 0.0)
         pert.localpos[:] = 0.0
         d.xfrc_applied[:] = 0.0
         if on:
@@ -142,8 +142,8 @@ def test_viewer_style_perturbation_is_detected(worlds):
 
 
 def test_physics_episode_end_to_end():
-    from pathpref.experiments.episode import EpisodeSpec, run_episode
-    from pathpref.experiments.instances import seed_for
+    from pathpref.episode import EpisodeSpec, run_episode
+    from pathpref.episode.instances import seed_for
 
     for method in ("compliant", "path_preference"):
         spec = EpisodeSpec(map="simple", method=method, delta_t=3, instance=0, run=0,
@@ -158,23 +158,23 @@ def test_physics_episode_end_to_end():
 def test_study_mode_pipeline_headless():
     """A scripted 'viewer' drags the handle east during the first drive: the robot detects it
     with the same pipeline, feeds it to the belief and replans (study mode, no window)."""
-    from pathpref.sim.interact import InteractiveSession
+    from pathpref.apps.interact import InteractiveSession
 
     session = InteractiveSession(map="office", method="path_preference", seed=0, queries=300,
                                  t_max=6)
     base = session.base
     m, d = base.model, base.data
     pert = mujoco.MjvPerturb()
-    pert.select = base.handle
+    pert.select = base.pushed_body
     pert.active = int(mujoco.mjtPertBit.mjPERT_TRANSLATE)
-    pert.localmass = m.body_subtreemass[base.handle]
+    pert.localmass = m.body_subtreemass[base.pushed_body]
     state = {"k": 0}
 
     def viewer_like(b, push):
         state["k"] += 1
         d.xfrc_applied[:] = 0.0  # what the viewer's sync does before applying the perturbation
         if 50 <= state["k"] < 200:
-            pert.refselpos[:] = d.xpos[base.handle] + np.array([1.5, 0.0, 0.0])
+            pert.refselpos[:] = d.xpos[base.pushed_body] + np.array([1.5, 0.0, 0.0])
             mujoco.mjv_applyPerturbForce(m, d, pert)
 
     base.on_substep.append(viewer_like)

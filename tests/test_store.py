@@ -33,7 +33,7 @@ def test_sweep_resumes(tmp_path):
 
 def test_any_stored_row_replays_exactly(tmp_path):
     """The README's promise: a row's stored configuration and seeds reproduce the episode."""
-    from pathpref.experiments.episode import run_episode
+    from pathpref.episode import run_episode
     from pathpref.experiments.store import row_spec
 
     db = tmp_path / "r.sqlite"

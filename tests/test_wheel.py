@@ -58,7 +58,7 @@ def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == ["ok", "mjcf"]
-    r = subprocess.run([sys.executable, "-m", "pathpref.cli", "map", "info", "classroom",
+    r = subprocess.run([sys.executable, "-m", "pathpref", "map", "info", "classroom",
                         "--json"], cwd=elsewhere, env=env, capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0 and '"polytopes": 73' in r.stdout, r.stderr

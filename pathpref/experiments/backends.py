@@ -24,9 +24,8 @@ from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 
+from ..episode import EpisodeResult, EpisodeSpec, Instance, run_episode
 from ..errors import ConfigError, PathprefError
-from .episode import EpisodeResult, EpisodeSpec, run_episode
-from .instances import Instance
 
 BACKENDS = ("local", "ray")
 

@@ -4,7 +4,7 @@ Schema 2 keyed an episode by its map's *path*; schema 3 keys it by the map's con
 (:attr:`pathpref.geometry.maps.MapSpec.content_hash`) and stores that hash in a ``map_hash``
 column. The upgrade reads every row of the old file, loads each map it names (``--map OLD=NEW``
 points a stored name at a file that has moved), recomputes the key of each episode under the
-current :class:`~pathpref.experiments.episode.EpisodeSpec` (fields the old schema lacks take their
+current :class:`~pathpref.episode.EpisodeSpec` (fields the old schema lacks take their
 defaults, which reproduce the old behaviour), and writes a new file with every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
@@ -20,8 +20,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from ..episode import EpisodeSpec, cached_map
 from ..errors import ConfigError, PathprefError
-from .episode import EpisodeSpec, cached_map
 from .store import EPISODE_COLUMNS, SCHEMA_VERSION, ResultStore
 
 UPGRADABLE = (2,)

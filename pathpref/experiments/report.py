@@ -13,6 +13,7 @@ from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from .paper import TABLE_I
 from .store import ResultStore
 
 METHOD_ORDER = ["compliant", "goal_only", "path_preference", "blended"]
@@ -21,13 +22,6 @@ METHOD_LABEL = {
     "goal_only": "goal only",
     "path_preference": "path preference",
     "blended": "path preference + blend",
-}
-#: The paper's Table I (Map 1, gamma_h = 1.5, T_max = 30).
-PAPER_TABLE_I = {
-    "compliant": {1: 0.67, 5: 0.33, 10: 0.33, 20: 0.17, 30: 0.17},
-    "goal_only": {1: 0.28, 5: 0.18, 10: 0.17, 20: 0.17, 30: 0.16},
-    "path_preference": {1: 0.55, 5: 0.42, 10: 0.41, 20: 0.34, 30: 0.30},
-    "blended": {1: 0.55, 5: 0.39, 10: 0.44, 20: 0.44, 30: 0.34},
 }
 
 
@@ -110,8 +104,8 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                       "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
                       "|---|" + "---|" * len(dts)]
             for meth in methods:
-                if meth in PAPER_TABLE_I:
-                    vals = [PAPER_TABLE_I[meth].get(d) for d in dts]
+                if meth in TABLE_I:
+                    vals = [TABLE_I[meth].get(d) for d in dts]
                     lines.append(f"| {METHOD_LABEL[meth]} | " + " | ".join(
                         "–" if v is None else f"{v:.2f}" for v in vals) + " |")
         blocks.append("\n".join(lines))

@@ -15,8 +15,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
-from .episode import EpisodeResult, EpisodeSpec, result_row
 
 SCHEMA_VERSION = 3  # 2: per-episode physical metrics (JSON); 3: keys by map content hash
 

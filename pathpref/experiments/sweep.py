@@ -15,11 +15,11 @@ from dataclasses import replace
 
 from tqdm import tqdm
 
+from ..episode import EpisodeSpec, body_class, cached_world
+from ..episode.instances import episode_instance
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
 from .backends import BACKENDS, iter_results
-from .episode import MOVERS, EpisodeSpec, cached_world, episode_instance
-from .instances import seed_for
 from .store import ResultStore
 
 
@@ -36,27 +36,27 @@ def sweep_specs(map_name: str, methods: list[str], delta_ts: list[int], instance
         for r in range(runs):
             for dt in delta_ts:
                 for m in methods:
-                    s = EpisodeSpec(map=map_name, method=m, delta_t=int(dt), instance=i, run=r,
-                                    instance_seed=seed_for(seed, i), run_seed=seed_for(seed, i, r),
-                                    **common)
+                    s = EpisodeSpec.single(map_name, m, dt, seed=seed, instance=i, run=r,
+                                           **common)
                     s.validate()
                     specs.append(s)
-    if specs and specs[0].sim not in MOVERS:
-        raise ConfigError(f"unknown simulator '{specs[0].sim}'; choose one of {', '.join(MOVERS)}")
+    if specs:
+        body_class(specs[0].sim, specs[0].task)  # the body exists and offers the task
     return specs
 
 
 def check_specs(specs: list[EpisodeSpec]) -> None:
-    """Fail fast (before any work) on a bad map, preference or instance in the sweep."""
+    """Fail fast (before any work) on a bad body, map, preference or instance in the sweep."""
     seen: set[tuple] = set()
     for s in specs:
+        body_class(s.sim, s.task)
         sig = (s.map, s.instance_seed, s.n_goals, s.fixed)
         if sig in seen:
             continue
         seen.add(sig)
         world = cached_world(s.map)
         world.require_preference()
-        episode_instance(world, s)
+        episode_instance(world, s.fixed, s.instance_seed, s.n_goals, s.human, s.t_max)
 
 
 def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: bool = True,
@@ -86,8 +86,11 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
     return counts
 
 
-def fixed_specs(map_name: str, methods: list[str], delta_t: int, runs: int, fixed: dict,
+def fixed_specs(map_name: str, methods: list[str], delta_t: int, runs: int, fixed: str | dict,
                 seed: int = 0, **common) -> list[EpisodeSpec]:
-    """Episodes on one pinned instance (e.g. the paper's Fig. 4), ``runs`` runs per method."""
+    """Episodes on one pinned instance (``EpisodeSpec.fixed``, as JSON or a dict; e.g. the
+    paper's Fig. 4, :data:`~pathpref.episode.FIG4`), ``runs`` runs per method."""
+    if isinstance(fixed, dict):
+        fixed = json.dumps(fixed, sort_keys=True)
     base = sweep_specs(map_name, methods, [delta_t], 1, runs, seed, **common)
-    return [replace(s, fixed=json.dumps(fixed, sort_keys=True)) for s in base]
+    return [replace(s, fixed=fixed) for s in base]

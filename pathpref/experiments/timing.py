@@ -14,22 +14,16 @@ from typing import Any
 
 import numpy as np
 
+from ..episode import cached_world, sample_instance, seed_for
 from ..inference.belief import GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.pomcp import POMCP
 from ..planning.pomdp import get_preset
-from .episode import cached_world
-from .instances import sample_instance, seed_for
-
-#: The paper's Table II, ms: (solve goal only, solve path pref, update goal only, update path pref)
-PAPER_TABLE_II = {
-    "simple": (449.0, 510.0, 0.6, 73.5),
-    "office": (2984.0, 2847.0, 0.7, 28.7),
-    "classroom": (2305.0, 2063.0, 0.4, 38.3),
-}
+from .paper import TABLE_II
 
 
 def mean_ci(x: list[float]) -> tuple[float, float]:
+    """Mean and the half-width of its 95% normal interval (``1.96 s / sqrt(n)``)."""
     a = np.asarray(x, float)
     if len(a) < 2:
         return float(a.mean()), float("nan")
@@ -82,7 +76,7 @@ def timing_markdown(results: list[dict[str, Any]]) -> str:
         cells = [f"{r[k + '_ms']:.3g} ± {r[k + '_ci_ms']:.2g}" for k in
                  ("solve_goal_only", "solve_path_pref", "update_goal_only", "update_path_pref")]
         lines.append(f"| {r['map']} | " + " | ".join(cells) + " |")
-        if r["map"] in PAPER_TABLE_II:
+        if r["map"] in TABLE_II:
             lines.append(f"| {r['map']} (paper) | " + " | ".join(
-                f"{v:g}" for v in PAPER_TABLE_II[r["map"]]) + " |")
+                f"{v:g}" for v in TABLE_II[r["map"]]) + " |")
     return "\n".join(lines)

@@ -55,6 +55,7 @@ class PolytopeGraph:
 
     @property
     def n_edges(self) -> int:
+        """Number of edges (facet and move edges)."""
         return len(self.edges)
 
     @property
@@ -64,7 +65,18 @@ class PolytopeGraph:
 
     @property
     def max_degree(self) -> int:
+        """Largest number of neighbours of a polytope."""
         return max((len(n) for n in self.neighbors), default=0)
+
+    def neighbor_table(self) -> np.ndarray:
+        """``(P, K)`` neighbour ids per polytope, padded with -1 (``K = max(max_degree, 1)``).
+
+        Slot ``k`` of row ``v`` is the ``k``-th neighbour ``N(v)[k]``: the index a preference
+        ``p_v`` is sampled and stored by in the belief and the planners."""
+        table = -np.ones((len(self.neighbors), max(self.max_degree, 1)), dtype=int)
+        for v, nb in enumerate(self.neighbors):
+            table[v, : len(nb)] = nb
+        return table
 
     def edges_between(self, v: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Edge id joining each pair ``(v[i], w[i])`` of polytope ids (-1 where not adjacent)."""

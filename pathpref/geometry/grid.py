@@ -29,6 +29,10 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 from .arrangement import Arrangement
 from .graph import PolytopeGraph
 
+#: the action that keeps the robot in its cell (not one of the eight moves; the compliant
+#: baseline's "stop" and a blocked plan's fallback)
+STAY = -1
+
 ACTION_NAMES = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 MOVES = np.array([[0, 1], [1, 1], [1, 0], [1, -1], [0, -1], [-1, -1], [-1, 0], [-1, 1]])
 MOVE_COST = np.linalg.norm(MOVES, axis=1)

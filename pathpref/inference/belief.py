@@ -19,6 +19,8 @@ the unconstrained likelihood.
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 import numpy as np
 
 from .human import ObservationModel
@@ -36,7 +38,44 @@ def entropy(p: np.ndarray) -> float:
     return float(-(q * np.log(q)).sum())
 
 
-class GoalBelief:
+class Belief(ABC):
+    """What a method knows of the human's goal (and, for some, preference).
+
+    The episode feeds every belief the same three events: a heading given at a cell
+    (:meth:`update`), a candidate the robot stood on that was not the goal (:meth:`rule_out`)
+    and a polytope change (:meth:`enter`); planners and logs read :meth:`goal_marginal`, the
+    entropies, and the polytopes whose preference the belief has evidence on.
+    """
+
+    @abstractmethod
+    def update(self, cell: int, heading: int) -> None:
+        """Condition on the human's heading ``heading`` (0..7) given at free cell ``cell``."""
+
+    @abstractmethod
+    def rule_out(self, goal_index: int) -> None:
+        """The robot stood on candidate ``goal_index`` and it was not the goal."""
+
+    @abstractmethod
+    def goal_marginal(self) -> np.ndarray:
+        """``P(g | o_1:t)`` over the goal candidates."""
+
+    def enter(self, v_from: int, v_to: int) -> None:  # noqa: B027 - a no-op by design
+        """The robot moved from polytope ``v_from`` into ``v_to`` (ignored by default)."""
+
+    def goal_entropy(self) -> float:
+        """``H(g)`` of the goal marginal (nats)."""
+        return entropy(self.goal_marginal())
+
+    def joint_entropy(self, v: int) -> float:
+        """``H(g, p_v)`` at polytope ``v`` (nats); ``H(g)`` for a belief without preferences."""
+        return self.goal_entropy()
+
+    def observed_polytopes(self) -> list[int]:
+        """Polytopes whose preference the belief has evidence on (none by default)."""
+        return []
+
+
+class GoalBelief(Belief):
     """Posterior over goal candidates alone (goal-only baseline)."""
 
     def __init__(self, model: ObservationModel, prior: np.ndarray | None = None):
@@ -57,15 +96,13 @@ class GoalBelief:
         self.ruled_out[goal_index] = True
 
     def goal_marginal(self) -> np.ndarray:
+        """``P(g | o_1:t) ~ P0(g) prod_t P(o_t | g)`` with ruled-out candidates at 0."""
         w = np.where(self.ruled_out, -np.inf, self.log_w)
         w = np.exp(w - w.max())
         return w / w.sum()
 
-    def goal_entropy(self) -> float:
-        return entropy(self.goal_marginal())
 
-
-class PreferenceBelief:
+class PreferenceBelief(Belief):
     """Exact factored posterior over ``(g, theta)`` (see module docstring).
 
     Args:
@@ -137,6 +174,7 @@ class PreferenceBelief:
 
     # --- queries -------------------------------------------------------------------------
     def goal_log_weights(self) -> np.ndarray:
+        """``log P0(g) + lw(g)`` (unnormalised), ``-inf`` for ruled-out candidates."""
         w = self.log_prior + self.log_rowmean
         return np.where(self.ruled_out, -np.inf, w)
 
@@ -161,8 +199,9 @@ class PreferenceBelief:
         """``(G, deg v)`` joint ``P(g, p_v | o_1:t)``."""
         return self.goal_marginal()[:, None] * self.preference_given_goal(v)
 
-    def goal_entropy(self) -> float:
-        return entropy(self.goal_marginal())
+    def observed_polytopes(self) -> list[int]:
+        """Polytopes with at least one observation (or coupling factor): those with a table."""
+        return list(self.tables)
 
     def joint_entropy(self, v: int) -> float:
         """``H(g, p_v)`` of the joint table at polytope ``v`` (nats)."""

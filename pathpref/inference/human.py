@@ -40,15 +40,6 @@ BLOCK_PENALTY = 4.0
 MAX_TABLE_BYTES = 6 * 2**30
 
 
-def neighbor_table(world: World) -> np.ndarray:
-    """``(P, K)`` neighbour ids per polytope, padded with -1."""
-    K = max(world.graph.max_degree, 1)
-    table = -np.ones((world.n_polytopes, K), dtype=int)
-    for v, nb in enumerate(world.graph.neighbors):
-        table[v, : len(nb)] = nb
-    return table
-
-
 def cost_excess(world: World, tables: CostTables, chunk: int = 2048
                 ) -> tuple[np.ndarray, np.ndarray]:
     """``Delta`` with preference ``(n, 8, G, K)`` and goal-only ``(n, 8, G)`` (see module doc).
@@ -60,7 +51,7 @@ def cost_excess(world: World, tables: CostTables, chunk: int = 2048
     stay small on large maps.
     """
     n, G = world.n_cells, len(tables.goals)
-    nbr_all = neighbor_table(world)
+    nbr_all = world.graph.neighbor_table()
     delta = np.empty((n, 8, G, nbr_all.shape[1]))
     delta_u = np.empty((n, 8, G))
     for lo in range(0, n, chunk):

@@ -11,6 +11,10 @@ A :class:`Policy` is told what the robot observes and asked for an action:
 
 Every policy carries a belief (``policy.belief``) so that episodes can log ``P(true goal)`` and
 the goal entropy whatever the method. Add a method with :func:`register_method`.
+
+Every setting a policy reads comes from ``ctx.preset``: the named preset with the episode's
+overrides (queries, UCB constant, coupling, time budget) applied once, by
+:meth:`pathpref.episode.EpisodeSpec.planner`.
 """
 
 from __future__ import annotations
@@ -23,31 +27,29 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..geometry.following import preference_following_distance
+from ..geometry.grid import STAY
 from ..geometry.world import World
-from ..inference.belief import GoalBelief, PreferenceBelief
+from ..inference.belief import Belief, GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
 
-STAY = -1
-
 
 @dataclass
 class PolicyContext:
-    """Everything a policy may use: the map, likelihood tables, parameters, randomness.
+    """Everything a policy may use: the map, likelihood tables, settings, randomness.
 
-    ``true_goal`` (index into the goal candidates) and ``true_preference`` (the human's, per
-    polytope, -1 = none) are given to every policy but read only by the reference methods
-    ``oracle`` and ``goal_known``, which exist to show what is possible."""
+    ``preset`` holds every planner setting (rewards, queries, ``ucb_c``, coupling, time
+    budget), already resolved for the episode. ``true_goal`` (index into the goal candidates)
+    and ``true_preference`` (the human's, per polytope, -1 = none) are given to every policy
+    but read only by the reference methods ``oracle`` and ``goal_known``, which exist to show
+    what is possible."""
 
     world: World
     model: ObservationModel
     preset: Preset
     t_max: int
-    queries: int
     rng: np.random.Generator
-    coupling: bool = False
-    time_budget_ms: float = 0.0
     true_goal: int = -1
     true_preference: np.ndarray | None = None
 
@@ -57,19 +59,21 @@ class Policy(ABC):
 
     name = "policy"
 
-    def __init__(self, ctx: PolicyContext, belief: PreferenceBelief | GoalBelief):
+    def __init__(self, ctx: PolicyContext, belief: Belief):
         self.ctx = ctx
         self.belief = belief
 
     def observe(self, cell: int, heading: int) -> None:
+        """The human gave ``heading`` at ``cell``: condition the belief on it."""
         self.belief.update(cell, heading)
 
     def rule_out(self, goal_index: int) -> None:
+        """The robot stood on candidate ``goal_index`` and it was not the goal."""
         self.belief.rule_out(goal_index)
 
     def enter(self, v_from: int, v_to: int) -> None:
-        if isinstance(self.belief, PreferenceBelief):
-            self.belief.enter(v_from, v_to)
+        """The robot crossed from polytope ``v_from`` into ``v_to``."""
+        self.belief.enter(v_from, v_to)
 
     @abstractmethod
     def act(self, t: int, cell: int, heading: int | None) -> int:
@@ -85,14 +89,14 @@ class PlannerPolicy(Policy):
     Under the ``robust`` preset the search is :mod:`pathpref.planning.guided` (given the cost
     tables, the time budget and the episode's transitions so far)."""
 
-    def __init__(self, ctx: PolicyContext, belief: PreferenceBelief | GoalBelief,
-                 rewards: Rewards):
+    def __init__(self, ctx: PolicyContext, belief: Belief, rewards: Rewards):
         super().__init__(ctx, belief)
-        robust = ctx.preset.search == "robust"
+        p = ctx.preset
+        robust = p.search == "robust"
         self.planner = POMCP(ctx.world, ctx.model.goals, rewards.for_mission(ctx.t_max),
-                             queries=ctx.queries, c=ctx.preset.ucb_c,
+                             queries=p.queries, c=p.ucb_c,
                              tables=ctx.model.tables if robust else None,
-                             budget_ms=ctx.time_budget_ms if robust else 0.0)
+                             budget_ms=p.time_budget_ms if robust else 0.0)
         self.history: list[tuple[int, int]] = []
 
     def enter(self, v_from: int, v_to: int) -> None:
@@ -100,6 +104,7 @@ class PlannerPolicy(Policy):
         self.history.append((v_from, v_to))
 
     def act(self, t: int, cell: int, heading: int | None) -> int:
+        """POMCP's action from ``cell`` with depth ``T_max - t + 1``."""
         depth = self.ctx.t_max - t + 1
         return self.planner.search(cell, self.belief, depth, self._seed(), self.history).action
 
@@ -110,7 +115,7 @@ class PathPreferencePolicy(PlannerPolicy):
     name = "path_preference"
 
     def __init__(self, ctx: PolicyContext):
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling),
+        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.preset.coupling),
                          ctx.preset.path_preference)
 
 
@@ -125,8 +130,8 @@ class GoalKnownPolicy(PlannerPolicy):
             raise ConfigError("goal_known needs the episode's true goal")
         prior = np.zeros(len(ctx.model.goals))
         prior[ctx.true_goal] = 1.0
-        super().__init__(ctx, PreferenceBelief(ctx.model, prior=prior, coupling=ctx.coupling),
-                         ctx.preset.path_preference)
+        belief = PreferenceBelief(ctx.model, prior=prior, coupling=ctx.preset.coupling)
+        super().__init__(ctx, belief, ctx.preset.path_preference)
 
 
 class OraclePolicy(Policy):
@@ -143,7 +148,7 @@ class OraclePolicy(Policy):
     def __init__(self, ctx: PolicyContext):
         if ctx.true_goal < 0 or ctx.true_preference is None:
             raise ConfigError("oracle needs the episode's true goal and the map's preference")
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling))
+        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.preset.coupling))
         goal = int(ctx.model.goals[ctx.true_goal])
         self.togo = preference_following_distance(ctx.world, ctx.true_preference, goal)
         self.dist = ctx.model.tables.dist[ctx.true_goal]
@@ -182,7 +187,7 @@ class CompliantPolicy(Policy):
     name = "compliant"
 
     def __init__(self, ctx: PolicyContext):
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.coupling))
+        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.preset.coupling))
         self.last = STAY
         self.remaining = 0
 
@@ -228,6 +233,7 @@ def register_method(name: str, factory: Callable[[PolicyContext], Policy]) -> No
 
 
 def make_policy(name: str, ctx: PolicyContext) -> Policy:
+    """The method ``name`` (a key of :data:`METHODS`) built on ``ctx``."""
     if name not in METHODS:
         raise ConfigError(f"unknown method '{name}'; choose from {', '.join(METHODS)}")
     return METHODS[name](ctx)

@@ -25,9 +25,8 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..geometry.world import World
-from ..inference.belief import GoalBelief, PreferenceBelief
+from ..inference.belief import Belief
 from ..inference.costs import CostTables
-from ..inference.human import neighbor_table
 from .guided import search_robust
 from .pomdp import Rewards
 from .tree import best_root_action, new_tree, sample_index, sample_slot
@@ -168,7 +167,7 @@ class POMCP:
         self.cost = m.cost.astype(np.float64)
         self.crossed = m.crossed_edge.astype(np.int64)
         self.cell_poly = world.cell_polytope.astype(np.int64)
-        self.nbr = neighbor_table(world).astype(np.int64)
+        self.nbr = world.graph.neighbor_table().astype(np.int64)
         self.goal_cells = np.asarray(goals, dtype=np.int64)
         self.goal_poly = self.cell_poly[self.goal_cells]
         deg = (self.nbr >= 0).sum(axis=1)
@@ -189,30 +188,28 @@ class POMCP:
             self.ctg = np.ascontiguousarray(tables.constrained, dtype=np.float64)
             self.dist = np.ascontiguousarray(tables.dist, dtype=np.float64)
 
-    def preference_cdf(self, belief: PreferenceBelief | None) -> np.ndarray:
+    def preference_cdf(self, belief: Belief) -> np.ndarray:
         """``(G, P, K)`` cumulative ``P(p_v = N(v)[k] | g)`` (uniform where never observed)."""
         G = len(self.goal_cells)
         cdf = np.broadcast_to(self._uniform_cdf, (G, *self._uniform_cdf.shape)).copy()
-        if belief is not None:
-            for v in belief.tables:
-                cond = belief.preference_given_goal(v)
-                cdf[:, v, : cond.shape[1]] = np.cumsum(cond, axis=1)
+        for v in belief.observed_polytopes():
+            cond = belief.preference_given_goal(v)
+            cdf[:, v, : cond.shape[1]] = np.cumsum(cond, axis=1)
         return cdf
 
-    def search(self, cell: int, belief: PreferenceBelief | GoalBelief, depth: int,
+    def search(self, cell: int, belief: Belief, depth: int,
                seed: int, history: list[tuple[int, int]] = ()) -> SearchResult:
         """Plan from ``cell`` with root states drawn from ``belief``; return the best action.
 
         ``history``: the episode's polytope transitions ``(v, w)`` so far (robust search: they
         count toward the success reward)."""
         goal_cdf = np.cumsum(belief.goal_marginal())
-        pref = belief if isinstance(belief, PreferenceBelief) else None
-        cdf = self.preference_cdf(pref) if self.rewards.use_preference else self._dummy_cdf()
+        cdf = self.preference_cdf(belief) if self.rewards.use_preference else self._dummy_cdf()
         r = self.rewards
         if self.tables is not None:
             a, visits, values, nodes, done = search_robust(
                 self.next_cell, self.cost, self.blocked, self.cross_slot, self.cell_poly,
-                self.nbr, self.goal_cells, goal_cdf, cdf, self._known(pref), self.ctg,
+                self.nbr, self.goal_cells, goal_cdf, cdf, self._known(belief), self.ctg,
                 self.dist, *self._history(history), int(cell), int(max(depth, 1)),
                 self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
                 r.use_preference, int(seed) % (2**32), self.budget_s)
@@ -225,11 +222,10 @@ class POMCP:
         )
         return SearchResult(int(a), visits, values, int(nodes), self.queries)
 
-    def _known(self, belief: PreferenceBelief | None) -> np.ndarray:
+    def _known(self, belief: Belief) -> np.ndarray:
         """``(P,)`` True for the polytopes with at least one observation in ``belief``."""
         known = np.zeros(len(self.nbr), dtype=bool)
-        if belief is not None:
-            known[list(belief.tables)] = True
+        known[belief.observed_polytopes()] = True
         return known
 
     def _history(self, history) -> tuple[np.ndarray, np.ndarray]:

@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 from ..errors import ConfigError
+from ..geometry.grid import STAY
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,12 @@ class Preset:
             anytime budget: :mod:`.guided`).
         coupling: the back-edge coupling of the belief (a heuristic; ``robust`` keeps the
             exact posterior under the independent prior instead).
+        queries: POMCP simulations per decision (the cap under a time budget).
+        ucb_c: UCB exploration constant.
+        time_budget_ms: robust search's wall-time budget per decision (0: ``queries`` only).
+
+    This is the one home of every planner setting: an episode resolves its preset with its
+    overrides once (:func:`get_preset`) and policies read nothing else.
     """
 
     name: str
@@ -73,6 +80,7 @@ class Preset:
     ucb_c: float = 1.0
     search: str = "paper"
     coupling: bool = True
+    time_budget_ms: float = 0.0
 
 
 PRESETS: dict[str, Preset] = {
@@ -116,6 +124,30 @@ def get_preset(name: str, **overrides) -> Preset:
     return replace(preset, **overrides) if overrides else preset
 
 
+def transition_reward(world, s: int, s2: int, a: int, goal_cell: int, pref_neighbor: int,
+                      rewards: Rewards) -> float:
+    """The reward of SPEC 6 for the transition ``s -> s2`` under action ``a`` (the one
+    definition: :func:`step_reward`, the dm_control task and, as the compiled copy it is tested
+    against, the ``_step`` of :mod:`.pomcp`)::
+
+        -c(s, a)                 (0 for STAY: the task's "stop" action)
+        + R_p if v(s2) != v(s) = v, v(s2) = p_v and the goal is not in v
+        + R_n if v(s2) != v(s) otherwise                (only when ``rewards.use_preference``)
+        + R_g if s2 is the goal
+
+    ``s2`` is the cell actually reached (the grid's ``next_cell[s, a]``, or where a physical
+    base ended); ``pref_neighbor`` is ``p_{v(s)}`` (-1: none, every exit non-preferred).
+    """
+    r = 0.0 if a == STAY else -float(world.motion.cost[s, a])
+    v, w = int(world.cell_polytope[s]), int(world.cell_polytope[s2])
+    if v != w and rewards.use_preference:
+        goal_in_v = int(world.cell_polytope[goal_cell]) == v
+        r += rewards.preferred if (w == pref_neighbor and not goal_in_v) else rewards.non_preferred
+    if s2 == goal_cell:
+        r += rewards.goal
+    return r
+
+
 def step_reward(
     world, s: int, a: int, goal_cell: int, pref_neighbor: int, rewards: Rewards
 ) -> tuple[int, float, bool, int]:
@@ -124,16 +156,6 @@ def step_reward(
     Returns ``(next_cell, reward, reached_goal, crossed_edge)``; ``pref_neighbor`` is the
     preferred neighbour polytope id of ``v(s)`` (or -1 for none).
     """
-    m = world.motion
-    s2 = int(m.next_cell[s, a])
-    r = -float(m.cost[s, a])
-    e = int(m.crossed_edge[s, a])
-    if e >= 0 and rewards.use_preference:
-        v, w = int(world.cell_polytope[s]), int(world.cell_polytope[s2])
-        goal_in_v = world.cell_polytope[goal_cell] == v
-        r += rewards.preferred if (w == pref_neighbor and not goal_in_v) else rewards.non_preferred
-    done = s2 == goal_cell
-    if done:
-        r += rewards.goal
-    return s2, r, bool(done), e
-
+    s2 = int(world.motion.next_cell[s, a])
+    r = transition_reward(world, s, s2, a, goal_cell, pref_neighbor, rewards)
+    return s2, r, s2 == goal_cell, int(world.motion.crossed_edge[s, a])

@@ -1,4 +1,6 @@
-"""The MuJoCo layer. Importing it sets ``MUJOCO_GL=egl`` when unset (headless rendering),
+"""The MuJoCo layer: physics only (scene from a map, bases and arm, force sensing and cue
+detection, controllers, rendering); it registers the ``mujoco`` body (:mod:`.body`) with the
+episode layer when imported. Importing it sets ``MUJOCO_GL=egl`` when unset (headless rendering),
 before any submodule imports mujoco: mujoco picks its GL backend at import time, and fails
 there when that backend's system library is missing, so the import is checked here."""
 
@@ -16,3 +18,5 @@ try:
     import mujoco  # noqa: F401
 except (ImportError, AttributeError, OSError) as e:
     raise ConfigError(GL_HELP.format(gl=os.environ.get("MUJOCO_GL")) + f" ({e})") from None
+
+from . import body  # noqa: E402,F401 - registers the "mujoco" body with the episode layer

@@ -98,8 +98,8 @@ class ArmBase(MobileBase):
         super().__init__(scene, **kwargs)
         m = self.model
         self.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
-        self.handle = int(m.body("tool/tray").id)
-        self.tray = self.handle
+        self.tray = int(m.body("tool/tray").id)
+        self.pushed_body = self.tray  # people push the tray
         self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
         self.arm_ctrl = np.array([m.actuator(f"servo_{j.split('/')[1]}").id for j in ARM_JOINTS])
         self.ik_every = max(1, int(round(ik_period / self.dt)))
@@ -133,10 +133,11 @@ class ArmBase(MobileBase):
         self._k = 0
         self.tilts: list[float] = []
         self.ik_solves = 0
+        self.deepest = 0.0  # deepest arm/obstacle penetration at the end of a move (m)
 
     def reset(self, cell: int) -> None:
         mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:2] = self.scene.cell_centre(cell)
+        self.data.qpos[self.xy] = self.scene.cell_centre(cell)
         self.data.qpos[self.arm_qpos] = ARM_HOME
         self.data.ctrl[self.arm_ctrl] = ARM_HOME
         self.target = self.scene.cell_centre(cell)
@@ -144,6 +145,7 @@ class ArmBase(MobileBase):
         self.detector.reset()
         self._k = 0
         self.tilts = []
+        self.deepest = 0.0
 
     def tray_target(self) -> mink.SE3:
         """Level, at ``TRAY_OFFSET`` from the base's measured position, in the base's
@@ -173,12 +175,31 @@ class ArmBase(MobileBase):
         d = self.data
         if self._k % self.ik_every == 0:
             v = self.solve_ik()
-            d.ctrl[:3] = np.clip(v[:3], [-1, -1, -2], [1, 1, 2])
+            d.ctrl[self.actuators] = np.clip(v[:3], [-1, -1, -2], [1, 1, 2])
             d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + v[3:9] * self.ik_dt
         self._k += 1
         self.tilts.append(tilt_deg(d, self.tray))
 
+    def move_to(self, cell: int) -> int:
+        """Drive to ``cell`` (:meth:`MobileBase.move_to`), then record the penetration."""
+        reached = super().move_to(cell)
+        self.deepest = max(self.deepest, self.max_penetration())
+        return reached
+
+    @property
+    def end_effector(self) -> np.ndarray:
+        """The tray's position (m)."""
+        return self.data.xpos[self.tray].copy()
+
+    def metrics(self) -> dict[str, float]:
+        """Tray tilt (RMS and max over physics steps), deepest penetration, IK solves."""
+        return {"tilt_rms_deg": self.tilt_rms(),
+                "tilt_max_deg": float(max(self.tilts, default=0.0)),
+                "max_penetration_mm": 1e3 * self.deepest,
+                "ik_solves": float(self.ik_solves)}
+
     def tilt_rms(self) -> float:
+        """RMS tray tilt over the physics steps since reset (degrees)."""
         return float(np.sqrt(np.mean(np.square(self.tilts)))) if self.tilts else 0.0
 
     def max_penetration(self) -> float:

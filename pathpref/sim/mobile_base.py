@@ -29,6 +29,9 @@ RELEASE_WINDOW_S = 0.4  # how long after a push ends the detector may still rele
 
 
 class MobileBase:
+    """The base in ``scene``: its joints (``slide_x``, ``slide_y``, ``yaw``) and velocity
+    actuators (``vx``, ``vy``, ``wz``) addressed by name; the pushed body is the ``handle``."""
+
     def __init__(self, scene: Scene, controller: TrackingController | None = None,
                  profile: PushProfile | None = None, data: mujoco.MjData | None = None):
         self.scene = scene
@@ -36,14 +39,21 @@ class MobileBase:
         self.data = data if data is not None else mujoco.MjData(self.model)
         self.controller = controller or TrackingController()
         self.profile = profile or PushProfile()
+        m = self.model
+        self.xy = np.array([m.joint(j).qposadr[0] for j in ("slide_x", "slide_y")])
+        self.yaw = int(m.joint("yaw").qposadr[0])
+        self.vxy = np.array([m.joint(j).dofadr[0] for j in ("slide_x", "slide_y")])
+        self.actuators = np.array([m.actuator(a).id for a in ("vx", "vy", "wz")])
         self.sensor = HandleSensor(self.model)
-        self.handle = int(self.model.body("handle").id)
+        #: the body a human pushes and the sensor feels (the handle; the arm's tray)
+        self.pushed_body = int(self.model.body("handle").id)
         self.dt = float(self.model.opt.timestep)
         self.detector = CueDetector(self.dt)
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
         self.target = np.zeros(2)
-        self.false_cues = 0  # cues detected while driving, with no push given
-        self.detected: list[Cue] = []  # those cues, for study mode (a person pushing live)
+        #: cues detected while driving (no simulated push is given then: a person pushing
+        #: live in study mode, or a false cue in a simulated episode)
+        self.cues_while_driving: list[Cue] = []
         #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
         #: simulated push is active
         self.external_forces = False
@@ -51,18 +61,34 @@ class MobileBase:
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
         mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:2] = self.scene.cell_centre(cell)
+        self.data.qpos[self.xy] = self.scene.cell_centre(cell)
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)
         self.detector.reset()
 
     @property
     def position(self) -> np.ndarray:
-        return self.data.qpos[:2].copy()
+        """The base's planar position (m)."""
+        return self.data.qpos[self.xy]
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The base's planar velocity (m/s)."""
+        return self.data.qvel[self.vxy]
 
     @property
     def cell(self) -> int:
+        """The grid cell under the base."""
         return self.scene.cell_at(self.position)
+
+    @property
+    def end_effector(self) -> np.ndarray | None:
+        """Position (m) of what the robot carries; None for the plain base."""
+        return None
+
+    def metrics(self) -> dict[str, float]:
+        """Per-episode measurements of this base (none for the plain base)."""
+        return {}
 
     # --- stepping ------------------------------------------------------------------------
     def substep(self, push: HumanPush | None = None) -> Cue | None:
@@ -70,9 +96,9 @@ class MobileBase:
         d = self.data
         self._control()
         if push is not None and push.active(float(d.time)):
-            push.apply(d, self.handle)
+            push.apply(d, self.pushed_body)
         elif not self.external_forces:
-            d.xfrc_applied[self.handle, :] = 0.0
+            d.xfrc_applied[self.pushed_body, :] = 0.0
         mujoco.mj_step(self.model, d)
         if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
@@ -84,7 +110,8 @@ class MobileBase:
     def _control(self) -> None:
         """Actuator commands for this physics step (the base's tracking controller)."""
         d = self.data
-        d.ctrl[:3] = self.controller.command(d.qpos[:2], d.qpos[2], self.target)
+        d.ctrl[self.actuators] = self.controller.command(d.qpos[self.xy], d.qpos[self.yaw],
+                                                         self.target)
 
     def receive_push(self, push: HumanPush) -> Cue | None:
         """Hold the current cell while ``push`` acts; return the detected cue or None."""
@@ -104,8 +131,7 @@ class MobileBase:
         while self.data.time < t_end:
             cue = self.substep()
             if cue is not None:
-                self.false_cues += 1
-                self.detected.append(cue)
-            if self.controller.settled(self.data.qpos[:2], self.data.qvel[:2], self.target):
+                self.cues_while_driving.append(cue)
+            if self.controller.settled(self.position, self.velocity, self.target):
                 break
         return self.cell

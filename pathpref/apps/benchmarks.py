@@ -1,11 +1,17 @@
-"""Benchmarks behind ``pathpref bench --json`` and ``scripts/bench.py``.
+"""Benchmarks behind ``pathpref bench --json`` and ``scripts/bench.py``, in sections:
+
+* ``maps``: per map, setup (arrangement, cost tables), belief updates, POMCP decisions (paper
+  and robust search) against the paper's Table II;
+* ``scale``: the 200 x 200 floor plan (fresh process), Ray throughput, rotated 40 x 40 maps;
+* ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK.
 
 They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
 issues are a contract: add keys, never rename them. Layout::
 
     {"machine": {...},
      "maps": {"simple": {"arrangement_build_s": ..., "cost_tables_s": ...,
-                         "belief_update_ms": ..., "goal_belief_update_ms": ..., ...}, ...}}
+                         "belief_update_ms": ..., "goal_belief_update_ms": ..., ...}, ...},
+     "physics": {...}, "arm": {...}, "scale": {...}}
 """
 
 from __future__ import annotations
@@ -18,20 +24,19 @@ from typing import Any
 
 import numpy as np
 
-from .geometry.maps import load_map
-from .geometry.world import World
-from .inference.belief import GoalBelief, PreferenceBelief
-from .inference.human import ObservationModel
-from .planning.pomcp import POMCP
-from .planning.pomdp import get_preset
-
-#: the paper's Table II belief-update times (ms) for reference
-PAPER_UPDATE_MS = {"simple": 73.5, "office": 28.7, "classroom": 38.3}
-#: the paper's Table II path-preference solve times (ms)
-PAPER_SOLVE_MS = {"simple": 510.0, "office": 2847.0, "classroom": 2063.0}
+from ..episode import EpisodeSpec, cached_world, run_episode, sample_instance
+from ..experiments import paper
+from ..geometry.maps import load_map
+from ..geometry.world import World
+from ..inference.belief import GoalBelief, PreferenceBelief
+from ..inference.human import ObservationModel
+from ..planning.pomcp import POMCP
+from ..planning.pomdp import get_preset
 
 
+# --- maps: setup, belief, POMCP ------------------------------------------------------------
 def _timeit(fn, repeat: int) -> list[float]:
+    """Wall times (s) of ``repeat`` calls of ``fn``."""
     out = []
     for _ in range(repeat):
         t = time.perf_counter()
@@ -81,7 +86,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         "belief_update_p99_ms": 1e3 * float(np.percentile(t_pref, 99)),
         "goal_belief_update_ms": 1e3 * median(t_goal),
         "belief_updates": n_upd,
-        "paper_belief_update_ms": PAPER_UPDATE_MS.get(name),
+        "paper_belief_update_ms": paper.update_ms(name),
         **planning,
     }
 
@@ -119,13 +124,14 @@ def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> 
         "pomcp_goal_only_decision_ms": 1e3 * median(t_go),
         "pomcp_queries_per_s": preset.queries / median(t_pp),
         "pomcp_decisions": n,
-        "paper_pomcp_decision_ms": PAPER_SOLVE_MS.get(name),
+        "paper_pomcp_decision_ms": paper.solve_ms(name),
         "robust_decision_ms": 1e3 * median(t_rb),
         "robust_goal_only_decision_ms": 1e3 * median(t_rb_go),
     }
 
 
 def machine_info() -> dict[str, Any]:
+    """Python version, CPU count and platform of this machine."""
     return {
         "python": platform.python_version(),
         "cpu_count": os.cpu_count(),
@@ -133,6 +139,7 @@ def machine_info() -> dict[str, Any]:
     }
 
 
+# --- scale: Ray, big maps -------------------------------------------------------------------
 def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
     """Episode throughput: one worker in-process vs Ray on a local 2-CPU cluster.
 
@@ -144,8 +151,8 @@ def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
         import ray
     except ImportError:
         return {"ray_speedup": None, "ray_note": "ray not installed (pip install pathpref[ray])"}
-    from .experiments.backends import iter_local, iter_ray
-    from .experiments.sweep import sweep_specs
+    from ..experiments.backends import iter_local, iter_ray
+    from ..experiments.sweep import sweep_specs
 
     specs = sweep_specs("simple", ["goal_only"], [5], instances=n, runs=1, seed=3,
                         queries=queries)
@@ -172,7 +179,7 @@ SCALE_MAP = {"width": 200, "height": 200, "n_rotated": 20, "n_boxes": 40, "seed"
 def scale_map() -> dict[str, Any]:
     """The 200 x 200 benchmark floor plan: 60 obstacles, a third of them rotated, with a loop
     preference around the map."""
-    from .geometry.generate import random_floor_plan, with_loop_preference
+    from ..geometry.generate import random_floor_plan, with_loop_preference
 
     return with_loop_preference(random_floor_plan(name="floor_200", **SCALE_MAP))
 
@@ -182,8 +189,7 @@ def _scale_setup_child() -> None:
     benchmark floor plan; prints ``seconds peak_MB``."""
     import resource
 
-    from .experiments.instances import sample_instance
-    from .inference.costs import build_cost_tables
+    from ..inference.costs import build_cost_tables
 
     raw = scale_map()
     World.from_spec(load_map({"width": 12, "height": 12, "obstacles": []}))  # JIT warm-up
@@ -202,11 +208,10 @@ def bench_scale(queries: int = 1000) -> dict[str, Any]:
     import sys
     import tempfile
 
-    from .experiments.episode import EpisodeSpec, run_episode
-    from .geometry.generate import four_connected_components, random_floor_plan
-    from .geometry.maps import free_cell_mask
+    from ..geometry.generate import four_connected_components, random_floor_plan
+    from ..geometry.maps import free_cell_mask
 
-    code = "from pathpref.benchmarks import _scale_setup_child; _scale_setup_child()"
+    code = "from pathpref.apps.benchmarks import _scale_setup_child; _scale_setup_child()"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
     res: dict[str, Any] = {"map_200_setup_s": float(out[0]), "map_200_peak_mb": float(out[1])}
@@ -233,14 +238,138 @@ def bench_scale(queries: int = 1000) -> dict[str, Any]:
     return res
 
 
+# --- physics: MuJoCo sensing, episodes, rendering, arm --------------------------------------
+def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate"):
+    """The compiled MuJoCo scene (imports the simulator on first use)."""
+    from ..sim.body import scene_for as build
+
+    return build(world, cell_size, task)
+
+
+def cue_accuracy(n: int = 200, noise_deg: float = 10.0, seed: int = 0) -> float:
+    """Share of ``n`` pushes whose detected sector equals the human's intended one."""
+    from ..sim.force_cue import HumanPush, PushProfile
+    from ..sim.mobile_base import MobileBase
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world))
+    rng = np.random.default_rng(seed)
+    profile = PushProfile(noise_deg=noise_deg)
+    hits = 0
+    for _ in range(n):
+        base.reset(int(rng.integers(world.n_cells)))
+        h = int(rng.integers(8))
+        cue = base.receive_push(HumanPush.sample(h, 0.0, profile, rng))
+        hits += cue is not None and cue.heading == h
+    return hits / n
+
+
+def false_cues(seconds: float = 1000.0, seed: int = 0) -> tuple[int, float]:
+    """Cues detected while driving random legal moves for ``seconds`` of simulated time."""
+    from ..sim.mobile_base import MobileBase
+
+    world = cached_world("office")
+    base = MobileBase(scene_for(world))
+    rng = np.random.default_rng(seed)
+    base.reset(world.cell((1, 1)))
+    while base.data.time < seconds:
+        s = base.cell
+        moves = np.flatnonzero(~world.motion.blocked[s])
+        base.move_to(int(world.motion.next_cell[s, rng.choice(moves)]))
+    return len(base.cues_while_driving), float(base.data.time)
+
+
+def render_fps(width: int = 640, height: int = 480, frames: int = 60) -> float:
+    """Frames per second of the top view of ``simple`` (one bare view, no episode)."""
+    import mujoco
+
+    from ..sim.render import RolloutRenderer
+
+    scene = scene_for(cached_world("simple"))
+    data = mujoco.MjData(scene.model)
+    mujoco.mj_forward(scene.model, data)
+    r = RolloutRenderer(scene, width, height)
+    r.renderer.update_scene(data, camera="top")
+    r.renderer.render()
+    t = time.perf_counter()
+    for _ in range(frames):
+        r.renderer.update_scene(data, camera="top")
+        r.renderer.render()
+    fps = frames / (time.perf_counter() - t)
+    r.close()
+    return fps
+
+
+def bench_physics(quick: bool = False) -> dict[str, Any]:
+    """Cue detection (with and without heading noise), false cues, episode time, rendering."""
+    n_push = 50 if quick else 200
+    secs = 100.0 if quick else 1000.0
+    n_cues, sim_s = false_cues(secs)
+    times = []
+    for i in range(2 if quick else 5):
+        spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
+                                  sim="mujoco", t_max=30)
+        t = time.perf_counter()
+        run_episode(spec)
+        times.append(time.perf_counter() - t)
+    return {
+        "cue_sector_accuracy": cue_accuracy(n_push, 10.0),
+        "cue_sector_accuracy_no_noise": cue_accuracy(n_push, 0.0),
+        "cue_pushes": n_push,
+        "false_cues_per_hour": n_cues / sim_s * 3600.0,
+        "false_cue_drive_s": sim_s,
+        "episode_s": median(times),
+        "episode_max_s": max(times),
+        "render_fps": render_fps(frames=20 if quick else 60),
+    }
+
+
+def bench_arm(quick: bool = False) -> dict[str, Any]:
+    """IK rate, tray tilt over pushed episodes, detection through the end-effector."""
+    from ..sim.arm import ArmBase
+    from ..sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    arm = ArmBase(scene_for(world, 0.5, "carry"))
+    arm.reset(world.cell((3, 3)))
+    n = 200 if quick else 1000
+    t = time.perf_counter()
+    for _ in range(n):
+        arm.solve_ik()
+    ik_rate = n / (time.perf_counter() - t)
+    rng = np.random.default_rng(0)
+    pushes, hits = (40 if quick else 200), 0
+    for _ in range(pushes):
+        h = int(rng.integers(8))
+        cue = arm.receive_push(HumanPush.sample(h, 0.0, PushProfile(), rng))
+        hits += cue is not None and cue.heading == h
+        arm.move_to(arm.cell)
+    tilts, pens, times = [], [], []
+    for i in range(2 if quick else 5):
+        spec = EpisodeSpec.single("simple", "path_preference", 3, seed=13, instance=i,
+                                  sim="mujoco", task="carry")
+        t = time.perf_counter()
+        res = run_episode(spec)
+        times.append(time.perf_counter() - t)
+        tilts.append(res.metrics["tilt_rms_deg"])
+        pens.append(res.metrics["max_penetration_mm"])
+    return {
+        "ik_solves_per_s": ik_rate,
+        "cue_sector_accuracy": hits / pushes,
+        "cue_pushes": pushes,
+        "tilt_rms_deg": max(tilts),
+        "tilt_rms_deg_mean": float(np.mean(tilts)),
+        "max_penetration_mm": max(pens),
+        "episode_s": median(times),
+    }
+
+
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
                    physics: bool = True) -> dict[str, Any]:
     """All benchmarks as one JSON-ready dictionary (``scale`` is skipped with ``quick``)."""
     maps = maps or ["simple", "office", "classroom"]
     out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
     if physics:
-        from .sim.bench import bench_arm, bench_physics
-
         out["physics"] = bench_physics(quick=quick)
         out["arm"] = bench_arm(quick=quick)
     if not quick:

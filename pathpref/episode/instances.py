@@ -17,6 +17,7 @@ candidates are drawn again from the same seed stream.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,6 +110,29 @@ def fixed_instance(world: World, start: tuple[int, int], goals: list[tuple[int, 
     return Instance(s, tuple(g), int(true_goal))
 
 
-#: The instance of the paper's Fig. 4 on ``simple`` (start (1,1), candidates (1..10, 8),
-#: true goal (1, 8)).
-FIG4 = {"start": (1, 1), "goals": [(x, 8) for x in range(1, 11)], "true_goal": 0}
+def episode_instance(world: World, fixed: str, instance_seed: int, n_goals: int, human: str,
+                     t_max: int) -> tuple[Instance, bool]:
+    """An episode's instance (pinned by the JSON ``fixed``, else drawn from
+    ``instance_seed``), and whether the goal's polytope carries no preference."""
+    if fixed:
+        f = json.loads(fixed)
+        inst = fixed_instance(world, tuple(f["start"]), [tuple(g) for g in f["goals"]],
+                              int(f["true_goal"]))
+        return inst, bool(f.get("free_goal_polytope", False))
+    return sample_instance(world, instance_seed, n_goals, consistent=human == "consistent",
+                           t_max=t_max), False
+
+
+def human_preference(world: World, inst: Instance, free_goal_polytope: bool) -> np.ndarray:
+    """The simulated human's preference per polytope: the map's, with none (-1) in the goal's
+    polytope when ``free_goal_polytope``."""
+    pref = world.require_preference().copy()
+    if free_goal_polytope:
+        pref[world.cell_polytope[inst.goal_cell]] = -1
+    return pref
+
+
+#: The instance of the paper's Fig. 4 on ``simple`` (start (1,1), candidates (1..10, 8), true
+#: goal (1, 8); the goal's polytope carries no preference), as an ``EpisodeSpec.fixed``.
+FIG4 = json.dumps({"start": [1, 1], "goals": [[x, 8] for x in range(1, 11)], "true_goal": 0,
+                   "free_goal_polytope": True}, sort_keys=True)

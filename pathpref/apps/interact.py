@@ -17,39 +17,43 @@ import time
 
 import numpy as np
 
+from ..episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
 from ..errors import ConfigError
-from ..experiments.episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
-from ..experiments.instances import seed_for
-from .mover import MujocoMover
+from ..sim.body import MujocoBody
+from ..sim.mobile_base import MobileBase
 
 
-class ViewerMover(MujocoMover):
-    """A mover whose human input comes from the person's pushes, not from the model."""
+class ViewerBody(MujocoBody):
+    """The MuJoCo body whose human input is the person's pushes (felt while it drove or
+    stood), not the simulated human's: the last cue detected since the previous decision."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.base.external_forces = True
 
     def human_input(self, heading: int) -> int | None:
-        cues, self.base.detected = self.base.detected, []
+        """The person's latest cue (``heading``, the simulated human's draw, is ignored)."""
+        cues, self.base.cues_while_driving = self.base.cues_while_driving, []
         self.last_cue = cues[-1] if cues else None
         return None if self.last_cue is None else self.last_cue.heading
 
 
 class InteractiveSession:
+    """A live episode on ``map`` whose human is the person at the viewer (window-free)."""
+
     def __init__(self, map: str = "office", method: str = "path_preference", seed: int = 0,
                  queries: int = 2000, t_max: int = 200):
         world = cached_world(map)
-        self.spec = EpisodeSpec(map=map, method=method, delta_t=1, instance=0, run=0,
-                                instance_seed=seed_for(seed, 0), run_seed=seed_for(seed, 0, 0),
-                                sim="mujoco", queries=queries, t_max=t_max)
-        self.mover = ViewerMover(world, self.spec, simulator_rng(self.spec))
-        self.runner = EpisodeRunner(self.spec, world, self.mover)
+        self.spec = EpisodeSpec.single(map, method, 1, seed=seed, sim="mujoco",
+                                       queries=queries, t_max=t_max)
+        self.body = ViewerBody(world, self.spec, simulator_rng(self.spec))
+        self.runner = EpisodeRunner(self.spec, world, self.body)
         self.observed: list[int] = []
 
     @property
-    def base(self):
-        return self.mover.base
+    def base(self) -> MobileBase:
+        """The physical base the person pushes."""
+        return self.body.base
 
     def step(self) -> None:
         """One decision: plan from the belief, drive; pushes felt on the way update it."""

@@ -19,15 +19,13 @@ Writes to the output folder:
 from __future__ import annotations
 
 import csv
-import json
 from collections import Counter
 from pathlib import Path
 
-from .experiments.episode import EpisodeResult, EpisodeSpec, cached_world, run_episode
-from .experiments.instances import FIG4, seed_for
-from .experiments.report import wilson
-from .planning.policies import METHODS, REFERENCE_METHODS
-from .planning.pomdp import DEFAULT_PRESET
+from ..episode import FIG4, EpisodeResult, EpisodeSpec, cached_world, run_episode
+from ..experiments.report import wilson
+from ..planning.policies import METHODS, REFERENCE_METHODS
+from ..planning.pomdp import DEFAULT_PRESET
 
 DEMO_DELTA_T = 3
 #: grid-world runs per method behind the demo's rates
@@ -37,12 +35,9 @@ OUTCOMES = ("by the preferred route", "by another route", "not at all")
 
 def demo_spec(method: str, seed: int = 0, delta_t: int = DEMO_DELTA_T, sim: str = "mujoco",
               preset: str = DEFAULT_PRESET) -> EpisodeSpec:
-    fixed = json.dumps({"start": list(FIG4["start"]), "goals": [list(g) for g in FIG4["goals"]],
-                        "true_goal": FIG4["true_goal"], "free_goal_polytope": True},
-                       sort_keys=True)
-    return EpisodeSpec(map="simple", method=method, delta_t=delta_t, instance=0, run=seed,
-                       instance_seed=seed_for(seed, 0), run_seed=seed_for(seed, 0, 0),
-                       fixed=fixed, sim=sim, preset=preset)
+    """The demo's episode: the paper's Fig. 4 instance on ``simple``, run seed ``seed``."""
+    return EpisodeSpec.single("simple", method, delta_t, seed=seed, fixed=FIG4, sim=sim,
+                              preset=preset)
 
 
 def outcome(r: EpisodeResult) -> str:
@@ -53,8 +48,8 @@ def outcome(r: EpisodeResult) -> str:
 def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUNS,
              preset: str = DEFAULT_PRESET) -> list[EpisodeResult]:
     """Run the demo, write videos, figures and tables (see module docstring)."""
-    from .viz.episodes import belief_figure, trajectories_figure
-    from .viz.mapdraw import save_map_figure
+    from ..viz.episodes import belief_figure, trajectories_figure
+    from ..viz.mapdraw import save_map_figure
 
     out.mkdir(parents=True, exist_ok=True)
     world = cached_world("simple")
@@ -76,7 +71,7 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
     for m in (m for m in METHODS if m not in REFERENCE_METHODS):
         spec = demo_spec(m, pick[m], sim=sim, preset=preset)
         if sim == "mujoco":
-            from .sim.rollout import record_rollout
+            from .rollout import record_rollout
 
             rrd = out / f"rollout_{m}.rrd" if m == "path_preference" else None
             rec = record_rollout(spec, video=out / f"rollout_{m}.mp4", rerun=rrd)

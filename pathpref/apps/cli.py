@@ -14,8 +14,8 @@ import tempfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from .errors import ConfigError, PathprefError
-from .planning.pomdp import DEFAULT_PRESET, PRESETS
+from ..errors import ConfigError, PathprefError
+from ..planning.pomdp import DEFAULT_PRESET, PRESETS
 
 
 def check_writable(out: str | Path) -> Path:
@@ -48,7 +48,7 @@ def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
 def cmd_map_info(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .geometry.world import load_world
+    from ..geometry.world import load_world
 
     world = load_world(args.map)
     deg = [len(n) for n in world.graph.neighbors]
@@ -83,8 +83,8 @@ def cmd_map_info(args: argparse.Namespace) -> int:
 
 
 def cmd_map_draw(args: argparse.Namespace) -> int:
-    from .geometry.world import load_world
-    from .viz.mapdraw import save_map_figure
+    from ..geometry.world import load_world
+    from ..viz.mapdraw import save_map_figure
 
     world = load_world(args.map)
     out = check_writable(args.out)
@@ -97,7 +97,7 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
 
 # --- db -------------------------------------------------------------------------------------
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
-    from .experiments.migrate import upgrade_database
+    from ..experiments.migrate import upgrade_database
 
     remap = {}
     for item in args.map or []:
@@ -117,32 +117,38 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
 
 # --- experiments ----------------------------------------------------------------------------
 def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
-    from .experiments.episode import cached_map
-    from .planning.pomdp import get_preset
+    """The episode fields every running command shares (None: the preset's value, resolved
+    by :class:`~pathpref.episode.EpisodeSpec`)."""
+    from ..episode import cached_map
 
-    preset = get_preset(args.preset)
     if args.time_budget_ms is not None and not args.time_budget_ms > 0:
         raise ConfigError(f"--time-budget-ms must be a positive number of milliseconds, got "
                           f"{args.time_budget_ms:g}")
-    if args.time_budget_ms is not None and preset.search != "robust":
-        raise ConfigError("--time-budget-ms needs the robust search: add --preset robust")
     return {
         "preset": args.preset,
         "time_budget_ms": args.time_budget_ms or 0.0,
         "human": args.human,
-        "queries": args.queries if args.queries is not None else preset.queries,
+        "queries": args.queries,
         "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",
-        "coupling": preset.coupling if args.coupling is None else args.coupling,
+        "coupling": args.coupling,
         "ucb_c": args.ucb_c,
         "timeout_s": args.episode_timeout,
     }
 
 
-def cmd_evaluate(args: argparse.Namespace) -> int:
-    from .experiments.report import load_records, markdown_tables
-    from .experiments.sweep import run_sweep, sweep_specs
+def load_simulator(sim: str) -> None:
+    """Import the simulator package behind ``--sim`` so that its bodies register with the
+    episode layer (the grid body needs none; MuJoCo is imported only when asked for)."""
+    if sim == "mujoco":
+        from .. import sim as _  # noqa: F401
 
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from ..experiments.report import load_records, markdown_tables
+    from ..experiments.sweep import run_sweep, sweep_specs
+
+    load_simulator(args.sim)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
                         **_common_episode_args(args, args.map))
@@ -151,7 +157,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                        address=args.address)
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
           f"in {args.db}, {counts['seconds']} s")
-    from .experiments.episode import cached_map
+    from ..episode import cached_map
 
     recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]
     print(markdown_tables(recs))
@@ -159,7 +165,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .experiments.report import load_records, markdown_tables, side_by_side, write_csv
+    from ..experiments.report import load_records, markdown_tables, side_by_side, write_csv
 
     if not Path(args.db).exists():
         raise ConfigError(f"no results database at {args.db}; run 'pathpref evaluate' first")
@@ -174,7 +180,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     atomic_output(csv_path, lambda p: write_csv(recs, p))
     print(f"\nwrote {csv_path}")
     if args.figure:
-        from .viz.plots import success_figure
+        from ..viz.plots import success_figure
 
         atomic_output(args.figure, lambda p: success_figure(recs, p))
         print(f"wrote {args.figure}")
@@ -184,8 +190,8 @@ def cmd_report(args: argparse.Namespace) -> int:
 def cmd_timing(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from .experiments.episode import cached_world
-    from .experiments.timing import time_map, timing_markdown
+    from ..episode import cached_world
+    from ..experiments.timing import time_map, timing_markdown
 
     for m in args.maps:  # validate every map before any work
         cached_world(m).require_preference()
@@ -203,18 +209,16 @@ def cmd_timing(args: argparse.Namespace) -> int:
 
 
 def cmd_belief_curves(args: argparse.Namespace) -> int:
-    from .experiments.curves import curves_from_store
-    from .experiments.instances import FIG4
-    from .experiments.sweep import fixed_specs, run_sweep
-    from .viz.plots import belief_curves_figure
+    from ..episode import FIG4
+    from ..experiments.curves import curves_from_store
+    from ..experiments.sweep import fixed_specs, run_sweep
+    from ..viz.plots import belief_curves_figure
 
     out = check_writable(args.out)
     db = args.db or str(out.with_suffix(".sqlite"))
-    fixed = {"start": list(FIG4["start"]), "goals": [list(g) for g in FIG4["goals"]],
-             "true_goal": FIG4["true_goal"], "free_goal_polytope": True}
     common = _common_episode_args(args, args.map)
     specs = fixed_specs(args.map, ["path_preference", "goal_only"], args.delta_t, args.runs,
-                        fixed, seed=args.seed, **common)
+                        FIG4, seed=args.seed, **common)
     run_sweep(specs, db, workers=args.workers, progress=not args.no_progress)
     keys = {m: [s.key() for s in specs if s.method == m] for m in ("path_preference", "goal_only")}
     curves = curves_from_store(db, keys, common["t_max"])
@@ -229,9 +233,8 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
-    from .experiments.episode import EpisodeSpec
-    from .experiments.instances import seed_for
-    from .sim.rollout import record_rollout
+    from ..episode import EpisodeSpec
+    from .rollout import record_rollout
 
     out = check_writable(args.out) if args.out else None
     if out is not None and out.suffix.lower() != ".mp4":
@@ -241,10 +244,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out is None and not args.rerun:
         raise ConfigError("give --out video.mp4 and/or --rerun recording.rrd")
     common = _common_episode_args(args, args.map)
-    spec = EpisodeSpec(map=args.map, method=args.method, delta_t=args.delta_t, instance=0,
-                       run=0, instance_seed=seed_for(args.seed, 0),
-                       run_seed=seed_for(args.seed, 0, 0), sim="mujoco", task=args.task,
-                       **common)
+    spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
+                              sim="mujoco", task=args.task, **common)
     tmp = out.with_name(f".{out.stem}.partial.mp4") if out else None
     try:
         rec = record_rollout(spec, video=tmp, rerun=args.rerun, width=args.width,
@@ -265,7 +266,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 def cmd_interact(args: argparse.Namespace) -> int:
     os.environ.setdefault("MUJOCO_GL", "glfw")  # the viewer needs a windowing backend
-    from .sim.interact import InteractiveSession, run_viewer
+    from .interact import InteractiveSession, run_viewer
 
     session = InteractiveSession(map=args.map, method=args.method, seed=args.seed,
                                  queries=args.queries)
@@ -311,7 +312,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Infer a person's goal and path preference from sparse nudges "
         "(Peltzer et al. 2023).",
     )
-    from . import __version__
+    from .. import __version__
 
     p.add_argument("--version", action="version", version=f"pathpref {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
@@ -346,7 +347,8 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
-        sp.add_argument("--ucb-c", type=float, default=1.0, help="POMCP UCB constant (1)")
+        sp.add_argument("--ucb-c", type=float, default=None,
+                        help="POMCP UCB constant (the preset's: 1)")
         sp.add_argument("--episode-timeout", type=float, default=0.0,
                         help="record an episode as failed after this many seconds (0: none)")
         sp.add_argument("--seed", type=int, default=0)

@@ -7,21 +7,17 @@ from pathlib import Path
 
 import numpy as np
 
-from ..experiments.episode import (
-    EpisodeResult,
-    EpisodeRunner,
-    EpisodeSpec,
-    cached_world,
-    simulator_rng,
-)
-from .mover import MujocoMover
-from .render import RolloutRenderer, write_video
+from ..episode import EpisodeResult, EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
+from ..sim.body import MujocoBody
+from ..sim.render import RolloutRenderer, write_video
 
 VIDEO_FPS = 25
 
 
 @dataclass
 class Recording:
+    """A rendered episode: its result, the number of frames and the files written."""
+
     result: EpisodeResult
     frames: int
     video: Path | None
@@ -35,12 +31,12 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
     (the video plays ``speed`` times faster than real time, pushes in real time) and log to
     rerun."""
     world = cached_world(spec.map)
-    mover = MujocoMover(world, spec, simulator_rng(spec))
-    base = mover.base
+    body = MujocoBody(world, spec, simulator_rng(spec))
+    base = body.base
     every = max(1, int(round(speed / VIDEO_FPS / base.dt)))
     every_push = max(1, int(round(1.0 / VIDEO_FPS / base.dt)))  # pushes play in real time
     frames: list[np.ndarray] = []
-    renderer = RolloutRenderer(mover.scene, width, height) if video else None
+    renderer = RolloutRenderer(body.scene, width, height) if video else None
     state: dict = {"runner": None, "k": 0}
     polygons = world.arrangement.polygons
 
@@ -50,8 +46,7 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
             return
         r = state["runner"]
         if logger is not None:
-            ee = b.data.xpos[b.tray] if hasattr(b, "tray") else None
-            logger.log_frame(b.data.time, b.position, ee)
+            logger.log_frame(b.data.time, b.position, b.end_effector)
         if renderer is None or r is None:
             return
         force = push.force(float(b.data.time)) if push is not None else None
@@ -59,23 +54,23 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
             b.data, goal_cells=world.cells[list(r.instance.goals)],
             belief=r.policy.belief.goal_marginal(), true_goal=r.instance.true_goal,
             polygon=polygons[world.cell_polytope[b.cell]],
-            push_origin=b.data.xpos[b.handle].copy(),  # the pushed body: handle or tray
+            push_origin=b.data.xpos[b.pushed_body].copy(),  # handle or tray
             push_force=force))
 
     logger = None
     base.on_substep.append(hook)
-    runner = EpisodeRunner(spec, world, mover)
+    runner = EpisodeRunner(spec, world, body)
     state["runner"] = runner
     if rerun:
         from ..viz.rerun_log import RerunLogger
 
         logger = RerunLogger(world, world.cells[list(runner.instance.goals)],
-                             runner.instance.true_goal, rerun, mover.scene.cell_size)
+                             runner.instance.true_goal, rerun, body.scene.cell_size)
 
     def log_step() -> None:
         if logger is None:
             return
-        cue = mover.last_cue if runner.pending_heading is not None else None
+        cue = body.last_cue if runner.pending_heading is not None else None
         b = runner.policy.belief
         logger.log_step(runner.t, base.position, b.goal_marginal(),
                         float(b.goal_marginal()[runner.instance.true_goal]), b.goal_entropy(),

@@ -1,0 +1,7 @@
+"""``python -m pathpref``: the ``pathpref`` command line (:mod:`pathpref.apps.cli`)."""
+
+import sys
+
+from .apps.cli import main
+
+sys.exit(main())

@@ -1,0 +1,105 @@
+"""The robot's body in an episode: how the human's input reaches the robot and how a move is
+carried out. A :class:`Body` is a plug-in: the grid body lives here; a simulator package
+registers its own (``register_body("mujoco", MujocoBody)`` when it is imported), so this layer
+never names a simulator.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..geometry.grid import STAY
+from ..geometry.world import World
+
+if TYPE_CHECKING:
+    from .spec import EpisodeSpec
+
+
+class Body(ABC):
+    """An embodiment of the robot. Built per episode with ``(world, spec, rng)``, where
+    ``rng`` is the episode's simulator stream (:func:`simulator_rng`).
+
+    Attributes:
+        tasks: the tasks this body can run (``navigate``; ``carry`` needs an arm).
+    """
+
+    tasks: tuple[str, ...] = ("navigate",)
+
+    @abstractmethod
+    def reset(self, cell: int) -> None:
+        """Place the robot at the centre of ``cell``."""
+
+    @abstractmethod
+    def human_input(self, heading: int) -> int | None:
+        """The human means ``heading`` (0..7) now: return the heading the robot observes, or
+        None when it detected nothing."""
+
+    @abstractmethod
+    def move(self, action: int) -> int:
+        """Carry out ``action`` (0..7 or :data:`STAY`) from the current cell; return the
+        cell the robot ends in."""
+
+    def metrics(self) -> dict[str, float]:
+        """Per-episode measurements stored with the result (none by default)."""
+        return {}
+
+
+class GridBody(Body):
+    """The grid world (SPEC 3): headings are observed exactly, moves follow the grid motion."""
+
+    def __init__(self, world: World, spec: EpisodeSpec | None = None,
+                 rng: np.random.Generator | None = None):
+        self.world = world
+
+    def reset(self, cell: int) -> None:
+        """Place the robot in ``cell``."""
+        self.cell = cell
+
+    def human_input(self, heading: int) -> int | None:
+        """The heading itself: the grid robot observes it exactly."""
+        return heading
+
+    def move(self, action: int) -> int:
+        """``next_cell[s, a]`` (the same cell for STAY or a blocked move)."""
+        if action != STAY:
+            self.cell = int(self.world.motion.next_cell[self.cell, action])
+        return self.cell
+
+
+#: bodies by the name an :class:`EpisodeSpec` gives in ``sim``
+BODIES: dict[str, type[Body]] = {}
+
+
+def register_body(name: str, body: type[Body]) -> None:
+    """Make ``body`` available as ``EpisodeSpec(sim=name)``."""
+    BODIES[name] = body
+
+
+def body_class(sim: str, task: str = "navigate") -> type[Body]:
+    """The registered body ``sim``, checked to offer ``task``."""
+    body = BODIES.get(sim)
+    if body is None:
+        raise ConfigError(f"unknown simulator '{sim}'; registered: {', '.join(BODIES)} (a "
+                          "simulator's bodies register when its package is imported)")
+    if task not in body.tasks:
+        need = [n for n, b in BODIES.items() if task in b.tasks]
+        raise ConfigError(f"the '{sim}' body cannot run the task '{task}'"
+                          + (f": use --sim {need[0]}" if need else ""))
+    return body
+
+
+def simulator_rng(spec: EpisodeSpec) -> np.random.Generator:
+    """The body's noise stream of an episode (the third stream of ``run_seed``)."""
+    return np.random.default_rng(np.random.SeedSequence(spec.run_seed).spawn(3)[2])
+
+
+def make_body(spec: EpisodeSpec, world: World) -> Body:
+    """The body ``spec.sim`` for an episode of ``spec`` on ``world``."""
+    return body_class(spec.sim, spec.task)(world, spec, simulator_rng(spec))
+
+
+register_body("grid", GridBody)

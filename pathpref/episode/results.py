@@ -1,0 +1,79 @@
+"""What an episode produced: its flags, counts and per-step log, and their stored row."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from .instances import Instance
+from .spec import EpisodeSpec
+
+
+@dataclass
+class StepLog:
+    """One decision step: the robot's cell after it, the action, the observed heading (-1:
+    none) and the belief's ``P(true goal)`` and goal entropy (nats)."""
+
+    t: int
+    x: int
+    y: int
+    action: int
+    heading: int
+    p_true_goal: float
+    goal_entropy: float
+
+
+@dataclass
+class EpisodeResult:
+    """An episode's outcome. Success = goal reached within ``T_max``, no preference violation
+    (a polytope left by a face other than ``p_v``), and the episode ran (``status == "ok"``)."""
+
+    spec: EpisodeSpec
+    instance: Instance
+    instance_cells: dict[str, Any] = field(default_factory=dict)
+    goal_reached: bool = False
+    violations: int = 0
+    back_crossings: int = 0
+    steps: int = 0
+    inputs: int = 0
+    wall_s: float = 0.0
+    status: str = "ok"
+    reason: str = ""
+    log: list[StepLog] = field(default_factory=list)
+    metrics: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def pref_followed(self) -> bool:
+        """Every polytope change followed the human's preference."""
+        return self.violations == 0
+
+    @property
+    def success(self) -> bool:
+        """Goal reached, preference followed, episode ran to its end."""
+        return self.goal_reached and self.pref_followed and self.status == "ok"
+
+
+def result_row(res: EpisodeResult) -> dict[str, Any]:
+    """Flat dictionary of an episode for the results store."""
+    d = asdict(res.spec)
+    inst = res.instance
+    return {
+        **d,
+        "key": res.spec.key(),
+        "map_hash": res.spec.map_hash,
+        "start": json.dumps(res.instance_cells.get("start")),
+        "goals": json.dumps(res.instance_cells.get("goals")),
+        "true_goal": inst.true_goal,
+        "status": res.status,
+        "reason": res.reason,
+        "goal_reached": int(res.goal_reached),
+        "pref_followed": int(res.pref_followed),
+        "success": int(res.success),
+        "steps": res.steps,
+        "inputs": res.inputs,
+        "violations": res.violations,
+        "back_crossings": res.back_crossings,
+        "wall_s": res.wall_s,
+        "metrics": json.dumps(res.metrics, sort_keys=True),
+    }

@@ -1,0 +1,167 @@
+"""One episode of the paper's protocol (SPEC 9), fully determined by its spec.
+
+Step ``t = 1..T_max``: when ``(t - 1) mod Delta_T == 0`` the simulated human gives a heading at the
+robot's cell and the robot updates its belief with what it observed; the policy acts; the robot
+moves. Standing on a wrong candidate rules it out; reaching the true goal ends the episode.
+Success = goal reached within ``T_max`` AND every polytope change followed the human's
+preference (a polytope where the human has no preference, ``-1``, accepts any exit).
+
+The robot's :class:`~.body.Body` (``spec.sim``) turns the human's heading into what the robot
+observes and a chosen move into the cell it reaches. Seeds: ``run_seed`` spawns three streams
+(human, policy, body noise), so the human's draws do not depend on the simulator.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import ConfigError, EpisodeError
+from ..geometry.grid import STAY
+from ..geometry.world import World
+from ..inference.human import ObservationModel, SimulatedHuman
+from ..planning.policies import PolicyContext, make_policy
+from .body import Body, make_body
+from .cache import cached_model, cached_world
+from .instances import episode_instance, human_preference
+from .results import EpisodeResult, StepLog
+from .spec import EpisodeSpec
+
+
+class EpisodeRunner:
+    """One episode, advanced one decision step at a time (see module docstring).
+
+    :meth:`begin` gives the human's first input (hooks on the body may be attached between
+    construction and ``begin``). ``pending_heading`` is the heading the robot observed for the
+    coming step (None when no input was due or none was detected); :meth:`step` takes the
+    policy's action unless one is given (the dm_env task passes the agent's action).
+    ``world`` and ``body`` default to the spec's (cached world, registered body).
+    """
+
+    def __init__(self, spec: EpisodeSpec, world: World | None = None, body: Body | None = None):
+        self.t0 = time.perf_counter()
+        spec.validate()
+        self.spec = spec
+        cached = world is None
+        world = cached_world(spec.map) if cached else world
+        inst, free_goal = episode_instance(world, spec.fixed, spec.instance_seed, spec.n_goals,
+                                           spec.human, spec.t_max)
+        model = (cached_model(spec.map, inst.goals, spec.normalize) if cached else
+                 ObservationModel.build(world, np.array(inst.goals), normalize=spec.normalize))
+        self.world, self.instance, self.model = world, inst, model
+        self.pref = human_preference(world, inst, free_goal)
+        human_seq, policy_seq, _ = np.random.SeedSequence(spec.run_seed).spawn(3)
+        self.human_rng = np.random.default_rng(human_seq)
+        ctx = PolicyContext(world=world, model=model, preset=spec.planner(), t_max=spec.t_max,
+                            rng=np.random.default_rng(policy_seq), true_goal=inst.true_goal,
+                            true_preference=self.pref)
+        self.policy = make_policy(spec.method, ctx)
+        self.human = SimulatedHuman(model, inst.true_goal, self.pref)
+        self.body = body if body is not None else make_body(spec, world)
+        self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
+            "start": world.cells[inst.start].tolist(),
+            "goals": world.cells[list(inst.goals)].tolist(),
+        })
+        self.goal_index = {g: k for k, g in enumerate(inst.goals)}
+        self.cell = inst.start
+        self.last_crossing: tuple[int, int] | None = None
+        self.t = 0
+        self.pending_heading: int | None = None
+        self.started = False
+        self.body.reset(self.cell)
+        self._log(STAY, -1)
+
+    def begin(self) -> None:
+        """The human's input before step 1 (when due); :meth:`step` calls it if needed."""
+        if not self.started:
+            self.started = True
+            self._human_phase()
+
+    @property
+    def done(self) -> bool:
+        """The goal is reached or ``T_max`` steps are spent."""
+        return self.result.goal_reached or self.t >= self.spec.t_max
+
+    def _log(self, action: int, heading: int) -> None:
+        p = self.policy.belief.goal_marginal()
+        if not np.isfinite(p).all():
+            raise EpisodeError(f"belief became non-finite at step {self.t}")
+        if self.spec.timeout_s and time.perf_counter() - self.t0 > self.spec.timeout_s:
+            raise EpisodeError(
+                f"timeout: episode exceeded {self.spec.timeout_s:g} s at step {self.t}")
+        x, y = self.world.cells[self.cell]
+        self.result.log.append(StepLog(self.t, int(x), int(y), action, heading,
+                                       float(p[self.instance.true_goal]),
+                                       float(self.policy.belief.goal_entropy())))
+
+    def _human_phase(self) -> None:
+        """Before step t+1: the human gives an input when one is due; the robot updates."""
+        self.pending_heading = None
+        if self.done or self.t % self.spec.delta_t != 0:
+            return
+        intended = self.human.sample(self.cell, self.human_rng)
+        self.result.inputs += 1
+        observed = self.body.human_input(intended)
+        if observed is not None:
+            self.policy.observe(self.cell, observed)
+        self.pending_heading = observed
+
+    def step(self, action: int | None = None) -> StepLog:
+        """Advance one decision step; returns its log entry."""
+        if self.done:
+            raise EpisodeError("the episode is over; start a new one")
+        self.begin()
+        t = self.t + 1
+        heading = self.pending_heading
+        if action is None:
+            action = int(self.policy.act(t, self.cell, heading))
+        else:
+            try:
+                a = float(action)
+            except (TypeError, ValueError):
+                a = float("nan")
+            if not (np.isfinite(a) and a == int(a) and (int(a) == STAY or 0 <= int(a) < 8)):
+                raise ConfigError(f"action must be 0..7 (N, NE, ..., NW), got {action!r}")
+        action = int(action)
+        before = self.cell
+        self.cell = int(self.body.move(action))
+        self._score(before, self.cell)
+        self.t = t
+        self.result.steps = t
+        k = self.goal_index.get(self.cell)
+        if k is not None:
+            if k == self.instance.true_goal:
+                self.result.goal_reached = True
+            else:
+                self.policy.rule_out(k)
+        self._log(action, -1 if heading is None else heading)
+        self._human_phase()
+        self.result.wall_s = time.perf_counter() - self.t0
+        if self.done:
+            self.result.metrics = self.body.metrics()
+        return self.result.log[-1]
+
+    def _score(self, before: int, after: int) -> None:
+        """The success rule on the move ``before -> after``: leaving ``v`` toward anything but
+        ``p_v`` (when ``p_v != -1``) is a violation; crossing straight back through the face
+        just crossed is a back-crossing. The policy is told of every polytope change."""
+        v, w = int(self.world.cell_polytope[before]), int(self.world.cell_polytope[after])
+        if v == w:
+            return
+        if self.pref[v] >= 0 and self.pref[v] != w:
+            self.result.violations += 1
+        if self.last_crossing == (w, v):
+            self.result.back_crossings += 1
+        self.last_crossing = (v, w)
+        if self.world.graph.edge_between(v, w) >= 0:
+            self.policy.enter(v, w)
+
+
+def run_episode(spec: EpisodeSpec, world: World | None = None,
+                body: Body | None = None) -> EpisodeResult:
+    """Run one episode to the end (see module docstring) and return its flags and log."""
+    runner = EpisodeRunner(spec, world, body)
+    while not runner.done:
+        runner.step()
+    return runner.result
