@@ -118,3 +118,35 @@ def test_fixed_instance_in_spec():
                         "true_goal": 0, "free_goal_polytope": True})
     r = run_episode(replace(spec(), fixed=fixed))
     assert r.instance_cells["start"] == [1, 1]
+
+
+def _recount(world, res):
+    """Violations and back-crossings recomputed from the logged cells and the map's
+    preference, independently of the runner."""
+    pref = world.preference
+    cells = [world.cell((s.x, s.y)) for s in res.log]
+    viol = back = 0
+    last = None
+    for a, b in zip(cells, cells[1:], strict=False):
+        v, w = int(world.cell_polytope[a]), int(world.cell_polytope[b])
+        if v == w:
+            continue
+        viol += pref[v] >= 0 and pref[v] != w
+        back += last == (w, v)
+        last = (v, w)
+    return viol, back
+
+
+def test_success_rule_against_an_independent_count(simple):
+    """Success = goal reached and no polytope left by a face other than p_v: recounted from
+    the step log over episodes that cover every outcome (success, goal by another route,
+    goal not reached)."""
+    kinds = set()
+    for i in range(12):
+        r = run_episode(spec(instance=i, instance_seed=seed_for(5, i), run_seed=seed_for(5, i, 0),
+                             method="compliant", delta_t=1 + i % 3))
+        viol, back = _recount(simple, r)
+        assert (r.violations, r.back_crossings) == (viol, back)
+        assert r.success == (r.goal_reached and viol == 0)
+        kinds.add((r.goal_reached, viol == 0))
+    assert {(True, True), (True, False)} <= kinds

@@ -1,7 +1,7 @@
 """The robot's body in an episode: how the human's input reaches the robot and how a move is
 carried out. A :class:`Body` is a plug-in: the grid body lives here; a simulator package
-registers its own (``register_body("mujoco", MujocoBody)`` when it is imported), so this layer
-never names a simulator.
+registers its own with :func:`register_body` when it is imported, so this layer never names a
+simulator.
 """
 
 from __future__ import annotations

@@ -17,11 +17,12 @@ Polytope ids are 0-based, ordered by their first free cell in ``(x, y)`` lexicog
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..errors import MapError
-from .maps import MapSpec, free_cell_mask
+from .maps import MapSpec, cell_pair, free_cell_mask
 from .polygon import facet_rows, h_polygon
 
 SIDE_EPS = 1e-9
@@ -83,11 +84,24 @@ class Arrangement:
 
     @property
     def n_polytopes(self) -> int:
+        """Number of free polytopes."""
         return len(self.signs)
 
     @property
     def n_cells(self) -> int:
+        """Number of free cells."""
         return len(self.cells)
+
+    def free_cell(self, value: Any, where: str = "cell") -> int:
+        """Index of the free cell ``value = (x, y)`` (1-based); MapError naming ``where`` when
+        it is not a pair of whole numbers, lies off the map or on an obstacle."""
+        x, y = cell_pair(value, where)
+        if not (1 <= x <= self.width and 1 <= y <= self.height):
+            raise MapError(f"{where} ({x}, {y}) is outside the {self.width} x {self.height} map")
+        i = int(self.cell_index[x - 1, y - 1])
+        if i < 0:
+            raise MapError(f"{where} ({x}, {y}) lies on an obstacle; name a free cell")
+        return i
 
     def polytope_cells(self, v: int) -> np.ndarray:
         """Cell indices of polytope ``v``."""

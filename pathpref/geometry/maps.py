@@ -33,6 +33,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import numbers
 from dataclasses import dataclass, field
 from functools import cached_property
 from importlib import resources
@@ -135,11 +136,15 @@ def _number(value: Any, where: str) -> float:
     return float(value)
 
 
-def _cell_pair(value: Any, where: str) -> tuple[int, int]:
+def cell_pair(value: Any, where: str) -> tuple[int, int]:
+    """``value`` as a pair of whole numbers ``(x, y)`` (Python or NumPy integers, no bools);
+    MapError naming ``where`` otherwise. The one parser of cells in maps, preferences and
+    instances."""
     if (
-        not isinstance(value, list | tuple)
+        not isinstance(value, list | tuple | np.ndarray)
         or len(value) != 2
-        or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
+        or not all(isinstance(v, numbers.Integral) and not isinstance(v, bool | np.bool_)
+                   for v in value)
     ):
         raise MapError(f"{where} must be a pair of whole numbers [x, y], got {value!r}")
     return int(value[0]), int(value[1])
@@ -169,8 +174,8 @@ def _parse_obstacle(raw: Any, k: int, width: int, height: int) -> Obstacle:
         cells = raw["cells"]
         if not isinstance(cells, dict) or "lower_left" not in cells or "size" not in cells:
             raise MapError(f"{where}: 'cells' must be {{'lower_left': [x, y], 'size': [w, h]}}")
-        x, y = _cell_pair(cells["lower_left"], f"{where} cells.lower_left")
-        w, h = _cell_pair(cells["size"], f"{where} cells.size")
+        x, y = cell_pair(cells["lower_left"], f"{where} cells.lower_left")
+        w, h = cell_pair(cells["size"], f"{where} cells.size")
         if w <= 0 or h <= 0:
             raise MapError(f"{where} cells.size must be positive, got [{w}, {h}]")
         x0, y0 = x - 1.0, y - 1.0
@@ -196,7 +201,7 @@ def _parse_goal_band(raw: Any, width: int, height: int) -> dict[str, list[int]]:
         raise MapError("goal_band must be {'x': [lo, hi], 'y': [lo, hi]} (inclusive cell ranges)")
     band = {}
     for axis, side in (("x", width), ("y", height)):
-        lo, hi = _cell_pair(raw.get(axis, [1, side]), f"goal_band.{axis}")
+        lo, hi = cell_pair(raw.get(axis, [1, side]), f"goal_band.{axis}")
         if not 1 <= lo <= hi <= side:
             raise MapError(f"goal_band.{axis} = [{lo}, {hi}] must satisfy 1 <= lo <= hi <= {side}")
         band[axis] = [lo, hi]

@@ -26,22 +26,6 @@ from .graph import PolytopeGraph
 from .grid import GridMotion
 
 
-def _cell(arr: Arrangement, value: Any, where: str) -> int:
-    if (
-        not isinstance(value, list | tuple)
-        or len(value) != 2
-        or not all(isinstance(v, int) and not isinstance(v, bool) for v in value)
-    ):
-        raise MapError(f"{where} must be a cell [x, y] of whole numbers, got {value!r}")
-    x, y = value
-    if not (1 <= x <= arr.width and 1 <= y <= arr.height):
-        raise MapError(f"{where} = [{x}, {y}] is outside the {arr.width} x {arr.height} map")
-    i = int(arr.cell_index[x - 1, y - 1])
-    if i < 0:
-        raise MapError(f"{where} = [{x}, {y}] lies on an obstacle; name a free cell")
-    return i
-
-
 def preference_from_table(
     arr: Arrangement, graph: PolytopeGraph, table: list[dict[str, Any]]
 ) -> np.ndarray:
@@ -53,8 +37,8 @@ def preference_from_table(
         where = f"preference.table[{k}]"
         if not isinstance(entry, dict) or set(entry) != {"from", "to"}:
             raise MapError(f"{where} must be {{'from': [x, y], 'to': [x, y]}}, got {entry!r}")
-        v = int(arr.cell_polytope[_cell(arr, entry["from"], f"{where}.from")])
-        w = int(arr.cell_polytope[_cell(arr, entry["to"], f"{where}.to")])
+        v = int(arr.cell_polytope[arr.free_cell(entry["from"], f"{where}.from")])
+        w = int(arr.cell_polytope[arr.free_cell(entry["to"], f"{where}.to")])
         if v == w:
             raise MapError(
                 f"{where}: cells {entry['from']} and {entry['to']} lie in the same polytope "
@@ -93,7 +77,7 @@ def preference_from_route(
     """
     if not isinstance(waypoints, list) or len(waypoints) < 2:
         raise MapError("preference.route must list at least 2 waypoints [x, y]")
-    idx = [_cell(arr, w, f"preference.route[{k}]") for k, w in enumerate(waypoints)]
+    idx = [arr.free_cell(w, f"preference.route[{k}]") for k, w in enumerate(waypoints)]
     legs = list(zip(idx[:-1], idx[1:], strict=True))
     if closed:
         legs.append((idx[-1], idx[0]))

@@ -62,18 +62,9 @@ class World:
         return self.arrangement.cell_polytope
 
     def cell(self, xy: Any, what: str = "cell") -> int:
-        """Index of the free cell ``(x, y)`` (1-based); MapError if off the map or blocked."""
-        try:
-            x, y = (int(v) for v in xy)
-        except (TypeError, ValueError):
-            raise MapError(f"{what} must be a cell [x, y], got {xy!r}") from None
-        W, H = self.spec.width, self.spec.height
-        if not (1 <= x <= W and 1 <= y <= H):
-            raise MapError(f"{what} ({x}, {y}) is outside the {W} x {H} map '{self.name}'")
-        i = int(self.arrangement.cell_index[x - 1, y - 1])
-        if i < 0:
-            raise MapError(f"{what} ({x}, {y}) lies on an obstacle of map '{self.name}'")
-        return i
+        """Index of the free cell ``(x, y)`` (1-based); MapError if off the map or blocked
+        (:meth:`Arrangement.free_cell`)."""
+        return self.arrangement.free_cell(xy, what)
 
     def require_preference(self) -> np.ndarray:
         """The map's preference, or a MapError telling how to add one."""
