@@ -18,7 +18,7 @@ test: $(STAMP)
 	MUJOCO_GL=egl $(BIN)/python -m pytest
 
 lint: $(STAMP)
-	$(BIN)/ruff check pathpref tests scripts
+	$(BIN)/ruff check pathpref tasks tests scripts
 
 demo: $(STAMP)
 	MUJOCO_GL=egl $(BIN)/pathpref demo --out out

@@ -46,6 +46,7 @@ def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
 
 # --- map ------------------------------------------------------------------------------------
 def cmd_map_info(args: argparse.Namespace) -> int:
+    """``pathpref map info``: sizes of the map's arrangement, graph and free space."""
     import numpy as np
 
     from ..geometry.world import load_world
@@ -83,6 +84,7 @@ def cmd_map_info(args: argparse.Namespace) -> int:
 
 
 def cmd_map_draw(args: argparse.Namespace) -> int:
+    """``pathpref map draw``: the map, its polytopes and preference as a figure."""
     from ..geometry.world import load_world
     from ..viz.mapdraw import save_map_figure
 
@@ -97,6 +99,7 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
 
 # --- db -------------------------------------------------------------------------------------
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
+    """``pathpref db upgrade``: migrate a results database to the current schema."""
     from ..experiments.migrate import upgrade_database
 
     remap = {}
@@ -145,6 +148,7 @@ def load_simulator(sim: str) -> None:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
     from ..experiments.report import load_records, markdown_tables
     from ..experiments.sweep import run_sweep, sweep_specs
 
@@ -165,6 +169,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
+    """``pathpref report``: tables, side-by-side with the paper, CSV and optional figure."""
     from ..experiments.report import load_records, markdown_tables, side_by_side, write_csv
 
     if not Path(args.db).exists():
@@ -188,6 +193,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_timing(args: argparse.Namespace) -> int:
+    """``pathpref timing``: the paper's Table II (first-decision update and solve times)."""
     from tqdm import tqdm
 
     from ..episode import cached_world
@@ -209,6 +215,7 @@ def cmd_timing(args: argparse.Namespace) -> int:
 
 
 def cmd_belief_curves(args: argparse.Namespace) -> int:
+    """``pathpref belief-curves``: Fig. 4 (P(true goal) and entropy over time) on its instance."""
     from ..episode import FIG4
     from ..experiments.curves import curves_from_store
     from ..experiments.sweep import fixed_specs, run_sweep
@@ -233,6 +240,7 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
 
 
 def cmd_render(args: argparse.Namespace) -> int:
+    """``pathpref render``: one MuJoCo episode as a video and/or a rerun recording."""
     from ..episode import EpisodeSpec
     from .rollout import record_rollout
 
@@ -265,6 +273,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
 
 def cmd_interact(args: argparse.Namespace) -> int:
+    """``pathpref interact``: push the robot yourself in the MuJoCo viewer."""
     os.environ.setdefault("MUJOCO_GL", "glfw")  # the viewer needs a windowing backend
     from .interact import InteractiveSession, run_viewer
 
@@ -277,6 +286,7 @@ def cmd_interact(args: argparse.Namespace) -> int:
 
 # --- bench / demo ---------------------------------------------------------------------------
 def cmd_bench(args: argparse.Namespace) -> int:
+    """``pathpref bench``: the benchmarks as JSON (:mod:`pathpref.apps.benchmarks`)."""
     from .benchmarks import run_benchmarks
 
     result = run_benchmarks(maps=args.maps, quick=args.quick, physics=not args.no_physics)
@@ -288,6 +298,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
+    """``pathpref demo``: the Fig. 4 instance for every method, rates, figures, videos."""
     from .demo import run_demo
 
     out = Path(args.out)
@@ -303,10 +314,12 @@ class OneLineParser(argparse.ArgumentParser):
     """Usage errors as one line (``pathpref: error: ...``) and exit status 2."""
 
     def error(self, message: str):  # type: ignore[override]
+        """Print the usage error as one line and exit with status 2."""
         self.exit(2, f"pathpref: error: {message} (see '{self.prog} --help')\n")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of every subcommand."""
     p = OneLineParser(
         prog="pathpref",
         description="Infer a person's goal and path preference from sparse nudges "
@@ -447,6 +460,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; a :class:`PathprefError` becomes one line and exit status 2."""
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -40,6 +40,7 @@ class Instance:
 
     @property
     def goal_cell(self) -> int:
+        """Cell index of the true goal."""
         return self.goals[self.true_goal]
 
 

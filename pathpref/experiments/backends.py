@@ -31,6 +31,7 @@ BACKENDS = ("local", "ray")
 
 
 def failed(spec: EpisodeSpec, reason: str) -> EpisodeResult:
+    """The result of an episode that could not run (``status='failed'``, with its reason)."""
     return EpisodeResult(spec=spec, instance=Instance(-1, (), -1), status="failed",
                          reason=reason[:2000])
 
@@ -128,6 +129,7 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
 
 def iter_results(specs: list[EpisodeSpec], backend: str, workers: int,
                  address: str | None = None) -> Iterator[EpisodeResult]:
+    """Results of ``specs`` from the named backend, in completion order."""
     if backend == "local":
         return iter_local(specs, workers)
     if backend == "ray":

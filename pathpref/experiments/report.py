@@ -141,6 +141,7 @@ def side_by_side(records: list[dict[str, Any]]) -> str:
 
 
 def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:
+    """Write ``records`` (dicts with the same keys) as CSV to ``path``."""
     if not records:
         Path(path).write_text("")
         return
@@ -151,5 +152,6 @@ def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:
 
 
 def load_records(db: str | Path) -> list[dict[str, Any]]:
+    """Every episode row of the results database ``db``."""
     with ResultStore(db, create=False) as store:
         return success_table(store.episodes())

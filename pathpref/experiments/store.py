@@ -134,16 +134,19 @@ class ResultStore:
             )
 
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
+        """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``."""
         cur = self.conn.execute(f"SELECT * FROM episodes {where}", tuple(params))
         names = [d[0] for d in cur.description]
         return [dict(zip(names, r, strict=True)) for r in cur]
 
     def steps(self, key: str) -> list[dict[str, Any]]:
+        """The per-step rows of episode ``key``, in step order."""
         cur = self.conn.execute("SELECT * FROM steps WHERE key = ? ORDER BY t", (key,))
         names = [d[0] for d in cur.description]
         return [dict(zip(names, r, strict=True)) for r in cur]
 
     def close(self) -> None:
+        """Close the database connection."""
         self.conn.close()
 
     def __enter__(self) -> ResultStore:

@@ -70,6 +70,7 @@ def time_map(map_name: str, instances: int = 100, queries: int = 5000, preset: s
 
 
 def timing_markdown(results: list[dict[str, Any]]) -> str:
+    """Markdown table of :func:`time_map` results with the paper's Table II beside them."""
     lines = ["| map | solve goal only (ms) | solve path pref (ms) | update goal only (ms) | "
              "update path pref (ms) |", "|---|---|---|---|---|"]
     for r in results:

@@ -65,6 +65,7 @@ class GridMotion:
 
     @property
     def n_cells(self) -> int:
+        """Number of free cells."""
         return len(self.next_cell)
 
     def adjacency(self) -> csr_matrix:

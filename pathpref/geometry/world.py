@@ -33,6 +33,7 @@ class World:
 
     @classmethod
     def from_spec(cls, spec: MapSpec) -> World:
+        """Build the arrangement, polytope graph, grid motion and preference of ``spec``."""
         arr = build_arrangement(spec)
         graph = build_graph(arr)
         motion = build_motion(arr, graph)
@@ -43,22 +44,27 @@ class World:
 
     @property
     def name(self) -> str:
+        """The map's name."""
         return self.spec.name
 
     @property
     def n_cells(self) -> int:
+        """Number of free cells."""
         return self.arrangement.n_cells
 
     @property
     def n_polytopes(self) -> int:
+        """Number of free polytopes."""
         return self.arrangement.n_polytopes
 
     @property
     def cells(self) -> np.ndarray:
+        """``(n, 2)`` 1-based ``(x, y)`` of each free cell."""
         return self.arrangement.cells
 
     @property
     def cell_polytope(self) -> np.ndarray:
+        """``(n,)`` polytope id of each free cell."""
         return self.arrangement.cell_polytope
 
     def cell(self, xy: Any, what: str = "cell") -> int:

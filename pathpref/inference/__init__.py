@@ -1,0 +1,7 @@
+"""Inference: the Boltzmann human and the robot's belief.
+
+* :mod:`.costs` (``build_cost_tables``): constrained shortest-path costs per goal and exit;
+* :mod:`.human` (``ObservationModel``, ``SimulatedHuman``): ``P(heading | s, g, p_v)`` (SPEC 4);
+* :mod:`.belief` (``Belief``, ``PreferenceBelief``, ``GoalBelief``): the exact posterior over
+  goal and preference (paper Eq. 2, SPEC 5) and the goal-only one.
+"""

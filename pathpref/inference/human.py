@@ -143,6 +143,7 @@ class ObservationModel:
 
     @property
     def goals(self) -> np.ndarray:
+        """Goal candidate cell indices, in the order of the goal axis."""
         return self.tables.goals
 
     @cached_property
@@ -151,10 +152,12 @@ class ObservationModel:
 
     @cached_property
     def likelihood(self) -> np.ndarray:
+        """``(n, 8, G, K)`` ``P(heading | s, g, p_v(s) = N(v)[k])`` (SPEC 4)."""
         return boltzmann(self._delta[0], self.gamma, self.normalize)
 
     @cached_property
     def goal_likelihood(self) -> np.ndarray:
+        """``(n, 8, G)`` ``P(heading | s, g)`` of the unconstrained human (goal-only baseline)."""
         return boltzmann(self._delta[1], self.gamma, self.normalize)
 
     @cached_property

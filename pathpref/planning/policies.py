@@ -100,6 +100,7 @@ class PlannerPolicy(Policy):
         self.history: list[tuple[int, int]] = []
 
     def enter(self, v_from: int, v_to: int) -> None:
+        """Record the transition (the robust search scores the episode's history)."""
         super().enter(v_from, v_to)
         self.history.append((v_from, v_to))
 
@@ -154,6 +155,7 @@ class OraclePolicy(Policy):
         self.dist = ctx.model.tables.dist[ctx.true_goal]
 
     def act(self, t: int, cell: int, heading: int | None) -> int:
+        """Follow the preference-respecting shortest path (see class docstring)."""
         m = self.ctx.world.motion
         allowed = ~m.blocked[cell]
         field = self.dist
@@ -192,6 +194,7 @@ class CompliantPolicy(Policy):
         self.remaining = 0
 
     def act(self, t: int, cell: int, heading: int | None) -> int:
+        """The heading when there is one; else the last one for ``momentum`` steps; else STAY."""
         if heading is not None:
             self.last, self.remaining = heading, self.ctx.preset.momentum
             return heading
@@ -208,6 +211,7 @@ class BlendedPolicy(PathPreferencePolicy):
     name = "blended"
 
     def act(self, t: int, cell: int, heading: int | None) -> int:
+        """The human's heading when the robot is unsure, else the path-preference action."""
         if heading is not None:
             v = int(self.ctx.world.cell_polytope[cell])
             if self.belief.joint_entropy(v) > self.ctx.preset.entropy_threshold:

@@ -54,6 +54,7 @@ ARM_GAINS = [(120.0, 10.0)] * 3 + [(250.0, 12.0)] * 3
 
 
 def jaco_xml() -> Path:
+    """Path of the Kinova Jaco MJCF that ships with dm_control (``third_party/kinova``)."""
     import dm_control
 
     path = Path(dm_control.__file__).parent / "third_party" / "kinova" / "jaco_arm.xml"
@@ -136,6 +137,7 @@ class ArmBase(MobileBase):
         self.deepest = 0.0  # deepest arm/obstacle penetration at the end of a move (m)
 
     def reset(self, cell: int) -> None:
+        """Reset the physics with the base at ``cell``, the arm at home and the tray level."""
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self.xy] = self.scene.cell_centre(cell)
         self.data.qpos[self.arm_qpos] = ARM_HOME

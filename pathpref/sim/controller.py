@@ -14,6 +14,10 @@ import numpy as np
 
 @dataclass(frozen=True)
 class TrackingController:
+    """Proportional velocity tracking of a cell centre, saturated at ``v_max``; yaw held at 0.
+
+    A move ends when the base is within ``tol_m`` of the target and slower than ``still_mps``,
+    or after ``time_limit_s``."""
     kp: float = 4.0
     v_max: float = 0.8
     k_yaw: float = 3.0
@@ -30,5 +34,6 @@ class TrackingController:
         return np.array([v[0], v[1], -self.k_yaw * yaw])
 
     def settled(self, pos: np.ndarray, vel: np.ndarray, target: np.ndarray) -> bool:
+        """Within ``tol_m`` of ``target`` and slower than ``still_mps``."""
         return (np.linalg.norm(np.asarray(target) - pos) < self.tol_m
                 and np.linalg.norm(vel) < self.still_mps)

@@ -20,16 +20,19 @@ from ..geometry.grid import heading_to_action
 
 @dataclass(frozen=True)
 class Cue:
+    """A detected push: its impulse (N s, world x-y), peak force (N) and duration (s)."""
     impulse: np.ndarray  # N s, world frame (x, y)
     peak_n: float
     duration_s: float
 
     @property
     def angle(self) -> float:
+        """Direction of the impulse (radians, counter-clockwise from +x)."""
         return float(np.arctan2(self.impulse[1], self.impulse[0]))
 
     @property
     def heading(self) -> int:
+        """The impulse's compass sector (0..7: N, NE, ..., NW)."""
         return heading_to_action(self.angle)
 
 
@@ -43,6 +46,7 @@ class CueDetector:
         self.reset()
 
     def reset(self) -> None:
+        """Forget any cue in progress."""
         self.active = False
         self._above = 0.0
         self._below = 0.0
@@ -51,6 +55,8 @@ class CueDetector:
         self._duration = 0.0
 
     def update(self, f_xy: np.ndarray) -> Cue | None:
+        """One force sample: on above ``on_n`` for ``on_s``, off below ``off_n`` for ``off_s``;
+        the cue (integrated impulse) when it ends, else None."""
         mag = float(np.hypot(f_xy[0], f_xy[1]))
         if not np.isfinite(mag):
             return None

@@ -49,6 +49,7 @@ class HumanPush:
     @classmethod
     def sample(cls, heading: int, t0: float, profile: PushProfile,
                rng: np.random.Generator) -> HumanPush:
+        """A push toward ``heading`` with the profile's Gaussian angle noise, starting at ``t0``."""
         noise = np.deg2rad(profile.noise_deg) * rng.standard_normal()
         return cls(float(ACTION_ANGLES[heading] + noise), t0, profile, heading)
 
@@ -58,6 +59,7 @@ class HumanPush:
         return np.array([f * np.cos(self.angle), f * np.sin(self.angle), 0.0])
 
     def active(self, t: float) -> bool:
+        """Whether the push acts at simulation time ``t``."""
         return self.t0 <= t <= self.t0 + self.profile.duration_s
 
     def apply(self, data, body_id: int) -> None:

@@ -60,6 +60,7 @@ class MobileBase:
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
+        """Reset the physics with the base at the centre of ``cell``."""
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self.xy] = self.scene.cell_centre(cell)
         self.target = self.scene.cell_centre(cell)

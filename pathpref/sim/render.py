@@ -58,6 +58,7 @@ class RolloutRenderer:
     def overlays(self, goal_cells: np.ndarray, belief: np.ndarray, true_goal: int,
                  polygon: np.ndarray | None, push_origin: np.ndarray | None,
                  push_force: np.ndarray | None) -> None:
+        """Draw the goals (tinted by belief), the current polytope and the push arrow."""
         scn = self.renderer.scene
         cs = self.scene.cell_size
         pmax = max(float(belief.max()), 1e-9)
@@ -93,6 +94,7 @@ class RolloutRenderer:
         return np.concatenate(views, axis=1)
 
     def close(self) -> None:
+        """Release the renderer's GL context."""
         self.renderer.close()
 
 

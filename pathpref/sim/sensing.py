@@ -19,6 +19,7 @@ class HandleSensor:
         self.site = int(model.site(site).id)
 
     def force_xy(self, data) -> np.ndarray:
+        """The horizontal interaction force (N) in the world frame."""
         f_site = data.sensordata[self.adr:self.adr + 3]
         R = data.site_xmat[self.site].reshape(3, 3)
         return -(R @ f_site)[:2]

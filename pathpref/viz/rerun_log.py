@@ -20,6 +20,7 @@ from .mapdraw import polytope_centres
 
 
 class RerunLogger:
+    """Writes an episode to an offline rerun file (entities in the module docstring)."""
     def __init__(self, world: World, goal_cells: np.ndarray, true_goal: int, out: str | Path,
                  cell_size: float = 0.5, app: str = "pathpref"):
         self.rec = rr.RecordingStream(app)
@@ -54,6 +55,7 @@ class RerunLogger:
 
     def log_step(self, t: int, xy: np.ndarray, belief: np.ndarray, p_true: float,
                  entropy: float, push: np.ndarray | None) -> None:
+        """A decision step: path, position, detected push, goal belief, P(true goal), entropy."""
         rec = self.rec
         rec.set_time("step", sequence=int(t))
         self.path.append(np.asarray(xy, float))
@@ -68,5 +70,6 @@ class RerunLogger:
         rec.log("belief/entropy", rr.Scalars(float(entropy)))
 
     def close(self) -> None:
+        """Flush and close the recording."""
         self.rec.flush()
         self.rec.disconnect()
