@@ -93,6 +93,7 @@ class EpisodeSpec:
     def validate(self) -> None:
         """Refuse settings no episode can run with (one line naming the field and the fix).
         Whether the body offers the task is checked where the body is chosen (:mod:`.body`)."""
+        preset = get_preset(self.preset)
         if self.delta_t < 1:
             raise ConfigError(f"--delta-t must be at least 1, got {self.delta_t}")
         if self.t_max < 1:
@@ -108,6 +109,5 @@ class EpisodeSpec:
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")
-        if self.time_budget_ms > 0 and get_preset(self.preset).search != "robust":
+        if self.time_budget_ms > 0 and preset.search != "robust":
             raise ConfigError("--time-budget-ms needs the robust search: add --preset robust")
-        get_preset(self.preset)
