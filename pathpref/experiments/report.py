@@ -26,14 +26,16 @@ METHOD_LABEL = {
 
 
 def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """95% Wilson score interval of a binomial proportion."""
+    """95% Wilson score interval of a binomial proportion, clipped so that it always holds the
+    estimate ``p = successes / n`` and lies in [0, 1] (rounding put the bound of an all-success
+    or all-failure cell one ulp past ``p`` for n = 6, 21, 31, ...)."""
     if n == 0:
         return (0.0, 1.0)
     p = successes / n
     den = 1 + z * z / n
     centre = (p + z * z / (2 * n)) / den
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    return (min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half)))
 
 
 def variant(r: dict[str, Any]) -> str:
