@@ -98,30 +98,53 @@ def test_killed_worker_is_rerun(tmp_path, monkeypatch):
     assert all(r.status == "ok" for r in out)
 
 
-def test_ten_random_kills_during_200_episode_sweep(tmp_path):
-    """SIGKILL the coordinator or a worker 10 times at random moments, then finish: exactly one
-    row per episode, no gaps, an intact database."""
+def _children(pid: int) -> list[int]:
+    out = subprocess.run(["pgrep", "-P", str(pid)], capture_output=True, text=True).stdout
+    return [int(x) for x in out.split()]
+
+
+def _gone(pid: int) -> bool:
+    """The process no longer exists (or is a zombie waiting for its reaper)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except FileNotFoundError:
+        return True
+
+
+def _wait_gone(pids, seconds=5.0) -> list[int]:
+    t = time.monotonic() + seconds
+    while time.monotonic() < t and not all(_gone(p) for p in pids):
+        time.sleep(0.1)
+    return [p for p in pids if not _gone(p)]
+
+
+def test_random_single_process_kills_during_200_episode_sweep(tmp_path):
+    """SIGKILL (or SIGTERM) the coordinator or one worker by pid, 12 times at random moments,
+    then finish: exactly one row per episode, the same rows as a clean run, an intact database,
+    and no worker left 5 s after its coordinator died."""
     db = tmp_path / "k.sqlite"
-    cmd = [sys.executable, "-m", "pathpref", "evaluate", "--map", "simple", "--methods",
-           "compliant", "goal_only", "--delta-t", "1", "5", "10", "20", "30", "--instances", "4",
-           "--runs", "5", "--queries", "100", "--db", str(db), "--workers", "2", "--no-progress"]
+    args = ["evaluate", "--map", "simple", "--methods", "compliant", "goal_only", "--delta-t",
+            "1", "5", "10", "20", "30", "--instances", "4", "--runs", "5", "--queries", "100",
+            "--no-progress"]
+    cmd = [sys.executable, "-m", "pathpref", *args, "--db", str(db), "--workers", "2"]
     total = 2 * 5 * 4 * 5
     rng = random.Random(7)
-    for k in range(10):
+    for k in range(12):
         p = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              start_new_session=True)
         time.sleep(rng.uniform(1.0, 3.0))
-        if k % 2 and p.poll() is None:
-            kids = subprocess.run(["pgrep", "-P", str(p.pid)], capture_output=True,
-                                  text=True).stdout.split()
-            if kids:
-                os.kill(int(rng.choice(kids)), signal.SIGKILL)  # a worker
-                time.sleep(rng.uniform(0.3, 1.0))
+        kids = _children(p.pid)
+        if k % 2 and kids:
+            os.kill(rng.choice(kids), signal.SIGKILL)  # one worker
+            time.sleep(rng.uniform(0.3, 1.0))
+        kids = _children(p.pid)
         try:
-            os.killpg(p.pid, signal.SIGKILL)  # the coordinator (and its pool)
+            os.kill(p.pid, signal.SIGTERM if k % 3 == 0 else signal.SIGKILL)  # the coordinator
         except ProcessLookupError:
             pass
         p.wait()
+        assert _wait_gone(kids) == [], f"workers outlived their coordinator (round {k})"
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr
     with sqlite3.connect(db) as c:
@@ -132,3 +155,33 @@ def test_ten_random_kills_during_200_episode_sweep(tmp_path):
             "SELECT COUNT(*) FROM steps WHERE key NOT IN (SELECT key FROM episodes)").fetchone()
     assert len(keys) == len(set(keys)) == total
     assert orphans[0] == 0
+    clean = tmp_path / "clean.sqlite"
+    subprocess.run([sys.executable, "-m", "pathpref", *args, "--db", str(clean), "--workers",
+                    "2"], check=True, capture_output=True, timeout=600)
+    assert rows(db) == rows(clean)
+
+
+def test_a_frozen_worker_costs_its_timeout_only(tmp_path):
+    """SIGSTOP one worker: the coordinator kills it after the episode's timeout and runs the
+    episode again; the rows equal a clean run's."""
+    args = ["evaluate", "--map", "simple", "--methods", "goal_only", "--delta-t", "1", "5",
+            "--instances", "10", "--runs", "2", "--queries", "2000", "--no-progress",
+            "--episode-timeout", "2"]
+    db, clean = tmp_path / "s.sqlite", tmp_path / "clean.sqlite"
+    p = subprocess.Popen([sys.executable, "-m", "pathpref", *args, "--db", str(db), "--workers",
+                          "2"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    t = time.monotonic()
+    while not _children(p.pid) and time.monotonic() - t < 30:
+        time.sleep(0.02)
+    victim = _children(p.pid)[0]
+    os.kill(victim, signal.SIGSTOP)
+    try:
+        p.wait(timeout=120)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 0, p.stderr.read()
+    assert time.monotonic() - t < 60
+    subprocess.run([sys.executable, "-m", "pathpref", *args, "--db", str(clean)], check=True,
+                   capture_output=True, timeout=300)
+    assert rows(db) == rows(clean)
