@@ -69,7 +69,7 @@ def test_refuses_foreign_and_incompatible_files(tmp_path):
     other = tmp_path / "other.sqlite"
     with sqlite3.connect(other) as c:
         c.execute("CREATE TABLE t (x)")
-    with pytest.raises(ConfigError, match="not written by pathpref"):
+    with pytest.raises(ConfigError, match="not a pathpref results database"):
         ResultStore(other)
     old = tmp_path / "old.sqlite"
     ResultStore(old).close()

@@ -9,10 +9,12 @@ from __future__ import annotations
 
 import csv
 import math
+import sqlite3
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
+from ..errors import ConfigError
 from .paper import TABLE_I
 from .store import ResultStore
 
@@ -154,6 +156,11 @@ def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:
 
 
 def load_records(db: str | Path) -> list[dict[str, Any]]:
-    """Every episode row of the results database ``db``."""
+    """Every episode row of the results database ``db`` (damage found while reading: one
+    ConfigError line)."""
     with ResultStore(db, create=False) as store:
-        return success_table(store.episodes())
+        try:
+            return success_table(store.episodes())
+        except sqlite3.DatabaseError as e:
+            raise ConfigError(f"cannot read results from {db}: {e} (the file is damaged)"
+                              ) from None

@@ -10,10 +10,13 @@ and never modified.
 from __future__ import annotations
 
 import dataclasses
+import os
 import sqlite3
+import stat
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
@@ -33,6 +36,7 @@ EPISODE_COLUMNS = {
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
     "human": "TEXT", "back_crossings": "INTEGER",
 }
+STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
 
 
 class ResultStore:
@@ -57,33 +61,74 @@ class ResultStore:
             self._create_schema()
 
     def _check_existing(self) -> bool:
-        """True for a compatible pathpref database, False for a new/empty file, else raise."""
-        if not self.path.exists() or self.path.stat().st_size == 0:
-            return False
-        with open(self.path, "rb") as f:
-            if f.read(16) != b"SQLite format 3\x00":
-                raise ConfigError(
-                    f"{self.path} is not a pathpref results database (not SQLite); "
-                    "give another --db path"
-                )
+        """True for a compatible pathpref database, False for a new or empty file, else a
+        one-line ConfigError. Checked before any read-write connection, on a read-only one
+        (immutable, so no side file appears, unless the file already has its ``-wal``): a
+        regular file; SQLite; exactly pathpref's tables (``meta``, ``episodes``, ``steps``, and
+        SQLite's own indexes of their keys) with pathpref's columns and no view, trigger or
+        other table (a file from elsewhere could otherwise rewrite or invent results); the
+        schema row; and SQLite's ``quick_check``."""
+        p = self.path
         try:
-            ro = sqlite3.connect(f"file:{self.path}?mode=ro", uri=True, timeout=30)
+            st = os.stat(p)
+        except FileNotFoundError:
+            return False
+        except OSError as e:
+            raise ConfigError(f"cannot read results database {p}: {e}") from None
+        if not stat.S_ISREG(st.st_mode):
+            raise ConfigError(f"{p} is not a regular file (a folder or a device); give the path "
+                              "of a results database with --db")
+        if st.st_size == 0:
+            return False
+        with open(p, "rb") as f:
+            if f.read(16) != b"SQLite format 3\x00":
+                raise ConfigError(f"{p} is not a pathpref results database (not SQLite); "
+                                  "give another --db path")
+        immutable = "" if Path(f"{p}-wal").exists() else "&immutable=1"
+        uri = f"file:{quote(str(p.resolve()))}?mode=ro{immutable}"
+        try:
+            ro = sqlite3.connect(uri, uri=True, timeout=30)
             try:
-                tables = {r[0] for r in ro.execute(
-                    "SELECT name FROM sqlite_master WHERE type='table'")}
-                row = (ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-                       if "meta" in tables else None)
+                objects = ro.execute("SELECT type, name, tbl_name FROM sqlite_master").fetchall()
+                self._check_objects(objects)
+                if not objects:
+                    return False
+                row = ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                found = int(row[0]) if row and str(row[0]).isdigit() else None
+                self._check_schema(found)
+                for table, want in (("episodes", set(EPISODE_COLUMNS)), ("steps", STEP_COLUMNS)):
+                    have = {r[1] for r in ro.execute(f"PRAGMA table_info({table})")}
+                    if have != set(want):
+                        raise ConfigError(f"{p}: table '{table}' does not have pathpref's "
+                                          "columns; it is not a pathpref results database")
+                check = ro.execute("PRAGMA quick_check").fetchone()[0]
             finally:
                 ro.close()
         except sqlite3.Error as e:
-            raise ConfigError(f"cannot read results database {self.path}: {e}") from None
-        if "meta" not in tables:
-            if not tables:
-                return False
-            raise ConfigError(
-                f"{self.path} is an SQLite file not written by pathpref; give another --db path"
-            )
-        found = int(row[0]) if row else None
+            raise ConfigError(f"cannot read results database {p}: {e} (the file is damaged or "
+                              "not a pathpref database)") from None
+        if check != "ok":
+            raise ConfigError(f"{p} is damaged (SQLite: {check}); give a new --db path (sqlite3's "
+                              "'.recover' can copy what is intact)")
+        return True
+
+    def _check_objects(self, objects: list[tuple[str, str, str]]) -> None:
+        """Refuse a file holding anything pathpref does not create (see _check_existing)."""
+        ours = {"meta", "episodes", "steps"}
+        foreign = [f"{kind} '{name}'" for kind, name, table in objects
+                   if not (kind == "table" and name in ours)
+                   and not (kind == "index" and name.startswith("sqlite_autoindex_")
+                            and table in ours)]
+        if foreign:
+            raise ConfigError(f"{self.path} holds {', '.join(foreign[:3])}, which pathpref does "
+                              "not write: it is not a pathpref results database (refused "
+                              "untouched); give another --db path")
+        if objects and {name for kind, name, _ in objects if kind == "table"} != ours:
+            raise ConfigError(f"{self.path} is an SQLite file not written by pathpref (its "
+                              "tables are not pathpref's); give another --db path")
+
+    def _check_schema(self, found: int | None) -> None:
+        """Refuse another schema version (an older one can be upgraded)."""
         if found is not None and 2 <= found < SCHEMA_VERSION:
             raise ConfigError(
                 f"{self.path} was written by an older pathpref (schema {found}, this version "
@@ -94,7 +139,6 @@ class ResultStore:
                 f"{self.path} was written by an incompatible pathpref (schema {found}, this "
                 f"version reads {SCHEMA_VERSION}); use a new --db path"
             )
-        return True
 
     def _create_schema(self) -> None:
         c = self.conn
