@@ -106,9 +106,10 @@ def check_writable(out: str | Path, option: str = "output",
                    suffixes: Sequence[str] | None = None) -> Path:
     """Fail before any work unless ``out`` is a regular file or a new name, with an allowed
     suffix, in an existing writable folder."""
-    out = Path(out)
-    if not str(out) or str(out).endswith(os.sep):
-        raise ConfigError(f"{option} {str(out)!r}: give a file name, not a folder")
+    text = os.fspath(out)
+    if not text or text.endswith(os.sep):
+        raise ConfigError(f"{option} {text!r}: give a file name, not a folder")
+    out = Path(text)
     try:
         st = os.stat(out)  # follows a symlink: its target must be a regular file too
     except FileNotFoundError:

@@ -255,8 +255,7 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
     if counts["failed"]:
         raise ConfigError(f"{counts['failed']} of {len(specs)} episodes failed (see 'pathpref "
                           f"report {db}'); the curves need complete episodes: raise "
-                          "--episode-timeout or fix the cause, then run again with "
-                          "--retry-failed semantics by deleting the database")
+                          "--episode-timeout or fix the cause, and run again with a new --db")
     keys = {m: [s.key() for s in specs if s.method == m] for m in ("path_preference", "goal_only")}
     curves = curves_from_store(db, keys, common["t_max"])
     atomic_output(out, lambda p: belief_curves_figure(curves, p))
