@@ -8,8 +8,9 @@ the fix.
 from __future__ import annotations
 
 
-class PathprefError(Exception):
-    """Base class of every error caused by bad user input."""
+class PathprefError(ValueError):
+    """Base class of every error caused by bad user input (a ValueError: the Python API
+    refuses a bad value the way Python does)."""
 
 
 class MapError(PathprefError):

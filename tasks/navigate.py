@@ -18,11 +18,21 @@ or after ``T_max`` decisions (discount 1, a time limit). Seeds: the ``k``-th epi
 
 ``env.task.policy_action()`` is the loaded method's own choice (its planner and belief), which
 makes the environment runnable end to end without an external agent.
+
+``map`` is a built-in name, a JSON path, a map dictionary (the format of
+:mod:`pathpref.geometry.maps`; its world is built directly, nothing is written) or a
+:class:`~pathpref.geometry.maps.MapSpec`. A map whose arrangement may exceed
+:data:`~pathpref.geometry.arrangement.MAX_POLYTOPES` is refused unless ``force=True``. Bad
+arguments (``delta_t="5"``, ``seed=-1``) and bad actions (an array of two numbers, a string,
+``None``, ``2**70``) are one-line :class:`~pathpref.errors.ConfigError` s.
 """
 
 from __future__ import annotations
 
 import collections
+import math
+import numbers
+from typing import Any
 
 import numpy as np
 from dm_control import mujoco as dm_mujoco
@@ -31,14 +41,53 @@ from dm_control.rl import control
 from dm_control.suite import base
 from dm_env import specs
 
-from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
+from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
+from pathpref.episode.spec import check_limit
 from pathpref.errors import ConfigError
+from pathpref.geometry.arrangement import check_arrangement_size
 from pathpref.geometry.grid import STAY
+from pathpref.geometry.maps import MapSpec, parse_map
+from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
 from pathpref.sim.body import MujocoBody, scene_for
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
+
+
+def task_world(map: Any, force: bool = False) -> tuple[World, str]:
+    """The world of ``map`` (name, path, dictionary or MapSpec) and the name its episodes
+    carry; a dictionary's world is built directly (no file), a name's is cached."""
+    if isinstance(map, dict | MapSpec):
+        spec = map if isinstance(map, MapSpec) else parse_map(map)
+        check_arrangement_size(spec, force)
+        return World.from_spec(spec), f"dict:{spec.name}"
+    if not isinstance(map, str):
+        raise ConfigError(f"map must be a built-in name, a JSON path or a map dictionary, got "
+                          f"{type(map).__name__}")
+    check_arrangement_size(cached_map(map), force)
+    return cached_world(map), map
+
+
+def parse_action(action: Any) -> int:
+    """``action`` (an int, a whole float, a NumPy scalar or a one-element array) as 0..8; a
+    one-line ConfigError otherwise."""
+    def bad(shown: str) -> ConfigError:
+        return ConfigError(f"action must be 0..{STAY_ACTION} (8 = stay), got {shown}")
+
+    a = action
+    if isinstance(a, np.ndarray):
+        if a.size != 1:
+            raise bad(f"an array of shape {a.shape}")
+        a = a.reshape(()).item()
+    if isinstance(a, bool | np.bool_) or not isinstance(a, numbers.Real):
+        raise bad(repr(a)[:40])
+    if not isinstance(a, numbers.Integral):
+        if not (math.isfinite(a) and float(a).is_integer()):
+            raise bad(repr(a)[:40])
+    if not 0 <= a <= STAY_ACTION:
+        raise bad(repr(a)[:40] if abs(a) < 1e30 else "a number out of range")
+    return int(a)
 
 
 class Physics(dm_mujoco.Physics):
@@ -55,12 +104,14 @@ class Navigate(base.Task):
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
-                 task: str = "navigate"):
+                 task: str = "navigate", force: bool = False):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
-        self.world = cached_world(map)
-        self.seed = seed
+        self.seed = check_limit("seed", seed, "seed")
+        if t_max is not None:
+            check_limit("t_max", t_max, "t_max")
+        self.world, map_name = task_world(map, force)
         self.template = EpisodeSpec(
-            map=map, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
+            map=map_name, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
             sim="mujoco", task=task)
@@ -92,10 +143,7 @@ class Navigate(base.Task):
     def before_step(self, action, physics: Physics) -> None:
         """Run the decision step with the agent's action and keep its reward."""
         r = self.runner
-        a = np.asarray(action).item()
-        if not (np.isfinite(a) and float(a).is_integer() and 0 <= a <= STAY_ACTION):
-            raise ConfigError(f"action must be 0..{STAY_ACTION} (8 = stay), got {action!r}")
-        a = int(a)
+        a = parse_action(action)
         if a == STAY_ACTION:
             a = STAY
         before = r.cell

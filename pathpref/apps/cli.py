@@ -1,7 +1,8 @@
 """The ``pathpref`` command line.
 
 Every subcommand turns a :class:`~pathpref.errors.PathprefError` into one line on stderr and
-exit status 2; an output file is written whole or not at all.
+exit status 2; numbers are range-checked at parse time and every output is checked before any
+work (:mod:`.checks`); an output file is written whole or not at all.
 """
 
 from __future__ import annotations
@@ -10,38 +11,44 @@ import argparse
 import json
 import os
 import sys
-import tempfile
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
 from ..errors import ConfigError, PathprefError
 from ..planning.pomdp import DEFAULT_PRESET, PRESETS
+from .checks import (
+    FIGURE_SUFFIXES,
+    RangeAction,
+    atomic_output,
+    check_database,
+    check_episode_count,
+    check_model_size,
+    check_output_folder,
+    check_writable,
+    is_disk_full,
+    load_world_checked,
+    staged_outputs,
+    write_error,
+)
+
+__all__ = ["atomic_output", "build_parser", "check_writable", "main"]
 
 
-def check_writable(out: str | Path) -> Path:
-    """Fail before any work when ``out`` cannot be written."""
-    out = Path(out)
-    parent = out.parent if str(out.parent) else Path(".")
-    if not parent.is_dir():
-        raise ConfigError(f"cannot write {out}: folder {parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise ConfigError(f"cannot write {out}: folder {parent} is not writable")
-    return out
+def _new_database_guard(db: str | Path):
+    """A function that removes ``db`` and its SQLite side files when this command created it
+    (after a failure such as a full disk); an existing database is never removed."""
+    existed = Path(db).exists()
 
+    def cleanup() -> None:
+        if existed:
+            return
+        for suffix in ("", "-journal", "-wal", "-shm"):
+            try:
+                os.unlink(f"{db}{suffix}")
+            except FileNotFoundError:
+                pass
 
-def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
-    """Call ``write(tmp_path)`` and move the result onto ``out``; nothing is left on failure."""
-    out = check_writable(out)
-    parent = out.parent if str(out.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{out.stem}.", suffix=out.suffix)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, out)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return out
+    return cleanup
 
 
 # --- map ------------------------------------------------------------------------------------
@@ -49,9 +56,7 @@ def cmd_map_info(args: argparse.Namespace) -> int:
     """``pathpref map info``: sizes of the map's arrangement, graph and free space."""
     import numpy as np
 
-    from ..geometry.world import load_world
-
-    world = load_world(args.map)
+    world = load_world_checked(args.map, args.force)
     deg = [len(n) for n in world.graph.neighbors]
     comp = np.bincount(world.motion.components())
     info = {
@@ -85,13 +90,10 @@ def cmd_map_info(args: argparse.Namespace) -> int:
 
 def cmd_map_draw(args: argparse.Namespace) -> int:
     """``pathpref map draw``: the map, its polytopes and preference as a figure."""
-    from ..geometry.world import load_world
     from ..viz.mapdraw import save_map_figure
 
-    world = load_world(args.map)
-    out = check_writable(args.out)
-    if out.suffix.lower() not in (".png", ".pdf", ".svg"):
-        raise ConfigError(f"--out {out}: use a .png, .pdf or .svg file name")
+    out = check_writable(args.out, "--out", FIGURE_SUFFIXES)
+    world = load_world_checked(args.map, args.force)
     atomic_output(out, lambda p: save_map_figure(world, p))
     print(f"wrote {out}")
     return 0
@@ -151,14 +153,26 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
     from ..experiments.report import load_records, markdown_tables
     from ..experiments.sweep import run_sweep, sweep_specs
+    from ..planning.policies import resolve_methods
 
+    check_database(args.db)
+    check_episode_count([args.instances, args.runs, len(args.delta_t),
+                         len(resolve_methods(args.methods))], "the sweep")
     load_simulator(args.sim)
+    check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
                         **_common_episode_args(args, args.map))
-    counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
-                       retry_failed=args.retry_failed, backend=args.backend,
-                       address=args.address)
+    cleanup = _new_database_guard(args.db)
+    try:
+        counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
+                           retry_failed=args.retry_failed, backend=args.backend,
+                           address=args.address)
+    except Exception as e:
+        if not is_disk_full(e):
+            raise
+        cleanup()
+        raise write_error(args.db, e) from None
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
           f"in {args.db}, {counts['seconds']} s")
     from ..episode import cached_map
@@ -172,8 +186,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     """``pathpref report``: tables, side-by-side with the paper, CSV and optional figure."""
     from ..experiments.report import load_records, markdown_tables, side_by_side, write_csv
 
-    if not Path(args.db).exists():
-        raise ConfigError(f"no results database at {args.db}; run 'pathpref evaluate' first")
+    check_database(args.db, "database", must_exist=True)
+    csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
+    check_writable(csv_path, "--csv", (".csv",))
+    if args.figure:
+        check_writable(args.figure, "--figure", FIGURE_SUFFIXES)
     recs = load_records(args.db)
     if not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
@@ -181,7 +198,6 @@ def cmd_report(args: argparse.Namespace) -> int:
     both = side_by_side(recs)
     if both:
         print("\n" + both)
-    csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
     atomic_output(csv_path, lambda p: write_csv(recs, p))
     print(f"\nwrote {csv_path}")
     if args.figure:
@@ -196,11 +212,10 @@ def cmd_timing(args: argparse.Namespace) -> int:
     """``pathpref timing``: the paper's Table II (first-decision update and solve times)."""
     from tqdm import tqdm
 
-    from ..episode import cached_world
     from ..experiments.timing import time_map, timing_markdown
 
     for m in args.maps:  # validate every map before any work
-        cached_world(m).require_preference()
+        load_world_checked(m, args.force).require_preference()
     results = []
     with tqdm(total=args.instances * len(args.maps), unit="inst", file=sys.stderr,
               disable=args.no_progress) as bar:
@@ -221,48 +236,59 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
     from ..experiments.sweep import fixed_specs, run_sweep
     from ..viz.plots import belief_curves_figure
 
-    out = check_writable(args.out)
+    out = check_writable(args.out, "--out", FIGURE_SUFFIXES)
     db = args.db or str(out.with_suffix(".sqlite"))
+    check_database(db)
+    check_episode_count([args.runs, 2], "belief-curves")
+    load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
     specs = fixed_specs(args.map, ["path_preference", "goal_only"], args.delta_t, args.runs,
                         FIG4, seed=args.seed, **common)
-    run_sweep(specs, db, workers=args.workers, progress=not args.no_progress)
+    cleanup = _new_database_guard(db)
+    try:
+        counts = run_sweep(specs, db, workers=args.workers, progress=not args.no_progress)
+    except Exception as e:
+        if not is_disk_full(e):
+            raise
+        cleanup()
+        raise write_error(db, e) from None
+    if counts["failed"]:
+        raise ConfigError(f"{counts['failed']} of {len(specs)} episodes failed (see 'pathpref "
+                          f"report {db}'); the curves need complete episodes: raise "
+                          "--episode-timeout or fix the cause, and run again with a new --db")
     keys = {m: [s.key() for s in specs if s.method == m] for m in ("path_preference", "goal_only")}
     curves = curves_from_store(db, keys, common["t_max"])
     atomic_output(out, lambda p: belief_curves_figure(curves, p))
+    t_end = common["t_max"]
+    ts = sorted({t for t in (0, 5, 10, t_end) if t <= t_end})
     for m, c in curves.items():
-        t_end = common["t_max"]
-        print(f"{m:>16}: P(true goal) at t=0/5/10/{t_end}: "
-              + "/".join(f"{c['p_mean'][t]:.2f}" for t in (0, 5, 10, t_end))
-              + "; entropy: " + "/".join(f"{c['h_mean'][t]:.2f}" for t in (0, 5, 10, t_end)))
+        print(f"{m:>16}: P(true goal) at t={'/'.join(map(str, ts))}: "
+              + "/".join(f"{c['p_mean'][t]:.2f}" for t in ts)
+              + "; entropy: " + "/".join(f"{c['h_mean'][t]:.2f}" for t in ts))
     print(f"wrote {out} (episodes in {db})")
     return 0
 
 
 def cmd_render(args: argparse.Namespace) -> int:
     """``pathpref render``: one MuJoCo episode as a video and/or a rerun recording."""
-    from ..episode import EpisodeSpec
-    from .rollout import record_rollout
-
-    out = check_writable(args.out) if args.out else None
-    if out is not None and out.suffix.lower() != ".mp4":
-        raise ConfigError(f"--out {out}: videos are written as .mp4")
-    if args.rerun:
-        check_writable(args.rerun)
-    if out is None and not args.rerun:
+    out = check_writable(args.out, "--out", (".mp4",)) if args.out else None
+    rerun = check_writable(args.rerun, "--rerun", (".rrd",)) if args.rerun else None
+    if out is None and rerun is None:
         raise ConfigError("give --out video.mp4 and/or --rerun recording.rrd")
+    if out is not None and rerun is not None and out.resolve() == rerun.resolve():
+        raise ConfigError("--out and --rerun name the same file")
+    from ..episode import EpisodeSpec
+    from .rollout import record_rollout  # imports MuJoCo: checks MUJOCO_GL
+
+    load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
                               sim="mujoco", task=args.task, **common)
-    tmp = out.with_name(f".{out.stem}.partial.mp4") if out else None
-    try:
-        rec = record_rollout(spec, video=tmp, rerun=args.rerun, width=args.width,
+    spec.validate()
+    # temporary files made exclusively (mkstemp) beside the outputs, moved on success
+    with staged_outputs([out, rerun]) as (tmp_video, tmp_rerun):
+        rec = record_rollout(spec, video=tmp_video, rerun=tmp_rerun, width=args.width,
                              height=args.height)
-        if tmp is not None:
-            os.replace(tmp, out)
-    finally:
-        if tmp is not None and tmp.exists():
-            tmp.unlink()
     r = rec.result
     print(f"{args.method} on {args.map}: goal reached {r.goal_reached}, preference followed "
           f"{r.pref_followed}, {r.steps} steps, {r.inputs} pushes; {rec.frames} frames")
@@ -277,6 +303,7 @@ def cmd_interact(args: argparse.Namespace) -> int:
     os.environ.setdefault("MUJOCO_GL", "glfw")  # the viewer needs a windowing backend
     from .interact import InteractiveSession, run_viewer
 
+    load_world_checked(args.map, args.force)
     session = InteractiveSession(map=args.map, method=args.method, seed=args.seed,
                                  queries=args.queries)
     print("Double-click the orange handle, then Ctrl + right-drag to push the robot.")
@@ -289,6 +316,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
     """``pathpref bench``: the benchmarks as JSON (:mod:`pathpref.apps.benchmarks`)."""
     from .benchmarks import run_benchmarks
 
+    for m in args.maps:
+        load_world_checked(m, args.force)
     result = run_benchmarks(maps=args.maps, quick=args.quick, physics=not args.no_physics)
     if args.json:
         print(json.dumps(result))
@@ -301,15 +330,19 @@ def cmd_demo(args: argparse.Namespace) -> int:
     """``pathpref demo``: the Fig. 4 instance for every method, rates, figures, videos."""
     from .demo import run_demo
 
-    out = Path(args.out)
-    check_writable(out / "summary.csv" if out.is_dir() else out)
-    if args.runs < 1:
-        raise ConfigError(f"--runs must be at least 1, got {args.runs}")
+    out = check_output_folder(args.out, "--out")
     run_demo(out=out, seed=args.seed, sim=args.sim, runs=args.runs, preset=args.preset)
     return 0
 
 
 # --- parser ---------------------------------------------------------------------------------
+def force_option(sp: argparse.ArgumentParser) -> None:
+    """``--force``: build a map whose arrangement may exceed the size limit."""
+    sp.add_argument("--force", action="store_true",
+                    help="build the map even when its arrangement may exceed the size limit "
+                    "(arrangement.MAX_POLYTOPES, see README 'Limits')")
+
+
 class OneLineParser(argparse.ArgumentParser):
     """Usage errors as one line (``pathpref: error: ...``) and exit status 2."""
 
@@ -335,24 +368,28 @@ def build_parser() -> argparse.ArgumentParser:
     mi = msub.add_parser("info", help="polytope/edge/cell counts of a map")
     mi.add_argument("map", help="built-in name (simple, office, classroom) or a JSON map file")
     mi.add_argument("--json", action="store_true", help="print one JSON object")
+    force_option(mi)
     mi.set_defaults(func=cmd_map_info)
     md = msub.add_parser("draw", help="draw obstacles, polytopes, edges and preference arrows")
     md.add_argument("map")
     md.add_argument("--out", required=True, help="output image (.png, .pdf, .svg)")
+    force_option(md)
     md.set_defaults(func=cmd_map_draw)
 
     def episode_options(sp: argparse.ArgumentParser, preset: str = DEFAULT_PRESET) -> None:
         sp.add_argument("--preset", default=preset, choices=sorted(PRESETS),
                         help=f"robust (guided search, exact belief), paper (the paper's "
                         f"planner) or original (the authors' code); default {preset}")
-        sp.add_argument("--time-budget-ms", type=float, default=None,
+        sp.add_argument("--time-budget-ms", action=RangeAction, limits="time_budget_ms",
+                        default=None,
                         help="robust search: wall time per decision (anytime; default: the "
                         "query count only)")
         sp.add_argument("--human", choices=["map", "consistent"], default="map",
                         help="the human's preference: the map's (the paper's protocol, "
                         "default) or consistent with its goal (goals the preference leads to)")
-        sp.add_argument("--queries", type=int, default=None, help="POMCP queries (5000)")
-        sp.add_argument("--t-max", type=int, default=None,
+        sp.add_argument("--queries", action=RangeAction, limits="queries", default=None,
+                        help="POMCP queries (5000)")
+        sp.add_argument("--t-max", action=RangeAction, limits="t_max", default=None,
                         help="mission time in decision steps (default: the map's t_max field, "
                         "else 3 x its longer side: 30 on simple/office, 60 on classroom)")
         sp.add_argument("--likelihood", choices=["normalized", "unnormalized"],
@@ -360,13 +397,16 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
-        sp.add_argument("--ucb-c", type=float, default=None,
+        sp.add_argument("--ucb-c", action=RangeAction, limits="ucb_c", default=None,
                         help="POMCP UCB constant (the preset's: 1)")
-        sp.add_argument("--episode-timeout", type=float, default=0.0,
+        sp.add_argument("--episode-timeout", action=RangeAction, limits="episode_timeout",
+                        default=0.0,
                         help="record an episode as failed after this many seconds (0: none)")
-        sp.add_argument("--seed", type=int, default=0)
-        sp.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+        sp.add_argument("--seed", action=RangeAction, limits="seed", default=0)
+        sp.add_argument("--workers", action=RangeAction, limits="workers",
+                        default=os.cpu_count() or 1)
         sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+        force_option(sp)
 
     dbp = sub.add_parser("db", help="maintain results databases")
     dbsub = dbp.add_subparsers(dest="db_command", required=True)
@@ -381,10 +421,12 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--methods", nargs="+", default=["all"],
                     help="compliant goal_only path_preference blended oracle goal_known; "
                     "all (the paper's four) or reference (oracle, goal_known)")
-    ev.add_argument("--delta-t", nargs="+", type=int, default=[1, 5, 10, 20, 30])
-    ev.add_argument("--instances", type=int, default=6)
-    ev.add_argument("--runs", type=int, default=50)
-    ev.add_argument("--goals", type=int, default=10, help="goal candidates per instance")
+    ev.add_argument("--delta-t", nargs="+", action=RangeAction, limits="delta_t",
+                    default=[1, 5, 10, 20, 30])
+    ev.add_argument("--instances", action=RangeAction, limits="instances", default=6)
+    ev.add_argument("--runs", action=RangeAction, limits="runs", default=50)
+    ev.add_argument("--goals", action=RangeAction, limits="goals", default=10,
+                    help="goal candidates per instance")
     ev.add_argument("--db", default="results.sqlite")
     ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
                     help="grid world (default) or the MuJoCo base with force cues")
@@ -400,46 +442,49 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("report", help="Table I from a results database (Markdown + CSV)")
     rp.add_argument("db")
     rp.add_argument("--csv", default=None, help="CSV path (default: DB name with .csv)")
-    rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png)")
+    rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png, .pdf, .svg)")
     rp.set_defaults(func=cmd_report)
 
     tm = sub.add_parser("timing", help="Table II: solve and update time at the first decision")
     tm.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
-    tm.add_argument("--instances", type=int, default=100)
-    tm.add_argument("--queries", type=int, default=5000)
+    tm.add_argument("--instances", action=RangeAction, limits="instances", default=100)
+    tm.add_argument("--queries", action=RangeAction, limits="queries", default=5000)
     tm.add_argument("--preset", default="paper", choices=sorted(PRESETS))
-    tm.add_argument("--seed", type=int, default=0)
+    tm.add_argument("--seed", action=RangeAction, limits="seed", default=0)
     tm.add_argument("--json", action="store_true")
     tm.add_argument("--no-progress", action="store_true")
+    force_option(tm)
     tm.set_defaults(func=cmd_timing)
 
     bc = sub.add_parser("belief-curves", help="Fig. 4: P(true goal) and entropy over time")
     bc.add_argument("--out", default="fig4.png")
     bc.add_argument("--db", default=None, help="episode store (default: OUT with .sqlite)")
     bc.add_argument("--map", default="simple")
-    bc.add_argument("--runs", type=int, default=50)
-    bc.add_argument("--delta-t", type=int, default=1)
+    bc.add_argument("--runs", action=RangeAction, limits="runs", default=50)
+    bc.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=1)
     episode_options(bc, preset="paper")
     bc.set_defaults(func=cmd_belief_curves)
 
     rd = sub.add_parser("render", help="render a MuJoCo rollout to MP4 and/or a rerun file")
     rd.add_argument("--map", default="simple")
     rd.add_argument("--method", default="path_preference")
-    rd.add_argument("--delta-t", type=int, default=5)
+    rd.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5)
     rd.add_argument("--task", default="navigate", choices=["navigate", "carry"],
                     help="navigate (base) or carry (arm on the base, mink IK)")
     rd.add_argument("--out", default=None, help="video file (.mp4)")
     rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
-    rd.add_argument("--width", type=int, default=480, help="width of each of the two views")
-    rd.add_argument("--height", type=int, default=360)
+    rd.add_argument("--width", action=RangeAction, limits="frame_size", default=480,
+                    help="width of each of the two views")
+    rd.add_argument("--height", action=RangeAction, limits="frame_size", default=360)
     episode_options(rd)
     rd.set_defaults(func=cmd_render)
 
     it = sub.add_parser("interact", help="push the robot yourself in the MuJoCo viewer")
     it.add_argument("--map", default="office")
     it.add_argument("--method", default="path_preference")
-    it.add_argument("--seed", type=int, default=0)
-    it.add_argument("--queries", type=int, default=2000)
+    it.add_argument("--seed", action=RangeAction, limits="seed", default=0)
+    it.add_argument("--queries", action=RangeAction, limits="queries", default=2000)
+    force_option(it)
     it.set_defaults(func=cmd_interact)
 
     b = sub.add_parser("bench", help="measure build, update and planning times")
@@ -447,13 +492,15 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
     b.add_argument("--quick", action="store_true", help="fewer repetitions (smoke test)")
     b.add_argument("--no-physics", action="store_true", help="skip the MuJoCo figures")
+    force_option(b)
     b.set_defaults(func=cmd_bench)
 
     d = sub.add_parser("demo", help="the main job: run the demo and write its outputs")
     d.add_argument("--out", default="out", help="output folder (default: out)")
-    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--seed", action=RangeAction, limits="seed", default=0)
     d.add_argument("--sim", default="mujoco", choices=["mujoco", "grid"])
-    d.add_argument("--runs", type=int, default=30, help="grid runs per method behind the rates")
+    d.add_argument("--runs", action=RangeAction, limits="runs", default=30,
+                   help="grid runs per method behind the rates")
     d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS))
     d.set_defaults(func=cmd_demo)
     return p
@@ -474,6 +521,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `pathpref report db | head`
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except OSError as e:  # a full disk while writing: one line, not a traceback
+        if not is_disk_full(e):
+            raise
+        print(f"pathpref: error: {write_error(getattr(e, 'filename', None) or 'output', e)}",
+              file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -2,12 +2,73 @@
 
 from __future__ import annotations
 
+import math
+import numbers
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from ..errors import ConfigError
+from ..geometry.maps import MAX_T_MAX
 from ..planning.pomdp import PRESETS, Preset, get_preset
 from .cache import cached_map
 from .instances import HUMANS, seed_for
+
+#: the documented range of every number a user gives (command line and Python API):
+#: name -> (lowest, highest, whole number); checked by :func:`check_number`
+LIMITS: dict[str, tuple[float, float, bool]] = {
+    "delta_t": (1, MAX_T_MAX, True),
+    "t_max": (1, MAX_T_MAX, True),
+    "queries": (1, 10**7, True),
+    "seed": (0, 2**63 - 1, True),
+    "instances": (1, 10**6, True),
+    "runs": (1, 10**6, True),
+    "goals": (1, 1000, True),
+    "workers": (1, 1024, True),
+    "frame_size": (16, 4096, True),
+    "ucb_c": (1e-6, 1e6, False),
+    "time_budget_ms": (1e-3, 1e7, False),
+    "episode_timeout": (1, 1e6, False),  # or 0: none (the API takes any 0..1e6)
+}
+#: most episodes one sweep may hold (the product of its sizes, checked before building specs)
+MAX_EPISODES = 10**7
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool) and \
+            int(value).bit_length() > 120:
+        return f"an integer of {int(value).bit_length()} bits"
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def range_error(option: str, lo: float, hi: float, integer: bool, shown: str,
+                zero_ok: bool = False) -> ConfigError:
+    """The one-line refusal of an out-of-range number, e.g. ``--queries must be an integer in
+    1..10000000, got 18446744073709551616``."""
+    kind = "an integer" if integer else "a number"
+    span = f"{int(lo)}..{int(hi)}" if integer else f"{lo:g}..{hi:g}"
+    zero = "0 (none) or " if zero_ok else ""
+    return ConfigError(f"{option} must be {zero}{kind} in {span}, got {shown}")
+
+
+def check_number(option: str, value: Any, lo: float, hi: float, integer: bool = True,
+                 zero_ok: bool = False) -> int | float:
+    """``value`` as an int (Python or NumPy integer, no bool) or a finite float in
+    ``lo..hi`` (or 0 when ``zero_ok``); :func:`range_error` otherwise."""
+    ok = not isinstance(value, bool)
+    if integer:
+        ok = ok and isinstance(value, numbers.Integral)
+    else:
+        ok = ok and isinstance(value, numbers.Real) and math.isfinite(value)
+    if ok and (lo <= value <= hi or (zero_ok and value == 0)):
+        return int(value) if integer else float(value)
+    raise range_error(option, lo, hi, integer, _show(value), zero_ok)
+
+
+def check_limit(option: str, value: Any, name: str) -> int | float:
+    """:func:`check_number` against ``LIMITS[name]`` (``episode_timeout`` also takes 0)."""
+    lo, hi, integer = LIMITS[name]
+    return check_number(option, value, lo, hi, integer, zero_ok=name == "episode_timeout")
 
 
 @dataclass(frozen=True)
@@ -94,18 +155,24 @@ class EpisodeSpec:
         """Refuse settings no episode can run with (one line naming the field and the fix).
         Whether the body offers the task is checked where the body is chosen (:mod:`.body`)."""
         preset = get_preset(self.preset)
-        if self.delta_t < 1:
-            raise ConfigError(f"--delta-t must be at least 1, got {self.delta_t}")
-        if self.t_max < 1:
-            raise ConfigError(f"--t-max must be at least 1, got {self.t_max}")
-        if self.queries < 1:
-            raise ConfigError(f"--queries must be at least 1, got {self.queries}")
-        if not self.timeout_s >= 0:
-            raise ConfigError(f"--episode-timeout must be >= 0 seconds, got {self.timeout_s}")
-        if not self.ucb_c > 0:
-            raise ConfigError(f"--ucb-c must be positive, got {self.ucb_c}")
-        if not self.time_budget_ms >= 0:
-            raise ConfigError(f"--time-budget-ms must be positive, got {self.time_budget_ms}")
+        for option, value, name in (
+            ("--delta-t", self.delta_t, "delta_t"), ("--t-max", self.t_max, "t_max"),
+            ("--queries", self.queries, "queries"), ("--goals", self.n_goals, "goals"),
+            ("--ucb-c", self.ucb_c, "ucb_c"),
+            ("instance_seed", self.instance_seed, "seed"), ("run_seed", self.run_seed, "seed"),
+        ):
+            check_limit(option, value, name)
+        check_number("--episode-timeout", self.timeout_s, 0, LIMITS["episode_timeout"][1],
+                     integer=False)
+        for option, value in (("instance", self.instance), ("run", self.run)):
+            check_number(option, value, 0, 2**63 - 1)
+        if self.time_budget_ms != 0:
+            check_limit("--time-budget-ms", self.time_budget_ms, "time_budget_ms")
+        for option, value in (("map", self.map), ("method", self.method),
+                              ("preset", self.preset), ("sim", self.sim), ("task", self.task),
+                              ("fixed", self.fixed)):
+            if not isinstance(value, str):
+                raise ConfigError(f"{option} must be a string, got {_show(value)}")
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")

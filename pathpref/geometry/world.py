@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import MapError
-from .arrangement import Arrangement, build_arrangement
+from .arrangement import Arrangement, build_arrangement, check_arrangement_size
 from .coarse import coarsen
 from .graph import PolytopeGraph, build_graph
 from .grid import GridMotion, build_motion
@@ -81,7 +81,10 @@ class World:
         return self.preference
 
 
-def load_world(source: str | Path | dict[str, Any] | MapSpec) -> World:
-    """Load and build a map (built-in name, JSON path, dict or MapSpec)."""
+def load_world(source: str | Path | dict[str, Any] | MapSpec, force: bool = False) -> World:
+    """Load and build a map (built-in name, JSON path, dict or MapSpec); a MapError before
+    building when its arrangement may exceed the size limit, unless ``force``
+    (:func:`~pathpref.geometry.arrangement.check_arrangement_size`)."""
     spec = source if isinstance(source, MapSpec) else load_map(source)
+    check_arrangement_size(spec, force)
     return World.from_spec(spec)

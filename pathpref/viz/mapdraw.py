@@ -17,6 +17,13 @@ from matplotlib.patches import Polygon  # noqa: E402
 from ..geometry.world import World  # noqa: E402
 
 
+def plain_text(text: str, limit: int = 200) -> str:
+    """``text`` cut to ``limit`` characters, control characters replaced; draw it with
+    ``parse_math=False`` so that ``$`` and ``\\`` show literally (no mathtext, which fails on
+    a name like ``$\\frac{``)."""
+    return "".join(c if c.isprintable() else "?" for c in str(text)[:limit])
+
+
 def polytope_centres(world: World) -> np.ndarray:
     """Mean of each polytope's free-cell centres (where its id and arrows are drawn)."""
     arr = world.arrangement
@@ -71,7 +78,8 @@ def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = Tr
     ax.tick_params(labelsize=6)
     ax.grid(True, color="0.85", lw=0.5, zorder=0)
     ax.set_aspect("equal")
-    ax.set_title(f"{spec.name}: {arr.n_polytopes} polytopes, {world.graph.n_edges} edges")
+    ax.set_title(f"{plain_text(spec.name)}: {arr.n_polytopes} polytopes, "
+                 f"{world.graph.n_edges} edges", parse_math=False)
     return ax
 
 
