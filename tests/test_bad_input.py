@@ -351,9 +351,20 @@ def test_staged_outputs_never_use_a_predictable_name(tmp_path):
                                                           "x.mp4"]
 
 
-def test_render_uses_staged_outputs():
-    src = (ROOT / "pathpref/apps/cli.py").read_text()
-    assert "partial.mp4" not in src and "staged_outputs([out, rerun])" in src
+def test_render_does_not_write_through_a_planted_symlink(tmp_path):
+    """The old fixed temp name, planted as a symlink to a victim file: render (end to end, a
+    two-step MuJoCo episode) leaves the victim alone and writes its video."""
+    victim = tmp_path / "victim.txt"
+    victim.write_text("secret")
+    (tmp_path / ".x.partial.mp4").symlink_to(victim)
+    p = subprocess.run([sys.executable, "-m", "pathpref", "render", "--map", "simple",
+                        "--method", "compliant", "--t-max", "2", "--queries", "10", "--width",
+                        "64", "--height", "48", "--out", "x.mp4"], cwd=tmp_path,
+                       capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "MUJOCO_GL": "egl", "PYTHONPATH": str(ROOT)})
+    assert p.returncode == 0, p.stderr
+    assert victim.read_text() == "secret"
+    assert (tmp_path / "x.mp4").stat().st_size > 0
 
 
 # --- 7. MUJOCO_GL ---------------------------------------------------------------------------
@@ -475,12 +486,12 @@ def test_full_disk_during_a_sweep_removes_the_new_database(tmp_path, capsys, mon
 
 
 def test_full_disk_anywhere_is_one_line(capsys, monkeypatch):
-    from pathpref.apps import cli
+    from pathpref.apps import commands
 
     def boom(args):
         raise OSError(errno.ENOSPC, "No space left on device", "somewhere.bin")
 
-    monkeypatch.setattr(cli, "cmd_map_info", boom)
+    monkeypatch.setattr(commands, "cmd_map_info", boom)
     assert main(["map", "info", "simple"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["pathpref: error: cannot write somewhere.bin: no space left on device; free "

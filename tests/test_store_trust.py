@@ -110,3 +110,36 @@ def test_a_good_database_still_opens_and_reports(good_db):
     assert len(load_records(good_db)) > 0
     with ResultStore(good_db) as st:
         assert len(st.done_keys()) == 6
+
+
+def test_db_check_and_salvage(good_db, tmp_path, capsys):
+    """A damaged page: check reports it (exit 2), salvage copies the rest into a new file that
+    checks intact and reports; an intact file checks 0."""
+    from pathpref.apps.cli import main
+
+    assert main(["db", "check", str(good_db)]) == 0
+    assert "intact" in capsys.readouterr().out
+    bad = tmp_path / "damaged.sqlite"
+    data = bytearray(good_db.read_bytes())
+    n_pages = len(data) // 4096
+    data[(n_pages - 1) * 4096:] = b"\x00\xff" * 2048  # the last page: some step rows
+    bad.write_bytes(bytes(data))
+    before = bad.read_bytes()
+    assert main(["db", "check", str(bad)]) == 2
+    assert "problem" in capsys.readouterr().out
+    out = tmp_path / "saved.sqlite"
+    assert main(["db", "salvage", str(bad), str(out)]) == 0
+    msg = capsys.readouterr().out
+    assert bad.read_bytes() == before and not (tmp_path / "damaged.sqlite-wal").exists()
+    with sqlite3.connect(good_db) as c:
+        total = c.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+    with sqlite3.connect(out) as c:
+        saved = c.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
+        assert c.execute("SELECT COUNT(*) FROM steps WHERE key NOT IN "
+                         "(SELECT key FROM episodes)").fetchone()[0] == 0
+    assert 0 < saved <= total and f"saved {saved} episodes" in msg
+    assert main(["db", "check", str(out)]) == 0
+    assert load_records(out)  # the report reads it
+    with ResultStore(out) as st:
+        assert len(st.episodes()) == saved
+    assert main(["db", "salvage", str(bad), str(out)]) == 2  # never overwrites

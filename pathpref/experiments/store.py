@@ -39,6 +39,87 @@ EPISODE_COLUMNS = {
 STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
 
 
+def check_results_file(path: str | Path) -> bool:
+    """True for a compatible pathpref database at ``path``, False for a new or empty file,
+    else a one-line ConfigError. Checked before any read-write connection, on a read-only one
+    (immutable, so no side file appears, unless the file already has its ``-wal``): a
+    regular file; SQLite; exactly pathpref's tables (``meta``, ``episodes``, ``steps``, and
+    SQLite's own indexes of their keys) with pathpref's columns and no view, trigger or
+    other table (a file from elsewhere could otherwise rewrite or invent results); the
+    schema row; and SQLite's ``quick_check``."""
+    p = Path(path)
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        return False
+    except OSError as e:
+        raise ConfigError(f"cannot read results database {p}: {e}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise ConfigError(f"{p} is not a regular file (a folder or a device); give the path "
+                          "of a results database with --db")
+    if st.st_size == 0:
+        return False
+    with open(p, "rb") as f:
+        if f.read(16) != b"SQLite format 3\x00":
+            raise ConfigError(f"{p} is not a pathpref results database (not SQLite); "
+                              "give another --db path")
+    immutable = "" if Path(f"{p}-wal").exists() else "&immutable=1"
+    uri = f"file:{quote(str(p.resolve()))}?mode=ro{immutable}"
+    try:
+        ro = sqlite3.connect(uri, uri=True, timeout=30)
+        try:
+            objects = ro.execute("SELECT type, name, tbl_name FROM sqlite_master").fetchall()
+            _check_objects(p, objects)
+            if not objects:
+                return False
+            row = ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+            found = int(row[0]) if row and str(row[0]).isdigit() else None
+            _check_schema(p, found)
+            for table, want in (("episodes", set(EPISODE_COLUMNS)), ("steps", STEP_COLUMNS)):
+                have = {r[1] for r in ro.execute(f"PRAGMA table_info({table})")}
+                if have != set(want):
+                    raise ConfigError(f"{p}: table '{table}' does not have pathpref's "
+                                      "columns; it is not a pathpref results database")
+            check = ro.execute("PRAGMA quick_check").fetchone()[0]
+        finally:
+            ro.close()
+    except sqlite3.Error as e:
+        raise ConfigError(f"cannot read results database {p}: {e} (the file is damaged or "
+                          "not a pathpref database)") from None
+    if check != "ok":
+        raise ConfigError(f"{p} is damaged (SQLite: {check}); give a new --db path (sqlite3's "
+                          "'.recover' can copy what is intact)")
+    return True
+
+def _check_objects(path: Path, objects: list[tuple[str, str, str]]) -> None:
+    """Refuse a file holding anything pathpref does not create (see _check_existing)."""
+    ours = {"meta", "episodes", "steps"}
+    foreign = [f"{kind} '{name}'" for kind, name, table in objects
+               if not (kind == "table" and name in ours)
+               and not (kind == "index" and name.startswith("sqlite_autoindex_")
+                        and table in ours)]
+    if foreign:
+        raise ConfigError(f"{path} holds {', '.join(foreign[:3])}, which pathpref does "
+                          "not write: it is not a pathpref results database (refused "
+                          "untouched); give another --db path")
+    if objects and {name for kind, name, _ in objects if kind == "table"} != ours:
+        raise ConfigError(f"{path} is an SQLite file not written by pathpref (its "
+                          "tables are not pathpref's); give another --db path")
+
+def _check_schema(path: Path, found: int | None) -> None:
+    """Refuse another schema version (an older one can be upgraded)."""
+    if found is not None and 2 <= found < SCHEMA_VERSION:
+        raise ConfigError(
+            f"{path} was written by an older pathpref (schema {found}, this version "
+            f"reads {SCHEMA_VERSION}); run 'pathpref db upgrade {path}' to migrate it"
+        )
+    if found != SCHEMA_VERSION:
+        raise ConfigError(
+            f"{path} was written by an incompatible pathpref (schema {found}, this "
+            f"version reads {SCHEMA_VERSION}); use a new --db path"
+        )
+
+
 class ResultStore:
     """Open (or create) a results database at ``path``."""
 
@@ -50,7 +131,7 @@ class ResultStore:
             parent = self.path.parent
             if not parent.is_dir():
                 raise ConfigError(f"cannot create {self.path}: folder {parent} does not exist")
-        existing = self._check_existing()  # read-only: a refused file is never modified
+        existing = check_results_file(self.path)  # read-only: a refused file is untouched
         try:
             self.conn = sqlite3.connect(self.path, timeout=30)
             self.conn.execute("PRAGMA journal_mode=WAL")
@@ -59,86 +140,6 @@ class ResultStore:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
         if not existing:
             self._create_schema()
-
-    def _check_existing(self) -> bool:
-        """True for a compatible pathpref database, False for a new or empty file, else a
-        one-line ConfigError. Checked before any read-write connection, on a read-only one
-        (immutable, so no side file appears, unless the file already has its ``-wal``): a
-        regular file; SQLite; exactly pathpref's tables (``meta``, ``episodes``, ``steps``, and
-        SQLite's own indexes of their keys) with pathpref's columns and no view, trigger or
-        other table (a file from elsewhere could otherwise rewrite or invent results); the
-        schema row; and SQLite's ``quick_check``."""
-        p = self.path
-        try:
-            st = os.stat(p)
-        except FileNotFoundError:
-            return False
-        except OSError as e:
-            raise ConfigError(f"cannot read results database {p}: {e}") from None
-        if not stat.S_ISREG(st.st_mode):
-            raise ConfigError(f"{p} is not a regular file (a folder or a device); give the path "
-                              "of a results database with --db")
-        if st.st_size == 0:
-            return False
-        with open(p, "rb") as f:
-            if f.read(16) != b"SQLite format 3\x00":
-                raise ConfigError(f"{p} is not a pathpref results database (not SQLite); "
-                                  "give another --db path")
-        immutable = "" if Path(f"{p}-wal").exists() else "&immutable=1"
-        uri = f"file:{quote(str(p.resolve()))}?mode=ro{immutable}"
-        try:
-            ro = sqlite3.connect(uri, uri=True, timeout=30)
-            try:
-                objects = ro.execute("SELECT type, name, tbl_name FROM sqlite_master").fetchall()
-                self._check_objects(objects)
-                if not objects:
-                    return False
-                row = ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-                found = int(row[0]) if row and str(row[0]).isdigit() else None
-                self._check_schema(found)
-                for table, want in (("episodes", set(EPISODE_COLUMNS)), ("steps", STEP_COLUMNS)):
-                    have = {r[1] for r in ro.execute(f"PRAGMA table_info({table})")}
-                    if have != set(want):
-                        raise ConfigError(f"{p}: table '{table}' does not have pathpref's "
-                                          "columns; it is not a pathpref results database")
-                check = ro.execute("PRAGMA quick_check").fetchone()[0]
-            finally:
-                ro.close()
-        except sqlite3.Error as e:
-            raise ConfigError(f"cannot read results database {p}: {e} (the file is damaged or "
-                              "not a pathpref database)") from None
-        if check != "ok":
-            raise ConfigError(f"{p} is damaged (SQLite: {check}); give a new --db path (sqlite3's "
-                              "'.recover' can copy what is intact)")
-        return True
-
-    def _check_objects(self, objects: list[tuple[str, str, str]]) -> None:
-        """Refuse a file holding anything pathpref does not create (see _check_existing)."""
-        ours = {"meta", "episodes", "steps"}
-        foreign = [f"{kind} '{name}'" for kind, name, table in objects
-                   if not (kind == "table" and name in ours)
-                   and not (kind == "index" and name.startswith("sqlite_autoindex_")
-                            and table in ours)]
-        if foreign:
-            raise ConfigError(f"{self.path} holds {', '.join(foreign[:3])}, which pathpref does "
-                              "not write: it is not a pathpref results database (refused "
-                              "untouched); give another --db path")
-        if objects and {name for kind, name, _ in objects if kind == "table"} != ours:
-            raise ConfigError(f"{self.path} is an SQLite file not written by pathpref (its "
-                              "tables are not pathpref's); give another --db path")
-
-    def _check_schema(self, found: int | None) -> None:
-        """Refuse another schema version (an older one can be upgraded)."""
-        if found is not None and 2 <= found < SCHEMA_VERSION:
-            raise ConfigError(
-                f"{self.path} was written by an older pathpref (schema {found}, this version "
-                f"reads {SCHEMA_VERSION}); run 'pathpref db upgrade {self.path}' to migrate it"
-            )
-        if found != SCHEMA_VERSION:
-            raise ConfigError(
-                f"{self.path} was written by an incompatible pathpref (schema {found}, this "
-                f"version reads {SCHEMA_VERSION}); use a new --db path"
-            )
 
     def _create_schema(self) -> None:
         c = self.conn

@@ -1,0 +1,351 @@
+"""The subcommands of ``pathpref`` (one ``cmd_*`` function each; the parser that dispatches to
+them is :mod:`.cli`). Every output is checked before any work (:mod:`.checks`) and written whole
+or not at all."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+from ..errors import ConfigError
+from .checks import (
+    FIGURE_SUFFIXES,
+    atomic_output,
+    check_database,
+    check_episode_count,
+    check_model_size,
+    check_output_folder,
+    check_writable,
+    is_disk_full,
+    load_world_checked,
+    staged_outputs,
+    write_error,
+)
+
+
+def _new_database_guard(db: str | Path):
+    """A function that removes ``db`` and its SQLite side files when this command created it
+    (after a failure such as a full disk); an existing database is never removed."""
+    existed = Path(db).exists()
+
+    def cleanup() -> None:
+        if existed:
+            return
+        for suffix in ("", "-journal", "-wal", "-shm"):
+            try:
+                os.unlink(f"{db}{suffix}")
+            except FileNotFoundError:
+                pass
+
+    return cleanup
+
+
+# --- map ------------------------------------------------------------------------------------
+def cmd_map_info(args: argparse.Namespace) -> int:
+    """``pathpref map info``: sizes of the map's arrangement, graph and free space."""
+    import numpy as np
+
+    world = load_world_checked(args.map, args.force)
+    deg = [len(n) for n in world.graph.neighbors]
+    comp = np.bincount(world.motion.components())
+    info = {
+        "name": world.name,
+        "width": world.spec.width,
+        "height": world.spec.height,
+        "obstacles": len(world.spec.obstacles),
+        "hyperplanes": len(world.arrangement.normals),
+        "polytopes": world.n_polytopes,
+        "edges": world.graph.n_edges,
+        "free_cells": world.n_cells,
+        "decomposition": world.spec.decomposition,
+        "move_edges": world.graph.n_move_edges,
+        "components": len(comp),
+        "largest_component_cells": int(comp.max()),
+        "max_degree": max(deg, default=0),
+        "has_preference": world.preference is not None,
+        "t_max": world.spec.t_max,
+        "map_hash": world.spec.content_hash,
+    }
+    if args.json:
+        print(json.dumps(info))
+    else:
+        for k, v in info.items():
+            print(f"{k:>23}: {v}")
+        if len(comp) > 1:
+            print(f"note: free space splits into {len(comp)} parts that the robot cannot move "
+                  "between; instances draw goals only from the start's part")
+    return 0
+
+
+def cmd_map_draw(args: argparse.Namespace) -> int:
+    """``pathpref map draw``: the map, its polytopes and preference as a figure."""
+    from ..viz.mapdraw import save_map_figure
+
+    out = check_writable(args.out, "--out", FIGURE_SUFFIXES)
+    world = load_world_checked(args.map, args.force)
+    atomic_output(out, lambda p: save_map_figure(world, p))
+    print(f"wrote {out}")
+    return 0
+
+
+# --- db -------------------------------------------------------------------------------------
+def cmd_db_upgrade(args: argparse.Namespace) -> int:
+    """``pathpref db upgrade``: migrate a results database to the current schema."""
+    from ..experiments.migrate import upgrade_database
+
+    remap = {}
+    for item in args.map or []:
+        old, sep, new = item.partition("=")
+        if not sep or not old or not new:
+            raise ConfigError(f"--map {item!r}: write it as OLD=NEW (a stored map name = a file)")
+        remap[old] = new
+    r = upgrade_database(args.db, remap)
+    if r["backup"] is None:
+        print(f"{args.db} is already at schema {r['to']} ({r['episodes']} episodes); nothing to do")
+    else:
+        print(f"upgraded {args.db} from schema {r['from']} to {r['to']}: {r['episodes']} episodes, "
+              f"{r['steps']} steps ({r['merged']} duplicate rows of one map under two paths "
+              f"merged); the old file is {r['backup']}")
+    return 0
+
+
+def cmd_db_check(args: argparse.Namespace) -> int:
+    """``pathpref db check``: report damage (exit 0 when intact, 2 otherwise)."""
+    from ..experiments.salvage import damage_report
+
+    r = damage_report(args.db)
+    print(f"{args.db}: schema {r['schema']}, {r['episodes']} episodes, {r['steps']} step rows")
+    for problem in r["problems"]:
+        print(f"  problem: {problem}")
+    print("intact" if r["intact"] else
+          f"damaged: 'pathpref db salvage {args.db} OUT' copies every intact episode")
+    return 0 if r["intact"] else 2
+
+
+def cmd_db_salvage(args: argparse.Namespace) -> int:
+    """``pathpref db salvage``: copy every episode that reads whole into a new database."""
+    from ..experiments.salvage import salvage
+
+    check_writable(args.out)
+    r = salvage(args.db, args.out)
+    print(f"saved {r['saved']} episodes ({r['steps']} step rows) to {args.out}; "
+          f"{r['lost']} could not be read")
+    return 0
+
+
+# --- experiments ----------------------------------------------------------------------------
+def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
+    """The episode fields every running command shares (None: the preset's value, resolved
+    by :class:`~pathpref.episode.EpisodeSpec`)."""
+    from ..episode import cached_map
+
+    if args.time_budget_ms is not None and not args.time_budget_ms > 0:
+        raise ConfigError(f"--time-budget-ms must be a positive number of milliseconds, got "
+                          f"{args.time_budget_ms:g}")
+    return {
+        "preset": args.preset,
+        "time_budget_ms": args.time_budget_ms or 0.0,
+        "human": args.human,
+        "queries": args.queries,
+        "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
+        "normalize": args.likelihood == "normalized",
+        "coupling": args.coupling,
+        "ucb_c": args.ucb_c,
+        "timeout_s": args.episode_timeout,
+    }
+
+
+def load_simulator(sim: str) -> None:
+    """Import the simulator package behind ``--sim`` so that its bodies register with the
+    episode layer (the grid body needs none; MuJoCo is imported only when asked for)."""
+    if sim == "mujoco":
+        from .. import sim as _  # noqa: F401
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
+    from ..experiments.report import load_records, markdown_tables
+    from ..experiments.sweep import run_sweep, sweep_specs
+    from ..planning.policies import resolve_methods
+
+    check_database(args.db)
+    check_episode_count([args.instances, args.runs, len(args.delta_t),
+                         len(resolve_methods(args.methods))], "the sweep")
+    load_simulator(args.sim)
+    check_model_size(load_world_checked(args.map, args.force), args.goals)
+    specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
+                        seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
+                        **_common_episode_args(args, args.map))
+    cleanup = _new_database_guard(args.db)
+    try:
+        counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
+                           retry_failed=args.retry_failed, backend=args.backend,
+                           address=args.address)
+    except Exception as e:
+        if not is_disk_full(e):
+            raise
+        cleanup()
+        raise write_error(args.db, e) from None
+    print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
+          f"in {args.db}, {counts['seconds']} s")
+    from ..episode import cached_map
+
+    recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]
+    print(markdown_tables(recs))
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """``pathpref report``: tables, side-by-side with the paper, CSV and optional figure."""
+    from ..experiments.report import load_records, markdown_tables, side_by_side, write_csv
+
+    check_database(args.db, "database", must_exist=True)
+    csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
+    check_writable(csv_path, "--csv", (".csv",))
+    if args.figure:
+        check_writable(args.figure, "--figure", FIGURE_SUFFIXES)
+    recs = load_records(args.db)
+    if not recs:
+        raise ConfigError(f"{args.db} holds no episodes yet")
+    print(markdown_tables(recs))
+    both = side_by_side(recs)
+    if both:
+        print("\n" + both)
+    atomic_output(csv_path, lambda p: write_csv(recs, p))
+    print(f"\nwrote {csv_path}")
+    if args.figure:
+        from ..viz.plots import success_figure
+
+        atomic_output(args.figure, lambda p: success_figure(recs, p))
+        print(f"wrote {args.figure}")
+    return 0
+
+
+def cmd_timing(args: argparse.Namespace) -> int:
+    """``pathpref timing``: the paper's Table II (first-decision update and solve times)."""
+    from tqdm import tqdm
+
+    from ..experiments.timing import time_map, timing_markdown
+
+    for m in args.maps:  # validate every map before any work
+        load_world_checked(m, args.force).require_preference()
+    results = []
+    with tqdm(total=args.instances * len(args.maps), unit="inst", file=sys.stderr,
+              disable=args.no_progress) as bar:
+        for m in args.maps:
+            results.append(time_map(m, instances=args.instances, queries=args.queries,
+                                    preset=args.preset, seed=args.seed, progress=bar))
+    if args.json:
+        print(json.dumps(results))
+    else:
+        print(timing_markdown(results))
+    return 0
+
+
+def cmd_belief_curves(args: argparse.Namespace) -> int:
+    """``pathpref belief-curves``: Fig. 4 (P(true goal) and entropy over time) on its instance."""
+    from ..episode import FIG4
+    from ..experiments.curves import curves_from_store
+    from ..experiments.sweep import fixed_specs, run_sweep
+    from ..viz.plots import belief_curves_figure
+
+    out = check_writable(args.out, "--out", FIGURE_SUFFIXES)
+    db = args.db or str(out.with_suffix(".sqlite"))
+    check_database(db)
+    check_episode_count([args.runs, 2], "belief-curves")
+    load_world_checked(args.map, args.force)
+    common = _common_episode_args(args, args.map)
+    specs = fixed_specs(args.map, ["path_preference", "goal_only"], args.delta_t, args.runs,
+                        FIG4, seed=args.seed, **common)
+    cleanup = _new_database_guard(db)
+    try:
+        counts = run_sweep(specs, db, workers=args.workers, progress=not args.no_progress)
+    except Exception as e:
+        if not is_disk_full(e):
+            raise
+        cleanup()
+        raise write_error(db, e) from None
+    if counts["failed"]:
+        raise ConfigError(f"{counts['failed']} of {len(specs)} episodes failed (see 'pathpref "
+                          f"report {db}'); the curves need complete episodes: raise "
+                          "--episode-timeout or fix the cause, and run again with a new --db")
+    keys = {m: [s.key() for s in specs if s.method == m] for m in ("path_preference", "goal_only")}
+    curves = curves_from_store(db, keys, common["t_max"])
+    atomic_output(out, lambda p: belief_curves_figure(curves, p))
+    t_end = common["t_max"]
+    ts = sorted({t for t in (0, 5, 10, t_end) if t <= t_end})
+    for m, c in curves.items():
+        print(f"{m:>16}: P(true goal) at t={'/'.join(map(str, ts))}: "
+              + "/".join(f"{c['p_mean'][t]:.2f}" for t in ts)
+              + "; entropy: " + "/".join(f"{c['h_mean'][t]:.2f}" for t in ts))
+    print(f"wrote {out} (episodes in {db})")
+    return 0
+
+
+def cmd_render(args: argparse.Namespace) -> int:
+    """``pathpref render``: one MuJoCo episode as a video and/or a rerun recording."""
+    out = check_writable(args.out, "--out", (".mp4",)) if args.out else None
+    rerun = check_writable(args.rerun, "--rerun", (".rrd",)) if args.rerun else None
+    if out is None and rerun is None:
+        raise ConfigError("give --out video.mp4 and/or --rerun recording.rrd")
+    if out is not None and rerun is not None and out.resolve() == rerun.resolve():
+        raise ConfigError("--out and --rerun name the same file")
+    from ..episode import EpisodeSpec
+    from .rollout import record_rollout  # imports MuJoCo: checks MUJOCO_GL
+
+    load_world_checked(args.map, args.force)
+    common = _common_episode_args(args, args.map)
+    spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
+                              sim="mujoco", task=args.task, **common)
+    spec.validate()
+    # temporary files made exclusively (mkstemp) beside the outputs, moved on success
+    with staged_outputs([out, rerun]) as (tmp_video, tmp_rerun):
+        rec = record_rollout(spec, video=tmp_video, rerun=tmp_rerun, width=args.width,
+                             height=args.height)
+    r = rec.result
+    print(f"{args.method} on {args.map}: goal reached {r.goal_reached}, preference followed "
+          f"{r.pref_followed}, {r.steps} steps, {r.inputs} pushes; {rec.frames} frames")
+    for path in (out, args.rerun):
+        if path:
+            print(f"wrote {path}")
+    return 0
+
+
+def cmd_interact(args: argparse.Namespace) -> int:
+    """``pathpref interact``: push the robot yourself in the MuJoCo viewer."""
+    os.environ.setdefault("MUJOCO_GL", "glfw")  # the viewer needs a windowing backend
+    from .interact import InteractiveSession, run_viewer
+
+    load_world_checked(args.map, args.force)
+    session = InteractiveSession(map=args.map, method=args.method, seed=args.seed,
+                                 queries=args.queries)
+    print("Double-click the orange handle, then Ctrl + right-drag to push the robot.")
+    run_viewer(session)
+    return 0
+
+
+# --- bench / demo ---------------------------------------------------------------------------
+def cmd_bench(args: argparse.Namespace) -> int:
+    """``pathpref bench``: the benchmarks as JSON (:mod:`pathpref.apps.benchmarks`)."""
+    from .benchmarks import run_benchmarks
+
+    for m in args.maps:
+        load_world_checked(m, args.force)
+    result = run_benchmarks(maps=args.maps, quick=args.quick, physics=not args.no_physics)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(json.dumps(result, indent=2))
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    """``pathpref demo``: the Fig. 4 instance for every method, rates, figures, videos."""
+    from .demo import run_demo
+
+    out = check_output_folder(args.out, "--out")
+    run_demo(out=out, seed=args.seed, sim=args.sim, runs=args.runs, preset=args.preset)
+    return 0
