@@ -30,4 +30,11 @@ def load(name: str, **kwargs):
     return TASKS[name](**kwargs)
 
 
+try:  # Gymnasium is optional for the dm_control tasks; with it, the ids are registered
+    from .gym import register_envs
+except ImportError:  # pragma: no cover - gymnasium not installed
+    pass
+else:
+    register_envs()
+
 __all__ = ["TASKS", "load"]

@@ -158,10 +158,9 @@ class Navigate(base.Task):
                                  int(r.pref[v]), self.rewards)
 
     # --- dm_env interface ----------------------------------------------------------------
-    def action_spec(self, physics: Physics) -> specs.BoundedArray:
-        """0..7: the eight moves (N, NE, ..., NW); 8: stay."""
-        return specs.BoundedArray(shape=(), dtype=np.int32, minimum=0, maximum=STAY_ACTION,
-                                  name="move")
+    def action_spec(self, physics: Physics) -> specs.DiscreteArray:
+        """A discrete action in 0..8: the eight moves (N, NE, ..., NW), then 8 = stay."""
+        return specs.DiscreteArray(num_values=STAY_ACTION + 1, dtype=np.int32, name="move")
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
         """Shapes of the observations (module docstring)."""

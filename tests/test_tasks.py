@@ -75,3 +75,37 @@ def test_observation_belief_is_a_distribution():
             break
         ts = env.step(env.task.policy_action())
     assert np.isfinite(ts.observation["position"]).all()
+
+
+def test_action_spec_is_discrete():
+    """A DiscreteArray of 9 values (so wrappers such as shimmy map it to Discrete(9))."""
+    from dm_env import specs
+
+    env = load("navigate", map="simple", method="compliant", delta_t=5, seed=0, queries=20,
+               t_max=3)
+    spec = env.action_spec()
+    assert isinstance(spec, specs.DiscreteArray) and spec.num_values == 9
+    spec.validate(np.int32(8))
+
+
+@pytest.mark.parametrize("env_id", ["pathpref/Navigate-v0", "pathpref/Carry-v0"])
+def test_gymnasium_env_passes_check_env(env_id):
+    """Registered ids, Discrete(9) actions, the env checker (seeding determinism included)."""
+    gym = pytest.importorskip("gymnasium")
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(f"pathpref_tasks:{env_id}", map="simple", method="compliant", delta_t=2,
+                   queries=20, t_max=4, render_mode="rgb_array", width=64, height=48)
+    assert env.action_space == gym.spaces.Discrete(9)
+    check_env(env.unwrapped, skip_render_check=False)
+    a, _ = env.reset(seed=3)
+    b, _ = env.reset(seed=3)
+    assert all(np.array_equal(a[k], b[k]) for k in a)
+    frame = env.render()
+    assert frame.shape == (48, 64, 3)
+    done = False
+    while not done:
+        _, r, term, trunc, info = env.step(8)
+        done = term or trunc
+    assert trunc or info["goal_reached"]
+    env.close()

@@ -1,0 +1,93 @@
+"""Gymnasium environments over the dm_control tasks: ``pathpref/Navigate-v0`` and
+``pathpref/Carry-v0``, registered when :mod:`pathpref_tasks` is imported::
+
+    import gymnasium as gym
+    env = gym.make("pathpref_tasks:pathpref/Navigate-v0", map="simple", delta_t=5)
+    obs, info = env.reset(seed=0)
+    obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
+
+(``"pathpref_tasks:"`` imports the package first, so the ids exist; after ``import
+pathpref_tasks`` the bare id works too.) One step is one decision of the dm_control task, the
+same reward and termination: ``terminated`` at the goal (dm_env discount 0), ``truncated`` after
+``T_max`` decisions (discount 1). ``reset(seed=s)`` starts the episode sequence of
+``load(seed=s)`` again, so a seed gives the same episode every time; ``reset()`` moves to the
+next episode. Observations are the dm_env ones, as float64 boxes; ``render_mode="rgb_array"``
+renders the top camera.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from pathpref.errors import ConfigError
+
+#: gymnasium id -> dm_control task name
+IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/Carry-v0": "carry"}
+
+
+class PathprefEnv(gym.Env):
+    """A dm_control task of :mod:`pathpref_tasks` behind the Gymnasium API (module docstring)."""
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, task: str = "navigate", render_mode: str | None = None,
+                 width: int = 480, height: int = 360, **task_kwargs: Any):
+        from . import load
+
+        if render_mode not in (None, "rgb_array"):
+            raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.task_name, self.task_kwargs = task, dict(task_kwargs)
+        self.render_mode, self.width, self.height = render_mode, int(width), int(height)
+        self._load = load
+        self._env = load(task, **{**self.task_kwargs, "seed": self.task_kwargs.get("seed", 0)})
+        self.action_space = spaces.Discrete(self._env.action_spec().num_values)
+        self.observation_space = spaces.Dict({
+            k: spaces.Box(-np.inf, np.inf, shape=v.shape, dtype=np.float64)
+            for k, v in self._env.observation_spec().items()})
+
+    def _obs(self, ts) -> dict[str, np.ndarray]:
+        return {k: np.asarray(v, dtype=np.float64).reshape(self.observation_space[k].shape)
+                for k, v in ts.observation.items()}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Start an episode: the first of ``load(seed=seed)`` when a seed is given, else the
+        next one."""
+        super().reset(seed=seed)
+        if seed is not None:
+            self._env = self._load(self.task_name, **{**self.task_kwargs, "seed": int(seed)})
+        ts = self._env.reset()
+        return self._obs(ts), self._info()
+
+    def step(self, action):
+        """One decision (``action`` in 0..8; 8 = stay)."""
+        ts = self._env.step(action)
+        terminated = bool(ts.last() and ts.discount == 0.0)
+        truncated = bool(ts.last() and not terminated)
+        return self._obs(ts), float(ts.reward), terminated, truncated, self._info()
+
+    def _info(self) -> dict[str, Any]:
+        r = self._env.task.runner
+        return {"goal_reached": bool(r.result.goal_reached), "violations": r.result.violations,
+                "t": r.t, "p_true_goal": float(r.policy.belief.goal_marginal()
+                                                [r.instance.true_goal])}
+
+    def render(self):
+        """The top camera as an ``(height, width, 3)`` uint8 image (``rgb_array``)."""
+        if self.render_mode != "rgb_array":
+            return None
+        return self._env.physics.render(height=self.height, width=self.width, camera_id="top")
+
+    def close(self) -> None:
+        """Release the dm_control environment."""
+        self._env.close()
+
+
+def register_envs() -> None:
+    """Register the ids of :data:`IDS` with Gymnasium (idempotent)."""
+    for env_id, task in IDS.items():
+        if env_id not in gym.registry:
+            gym.register(id=env_id, entry_point=PathprefEnv, kwargs={"task": task})
