@@ -1,14 +1,30 @@
-"""Where episodes run: a local process pool, or a Ray cluster. Both yield results in
+"""Where episodes run: a local pool of worker processes, or a Ray cluster. Both yield results in
 completion order to the coordinator, which alone writes the results store.
 
-* ``local``: ``workers`` processes (at most one per episode), each running one episode at a
-  time. A worker that dies (SIGKILL, segfault) or makes no progress past a timeout derived from
-  the episode's size is replaced; only its own episode is charged and run again, and recorded as
-  failed ("worker process died") after ``max_crashes`` deaths, so one that kills its worker every
-  time cannot stall the sweep. Workers die with the coordinator, however it dies.
-* ``ray``: each episode is a Ray task (``max_retries`` re-runs a task whose worker died).
-  ``address=None`` starts a local Ray instance; ``address="auto"`` or ``"ray://host:10001"``
-  joins an existing cluster (see README, "Running on a Ray cluster").
+``local`` (:func:`iter_local`), a pool whose coordinator knows which process runs which episode:
+
+* At most ``workers`` worker processes, never more than there are episodes; each runs one
+  episode at a time and sends its result back through its own pipe. ``workers == 1`` runs the
+  episodes in this process instead (no isolation: a crash or a hang there is the caller's).
+* Workers die with the coordinator, whatever killed it (SIGKILL included): on Linux the kernel
+  sends each one SIGKILL when the coordinator dies (``PR_SET_PDEATHSIG``); everywhere, a thread
+  in each worker ends it within a second of its parent process changing. Workers ignore Ctrl-C
+  (SIGINT); the coordinator kills them on its way out, whatever the reason it leaves.
+* A worker that dies (SIGKILL, segfault, OOM) charges only the episode it was running: that
+  episode is queued again, and recorded as failed ("worker process died N times") at its
+  ``max_crashes``-th death; the episodes of the other workers go on undisturbed.
+* The coordinator watches each running episode's wall time and kills (SIGKILL, by PID) a worker
+  past the episode's limit, :func:`wall_limit`: a frozen (SIGSTOP), deadlocked or runaway worker
+  cannot hang the sweep. Without ``--episode-timeout`` the limit is generous and overrunning it
+  counts as a death of the episode (queued again). With ``--episode-timeout T`` the episode
+  checks ``T`` itself between decisions, and an episode whose worker is killed for overrunning
+  ``T`` is recorded as failed ("timeout: ...") at once, as the episode's own check would.
+
+``ray``: each episode is a Ray task (``max_retries`` re-runs a task whose worker died).
+``address=None`` starts a local Ray instance; ``address="auto"`` or ``"ray://host:10001"``
+joins an existing cluster (see README, "Running on a Ray cluster"); an address whose port does
+not accept a connection within :data:`RAY_CONNECT_S` seconds is refused at once (Ray itself
+would retry for minutes, deaf to SIGTERM).
 
 An exception inside an episode (bad input, NaN, a timeout) is never lost: :func:`safe_run` turns
 it into a failed episode with its reason, and the sweep goes on.
@@ -20,22 +36,30 @@ import ctypes
 import multiprocessing as mp
 import os
 import signal
+import socket
 import sys
 import threading
 import time
 import traceback
 from collections import Counter, deque
-from collections.abc import Iterator
-from multiprocessing.connection import wait as mp_wait
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from multiprocessing.connection import Connection, wait
+from multiprocessing.process import BaseProcess
 
 from ..episode import EpisodeResult, EpisodeSpec, Instance, run_episode
 from ..errors import ConfigError, PathprefError
 
 BACKENDS = ("local", "ray")
+#: ``--workers`` above this many per CPU is refused (:func:`max_workers`)
+WORKERS_PER_CPU = 4
+#: seconds a Ray ``--address`` has to accept a TCP connection
+RAY_CONNECT_S = 5.0
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 
 
 def failed(spec: EpisodeSpec, reason: str) -> EpisodeResult:
-    """The result of an episode that could not run (``status='failed'``, with its reason)."""
+    """The result of an episode that could not run (``status="failed"``, with its reason)."""
     return EpisodeResult(spec=spec, instance=Instance(-1, (), -1), status="failed",
                          reason=reason[:2000])
 
@@ -51,121 +75,246 @@ def safe_run(spec: EpisodeSpec) -> EpisodeResult:
         return failed(spec, reason)
 
 
-def _die_with_parent(parent: int) -> None:
-    """Make this worker die with the coordinator, whatever kills it: on Linux the kernel sends
-    SIGKILL when the parent exits (``PR_SET_PDEATHSIG``); everywhere a watchdog thread exits
-    once the parent pid changes (the fallback, and the race between fork and prctl)."""
+def max_workers() -> int:
+    """The most worker processes a sweep may ask for: ``WORKERS_PER_CPU`` x ``os.cpu_count()``
+    (the CLI's default ``--workers`` is one per CPU)."""
+    return WORKERS_PER_CPU * (os.cpu_count() or 1)
+
+
+def wall_limit(spec: EpisodeSpec) -> float:
+    """Seconds of wall time after which the coordinator kills the worker running ``spec``.
+
+    * ``spec.timeout_s`` (``--episode-timeout T``) given: ``1.1 T + 1`` (the episode's own check
+      between decisions normally fires first; this catches a decision that never returns).
+    * Otherwise ``120 + t_max x (2 + queries / 1000 + time_budget_ms / 1000)``: 120 s for a
+      worker's first episode (imports, numba cache, map and model), then per decision 2 s of
+      simulation plus 1 ms per POMCP query and the robust search's time budget. That is 330 s
+      for the paper's simple map (t_max 30, 5000 queries) whose episodes take about a second:
+      only a worker that is frozen or runaway reaches it. Give ``--episode-timeout`` to replace it.
+    """
+    if spec.timeout_s:
+        return 1.1 * spec.timeout_s + 1.0
+    return 120.0 + spec.t_max * (2.0 + spec.queries / 1000 + spec.time_budget_ms / 1000)
+
+
+def _die_with(parent: int) -> None:
+    """Make this worker process die when ``parent`` (the coordinator) does (module docstring)."""
     if sys.platform.startswith("linux"):
         try:
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except OSError:
-            pass
-    if os.getppid() != parent:
+            ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass  # the watchdog below still applies
+    if os.getppid() != parent:  # the coordinator died before prctl took effect
         os._exit(1)
-
-    def watch() -> None:
-        while os.getppid() == parent:
-            time.sleep(1.0)
-        os._exit(1)
-
-    threading.Thread(target=watch, daemon=True).start()
+    threading.Thread(target=_watch_parent, args=(parent,), name="pathpref-parent-watch",
+                     daemon=True).start()
 
 
-def _worker(conn, parent: int) -> None:
-    """A pool process: run the episodes the coordinator sends, one at a time, until None."""
-    _die_with_parent(parent)
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the coordinator handles Ctrl-C
+def _watch_parent(parent: int) -> None:
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os._exit(1)
+
+
+def _work(conn: Connection, parent: int, inherited: list[Connection]) -> None:
+    """A worker process: run each episode received on ``conn`` and send back its result; leave
+    at end of file (the coordinator closed its end). ``inherited`` are the coordinator's ends of
+    pipes that a fork copied here: closed, so that only the coordinator holds them."""
+    for c in inherited:
+        c.close()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    _die_with(parent)
     while True:
-        spec = conn.recv()
-        if spec is None:
+        try:
+            spec = conn.recv()
+        except EOFError:
             return
         conn.send(safe_run(spec))
 
 
-def default_timeout(spec: EpisodeSpec) -> float:
-    """Wall time after which a worker running ``spec`` counts as stuck (killed, episode re-run):
-    ``--episode-timeout`` when given, else ``60 s + T_max x (0.5 s + queries x 20 us)`` for the
-    grid (x 10 with physics), tens of times what an episode takes on a slow core."""
-    if spec.timeout_s:
-        return 5.0 + 1.2 * spec.timeout_s
-    per_step = 0.5 + spec.queries * 20e-6
-    return 60.0 + spec.t_max * per_step * (1.0 if spec.sim == "grid" else 10.0)
+@dataclass
+class _Worker:
+    proc: BaseProcess
+    conn: Connection
+    spec: EpisodeSpec | None = None  # the episode it runs, None when idle
+    started: float = 0.0
+    deadline: float = 0.0
 
 
-class _Slot:
-    """One worker process of the local pool and the episode it runs."""
+@dataclass
+class _Ended:
+    """An episode that left its worker: with its result, or without (the worker died or was
+    killed past the episode's wall-time limit; ``why`` says which)."""
 
-    def __init__(self, ctx) -> None:
-        self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(target=_worker, args=(child, os.getpid()), daemon=True)
-        self.proc.start()
-        child.close()
-        self.spec: EpisodeSpec | None = None
-        self.t0 = 0.0
-
-    def give(self, spec: EpisodeSpec) -> None:
-        self.spec, self.t0 = spec, time.monotonic()
-        self.conn.send(spec)
-
-    def kill(self) -> None:
-        if self.proc.is_alive():
-            os.kill(self.proc.pid, signal.SIGKILL)
-        self.proc.join(5)
-        self.conn.close()
+    spec: EpisodeSpec
+    result: EpisodeResult | None = None
+    why: str = ""
+    timed_out: bool = False  # killed past an explicit ``--episode-timeout``
 
 
-def iter_local(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3
-               ) -> Iterator[EpisodeResult]:
-    """Results from a pool of worker processes (in-process when ``workers == 1``).
+def _signal_name(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            return f"killed by {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"killed by signal {-exitcode}"
+    return f"exit code {exitcode}"
 
-    Each worker runs one episode at a time, so a death is charged to the episode it ran: the
-    episode is queued again, and recorded as failed after ``max_crashes`` deaths; the others
-    are not touched. A worker past :func:`default_timeout` on one episode (frozen, or a search
-    that never returns) is killed by pid and counts as a death of that episode. Workers die
-    with the coordinator (:func:`_die_with_parent`)."""
+
+class _Pool:
+    """Worker processes each running one episode at a time (module docstring)."""
+
+    def __init__(self, size: int, limit: Callable[[EpisodeSpec], float]):
+        self.fork = sys.platform.startswith("linux")
+        self.ctx = mp.get_context("fork" if self.fork else "spawn")
+        self.size, self.limit = size, limit
+        self.workers: list[_Worker] = []
+
+    def _spawn(self) -> _Worker:
+        here, there = self.ctx.Pipe()
+        inherited = [w.conn for w in self.workers] + [here] if self.fork else []
+        proc = self.ctx.Process(target=_work, args=(there, os.getpid(), inherited),
+                                name="pathpref-worker", daemon=True)
+        proc.start()
+        there.close()
+        w = _Worker(proc, here)
+        self.workers.append(w)
+        return w
+
+    def _remove(self, w: _Worker) -> None:
+        if w.proc.exitcode is None:
+            try:
+                os.kill(w.proc.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        w.proc.join()
+        w.conn.close()
+        self.workers.remove(w)
+
+    def idle(self) -> _Worker | None:
+        """A live worker without an episode (started if the pool is not full), or None."""
+        for w in list(self.workers):
+            if w.spec is None and not w.proc.is_alive():  # died between episodes
+                self._remove(w)
+        free = [w for w in self.workers if w.spec is None]
+        if free:
+            return free[0]
+        return self._spawn() if len(self.workers) < self.size else None
+
+    def busy(self) -> bool:
+        return any(w.spec is not None for w in self.workers)
+
+    def start(self, w: _Worker, spec: EpisodeSpec) -> bool:
+        """Give ``spec`` to the idle worker ``w``; False if ``w`` turned out dead (removed)."""
+        try:
+            w.conn.send(spec)
+        except OSError:  # it died since idle() looked
+            self._remove(w)
+            return False
+        w.spec, w.started = spec, time.monotonic()
+        w.deadline = w.started + self.limit(spec)
+        return True
+
+    def collect(self) -> list[_Ended]:
+        """Wait for the first result, death or overrun among the running episodes; all that
+        have ended by then, each freeing its worker (a dead or killed one is removed)."""
+        busy = [w for w in self.workers if w.spec is not None]
+        if not busy:
+            return []
+        timeout = max(0.0, min(w.deadline for w in busy) - time.monotonic())
+        ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout))
+        ended = []
+        for w in busy:
+            spec = w.spec
+            if w.conn in ready:
+                try:
+                    result = w.conn.recv()
+                except (EOFError, OSError):  # died: end of file, or in the middle of a result
+                    pass
+                else:
+                    w.spec = None
+                    ended.append(_Ended(spec, result))
+                    continue
+            now = time.monotonic()
+            if w.conn in ready or w.proc.sentinel in ready:
+                w.proc.join()
+                ended.append(_Ended(spec, why=_signal_name(w.proc.exitcode)))
+            elif now >= w.deadline:
+                ran = now - w.started
+                if spec.timeout_s:
+                    why = (f"timeout: episode exceeded {spec.timeout_s:g} s (its worker was "
+                           f"killed after {ran:.1f} s)")
+                else:
+                    why = (f"killed after {ran:.0f} s without a result, this episode's limit "
+                           f"(set --episode-timeout to change it)")
+                ended.append(_Ended(spec, why=why, timed_out=bool(spec.timeout_s)))
+            else:
+                continue
+            self._remove(w)
+        return ended
+
+    def close(self) -> None:
+        """Kill every worker (they hold no state) and reap it."""
+        for w in list(self.workers):
+            self._remove(w)
+
+
+def iter_local(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
+               limit: Callable[[EpisodeSpec], float] = wall_limit) -> Iterator[EpisodeResult]:
+    """Results from a pool of worker processes (in-process when ``workers == 1``), in completion
+    order; ``limit`` gives an episode's wall-time limit in seconds. Rules: module docstring."""
     if workers <= 1:
         for s in specs:
             yield safe_run(s)
         return
-    ctx = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
     queue = deque(specs)
-    crashes: Counter[str] = Counter()
-    slots = [_Slot(ctx) for _ in range(min(workers, len(specs)))]
+    deaths: Counter[str] = Counter()
+    pool = _Pool(min(workers, len(queue)), limit)
     try:
-        while queue or any(sl.spec is not None for sl in slots):
-            for sl in slots:
-                if sl.spec is None and queue:
-                    sl.give(queue.popleft())
-            busy = [sl for sl in slots if sl.spec is not None]
-            ready = mp_wait([sl.conn for sl in busy], timeout=1.0)
-            for k, sl in enumerate(slots):
-                if sl.spec is None:
-                    continue
-                reason = None
-                if sl.conn in ready:
-                    try:
-                        res = sl.conn.recv()
-                    except (EOFError, OSError):
-                        reason = "worker process died"
-                    else:
-                        sl.spec = None
-                        yield res
-                        continue
-                elif time.monotonic() - sl.t0 > default_timeout(sl.spec):
-                    reason = f"worker made no progress for {default_timeout(sl.spec):g} s"
-                if reason is None:
-                    continue
-                spec, sl.spec = sl.spec, None
-                sl.kill()
-                slots[k] = _Slot(ctx)
-                crashes[spec.key()] += 1
-                if crashes[spec.key()] >= max_crashes:
-                    yield failed(spec, f"{reason} ({max_crashes} times)")
+        while queue or pool.busy():
+            while queue and (w := pool.idle()) is not None:
+                if pool.start(w, queue[0]):
+                    queue.popleft()
+            for end in pool.collect():
+                if end.result is not None:
+                    yield end.result
+                elif end.timed_out:
+                    yield failed(end.spec, end.why)
                 else:
-                    queue.appendleft(spec)
+                    key = end.spec.key()
+                    deaths[key] += 1
+                    if deaths[key] >= max_crashes:
+                        yield failed(end.spec, f"worker process died {deaths[key]} times "
+                                               f"(last: {end.why})")
+                    else:
+                        queue.appendleft(end.spec)
     finally:
-        for sl in slots:
-            sl.kill()
+        pool.close()
+
+
+def _require_reachable(address: str) -> None:
+    """Refuse (ConfigError) a Ray address whose port does not accept a TCP connection within
+    ``RAY_CONNECT_S`` seconds. ``auto`` is resolved as Ray does; when there is nothing to
+    resolve, Ray's own error (immediate) is the one given."""
+    target = address.removeprefix("ray://")
+    if target == "local":  # Ray starts a new local instance
+        return
+    if target == "auto":
+        try:
+            from ray._private.services import canonicalize_bootstrap_address
+
+            target = canonicalize_bootstrap_address("auto") or ""
+        except Exception:  # noqa: BLE001 - no cluster found, or another Ray version: Ray says
+            return
+    host, _, port = target.rpartition(":")
+    if not host or not port.isdigit():
+        raise ConfigError(f"Ray address {address!r} is not host:port, ray://host:port or auto")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=RAY_CONNECT_S).close()
+    except OSError as e:
+        raise ConfigError(f"cannot reach Ray at {address!r} within {RAY_CONNECT_S:g} s ({e}); "
+                          f"is `ray start --head` running there?") from None
 
 
 def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int | None = None,
@@ -179,6 +328,8 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
         ) from None
     started = False
     if not ray.is_initialized():
+        if address is not None:
+            _require_reachable(address)
         kwargs = {"address": address, "include_dashboard": False, "log_to_driver": False,
                   "configure_logging": False}
         if address is None and num_cpus is not None:
@@ -197,7 +348,8 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
             while todo and len(pending) < window:
                 s = todo.popleft()
                 pending[remote.remote(s)] = s
-            done, _ = ray.wait(list(pending), num_returns=1)
+            # a bounded wait, so that a signal's Python handler (SIGTERM: exit) gets to run
+            done, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
             for ref in done:
                 s = pending.pop(ref)
                 try:
@@ -211,7 +363,9 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
 
 def iter_results(specs: list[EpisodeSpec], backend: str, workers: int,
                  address: str | None = None) -> Iterator[EpisodeResult]:
-    """Results of ``specs`` from the named backend, in completion order."""
+    """Results of ``specs`` from ``backend``, with at most ``workers`` worker processes (local)
+    or CPUs (a local Ray instance), and never more than there are episodes."""
+    workers = max(1, min(workers, len(specs)))
     if backend == "local":
         return iter_local(specs, workers)
     if backend == "ray":

@@ -4,13 +4,22 @@ Seeds follow common random numbers: instance ``i`` is drawn from ``seed_for(seed
 ``r`` of it uses ``seed_for(seed, i, r)``, the same for every method and Delta_T, so methods are
 compared on identical instances and human random streams. The coordinator alone writes the
 store, as results arrive; a rerun with the same database runs only the missing episodes.
+
+A sweep may be killed at any moment. Each finished episode is committed on arrival; SIGTERM
+(like Ctrl-C) makes :func:`run_sweep` unwind, killing its worker processes (exit status 143
+from the CLI); SIGKILL leaves nothing behind either (see :mod:`.backends`).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import signal
 import sys
+import threading
 import time
+from collections.abc import Iterator
+from contextlib import closing, contextmanager
 from dataclasses import replace
 
 from tqdm import tqdm
@@ -19,7 +28,7 @@ from ..episode import EpisodeSpec, body_class, cached_world
 from ..episode.instances import episode_instance
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
-from .backends import BACKENDS, iter_results
+from .backends import BACKENDS, iter_results, max_workers
 from .store import ResultStore
 
 
@@ -59,29 +68,70 @@ def check_specs(specs: list[EpisodeSpec]) -> None:
         episode_instance(world, s.fixed, s.instance_seed, s.n_goals, s.human, s.t_max)
 
 
+#: seconds a SIGTERM'd sweep has to unwind before it leaves with ``os._exit`` (see below)
+TERM_GRACE_S = 5.0
+
+
+@contextmanager
+def _sigterm_exits() -> Iterator[None]:
+    """While a sweep runs in the main thread, SIGTERM raises ``SystemExit(143)`` there, so the
+    sweep unwinds (workers killed, store closed) instead of the process vanishing mid-step.
+
+    Python swallows an exception raised where it cannot propagate (a fork hook, a finalizer):
+    then the sweep raises it on leaving this block, or, if it has not left within
+    ``TERM_GRACE_S``, the process ends with ``os._exit(143)`` (its workers die with it)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    received: list[threading.Timer] = []
+
+    def on_term(signum: int, frame) -> None:
+        if not received:
+            received.append(threading.Timer(TERM_GRACE_S, os._exit, (128 + signum,)))
+            received[0].daemon = True
+            received[0].start()
+        raise SystemExit(128 + signum)
+
+    old = signal.signal(signal.SIGTERM, on_term)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL if old is None else old)
+        for timer in received:
+            timer.cancel()
+    if received:  # reached only if the SystemExit was swallowed
+        raise SystemExit(128 + signal.SIGTERM)
+
+
 def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: bool = True,
               retry_failed: bool = False, backend: str = "local",
               address: str | None = None) -> dict[str, int]:
     """Run the episodes of ``specs`` missing from ``db`` (failed ones too when
-    ``retry_failed``); results are written as they arrive. Returns counts."""
+    ``retry_failed``); results are written as they arrive. Returns counts.
+
+    ``workers`` (local processes, or a local Ray instance's CPUs) must be at most
+    :func:`.backends.max_workers`; no more are started than there are episodes to run."""
     if workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {workers}")
+    if workers > max_workers() and (backend == "local" or address is None):
+        raise ConfigError(f"--workers {workers} is too many for {os.cpu_count()} CPUs (at most "
+                          f"{max_workers()}; one per CPU is fastest)")
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
     check_specs(specs)
-    with ResultStore(db) as store:
+    with _sigterm_exits(), ResultStore(db) as store:
         done = store.done_keys(include_failed=not retry_failed)
         todo = [s for s in specs if s.key() not in done]
         counts = {"total": len(specs), "skipped": len(specs) - len(todo), "ran": 0, "failed": 0}
         bar = tqdm(total=len(todo), disable=not progress, unit="ep", dynamic_ncols=True,
                    desc="episodes", file=sys.stderr)
         t0 = time.perf_counter()
-        for res in iter_results(todo, backend, workers, address):
-            store.add(res)
-            counts["ran"] += 1
-            counts["failed"] += res.status != "ok"
-            bar.update(1)
-        bar.close()
+        with closing(iter_results(todo, backend, workers, address)) as results, bar:
+            for res in results:
+                store.add(res)
+                counts["ran"] += 1
+                counts["failed"] += res.status != "ok"
+                bar.update(1)
         counts["seconds"] = round(time.perf_counter() - t0, 1)
     return counts
 
