@@ -22,17 +22,26 @@ from typing import Any
 
 from ..errors import ConfigError, PathprefError
 from .episode import EpisodeSpec, cached_map
-from .store import EPISODE_COLUMNS, SCHEMA_VERSION, ResultStore
-
-UPGRADABLE = (2,)
+from .store import (
+    EPISODE_COLUMNS,
+    SCHEMA_VERSION,
+    UPGRADABLE,
+    ResultStore,
+    damaged,
+    inspect_results_file,
+    open_readonly,
+)
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
-    """Schema version, episode rows and step rows of ``path`` (read-only, no side files)."""
+    """Schema version, episode rows and step rows of ``path`` (read-only, no side files), after
+    the checks of :func:`~pathpref.experiments.store.inspect_results_file`."""
+    version = inspect_results_file(path)
+    if version is None:
+        raise ConfigError(f"{path} holds no pathpref tables; there is nothing to upgrade")
     try:
-        ro = sqlite3.connect(f"file:{path}?mode=ro&immutable=1", uri=True)
+        ro = open_readonly(path)
         try:
-            ver = ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
             cur = ro.execute("SELECT * FROM episodes")
             names = [d[0] for d in cur.description]
             rows = [dict(zip(names, r, strict=True)) for r in cur]
@@ -40,10 +49,8 @@ def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
         finally:
             ro.close()
     except sqlite3.Error as e:
-        raise ConfigError(f"{path} is not a pathpref results database ({e})") from None
-    if ver is None:
-        raise ConfigError(f"{path} has no schema version; it was not written by pathpref")
-    return int(ver[0]), rows, steps
+        raise damaged(path, e) from None
+    return version, rows, steps
 
 
 def _new_spec(row: dict[str, Any], map_paths: dict[str, str]) -> EpisodeSpec:
@@ -68,8 +75,6 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
                      ) -> dict[str, Any]:
     """Migrate ``path`` in place (see module docstring); returns counts of what was done."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"no results database at {path}")
     version, rows, steps = _read_old(path)
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
