@@ -115,6 +115,26 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_db_check(args: argparse.Namespace) -> int:
+    """Report the damage of a database: exit 0 when intact, 2 when not."""
+    from .experiments.migrate import check_database, check_text
+
+    r = check_database(args.db)
+    print(check_text(r))
+    return 0 if r["intact"] else 2
+
+
+def cmd_db_salvage(args: argparse.Namespace) -> int:
+    from .experiments.migrate import salvage_database
+
+    r = salvage_database(args.db, args.out)
+    about = "" if r["lost_exact"] else "at most "
+    print(f"saved {r['episodes']} episodes and {r['steps']} step rows of {args.db} into "
+          f"{args.out}; lost {about}{r['episodes_lost']} episodes ({r['incomplete']} with "
+          f"missing step rows) and {about}{r['steps_lost']} step rows")
+    return 0
+
+
 # --- experiments ----------------------------------------------------------------------------
 def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
     from .experiments.episode import cached_map
@@ -360,6 +380,13 @@ def build_parser() -> argparse.ArgumentParser:
     du.add_argument("--map", action="append", metavar="OLD=NEW",
                     help="point a stored map name at a file (when it has moved); repeatable")
     du.set_defaults(func=cmd_db_upgrade)
+    dc = dbsub.add_parser("check", help="report damage: integrity, schema, rows (exit 2 if any)")
+    dc.add_argument("db", help="results database (.sqlite)")
+    dc.set_defaults(func=cmd_db_check)
+    ds = dbsub.add_parser("salvage", help="copy every intact episode into a new database")
+    ds.add_argument("db", help="damaged results database (.sqlite)")
+    ds.add_argument("out", help="new database to write (must not exist)")
+    ds.set_defaults(func=cmd_db_salvage)
 
     ev = sub.add_parser("evaluate", help="run a sweep of episodes into a results database")
     ev.add_argument("--map", default="simple")

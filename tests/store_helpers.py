@@ -48,7 +48,7 @@ def snapshot(folder: str | Path) -> dict[str, tuple]:
 
 def leaf_page_of(path: str | Path, table: str, which: int = 1) -> int:
     """Page number of the ``which``-th leaf page of ``table`` (for corrupting it)."""
-    with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as c:
+    with sqlite3.connect(f"file:{path}?mode=ro&immutable=1", uri=True) as c:
         pages = [r[0] for r in c.execute(
             "SELECT pageno FROM dbstat WHERE name = ? AND pagetype = 'leaf' ORDER BY pageno",
             (table,))]
@@ -58,7 +58,7 @@ def leaf_page_of(path: str | Path, table: str, which: int = 1) -> int:
 
 def corrupt_page(path: str | Path, pageno: int) -> None:
     """Overwrite page ``pageno`` (1-based) of an SQLite file with garbage."""
-    with sqlite3.connect(f"file:{path}?mode=ro", uri=True) as c:
+    with sqlite3.connect(f"file:{path}?mode=ro&immutable=1", uri=True) as c:
         size = c.execute("PRAGMA page_size").fetchone()[0]
     c.close()
     with open(path, "r+b") as f:
