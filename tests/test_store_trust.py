@@ -1,145 +1,184 @@
-"""A results database is pathpref's only if it holds exactly pathpref's tables and columns, the
-right schema row and nothing else (no view, no trigger); anything else, and a damaged file, is
-refused in one line and left exactly as it was, with no side file created."""
+"""A results database is pathpref's only when its tables, columns and schema row are pathpref's
+and it has no views or triggers; anything else, and any damaged file, is refused with one line
+and left untouched (no side file appears, no byte or mtime changes)."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import sqlite3
+from pathlib import Path
 
 import pytest
 
+from pathpref.apps.cli import main
 from pathpref.errors import ConfigError
-from pathpref.experiments.report import load_records
+from pathpref.experiments import store as store_mod
 from pathpref.experiments.store import ResultStore
-from pathpref.experiments.sweep import run_sweep, sweep_specs
+
+from .store_helpers import corrupt_page, leaf_page_of, snapshot, synthetic_db
+
+CELLS = {("compliant", 1): (1, 5), ("goal_only", 1): (2, 5)}
 
 
-@pytest.fixture(scope="module")
-def good_db(tmp_path_factory):
-    db = tmp_path_factory.mktemp("good") / "r.sqlite"
-    specs = sweep_specs("simple", ["compliant"], [1, 5], instances=3, runs=1, queries=50)
-    run_sweep(specs, str(db), workers=1, progress=False)
-    with sqlite3.connect(db) as c:  # one self-contained file: no -wal beside it
-        c.execute("PRAGMA wal_checkpoint(TRUNCATE)")
-        c.execute("PRAGMA journal_mode=DELETE")
+def tamper(path: Path, *statements: str) -> Path:
+    """Run ``statements`` on ``path`` (created if missing), left in rollback-journal mode."""
+    c = sqlite3.connect(path)
+    c.execute("PRAGMA journal_mode=DELETE")
+    for s in statements:
+        c.execute(s)
+    c.commit()
+    c.close()
+    return path
+
+
+def valid(tmp_path: Path) -> Path:
+    return synthetic_db(tmp_path / "r.sqlite", CELLS)
+
+
+def trigger(tmp_path):
+    return tamper(valid(tmp_path), "CREATE TRIGGER fix AFTER INSERT ON episodes BEGIN "
+                  "UPDATE episodes SET success = 1, goal_reached = 1; END")
+
+
+def view_named_episodes(tmp_path):
+    return tamper(valid(tmp_path), "DROP TABLE episodes", """CREATE VIEW episodes AS
+        WITH RECURSIVE i(n) AS (SELECT 1 UNION ALL SELECT n + 1 FROM i WHERE n < 100)
+        SELECT 'k' || n AS key, 'simple' AS map, 'h' AS map_hash, 1 AS success FROM i""")
+
+
+def extra_view(tmp_path):
+    return tamper(valid(tmp_path), "CREATE VIEW summary AS SELECT count(*) FROM episodes")
+
+
+def recursive_view(tmp_path):
+    return tamper(valid(tmp_path), "CREATE VIEW grow AS WITH RECURSIVE c(x) AS "
+                  "(SELECT randomblob(1000) UNION ALL SELECT randomblob(1000) FROM c) "
+                  "SELECT x FROM c")
+
+
+def other_app_view_only(tmp_path):
+    return tamper(tmp_path / "app.db", "CREATE VIEW v AS SELECT 1 AS one")
+
+
+def meta_schema2_foreign_tables(tmp_path):
+    return tamper(tmp_path / "app.db", "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)",
+                  "INSERT INTO meta VALUES ('schema_version', '2')",
+                  "CREATE TABLE accounts (id INTEGER PRIMARY KEY, owner TEXT)")
+
+
+def extra_index(tmp_path):
+    return tamper(valid(tmp_path), "CREATE INDEX by_method ON episodes (method)")
+
+
+def generated_column(tmp_path):
+    db = valid(tmp_path)
+    cols = ", ".join(f"{k} {t}" for k, t in store_mod.EPISODE_COLUMNS.items()
+                     if k != "success")
+    return tamper(db, "DROP TABLE episodes",
+                  f"CREATE TABLE episodes ({cols}, success INTEGER GENERATED ALWAYS AS (1))")
+
+
+def bad_schema_row(tmp_path):
+    return tamper(valid(tmp_path), "UPDATE meta SET value = 'three'")
+
+
+def corrupt(tmp_path):
+    db = synthetic_db(tmp_path / "r.sqlite", {("compliant", 1): (10, 60)}, steps=20)
+    corrupt_page(db, leaf_page_of(db, "steps", 3))
     return db
 
 
-def _snapshot(folder):
-    return {n: (os.path.getsize(folder / n), os.path.getmtime(folder / n))
-            for n in sorted(os.listdir(folder))}
+def directory(tmp_path):
+    (tmp_path / "results.sqlite").mkdir()
+    return tmp_path / "results.sqlite"
 
 
-def _refused(path, match):
-    folder = path.parent
-    before = _snapshot(folder)
-    data = path.read_bytes() if path.is_file() else None
-    with pytest.raises(ConfigError, match=match) as e:
-        ResultStore(path)
-    assert "\n" not in str(e.value)
-    with pytest.raises(ConfigError):
-        load_records(path)
-    assert _snapshot(folder) == before  # no -wal, -shm or -journal, nothing modified
-    if data is not None:
-        assert path.read_bytes() == data
+def fifo(tmp_path):
+    os.mkfifo(tmp_path / "pipe.sqlite")
+    return tmp_path / "pipe.sqlite"
 
 
-def _doctored(good_db, tmp_path, sql):
-    p = tmp_path / "doctored.sqlite"
-    shutil.copy(good_db, p)
-    with sqlite3.connect(p) as c:
-        c.executescript(sql)
-    return p
+CASES = {
+    trigger: "trigger 'fix'",
+    view_named_episodes: "view 'episodes'",
+    extra_view: "view 'summary'",
+    recursive_view: "view 'grow'",
+    other_app_view_only: "view 'v'",
+    meta_schema2_foreign_tables: "table 'accounts'",
+    extra_index: "index 'by_method'",
+    generated_column: "table episodes is not defined as pathpref defines it",
+    bad_schema_row: "no schema version",
+    corrupt: "is damaged",
+    directory: "is a directory",
+    fifo: "not a regular file",
+}
 
 
-def test_a_planted_trigger_is_refused(good_db, tmp_path):
-    p = _doctored(good_db, tmp_path, "CREATE TRIGGER lie AFTER INSERT ON episodes BEGIN "
-                                     "UPDATE episodes SET success = 1; END;")
-    _refused(p, "trigger 'lie'")
+@pytest.mark.parametrize("make", list(CASES), ids=[f.__name__ for f in CASES])
+def test_refused_untouched_with_one_line(make, tmp_path, capsys):
+    db = make(tmp_path)
+    before = snapshot(tmp_path)
+    with pytest.raises(ConfigError, match=CASES[make]) as e:
+        ResultStore(db)
+    assert str(db) in str(e.value) and "\n" not in str(e.value)
+    for argv in (["report", str(db)], ["db", "upgrade", str(db)],
+                 ["evaluate", "--db", str(db), "--methods", "compliant", "--delta-t", "1",
+                  "--instances", "1", "--runs", "1", "--workers", "1", "--no-progress"]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(db) in err, err
+    assert snapshot(tmp_path) == before
 
 
-def test_episodes_replaced_by_a_view_is_refused(good_db, tmp_path):
-    p = _doctored(good_db, tmp_path, "ALTER TABLE episodes RENAME TO e2; CREATE VIEW episodes "
-                                     "AS SELECT * FROM e2;")
-    _refused(p, "view 'episodes'")
+def test_damaged_file_names_the_repair_commands(tmp_path):
+    db = corrupt(tmp_path)
+    with pytest.raises(ConfigError, match=r"pathpref db check .*pathpref db salvage"):
+        ResultStore(db)
 
 
-def test_a_recursive_view_is_refused_before_it_is_read(good_db, tmp_path):
-    p = _doctored(good_db, tmp_path, "CREATE VIEW big AS WITH RECURSIVE n(i) AS (SELECT 1 "
-                                     "UNION ALL SELECT i + 1 FROM n) SELECT i FROM n;")
-    _refused(p, "view 'big'")
-
-
-def test_another_applications_file_is_refused(tmp_path):
-    p = tmp_path / "other.sqlite"
-    with sqlite3.connect(p) as c:
-        c.executescript("CREATE TABLE t (x); CREATE VIEW v AS SELECT x FROM t;")
-    _refused(p, "not write")
-    q = tmp_path / "meta.sqlite"
-    with sqlite3.connect(q) as c:  # a meta table that claims schema 2, foreign tables
-        c.executescript("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT); INSERT INTO "
-                        "meta VALUES ('schema_version', '2'); CREATE TABLE notes (x);")
-    _refused(q, "not write")
-
-
-def test_a_damaged_page_is_refused(good_db, tmp_path):
-    p = tmp_path / "damaged.sqlite"
-    data = bytearray(good_db.read_bytes())
-    page = 4096
-    assert len(data) > 4 * page
-    data[3 * page: 4 * page] = b"\xde\xad\xbe\xef" * (page // 4)
-    p.write_bytes(bytes(data))
-    _refused(p, "damaged|cannot read")
-
-
-def test_folders_and_devices_are_refused(tmp_path):
-    d = tmp_path / "dir.sqlite"
-    d.mkdir()
-    _refused(d, "not a regular file")
-    fifo = tmp_path / "fifo.sqlite"
-    os.mkfifo(fifo)
-    _refused(fifo, "not a regular file")  # and does not block
+def test_dev_null_is_refused_without_a_journal():
+    if os.path.exists("/dev/null-journal"):
+        pytest.skip("/dev/null-journal exists already")
     with pytest.raises(ConfigError, match="not a regular file"):
         ResultStore("/dev/null")
+    assert main(["report", "/dev/null"]) == 2
     assert not os.path.exists("/dev/null-journal")
 
 
-def test_a_good_database_still_opens_and_reports(good_db):
-    assert len(load_records(good_db)) > 0
-    with ResultStore(good_db) as st:
-        assert len(st.done_keys()) == 6
+def test_read_error_after_opening_is_one_line(tmp_path, monkeypatch, capsys):
+    """A page that breaks after the check (here: the check is skipped) is one line too."""
+    db = synthetic_db(tmp_path / "r.sqlite", {("compliant", 1): (10, 200)})
+    corrupt_page(db, leaf_page_of(db, "episodes", 2))
+    monkeypatch.setattr(store_mod, "check_results_file", lambda path, create: True)
+    assert main(["report", str(db)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is damaged" in err and "db salvage" in err
 
 
-def test_db_check_and_salvage(good_db, tmp_path, capsys):
-    """A damaged page: check reports it (exit 2), salvage copies the rest into a new file that
-    checks intact and reports; an intact file checks 0."""
-    from pathpref.apps.cli import main
+def test_interrupted_sweep_with_wal_is_read_whole(tmp_path):
+    """A killed sweep leaves its last episodes in the -wal file: they count, nothing is lost."""
+    live = synthetic_db(tmp_path / "live.sqlite", CELLS)
+    writer = sqlite3.connect(live)
+    writer.execute("PRAGMA journal_mode=WAL")
+    n = writer.execute("SELECT count(*) FROM episodes").fetchone()[0]
+    writer.execute("DELETE FROM episodes WHERE method = 'goal_only'")
+    writer.commit()
+    killed = tmp_path / "killed"
+    killed.mkdir()
+    for side in ("", "-wal", "-shm"):
+        shutil.copy(f"{live}{side}", killed / f"r.sqlite{side}")
+    writer.close()
+    with ResultStore(killed / "r.sqlite") as st:
+        assert len(st.episodes()) == n - 5
 
-    assert main(["db", "check", str(good_db)]) == 0
-    assert "intact" in capsys.readouterr().out
-    bad = tmp_path / "damaged.sqlite"
-    data = bytearray(good_db.read_bytes())
-    n_pages = len(data) // 4096
-    data[(n_pages - 1) * 4096:] = b"\x00\xff" * 2048  # the last page: some step rows
-    bad.write_bytes(bytes(data))
-    before = bad.read_bytes()
-    assert main(["db", "check", str(bad)]) == 2
-    assert "problem" in capsys.readouterr().out
-    out = tmp_path / "saved.sqlite"
-    assert main(["db", "salvage", str(bad), str(out)]) == 0
-    msg = capsys.readouterr().out
-    assert bad.read_bytes() == before and not (tmp_path / "damaged.sqlite-wal").exists()
-    with sqlite3.connect(good_db) as c:
-        total = c.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
-    with sqlite3.connect(out) as c:
-        saved = c.execute("SELECT COUNT(*) FROM episodes").fetchone()[0]
-        assert c.execute("SELECT COUNT(*) FROM steps WHERE key NOT IN "
-                         "(SELECT key FROM episodes)").fetchone()[0] == 0
-    assert 0 < saved <= total and f"saved {saved} episodes" in msg
-    assert main(["db", "check", str(out)]) == 0
-    assert load_records(out)  # the report reads it
-    with ResultStore(out) as st:
-        assert len(st.episodes()) == saved
-    assert main(["db", "salvage", str(bad), str(out)]) == 2  # never overwrites
+
+def test_new_and_empty_files_are_created(tmp_path):
+    (tmp_path / "empty.sqlite").write_bytes(b"")
+    for name in ("new.sqlite", "empty.sqlite"):
+        with ResultStore(tmp_path / name) as st:
+            assert st.episodes() == []
+        with ResultStore(tmp_path / name) as st:  # and reopened as pathpref's
+            assert st.done_keys() == set()
+    with pytest.raises(ConfigError, match="no results database"):
+        ResultStore(tmp_path / "missing.sqlite", create=False)

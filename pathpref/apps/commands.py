@@ -113,26 +113,23 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
 
 
 def cmd_db_check(args: argparse.Namespace) -> int:
-    """``pathpref db check``: report damage (exit 0 when intact, 2 otherwise)."""
-    from ..experiments.salvage import damage_report
+    """``pathpref db check``: report the damage of a database (exit 0 intact, 2 not)."""
+    from ..experiments.migrate import check_database, check_text
 
-    r = damage_report(args.db)
-    print(f"{args.db}: schema {r['schema']}, {r['episodes']} episodes, {r['steps']} step rows")
-    for problem in r["problems"]:
-        print(f"  problem: {problem}")
-    print("intact" if r["intact"] else
-          f"damaged: 'pathpref db salvage {args.db} OUT' copies every intact episode")
+    r = check_database(args.db)
+    print(check_text(r))
     return 0 if r["intact"] else 2
 
 
 def cmd_db_salvage(args: argparse.Namespace) -> int:
-    """``pathpref db salvage``: copy every episode that reads whole into a new database."""
-    from ..experiments.salvage import salvage
+    """``pathpref db salvage``: copy every intact episode into a new database."""
+    from ..experiments.migrate import salvage_database
 
-    check_writable(args.out)
-    r = salvage(args.db, args.out)
-    print(f"saved {r['saved']} episodes ({r['steps']} step rows) to {args.out}; "
-          f"{r['lost']} could not be read")
+    r = salvage_database(args.db, args.out)
+    about = "" if r["lost_exact"] else "at most "
+    print(f"saved {r['episodes']} episodes and {r['steps']} step rows of {args.db} into "
+          f"{args.out}; lost {about}{r['episodes_lost']} episodes ({r['incomplete']} with "
+          f"missing step rows) and {about}{r['steps_lost']} step rows")
     return 0
 
 

@@ -1,38 +1,63 @@
-"""``pathpref db upgrade``: migrate an older results database to the current schema.
+"""``pathpref db``: upgrade, check and salvage results databases.
 
-Schema 2 keyed an episode by its map's *path*; schema 3 keys it by the map's content hash
-(:attr:`pathpref.geometry.maps.MapSpec.content_hash`) and stores that hash in a ``map_hash``
-column. The upgrade reads every row of the old file, loads each map it names (``--map OLD=NEW``
-points a stored name at a file that has moved), recomputes the key of each episode under the
-current :class:`~pathpref.episode.EpisodeSpec` (fields the old schema lacks take their
-defaults, which reproduce the old behaviour), and writes a new file with every episode and step.
+**upgrade.** Schema 2 keyed an episode by its map's *path*; schema 3 keys it by the map's
+content hash (:attr:`pathpref.geometry.maps.MapSpec.content_hash`) and stores that hash in a
+``map_hash`` column. The upgrade reads every row of the old file, loads each map it names
+(``--map OLD=NEW`` points a stored name at a file that has moved), recomputes the key of each
+episode under the current :class:`~pathpref.episode.EpisodeSpec` (fields the old
+schema lacks take their defaults, which reproduce the old behaviour), and writes a new file with
+every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
 ``NAME.schema2.bak``; nothing is changed when any map cannot be loaded.
+
+**check** (:func:`check_database`) reads a database without changing it and reports SQLite's
+integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
+how many episode and step rows read back, and which episodes lack step rows (an episode that ran
+has one per time step ``0..steps``, a failed one none) or which step rows belong to no episode.
+
+**salvage** (:func:`salvage_database`) copies every episode that reads back whole, with its step
+rows, into a new database; rows on damaged pages are read around (one rowid range at a time,
+then row by row), and an episode with a missing step row is left out, so a rerun of the sweep
+redoes exactly what was lost.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import sqlite3
 import tempfile
+from collections import defaultdict
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 from ..episode import EpisodeSpec, cached_map
 from ..errors import ConfigError, PathprefError
-from .store import EPISODE_COLUMNS, SCHEMA_VERSION, ResultStore
-
-UPGRADABLE = (2,)
+from .store import (
+    EPISODE_COLUMNS,
+    SCHEMA_VERSION,
+    UPGRADABLE,
+    ResultStore,
+    damaged,
+    inspect_results_file,
+    open_readonly,
+    require_sqlite_file,
+    schema_version,
+)
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
-    """Schema version, episode rows and step rows of ``path`` (read-only, no side files)."""
+    """Schema version, episode rows and step rows of ``path`` (read-only, no side files), after
+    the checks of :func:`~pathpref.experiments.store.inspect_results_file`."""
+    version = inspect_results_file(path)
+    if version is None:
+        raise ConfigError(f"{path} holds no pathpref tables; there is nothing to upgrade")
     try:
-        ro = sqlite3.connect(f"file:{path}?mode=ro&immutable=1", uri=True)
+        ro = open_readonly(path)
         try:
-            ver = ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
             cur = ro.execute("SELECT * FROM episodes")
             names = [d[0] for d in cur.description]
             rows = [dict(zip(names, r, strict=True)) for r in cur]
@@ -40,10 +65,8 @@ def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
         finally:
             ro.close()
     except sqlite3.Error as e:
-        raise ConfigError(f"{path} is not a pathpref results database ({e})") from None
-    if ver is None:
-        raise ConfigError(f"{path} has no schema version; it was not written by pathpref")
-    return int(ver[0]), rows, steps
+        raise damaged(path, e) from None
+    return version, rows, steps
 
 
 def _new_spec(row: dict[str, Any], map_paths: dict[str, str]) -> EpisodeSpec:
@@ -68,8 +91,6 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
                      ) -> dict[str, Any]:
     """Migrate ``path`` in place (see module docstring); returns counts of what was done."""
     path = Path(path)
-    if not path.is_file():
-        raise ConfigError(f"no results database at {path}")
     version, rows, steps = _read_old(path)
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
@@ -90,7 +111,21 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     backup = path.with_name(path.name + f".schema{version}.bak")
     if backup.exists():
         raise ConfigError(f"{backup} exists; move it away before upgrading {path}")
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".upgrade")
+    steps = [(new_key[s[0]], *s[1:]) for s in steps if s[0] in new_key]
+    with _new_database(path, kept.values(), steps) as tmp:
+        os.replace(path, backup)
+        os.replace(tmp, path)
+    return {"from": version, "to": SCHEMA_VERSION, "episodes": len(kept), "steps": len(steps),
+            "merged": len(rows) - len(kept), "backup": str(backup)}
+
+
+@contextlib.contextmanager
+def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple]
+                  ) -> Iterator[str]:
+    """A new pathpref database holding ``episodes`` and ``steps``, written to a temporary file
+    in the folder of ``beside`` (rollback journal, no side file) for the caller to move into
+    place; whatever is left of it afterwards is removed."""
+    fd, tmp = tempfile.mkstemp(dir=beside.parent, prefix=f".{beside.stem}.", suffix=".new")
     os.close(fd)
     os.unlink(tmp)  # ResultStore creates the file itself
     try:
@@ -99,22 +134,189 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
         with store.conn:
             store.conn.executemany(
                 f"INSERT INTO episodes ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
-                [[_plain(r.get(c)) for c in cols] for r in kept.values()])
-            store.conn.executemany(
-                "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                [(new_key[s[0]], *s[1:]) for s in steps if s[0] in new_key])
-            n_steps = store.conn.execute("SELECT COUNT(*) FROM steps").fetchone()[0]
+                [[_plain(r.get(c)) for c in cols] for r in episodes])
+            store.conn.executemany("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", steps)
         store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
         store.conn.execute("PRAGMA journal_mode=DELETE")
         store.close()
-        os.replace(path, backup)
-        os.replace(tmp, path)
+        yield tmp
     finally:
-        for side in (tmp, tmp + "-wal", tmp + "-shm"):
+        for side in (tmp, tmp + "-wal", tmp + "-shm", tmp + "-journal"):
             if os.path.exists(side):
                 os.unlink(side)
-    return {"from": version, "to": SCHEMA_VERSION, "episodes": len(kept), "steps": n_steps,
-            "merged": len(rows) - len(kept), "backup": str(backup)}
+
+
+def _read_table(conn: sqlite3.Connection, table: str, chunk: int = 512
+                ) -> tuple[list[dict[str, Any]], int, bool]:
+    """Every row of ``table`` that reads back, the number lost, and whether that number is exact.
+
+    Rows are read one rowid range at a time and, in a range that raises, row by row, so a
+    damaged page costs only its own rows. The rowid bounds come from the table or, when its
+    edge pages are damaged, from its primary-key index; failing both, the scan stops after 16
+    empty ranges. The number lost is ``count(*)`` (the index usually still counts) minus the
+    rows read; when nothing counts, it is the number of rowids whose read raised (an upper
+    bound: rowids have gaps).
+    """
+    def first(*queries: str) -> Any:
+        for q in queries:
+            try:
+                return conn.execute(q).fetchone()[0]
+            except sqlite3.DatabaseError:
+                continue
+        return None
+
+    index = f"INDEXED BY sqlite_autoindex_{table}_1"
+    lo = first(f"SELECT min(rowid) FROM {table}", f"SELECT min(rowid) FROM {table} {index}")
+    hi = first(f"SELECT max(rowid) FROM {table}", f"SELECT max(rowid) FROM {table} {index}")
+    total = first(f"SELECT count(*) FROM {table}", f"SELECT count(*) FROM {table} NOT INDEXED")
+    cur = conn.execute(f"SELECT * FROM {table} LIMIT 0")
+    names = [d[0] for d in cur.description]
+    query = f"SELECT * FROM {table} WHERE rowid BETWEEN ? AND ?"
+    rows: list[tuple] = []
+    failed = empty = 0
+    start = 1 if lo is None else lo
+    while (start <= hi) if hi is not None else (empty < 16):
+        end = start + chunk - 1
+        try:
+            got = conn.execute(query, (start, end)).fetchall()
+        except sqlite3.DatabaseError:
+            got = []
+            for rowid in range(start, end + 1):
+                try:
+                    got += conn.execute(query, (rowid, rowid)).fetchall()
+                except sqlite3.DatabaseError:
+                    failed += 1
+        rows += got
+        empty = 0 if got else empty + 1
+        start = end + 1
+    lost = failed if total is None else max(0, total - len(rows))
+    return [dict(zip(names, r, strict=True)) for r in rows], lost, total is not None
+
+
+def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]]
+                    ) -> tuple[dict[str, dict[str, Any]], list[str], int]:
+    """The episodes whose step rows are all there (one per time step ``0..steps`` for an
+    episode that ran, none for a failed one), keyed by key; the keys of the others; and the
+    number of step rows of no episode."""
+    ts: dict[str, list[int]] = defaultdict(list)
+    for s in steps:
+        ts[s["key"]].append(s["t"])
+    whole: dict[str, dict[str, Any]] = {}
+    broken: list[str] = []
+    for e in episodes:
+        got, n = ts.get(e["key"], []), e["steps"]
+        if e["status"] != "ok":
+            ok = not got
+        else:
+            ok = (isinstance(n, int) and all(isinstance(t, int) for t in got)
+                  and sorted(got) == list(range(n + 1)))
+        if ok and e["key"] not in whole:
+            whole[e["key"]] = e
+        else:
+            broken.append(e["key"])
+    keys = {e["key"] for e in episodes}
+    orphans = sum(len(t) for k, t in ts.items() if k not in keys)
+    return whole, broken, orphans
+
+
+def check_database(path: str | Path) -> dict[str, Any]:
+    """What is wrong with the results database ``path``, read without changing it: SQLite's
+    ``integrity_check`` (``["ok"]`` when sound), ``pathpref`` (None when the file is pathpref's,
+    else why not), ``schema``, the readable and lost ``episodes`` and ``steps`` rows, the
+    ``incomplete`` episodes (missing step rows) and ``orphans`` (step rows of no episode), and
+    ``intact``: all of these are clean. A missing, non-SQLite or empty file is a ConfigError."""
+    path = Path(path)
+    if not require_sqlite_file(path):
+        raise ConfigError(f"{path} is empty: it holds no results")
+    out: dict[str, Any] = {"path": str(path), "pathpref": None, "schema": None}
+    try:
+        ro = open_readonly(path)
+    except sqlite3.Error as e:
+        raise ConfigError(f"cannot read results database {path}: {e}") from None
+    try:
+        try:
+            out["integrity"] = [r[0] for r in ro.execute("PRAGMA integrity_check(20)")]
+        except sqlite3.DatabaseError as e:
+            out["integrity"] = [str(e)]
+        try:
+            out["schema"] = schema_version(ro, path)
+            if out["schema"] is None:
+                out["pathpref"] = "it holds no tables"
+        except ConfigError as e:
+            out["pathpref"] = str(e)
+        except sqlite3.DatabaseError as e:
+            out["pathpref"] = f"its schema cannot be read ({e})"
+        if out["pathpref"] is None:
+            episodes, out["episodes_lost"], exact_e = _read_table(ro, "episodes")
+            steps, out["steps_lost"], exact_s = _read_table(ro, "steps")
+            out["lost_exact"] = exact_e and exact_s
+            out["episodes"], out["steps"] = len(episodes), len(steps)
+            _, out["incomplete"], out["orphans"] = _whole_episodes(episodes, steps)
+    finally:
+        ro.close()
+    out["intact"] = (out["integrity"] == ["ok"] and out["pathpref"] is None
+                     and not (out["episodes_lost"] or out["steps_lost"] or out["incomplete"]
+                              or out["orphans"]))
+    return out
+
+
+def check_text(r: dict[str, Any]) -> str:
+    """The report of :func:`check_database` as printed by ``pathpref db check``."""
+    db, problems = r["path"], r["integrity"]
+    lines = [f"{db}: {'intact' if r['intact'] else 'DAMAGED'}",
+             "  integrity check: " + ("ok" if problems == ["ok"] else
+                                      f"{len(problems)} problem(s): " + "; ".join(problems[:3])),
+             "  pathpref database: " + (f"yes, schema {r['schema']}" if r["pathpref"] is None
+                                        else f"no: {r['pathpref']}")]
+    if r["schema"] in UPGRADABLE:
+        lines.append(f"  'pathpref db upgrade {db}' migrates it to schema {SCHEMA_VERSION}")
+    if r["pathpref"] is None:
+        about = "" if r["lost_exact"] else "at most "
+        incomplete = r["incomplete"]
+        lines += [f"  episodes: {r['episodes']} readable, {about}{r['episodes_lost']} unreadable",
+                  f"  step rows: {r['steps']} readable, {about}{r['steps_lost']} unreadable",
+                  f"  episodes with missing step rows: {len(incomplete)}",
+                  *(f"    {k}" for k in incomplete[:10]), *(["    ..."] * (len(incomplete) > 10)),
+                  f"  orphan step rows (of no episode): {r['orphans']}"]
+        if not r["intact"]:
+            lines.append(f"'pathpref db salvage {db} NEW.sqlite' copies the intact episodes")
+    return "\n".join(lines)
+
+
+def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
+    """Copy every episode of ``path`` that reads back whole, with its step rows, into a new
+    database ``out`` (refused when it exists); returns the counts of rows saved and lost."""
+    path, out = Path(path), Path(out)
+    if os.path.lexists(out):
+        raise ConfigError(f"{out} exists; salvage writes a new database, give a new path")
+    if not out.parent.is_dir() or not os.access(out.parent, os.W_OK):
+        raise ConfigError(f"cannot write {out}: folder {out.parent} does not exist or is not "
+                          "writable")
+    if not require_sqlite_file(path):
+        raise ConfigError(f"{path} is empty: it holds no results")
+    try:
+        ro = open_readonly(path)
+        try:
+            version = schema_version(ro, path)
+            if version != SCHEMA_VERSION:
+                raise ConfigError(f"{path} has schema {version}; salvage copies schema "
+                                  f"{SCHEMA_VERSION} databases")
+            episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
+            steps, steps_lost, exact_s = _read_table(ro, "steps")
+        finally:
+            ro.close()
+    except sqlite3.DatabaseError as e:
+        raise ConfigError(f"{path} cannot be salvaged: its table list is unreadable ({e})"
+                          ) from None
+    whole, broken, orphans = _whole_episodes(episodes, steps)
+    kept = [tuple(s.values()) for s in steps if s["key"] in whole]
+    with _new_database(out, whole.values(), kept) as tmp:
+        os.replace(tmp, out)
+    return {"episodes": len(whole), "steps": len(kept),
+            "episodes_lost": episodes_lost + len(broken),
+            "steps_lost": steps_lost + len(steps) - len(kept), "incomplete": len(broken),
+            "unreadable": episodes_lost, "orphans": orphans,
+            "lost_exact": exact_e and exact_s}
 
 
 def _plain(v: Any) -> Any:

@@ -28,16 +28,18 @@ METHOD_LABEL = {
 
 
 def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
-    """95% Wilson score interval of a binomial proportion, clipped so that it always holds the
-    estimate ``p = successes / n`` and lies in [0, 1] (rounding put the bound of an all-success
-    or all-failure cell one ulp past ``p`` for n = 6, 21, 31, ...)."""
+    """95% Wilson score interval of a binomial proportion: ``0 <= lo <= k/n <= hi <= 1``.
+
+    The exact interval always contains ``p = k/n``; at ``k = 0`` or ``k = n`` one end equals
+    ``p``, which floating point can miss by an ulp, so the ends are clipped to contain ``p``.
+    """
     if n == 0:
         return (0.0, 1.0)
     p = successes / n
     den = 1 + z * z / n
     centre = (p + z * z / (2 * n)) / den
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (min(p, max(0.0, centre - half)), max(p, min(1.0, centre + half)))
+    return (max(0.0, min(p, centre - half)), min(1.0, max(p, centre + half)))
 
 
 def variant(r: dict[str, Any]) -> str:

@@ -3,25 +3,31 @@
 Each finished episode is written at once, in one transaction (episode row and its steps
 together), so a sweep killed at any moment leaves only whole episodes; WAL journaling keeps the
 file consistent. The primary key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips
-what is done. A file written by another schema version, or not written by pathpref, is refused
-and never modified.
+what is done.
+
+An existing file is checked before it is opened for writing (:func:`check_results_file`), on a
+read-only connection that leaves no side file: it must be a regular file holding exactly
+pathpref's tables (no views, triggers or other objects, which could falsify what a report reads),
+with pathpref's columns, this schema version and no damaged page. Anything else is refused with
+one line and left untouched. A read or write error later becomes one line too.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import sqlite3
 import stat
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote
 
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
 
 SCHEMA_VERSION = 3  # 2: per-episode physical metrics (JSON); 3: keys by map content hash
+UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
@@ -36,127 +42,216 @@ EPISODE_COLUMNS = {
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
     "human": "TEXT", "back_crossings": "INTEGER",
 }
-STEP_COLUMNS = ("key", "t", "x", "y", "action", "heading", "p_true_goal", "goal_entropy")
+
+#: The CREATE statements of pathpref's tables (``episodes`` takes its column list).
+META_SQL = "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)"
+STEPS_SQL = ("CREATE TABLE steps (key TEXT, t INTEGER, x INTEGER, y INTEGER, action INTEGER, "
+             "heading INTEGER, p_true_goal REAL, goal_entropy REAL, PRIMARY KEY (key, t))")
+TABLES = ("meta", "episodes", "steps")
 
 
-def check_results_file(path: str | Path) -> bool:
-    """True for a compatible pathpref database at ``path``, False for a new or empty file,
-    else a one-line ConfigError. Checked before any read-write connection, on a read-only one
-    (immutable, so no side file appears, unless the file already has its ``-wal``): a
-    regular file; SQLite; exactly pathpref's tables (``meta``, ``episodes``, ``steps``, and
-    SQLite's own indexes of their keys) with pathpref's columns and no view, trigger or
-    other table (a file from elsewhere could otherwise rewrite or invent results); the
-    schema row; and SQLite's ``quick_check``."""
-    p = Path(path)
+def episodes_sql(columns: Iterable[str] = EPISODE_COLUMNS) -> str:
+    """The ``CREATE TABLE episodes`` statement with ``columns`` (pathpref's own by default)."""
+    return f"CREATE TABLE episodes ({', '.join(f'{c} {EPISODE_COLUMNS[c]}' for c in columns)})"
+
+
+def damaged(path: str | Path, err: BaseException | str) -> ConfigError:
+    """The one-line error of a database that cannot be read (names the repair commands)."""
+    return ConfigError(
+        f"{path} is damaged ({err}); 'pathpref db check {path}' lists the damage and "
+        f"'pathpref db salvage {path} NEW.sqlite' copies the intact episodes")
+
+
+def require_regular_file(path: str | Path, missing_ok: bool = False) -> bool:
+    """True when ``path`` is a regular file, False when it is missing and ``missing_ok``;
+    a directory, device, FIFO or socket is refused (by ``os.stat``, without opening it)."""
     try:
-        st = os.stat(p)
+        mode = os.stat(path).st_mode
     except FileNotFoundError:
-        return False
+        if missing_ok:
+            return False
+        raise ConfigError(f"no results database at {path}") from None
     except OSError as e:
-        raise ConfigError(f"cannot read results database {p}: {e}") from None
-    if not stat.S_ISREG(st.st_mode):
-        raise ConfigError(f"{p} is not a regular file (a folder or a device); give the path "
-                          "of a results database with --db")
-    if st.st_size == 0:
-        return False
-    with open(p, "rb") as f:
-        if f.read(16) != b"SQLite format 3\x00":
-            raise ConfigError(f"{p} is not a pathpref results database (not SQLite); "
-                              "give another --db path")
-    immutable = "" if Path(f"{p}-wal").exists() else "&immutable=1"
-    uri = f"file:{quote(str(p.resolve()))}?mode=ro{immutable}"
-    try:
-        ro = sqlite3.connect(uri, uri=True, timeout=30)
-        try:
-            objects = ro.execute("SELECT type, name, tbl_name FROM sqlite_master").fetchall()
-            _check_objects(p, objects)
-            if not objects:
-                return False
-            row = ro.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
-            found = int(row[0]) if row and str(row[0]).isdigit() else None
-            _check_schema(p, found)
-            for table, want in (("episodes", set(EPISODE_COLUMNS)), ("steps", STEP_COLUMNS)):
-                have = {r[1] for r in ro.execute(f"PRAGMA table_info({table})")}
-                if have != set(want):
-                    raise ConfigError(f"{p}: table '{table}' does not have pathpref's "
-                                      "columns; it is not a pathpref results database")
-            check = ro.execute("PRAGMA quick_check").fetchone()[0]
-        finally:
-            ro.close()
-    except sqlite3.Error as e:
-        raise ConfigError(f"cannot read results database {p}: {e} (the file is damaged or "
-                          "not a pathpref database)") from None
-    if check != "ok":
-        raise ConfigError(f"{p} is damaged (SQLite: {check}); give a new --db path (sqlite3's "
-                          "'.recover' can copy what is intact)")
+        raise ConfigError(f"cannot read {path}: {e.strerror}") from None
+    if stat.S_ISDIR(mode):
+        raise ConfigError(f"{path} is a directory, not a results database; give a file path")
+    if not stat.S_ISREG(mode):
+        raise ConfigError(f"{path} is not a regular file (a device, FIFO or socket), not a "
+                          "results database; give a file path")
     return True
 
-def _check_objects(path: Path, objects: list[tuple[str, str, str]]) -> None:
-    """Refuse a file holding anything pathpref does not create (see _check_existing)."""
-    ours = {"meta", "episodes", "steps"}
-    foreign = [f"{kind} '{name}'" for kind, name, table in objects
-               if not (kind == "table" and name in ours)
-               and not (kind == "index" and name.startswith("sqlite_autoindex_")
-                        and table in ours)]
-    if foreign:
-        raise ConfigError(f"{path} holds {', '.join(foreign[:3])}, which pathpref does "
-                          "not write: it is not a pathpref results database (refused "
-                          "untouched); give another --db path")
-    if objects and {name for kind, name, _ in objects if kind == "table"} != ours:
-        raise ConfigError(f"{path} is an SQLite file not written by pathpref (its "
-                          "tables are not pathpref's); give another --db path")
 
-def _check_schema(path: Path, found: int | None) -> None:
-    """Refuse another schema version (an older one can be upgraded)."""
-    if found is not None and 2 <= found < SCHEMA_VERSION:
+def open_readonly(path: str | Path) -> sqlite3.Connection:
+    """A read-only connection to the SQLite file ``path`` that writes nothing beside it.
+
+    It is immutable (no lock, no journal, no ``-shm``) unless a ``-wal`` file lies beside the
+    database: then a pathpref sweep is running or was killed, its last episodes are only in the
+    WAL, and an ordinary read-only connection reads them (it may add the ``-shm`` index).
+    """
+    uri = Path(os.path.abspath(path)).as_uri()
+    wal = Path(f"{path}-wal")
+    live = wal.is_file() and wal.stat().st_size > 0
+    return sqlite3.connect(f"{uri}?mode=ro" + ("" if live else "&immutable=1"), uri=True,
+                           timeout=30)
+
+
+def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
+    """Schema version of a pathpref database, None when it holds no objects at all.
+
+    Raises :class:`ConfigError` unless ``sqlite_master`` holds exactly pathpref's tables
+    ``meta``, ``episodes`` and ``steps`` with their primary-key indexes, each created by
+    pathpref's own statement (the episode columns are a subset of :data:`EPISODE_COLUMNS`, all
+    of them at :data:`SCHEMA_VERSION`), and ``meta`` names an integer schema version. A view or
+    trigger, another table or index, or a changed column is refused: each could make a report
+    print rows that were never run.
+    """
+    objects = {(r[0], r[1]): r for r in conn.execute(
+        "SELECT type, name, tbl_name, sql FROM sqlite_master")}
+    if not objects:
+        return None
+
+    def foreign(what: str) -> ConfigError:
+        return ConfigError(f"{path} is an SQLite file not written by pathpref ({what}); it is "
+                           "left untouched: give another --db path")
+
+    expected = {("table", t) for t in TABLES} | {
+        ("index", f"sqlite_autoindex_{t}_1") for t in TABLES}
+    extra = sorted(set(objects) - expected)
+    if extra:
+        listed = ", ".join(f"{kind} {name!r}" for kind, name in extra[:4])
+        raise foreign(f"it holds {listed}{' ...' if len(extra) > 4 else ''}, which "
+                      "pathpref never creates")
+    missing = sorted(name for _, name in expected - set(objects))
+    if missing:
+        raise foreign(f"it lacks {', '.join(missing)}")
+    for t in TABLES:
+        if objects[("index", f"sqlite_autoindex_{t}_1")][2:] != (t, None):
+            raise foreign(f"its index of {t} is not pathpref's")
+    columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")]
+    if not set(columns) <= set(EPISODE_COLUMNS):
+        raise foreign(f"episodes has columns {sorted(set(columns) - set(EPISODE_COLUMNS))}")
+    for t, sql in (("meta", META_SQL), ("steps", STEPS_SQL), ("episodes", episodes_sql(columns))):
+        if objects[("table", t)][2:] != (t, sql):
+            raise foreign(f"its table {t} is not defined as pathpref defines it")
+    row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+    if row is None or not str(row[0]).isdigit():
+        raise foreign("it has no schema version")
+    version = int(row[0])
+    if version == SCHEMA_VERSION and columns != list(EPISODE_COLUMNS):
+        lacking = [c for c in EPISODE_COLUMNS if c not in columns]
         raise ConfigError(
-            f"{path} was written by an older pathpref (schema {found}, this version "
-            f"reads {SCHEMA_VERSION}); run 'pathpref db upgrade {path}' to migrate it"
-        )
-    if found != SCHEMA_VERSION:
+            f"{path} was written by a development version of pathpref (schema "
+            f"{SCHEMA_VERSION} without the columns {', '.join(lacking)}); use a new --db path")
+    return version
+
+
+def require_sqlite_file(path: str | Path, missing_ok: bool = False) -> bool:
+    """:func:`require_regular_file`, and False for an empty file; else the file must start with
+    the SQLite header."""
+    if not require_regular_file(path, missing_ok) or os.stat(path).st_size == 0:
+        return False
+    try:
+        with open(path, "rb") as f:
+            header = f.read(16)
+    except OSError as e:
+        raise ConfigError(f"cannot read {path}: {e.strerror}") from None
+    if header != b"SQLite format 3\x00":
         raise ConfigError(
-            f"{path} was written by an incompatible pathpref (schema {found}, this "
-            f"version reads {SCHEMA_VERSION}); use a new --db path"
-        )
+            f"{path} is not a pathpref results database (not SQLite); give another --db path")
+    return True
+
+
+def inspect_results_file(path: str | Path, create: bool = False) -> int | None:
+    """Schema version of the intact pathpref database ``path``; None for a missing (when
+    ``create``) or empty file, or one without any table, that pathpref may create its tables in.
+
+    Reads only, through :func:`open_readonly`: a refused file, and its folder, are left exactly
+    as they were. Checked in order: a regular file with the SQLite header
+    (:func:`require_sqlite_file`), pathpref's objects and columns (:func:`schema_version`), then
+    ``PRAGMA quick_check`` (every page readable and well formed). Any failure is one line.
+    """
+    if not require_sqlite_file(path, missing_ok=create):
+        return None
+    try:
+        ro = open_readonly(path)
+        try:
+            version = schema_version(ro, path)
+            problems = ["ok"] if version is None else [
+                r[0] for r in ro.execute("PRAGMA quick_check(3)")]
+        finally:
+            ro.close()
+    except sqlite3.DatabaseError as e:
+        raise damaged(path, e) from None
+    except sqlite3.Error as e:
+        raise ConfigError(f"cannot read results database {path}: {e}") from None
+    if problems != ["ok"]:
+        raise damaged(path, "; ".join(problems))
+    return version
+
+
+def check_results_file(path: str | Path, create: bool = True) -> bool:
+    """True for an intact pathpref database of this schema, False for a file to create the
+    tables in (see :func:`inspect_results_file`); an older schema is pointed at
+    ``pathpref db upgrade``, any other at a new path."""
+    version = inspect_results_file(path, create)
+    if version is None:
+        return False
+    if version in UPGRADABLE:
+        raise ConfigError(
+            f"{path} was written by an older pathpref (schema {version}, this version "
+            f"reads {SCHEMA_VERSION}); run 'pathpref db upgrade {path}' to migrate it")
+    if version != SCHEMA_VERSION:
+        raise ConfigError(
+            f"{path} was written by an incompatible pathpref (schema {version}, this "
+            f"version reads {SCHEMA_VERSION}); use a new --db path")
+    return True
 
 
 class ResultStore:
-    """Open (or create) a results database at ``path``."""
+    """Open (or create) a results database at ``path``, after :func:`check_results_file`."""
 
     def __init__(self, path: str | Path, create: bool = True):
         self.path = Path(path)
-        if not self.path.exists():
-            if not create:
-                raise ConfigError(f"no results database at {self.path}")
+        if create and not self.path.exists():
             parent = self.path.parent
             if not parent.is_dir():
                 raise ConfigError(f"cannot create {self.path}: folder {parent} does not exist")
-        existing = check_results_file(self.path)  # read-only: a refused file is untouched
+        existing = check_results_file(self.path, create)  # a refused file is never modified
         try:
             self.conn = sqlite3.connect(self.path, timeout=30)
-            self.conn.execute("PRAGMA journal_mode=WAL")
-            self.conn.execute("PRAGMA synchronous=NORMAL")
         except sqlite3.Error as e:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
-        if not existing:
-            self._create_schema()
+        with self._errors("open"):
+            self.conn.execute("PRAGMA journal_mode=WAL")
+            self.conn.execute("PRAGMA synchronous=NORMAL")
+            if not existing:
+                self._create_schema()
+
+    @contextlib.contextmanager
+    def _errors(self, doing: str) -> Iterator[None]:
+        """Turn an SQLite error while reading or writing into one line naming the file."""
+        try:
+            yield
+        except sqlite3.DatabaseError as e:
+            if doing == "open":
+                self.conn.close()
+            if isinstance(e, sqlite3.IntegrityError | sqlite3.OperationalError):
+                raise ConfigError(f"cannot {doing} results database {self.path}: {e}") from None
+            raise damaged(self.path, e) from None
 
     def _create_schema(self) -> None:
         c = self.conn
-        cols = ", ".join(f"{k} {t}" for k, t in EPISODE_COLUMNS.items())
         with c:
-            c.execute("CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)")
+            c.execute(META_SQL)
             c.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
-            c.execute(f"CREATE TABLE episodes ({cols})")
-            c.execute(
-                "CREATE TABLE steps (key TEXT, t INTEGER, x INTEGER, y INTEGER, action INTEGER, "
-                "heading INTEGER, p_true_goal REAL, goal_entropy REAL, PRIMARY KEY (key, t))"
-            )
+            c.execute(episodes_sql())
+            c.execute(STEPS_SQL)
 
     def done_keys(self, include_failed: bool = True) -> set[str]:
         """Keys of the stored episodes (only successful runs when ``include_failed`` is False)."""
         q = "SELECT key FROM episodes" + ("" if include_failed else " WHERE status = 'ok'")
-        return {r[0] for r in self.conn.execute(q)}
+        with self._errors("read"):
+            return {r[0] for r in self.conn.execute(q)}
 
     def add(self, res: EpisodeResult) -> None:
         """Write one episode and its steps in one transaction (replacing a failed attempt)."""
@@ -165,7 +260,7 @@ class ResultStore:
         vals = [row.get(k) for k in cols]
         vals = [int(v) if isinstance(v, bool) else v for v in vals]
         key = row["key"]
-        with self.conn:
+        with self._errors("write to"), self.conn:
             self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
             self.conn.execute(
                 f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
@@ -180,15 +275,17 @@ class ResultStore:
 
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
         """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``."""
-        cur = self.conn.execute(f"SELECT * FROM episodes {where}", tuple(params))
-        names = [d[0] for d in cur.description]
-        return [dict(zip(names, r, strict=True)) for r in cur]
+        return self._rows(f"SELECT * FROM episodes {where}", params)
 
     def steps(self, key: str) -> list[dict[str, Any]]:
         """The per-step rows of episode ``key``, in step order."""
-        cur = self.conn.execute("SELECT * FROM steps WHERE key = ? ORDER BY t", (key,))
-        names = [d[0] for d in cur.description]
-        return [dict(zip(names, r, strict=True)) for r in cur]
+        return self._rows("SELECT * FROM steps WHERE key = ? ORDER BY t", (key,))
+
+    def _rows(self, query: str, params: Iterable[Any]) -> list[dict[str, Any]]:
+        with self._errors("read"):
+            cur = self.conn.execute(query, tuple(params))
+            names = [d[0] for d in cur.description]
+            return [dict(zip(names, r, strict=True)) for r in cur]
 
     def close(self) -> None:
         """Close the database connection."""

@@ -24,6 +24,7 @@ def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
             rs = sorted((r for r in recs if r["method"] == m), key=lambda r: r["delta_t"])
             x = [r["delta_t"] for r in rs]
             y = [r["success_rate"] for r in rs]
+            # an interval read back from a CSV may miss the rate by an ulp: never negative
             err = [[max(0.0, r["success_rate"] - r["ci_low"]) for r in rs],
                    [max(0.0, r["ci_high"] - r["success_rate"]) for r in rs]]
             ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=m, color=COLORS.get(m))
