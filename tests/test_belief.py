@@ -126,3 +126,11 @@ def test_sampling_matches_marginals(simple):
     assert np.abs(np.bincount(g, minlength=10) / 40000 - b.goal_marginal()).max() < 0.01
     v = simple.cell_polytope[simple.cell((1, 1))]
     assert abs((theta[:, v] == 1).mean() - b.preference_marginal(v)[1]) < 0.01
+
+
+def test_entropy_of_nothing_is_zero_and_of_uniform_is_log_n():
+    from pathpref.inference.belief import entropy
+
+    assert entropy(np.zeros(4)) == 0.0
+    assert entropy(np.ones(5)) == pytest.approx(np.log(5))
+    assert entropy(np.array([3, 1])) == pytest.approx(-(0.75 * np.log(0.75) + 0.25 * np.log(0.25)))

@@ -150,3 +150,56 @@ def test_success_rule_against_an_independent_count(simple):
         assert r.success == (r.goal_reached and viol == 0)
         kinds.add((r.goal_reached, viol == 0))
     assert {(True, True), (True, False)} <= kinds
+
+
+def test_step_checks_actions_and_returns_its_own_log():
+    from pathpref.episode import EpisodeRunner
+    from pathpref.errors import EpisodeError
+
+    r = EpisodeRunner(spec(method="compliant", t_max=3))
+    for bad in (8, 9, -2, 2.5, float("nan"), "N"):
+        with pytest.raises(ConfigError, match=r"action must be 0\.\.7"):
+            r.step(bad)
+    log = r.step(7)
+    assert log is r.result.log[-1] and log.t == 1 and log.action == 7
+    assert r.step(STAY).t == 2 and r.step(0).t == 3
+    with pytest.raises(EpisodeError, match="the episode is over"):
+        r.step(0)
+    assert 0.0 <= r.result.wall_s < 60.0
+
+
+def test_a_generous_timeout_changes_nothing():
+    a = run_episode(spec(method="goal_only", queries=200))
+    b = run_episode(spec(method="goal_only", queries=200, timeout_s=1000.0))
+    assert b.status == "ok" and [s.x for s in a.log] == [s.x for s in b.log]
+
+
+def test_the_runner_uses_the_world_and_body_it_is_given(simple):
+    """A world given to the runner (here: office for a spec that names simple) is the one it
+    plays on, with the spec's likelihood setting; a body given is the one that senses."""
+    from pathpref.episode import GridBody
+    from pathpref.geometry.world import load_world
+
+    other = load_world("office")
+    s = spec(method="compliant", delta_t=1)
+    mine, cached = run_episode(s, world=other), run_episode(s)
+    assert mine.instance_cells != cached.instance_cells
+    lo = run_episode(replace(s, normalize=False), world=other)
+    assert [x.p_true_goal for x in lo.log] != [x.p_true_goal for x in mine.log]
+
+    class Deaf(GridBody):
+        def human_input(self, heading):
+            return None
+
+    deaf = run_episode(s, body=Deaf(simple))
+    assert deaf.inputs > 0 and all(x.heading == -1 for x in deaf.log)
+    assert all(x.p_true_goal == deaf.log[0].p_true_goal for x in deaf.log[:3])
+
+
+def test_the_goal_polytope_is_free_on_the_fig4_instance():
+    from pathpref.episode import FIG4, EpisodeRunner
+
+    r = EpisodeRunner(spec(fixed=FIG4))
+    v = r.world.cell_polytope[r.instance.goal_cell]
+    assert r.pref[v] == -1 and r.world.preference[v] >= 0
+    assert (np.delete(r.pref, v) == np.delete(r.world.preference, v)).all()

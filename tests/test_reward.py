@@ -96,3 +96,13 @@ def test_task_rewards_follow_the_rule_step_by_step(seed):
         assert ts.reward == pytest.approx(want, abs=1e-12), (before, r.cell, a)
         crossings += w.cell_polytope[before] != w.cell_polytope[r.cell]
     assert crossings > 0  # the episode exercised the preference terms
+
+
+def test_horizon_discount_resolves_to_one_minus_one_over_t_max():
+    rb = get_preset("robust").path_preference
+    assert rb.horizon_discount
+    for t_max, want in ((30, 1 - 1 / 30), (60, 1 - 1 / 60), (2, 0.5), (1, 0.5)):
+        r = rb.for_mission(t_max)
+        assert r.discount == pytest.approx(want) and r.horizon_discount is False
+        assert r.for_mission(999).discount == r.discount  # resolved once, not again
+    assert R.for_mission(60) is R  # the paper's fixed discount is kept
