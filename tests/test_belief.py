@@ -115,19 +115,6 @@ def test_coupling_lowers_going_back(simple):
     assert on.preference_marginal(east)[back] < off.preference_marginal(east)[back] == 0.5
 
 
-def test_sampling_matches_marginals(simple):
-    goals = np.array([simple.cell((x, 8)) for x in range(1, 11)])
-    model = ObservationModel.build(simple, goals)
-    b = PreferenceBelief(model)
-    for s in [(1, 1), (3, 2)]:
-        for h in (2, 1, 2):
-            b.update(simple.cell(s), h)
-    g, theta = b.sample(np.random.default_rng(0), 40000)
-    assert np.abs(np.bincount(g, minlength=10) / 40000 - b.goal_marginal()).max() < 0.01
-    v = simple.cell_polytope[simple.cell((1, 1))]
-    assert abs((theta[:, v] == 1).mean() - b.preference_marginal(v)[1]) < 0.01
-
-
 def test_entropy_of_nothing_is_zero_and_of_uniform_is_log_n():
     from pathpref.inference.belief import entropy
 

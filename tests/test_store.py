@@ -80,3 +80,32 @@ def test_refuses_foreign_and_incompatible_files(tmp_path):
         ResultStore(old)
     assert old.read_bytes() == before
 
+
+
+def test_the_stored_row_of_an_episode_is_exact():
+    """Every column of ``result_row``, worked out from the episode itself."""
+    import json
+
+    from pathpref.episode import EpisodeSpec, result_row, run_episode
+
+    spec = EpisodeSpec.single("simple", "compliant", 1, seed=4, queries=50, t_max=12)
+    res = run_episode(spec)
+    res.metrics = {"b": 2.0, "a": 1.0}
+    row = result_row(res)
+    want = {"map": "simple", "method": "compliant", "delta_t": 1, "instance": 0, "run": 0,
+            "instance_seed": spec.instance_seed, "run_seed": spec.run_seed, "preset": "paper",
+            "queries": 50, "t_max": 12, "n_goals": 10, "normalize": True, "coupling": True,
+            "sim": "grid", "fixed": "", "task": "navigate", "ucb_c": 1.0,
+            "time_budget_ms": 0.0, "human": "map", "timeout_s": 0.0,
+            "key": spec.key(), "map_hash": spec.map_hash,
+            "start": json.dumps(res.instance_cells["start"]),
+            "goals": json.dumps(res.instance_cells["goals"]),
+            "true_goal": res.instance.true_goal, "status": "ok", "reason": "",
+            "goal_reached": int(res.goal_reached), "pref_followed": int(res.violations == 0),
+            "success": int(res.goal_reached and res.violations == 0), "steps": res.steps,
+            "inputs": res.steps,  # Delta_T = 1: one input before every step
+            "violations": res.violations, "back_crossings": res.back_crossings,
+            "wall_s": res.wall_s, "metrics": '{"a": 1.0, "b": 2.0}'}
+    assert row == want
+    assert [res.log[0].x, res.log[0].y] == json.loads(row["start"])
+    assert len(json.loads(row["goals"])) == 10 and row["inputs"] > 0

@@ -122,7 +122,6 @@ class PreferenceBelief(Belief):
         self.neighbors = world.graph.neighbors
         # table width per polytope: its degree, or one "no preference" slot when it has none
         self.degree = np.maximum([len(nb) for nb in self.neighbors], 1)
-        self.has_neighbors = np.array([len(nb) > 0 for nb in self.neighbors])
         G = len(model.goals)
         p0 = np.full(G, 1.0 / G) if prior is None else np.asarray(prior, float)
         with np.errstate(divide="ignore"):  # a zero prior is log 0 = -inf: ruled out
@@ -206,22 +205,3 @@ class PreferenceBelief(Belief):
     def joint_entropy(self, v: int) -> float:
         """``H(g, p_v)`` of the joint table at polytope ``v`` (nats)."""
         return entropy(self.joint(v))
-
-    def sample(self, rng: np.random.Generator, n: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """Draw ``n`` states ``(goal_index, theta)`` from the posterior.
-
-        Returns goal indices ``(n,)`` and neighbour slots ``(n, P)`` (``theta[v]`` is an index
-        into ``neighbors[v]``; -1 for a polytope without neighbours).
-        """
-        pg = self.goal_marginal()
-        goals = rng.choice(len(pg), size=n, p=pg)
-        P = len(self.degree)
-        theta = np.where(self.has_neighbors, 0, -1)[None, :].repeat(n, axis=0)
-        u = rng.random((n, P))
-        for v in range(P):
-            deg = self.degree[v]
-            if deg <= 1:
-                continue
-            cdf = np.cumsum(self.preference_given_goal(v)[goals], axis=1)
-            theta[:, v] = np.minimum((u[:, v : v + 1] > cdf).sum(axis=1), deg - 1)
-        return goals, theta
