@@ -121,3 +121,13 @@ def test_entropy_of_nothing_is_zero_and_of_uniform_is_log_n():
     assert entropy(np.zeros(4)) == 0.0
     assert entropy(np.ones(5)) == pytest.approx(np.log(5))
     assert entropy(np.array([3, 1])) == pytest.approx(-(0.75 * np.log(0.75) + 0.25 * np.log(0.25)))
+
+
+def test_goal_belief_stays_finite_over_thousands_of_updates(simple):
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 11)])
+    b = GoalBelief(ObservationModel.build(simple, goals))
+    for _ in range(3000):
+        b.update(simple.cell((5, 1)), 2)
+    p = b.goal_marginal()
+    assert np.isfinite(p).all() and p.sum() == pytest.approx(1.0)
+    assert np.isfinite(b.log_w).all()

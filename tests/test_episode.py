@@ -203,3 +203,22 @@ def test_the_goal_polytope_is_free_on_the_fig4_instance():
     v = r.world.cell_polytope[r.instance.goal_cell]
     assert r.pref[v] == -1 and r.world.preference[v] >= 0
     assert (np.delete(r.pref, v) == np.delete(r.world.preference, v)).all()
+
+
+def test_the_runner_draws_the_consistent_humans_instance():
+    from pathpref.episode import EpisodeRunner
+
+    differ = 0
+    for i in range(8):
+        kw = dict(map="classroom", t_max=60, instance_seed=seed_for(2, i), method="compliant")
+        a = EpisodeRunner(spec(**kw)).instance
+        b = EpisodeRunner(spec(human="consistent", **kw)).instance
+        differ += a != b
+    assert differ > 0  # the consistent human redraws where the map's route misses the goal
+
+
+def test_an_episode_past_its_timeout_says_so():
+    from pathpref.errors import EpisodeError
+
+    with pytest.raises(EpisodeError, match=r"^timeout: episode exceeded 1e-09 s at step \d+$"):
+        run_episode(spec(method="goal_only", queries=100, timeout_s=1e-9))

@@ -89,7 +89,6 @@ class GoalBelief(Belief):
     def update(self, cell: int, heading: int) -> None:
         """Condition on the human's heading ``heading`` given at free cell ``cell``."""
         self.log_w = self.log_w + np.log(self.model.goal_likelihood[cell, heading])
-        self.log_w -= self.log_w[~self.ruled_out].max(initial=0.0)
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
