@@ -131,3 +131,14 @@ def test_goal_belief_stays_finite_over_thousands_of_updates(simple):
     p = b.goal_marginal()
     assert np.isfinite(p).all() and p.sum() == pytest.approx(1.0)
     assert np.isfinite(b.log_w).all()
+
+
+def test_goal_belief_prior_multiplies_the_likelihood(simple):
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 5)])
+    model = ObservationModel.build(simple, goals)
+    prior = np.array([0.7, 0.1, 0.2, 0.0])
+    b = GoalBelief(model, prior=prior)
+    assert b.goal_marginal() == pytest.approx(prior)
+    b.update(simple.cell((3, 2)), 0)
+    want = prior * model.goal_likelihood[simple.cell((3, 2)), 0]
+    assert b.goal_marginal() == pytest.approx(want / want.sum())
