@@ -1,0 +1,137 @@
+"""The robot's estimate of the human's push from a faulty force sensor and its own motion.
+
+:class:`ForceEstimator` removes what the robot can know (``docs/sensing.md``):
+
+* **inertia and weight** of what hangs on the sensor: the sensor reads
+  ``s = R^T (m (a - g) - F) + b + noise``, so the estimate is
+  ``F_hat = -(R (s - b_hat - R^T m_hat (a_hat - g)))_xy``; ``m_hat`` is the tool-side mass the
+  robot knows (its handle or tray and the sensor's tool plate), ``a_hat`` the acceleration of
+  that body's centre of mass from the robot's *own* state: ``J_com(q) (qvel_now - qvel_before)
+  / dt``, the body's Jacobian (kinematics) times the finite difference of the measured joint
+  velocities. It never reads ``xfrc_applied``, ``cacc`` or ``qacc``.
+* **the bias**: a zero (tare) from the mean of ``tare_s`` of readings at rest when the robot
+  starts, then an exponential average of the residual with a slow time constant
+  (``bias_tau_s``), updated only while the robot is at rest (no cue under way, joint speeds
+  below ``still_mps``, acceleration below ``still_mps2``, for at least ``quiet_s``) and frozen
+  otherwise, so a push or a manoeuvre never leaks into it.
+
+:class:`ResidualEstimator` is the alternative without a sensor (PHRI_NOTES 2.2 (b)):
+``mj_inverse`` with ``qacc = dqvel/dt`` gives ``qfrc_inverse``; minus the robot's own
+actuator forces, the residual on the base's slide joints is the horizontal external force.
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..errors import ConfigError
+
+GRAVITY_UP = np.array([0.0, 0.0, 9.81])
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Settings of :class:`ForceEstimator` (see the module docstring)."""
+
+    bias_tau_s: float = 2.0
+    tare_s: float = 0.2
+    still_mps: float = 0.02
+    still_mps2: float = 0.3
+    quiet_s: float = 0.1
+    compensate_inertia: bool = True
+
+    def __post_init__(self):
+        for name in ("bias_tau_s", "tare_s", "still_mps", "still_mps2", "quiet_s"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0 or (name == "bias_tau_s" and v == 0):
+                raise ConfigError(f"estimator {name} must be a finite number >= 0, got {v}")
+
+
+class ForceEstimator:
+    """Bias tracking and inertial compensation for the force sensed at ``body``.
+
+    Call :meth:`update` once per physics step with the sensor's output, the site's rotation
+    and the joint velocities before the step; it returns the horizontal push estimate."""
+
+    def __init__(self, model: mujoco.MjModel, body: int, mass_kg: float,
+                 config: EstimatorConfig | None = None):
+        self.model, self.body, self.mass = model, int(body), float(mass_kg)
+        self.config = config or EstimatorConfig()
+        self.dt = float(model.opt.timestep)
+        self._alpha = self.dt / (self.config.bias_tau_s + self.dt)
+        self._jac = np.zeros((3, model.nv))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the bias estimate and the rest timer (a new robot, not yet zeroed)."""
+        self.bias = np.zeros(3)
+        self.quiet = 0.0
+        self.at_rest = False
+        self.acc = np.zeros(3)
+
+    def acceleration(self, data, qvel_before: np.ndarray) -> np.ndarray:
+        """The sensed body's centre-of-mass acceleration (m/s^2, world frame) from the robot's
+        joint velocities: ``J_com (qvel - qvel_before) / dt`` at the step's configuration."""
+        mujoco.mj_jacBodyCom(self.model, data, self._jac, None, self.body)
+        return self._jac @ ((data.qvel - qvel_before) / self.dt)
+
+    def expected(self, R: np.ndarray, acc: np.ndarray) -> np.ndarray:
+        """What the sensor reads without a push and without faults (N, sensor frame): the
+        known mass's inertia and weight, ``R^T m (a - g)``."""
+        a = acc if self.config.compensate_inertia else np.zeros(3)
+        return R.T @ (self.mass * (a + GRAVITY_UP))
+
+    def tare(self, readings: list[np.ndarray], R: np.ndarray) -> None:
+        """Zero the sensor from readings taken at rest (the mean residual becomes the bias)."""
+        if readings:
+            r = np.mean(readings, axis=0) - self.expected(R, np.zeros(3))
+            self.bias = np.asarray(r, float).copy()
+
+    def update(self, reading: np.ndarray, R: np.ndarray, data, qvel_before: np.ndarray,
+               cue_idle: bool) -> np.ndarray:
+        """The horizontal push estimate (N, world frame) from one sensor output; tracks the
+        bias while at rest and ``cue_idle`` (the detector has nothing under way)."""
+        c = self.config
+        self.acc = acc = self.acceleration(data, qvel_before)
+        residual = reading - self.expected(R, acc)
+        speed = float(np.linalg.norm(self._jac @ data.qvel))  # the sensed body's speed
+        still = cue_idle and speed < c.still_mps and float(np.linalg.norm(acc)) < c.still_mps2
+        self.quiet = self.quiet + self.dt if still else 0.0
+        self.at_rest = self.quiet >= c.quiet_s - 1e-12
+        if self.at_rest:
+            self.bias += self._alpha * (residual - self.bias)
+        return -(R @ (residual - self.bias))[:2]
+
+
+class ResidualEstimator:
+    """The push from inverse dynamics, no sensor (PHRI_NOTES 2.2 (b)): with ``qacc`` from the
+    finite difference of the measured joint velocities, ``mj_inverse`` gives the generalised
+    force the motion needed; minus the robot's own actuator forces, the residual on the base's
+    slide joints is the horizontal external force (``J^T`` of the push; contacts are modelled
+    by the inverse and so are not in it). Works on a copy of the model with discrete-time
+    inverse dynamics (``mjENBL_INVDISCRETE``, consistent with the ``implicitfast`` step, so
+    the velocity actuators' implicit damping leaves no residual) and a scratch ``MjData``."""
+
+    def __init__(self, model: mujoco.MjModel, slide_dofs: np.ndarray):
+        self.model = copy.deepcopy(model)
+        self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_INVDISCRETE)
+        self.scratch = mujoco.MjData(self.model)
+        self.dofs = np.asarray(slide_dofs, int)
+        self.dt = float(model.opt.timestep)
+
+    def estimate(self, qpos_before: np.ndarray, qvel_before: np.ndarray, data) -> np.ndarray:
+        """The horizontal external force (N, world frame) during the step that led from
+        ``(qpos_before, qvel_before)`` to ``data``'s state; ``data.qfrc_actuator`` is the
+        actuator force of that step (the robot's own command)."""
+        s = self.scratch
+        s.qpos[:] = qpos_before
+        s.qvel[:] = qvel_before
+        s.act[:] = data.act
+        s.ctrl[:] = data.ctrl
+        s.qacc[:] = (data.qvel - qvel_before) / self.dt
+        mujoco.mj_inverse(self.model, s)
+        return (s.qfrc_inverse - data.qfrc_actuator)[self.dofs].copy()
