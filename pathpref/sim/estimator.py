@@ -6,9 +6,11 @@
   ``s = R^T (m (a - g) - F) + b + noise``, so the estimate is
   ``F_hat = -(R (s - b_hat - R^T m_hat (a_hat - g)))_xy``; ``m_hat`` is the tool-side mass the
   robot knows (its handle or tray and the sensor's tool plate), ``a_hat`` the acceleration of
-  that body's centre of mass from the robot's *own* state: ``J_com(q) (qvel_now - qvel_before)
-  / dt``, the body's Jacobian (kinematics) times the finite difference of the measured joint
-  velocities. It never reads ``xfrc_applied``, ``cacc`` or ``qacc``.
+  that body's centre of mass from the robot's *own* state: ``J_com(q) (qvel_now -
+  qvel_then) / T``, the body's Jacobian (kinematics) times the finite difference of the
+  measured joint velocities over the sensor's averaging window ``T`` (so a 100 Hz sensor that
+  averages 10 ms is compensated with the mean acceleration of the same 10 ms). It never
+  reads ``xfrc_applied``, ``cacc`` or ``qacc``.
 * **the bias**: a zero (tare) from the mean of ``tare_s`` of readings at rest when the robot
   starts, then an exponential average of the residual with a slow time constant
   (``bias_tau_s``), updated only while the robot is at rest (no cue under way, joint speeds
@@ -54,15 +56,14 @@ class EstimatorConfig:
 class ForceEstimator:
     """Bias tracking and inertial compensation for the force sensed at ``body``.
 
-    Call :meth:`update` once per physics step with the sensor's output, the site's rotation
-    and the joint velocities before the step; it returns the horizontal push estimate."""
+    Call :meth:`update` once per physics step with the sensor's output and the site's
+    rotation; it returns the horizontal push estimate."""
 
     def __init__(self, model: mujoco.MjModel, body: int, mass_kg: float,
                  config: EstimatorConfig | None = None):
         self.model, self.body, self.mass = model, int(body), float(mass_kg)
         self.config = config or EstimatorConfig()
         self.dt = float(model.opt.timestep)
-        self._alpha = self.dt / (self.config.bias_tau_s + self.dt)
         self._jac = np.zeros((3, model.nv))
         self.reset()
 
@@ -72,12 +73,23 @@ class ForceEstimator:
         self.quiet = 0.0
         self.at_rest = False
         self.acc = np.zeros(3)
+        self.force = np.zeros(2)
+        self._qvel_mark: np.ndarray | None = None
 
-    def acceleration(self, data, qvel_before: np.ndarray) -> np.ndarray:
-        """The sensed body's centre-of-mass acceleration (m/s^2, world frame) from the robot's
-        joint velocities: ``J_com (qvel - qvel_before) / dt`` at the step's configuration."""
+    def mark(self, data) -> None:
+        """Start a sensor window at the current joint velocities (after a reset)."""
+        self._qvel_mark = data.qvel.copy()
+
+    def acceleration(self, data, window_s: float) -> np.ndarray:
+        """The sensed body's mean centre-of-mass acceleration (m/s^2, world frame) over the
+        last ``window_s`` from the robot's joint velocities: ``J_com (qvel - qvel_mark) /
+        window_s`` (the sensor averaged its reading over the same window)."""
         mujoco.mj_jacBodyCom(self.model, data, self._jac, None, self.body)
-        return self._jac @ ((data.qvel - qvel_before) / self.dt)
+        if self._qvel_mark is None:
+            self._qvel_mark = data.qvel.copy()
+        acc = self._jac @ ((data.qvel - self._qvel_mark) / window_s)
+        self._qvel_mark = data.qvel.copy()
+        return acc
 
     def expected(self, R: np.ndarray, acc: np.ndarray) -> np.ndarray:
         """What the sensor reads without a push and without faults (N, sensor frame): the
@@ -91,20 +103,29 @@ class ForceEstimator:
             r = np.mean(readings, axis=0) - self.expected(R, np.zeros(3))
             self.bias = np.asarray(r, float).copy()
 
-    def update(self, reading: np.ndarray, R: np.ndarray, data, qvel_before: np.ndarray,
-               cue_idle: bool) -> np.ndarray:
-        """The horizontal push estimate (N, world frame) from one sensor output; tracks the
-        bias while at rest and ``cue_idle`` (the detector has nothing under way)."""
+    def update(self, reading: np.ndarray, R: np.ndarray, data, cue_idle: bool,
+               fresh: bool = True, window_s: float | None = None) -> np.ndarray:
+        """The horizontal push estimate (N, world frame) after one physics step. On a
+        ``fresh`` sensor sample (averaged over ``window_s``, one step by default) the estimate
+        is recomputed and, at rest with ``cue_idle`` (the detector has nothing under way), the
+        bias tracked; between samples the last estimate is held."""
         c = self.config
-        self.acc = acc = self.acceleration(data, qvel_before)
+        if not fresh:
+            if not cue_idle:
+                self.quiet, self.at_rest = 0.0, False
+            return self.force
+        window = self.dt if window_s is None else window_s
+        self.acc = acc = self.acceleration(data, window)
         residual = reading - self.expected(R, acc)
         speed = float(np.linalg.norm(self._jac @ data.qvel))  # the sensed body's speed
         still = cue_idle and speed < c.still_mps and float(np.linalg.norm(acc)) < c.still_mps2
-        self.quiet = self.quiet + self.dt if still else 0.0
+        self.quiet = self.quiet + window if still else 0.0
         self.at_rest = self.quiet >= c.quiet_s - 1e-12
         if self.at_rest:
-            self.bias += self._alpha * (residual - self.bias)
-        return -(R @ (residual - self.bias))[:2]
+            a = min(1.0, window / (c.bias_tau_s + window))
+            self.bias += a * (residual - self.bias)
+        self.force = -(R @ (residual - self.bias))[:2]
+        return self.force
 
 
 class ResidualEstimator:

@@ -73,6 +73,7 @@ class MobileBase:
         #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
         #: simulated push is active
         self.external_forces = False
+        self.last_onset_s: float | None = None
         #: the sensor's faults; None (or ideal) reads the raw sensor exactly as before
         self.sensor_model = None if sensor_model is None or sensor_model.is_ideal \
             else sensor_model
@@ -81,7 +82,6 @@ class MobileBase:
         self.estimator: ForceEstimator | None = None
         #: the push estimate the detector was last fed (N, world frame)
         self.force_estimate = np.zeros(2)
-        self._qvel_before = np.zeros(self.model.nv)
         if self.sensor_model is not None:
             if not isinstance(rng, np.random.Generator):
                 raise ConfigError("a sensor model with faults needs the body's numpy "
@@ -112,6 +112,7 @@ class MobileBase:
                                             self.estimator_config)
         self.faulty.restart()
         self.estimator.quiet = 0.0
+        self.estimator.mark(self.data)
         n = int(round(self.estimator_config.tare_s / self.faulty.period))
         if n > 0:
             readings = [self.faulty.read_still(self.data) for _ in range(n)]
@@ -128,8 +129,9 @@ class MobileBase:
         if self.faulty is None:
             self._reset_sensing()
         idle = not self.detector.active and self.detector._above == 0.0
+        reading = self.faulty.read(d)
         self.force_estimate = self.estimator.update(
-            self.faulty.read(d), self.sensor.rotation(d), d, self._qvel_before, idle)
+            reading, self.sensor.rotation(d), d, idle, self.faulty.fresh, self.faulty.window_s)
         return self.force_estimate
 
     @property
@@ -165,8 +167,6 @@ class MobileBase:
             push.apply(d, self.pushed_body)
         elif not self.external_forces:
             d.xfrc_applied[self.pushed_body, :] = 0.0
-        if self.sensor_model is not None:
-            self._qvel_before[:] = d.qvel
         mujoco.mj_step(self.model, d)
         if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
@@ -190,8 +190,12 @@ class MobileBase:
         push.t0 = float(self.data.time)
         end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
         cue = None
+        #: seconds from the push's onset to the detector going active (None: it did not)
+        self.last_onset_s = None
         while self.data.time < end and cue is None:
             cue = self.substep(push)
+            if self.last_onset_s is None and self.detector.active:
+                self.last_onset_s = float(self.data.time) - push.t0
         self.detector.reset()
         return cue
 

@@ -17,7 +17,8 @@ The ideal sensor (the default) is that raw reading: no noise, no bias, the model
 white noise per output sample, an initial constant bias of a given magnitude in a random
 horizontal direction, a random-walk drift of that bias, an extra sensed mass (the grip and the
 sensor's tool plate, which the MJCF handle does not model) whose inertia the sensor feels, and
-an output rate with sample-and-hold. MuJoCo 3.17 ignores the MJCF sensor ``noise`` attribute,
+an output rate (each sample the mean of the physics steps since the last, held in between).
+MuJoCo 3.17 ignores the MJCF sensor ``noise`` attribute,
 so the faults are drawn here from a NumPy ``Generator`` the caller passes (reproducible).
 See ``docs/sensing.md`` for the figures behind :meth:`SensorModel.realistic`.
 """
@@ -68,8 +69,8 @@ class SensorModel:
     removes it with the simulator's true acceleration (an idealisation, for comparisons);
     ``extra_mass_kg``: mass on the sensor's tool side that the scene does not model (grip,
     tool plate): the sensor also reads ``-m_extra (a - g)``, the dynamics do not change;
-    ``rate_hz``: output rate (sample and hold between samples); None samples every physics
-    step.
+    ``rate_hz``: output rate (each sample averages the physics steps since the previous one,
+    as an anti-aliasing filter does, and is held until the next); None: every physics step.
     """
 
     noise_n: float = 0.0
@@ -138,8 +139,7 @@ class FaultySensor:
         #: the current bias (N, sensor frame); drifts as a random walk
         self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
         self._acc = np.zeros(6)
-        self._held: np.ndarray | None = None
-        self._next_t = -np.inf
+        self.restart()
 
     def true_acceleration(self, data) -> np.ndarray:
         """World-frame linear acceleration of the sensed body's centre of mass, minus gravity
@@ -148,36 +148,52 @@ class FaultySensor:
                                      self._acc, 0)
         return self._acc[3:].copy()
 
-    def _sample(self, data) -> np.ndarray:
+    def _physical(self, data) -> np.ndarray:
+        """This physics step's reading before the electronics (N, sensor frame): MuJoCo's, with
+        the extra mass's inertia and weight, or without the model's inertia."""
         s, sm = self.sensor.raw(data), self.spec
         if sm.extra_mass_kg > 0 or not sm.inertia:
             R = self.sensor.rotation(data)
             m = sm.extra_mass_kg - (0.0 if sm.inertia else self.mass)
             s = s + R.T @ (m * self.true_acceleration(data))
+        return s
+
+    def _emit(self, mean: np.ndarray) -> np.ndarray:
+        sm = self.spec
         if sm.drift_n_per_sqrt_s > 0:
             self.bias[:2] += sm.drift_n_per_sqrt_s * np.sqrt(self.period) * \
                 self.rng.standard_normal(2)
         noise = sm.noise_n * self.rng.standard_normal(3) if sm.noise_n > 0 else 0.0
-        return s + self.bias + noise
+        return mean + self.bias + noise
 
     def read(self, data) -> np.ndarray:
-        """The sensor's output at ``data.time`` (N, sensor frame, 3 axes): a new sample every
-        ``1/rate_hz`` seconds, held in between."""
+        """The sensor's output after this physics step (N, sensor frame, 3 axes). Every
+        ``1/rate_hz`` seconds a new sample: the mean of the physical readings since the last
+        one (the electronics' anti-aliasing average), plus bias and noise; held in between.
+        :attr:`fresh` says whether this step gave a new sample, :attr:`window_s` over how
+        long it averaged."""
         t = float(data.time)
-        if self._held is None or t >= self._next_t - 1e-9:
-            self._held = self._sample(data)
-            self._next_t = (t if self._next_t == -np.inf else self._next_t) + self.period
-            if self._next_t <= t:  # time jumped (a reset): restart the sample clock
-                self._next_t = t + self.period
+        self._sum += self._physical(data)
+        self._count += 1
+        if self._next_t == -np.inf:
+            self._next_t = t
+        self.fresh = t >= self._next_t - 1e-9 or self._held is None
+        if self.fresh:
+            self.window_s = self._count * self.dt
+            self._held = self._emit(self._sum / self._count)
+            self._sum, self._count = np.zeros(3), 0
+            while self._next_t <= t + 1e-9:
+                self._next_t += self.period
         return self._held.copy()
 
     def read_still(self, data) -> np.ndarray:
         """A fresh output sample of the current (still) state that advances the sensor's
         clock by one period without physics: what the robot reads while it waits at rest."""
-        self._held = self._sample(data)
-        return self._held.copy()
+        return self._emit(self._physical(data))
 
     def restart(self) -> None:
         """Forget the held sample (after a physics reset); the bias stays (same device)."""
-        self._held = None
+        self._held: np.ndarray | None = None
         self._next_t = -np.inf
+        self._sum, self._count = np.zeros(3), 0
+        self.fresh, self.window_s = False, self.dt
