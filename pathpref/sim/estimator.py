@@ -13,9 +13,11 @@
   reads ``xfrc_applied``, ``cacc`` or ``qacc``.
 * **the bias**: a zero (tare) from the mean of ``tare_s`` of readings at rest when the robot
   starts, then an exponential average of the residual with a slow time constant
-  (``bias_tau_s``), updated only while the robot is at rest (no cue under way, joint speeds
-  below ``still_mps``, acceleration below ``still_mps2``, for at least ``quiet_s``) and frozen
-  otherwise, so a push or a manoeuvre never leaks into it.
+  (``bias_tau_s``), updated only while the robot is at rest (no cue under way, the sensed
+  body slower than ``still_mps`` and accelerating less than ``still_mps2``) and frozen
+  otherwise. A sample enters the average only ``quiet_s`` after it was taken, if the robot
+  stayed at rest meanwhile: the first newtons of a push (before the detector goes active or
+  the base yields) are dropped, not averaged in.
 
 :class:`ResidualEstimator` is the alternative without a sensor (PHRI_NOTES 2.2 (b)):
 ``mj_inverse`` with ``qacc = dqvel/dt`` gives ``qfrc_inverse``; minus the robot's own
@@ -25,6 +27,7 @@ actuator forces, the residual on the base's slide joints is the horizontal exter
 from __future__ import annotations
 
 import copy
+from collections import deque
 from dataclasses import dataclass
 
 import mujoco
@@ -43,7 +46,7 @@ class EstimatorConfig:
     tare_s: float = 0.2
     still_mps: float = 0.02
     still_mps2: float = 0.3
-    quiet_s: float = 0.1
+    quiet_s: float = 0.15
     compensate_inertia: bool = True
 
     def __post_init__(self):
@@ -75,6 +78,7 @@ class ForceEstimator:
         self.acc = np.zeros(3)
         self.force = np.zeros(2)
         self._qvel_mark: np.ndarray | None = None
+        self._pending: deque[np.ndarray] = deque()
 
     def mark(self, data) -> None:
         """Start a sensor window at the current joint velocities (after a reset)."""
@@ -113,17 +117,23 @@ class ForceEstimator:
         if not fresh:
             if not cue_idle:
                 self.quiet, self.at_rest = 0.0, False
+                self._pending.clear()
             return self.force
         window = self.dt if window_s is None else window_s
         self.acc = acc = self.acceleration(data, window)
         residual = reading - self.expected(R, acc)
         speed = float(np.linalg.norm(self._jac @ data.qvel))  # the sensed body's speed
         still = cue_idle and speed < c.still_mps and float(np.linalg.norm(acc)) < c.still_mps2
-        self.quiet = self.quiet + window if still else 0.0
+        if still:
+            self.quiet += window
+            self._pending.append(residual)
+        else:
+            self.quiet = 0.0
+            self._pending.clear()  # the samples just before a push or a start never count
         self.at_rest = self.quiet >= c.quiet_s - 1e-12
-        if self.at_rest:
-            a = min(1.0, window / (c.bias_tau_s + window))
-            self.bias += a * (residual - self.bias)
+        a = min(1.0, window / (c.bias_tau_s + window))
+        while len(self._pending) * window > c.quiet_s + 1e-12:
+            self.bias += a * (self._pending.popleft() - self.bias)
         self.force = -(R @ (residual - self.bias))[:2]
         return self.force
 
