@@ -185,3 +185,20 @@ def test_residual_estimator_recovers_the_push_while_driving(worlds, scene):
                                                 - push.force(t)[:2])))
     assert worst < 1e-9
     assert mujoco.__version__.startswith("3.")
+
+
+def test_tray_sensor_of_the_arm_with_realistic_faults(worlds):
+    """The arm's tray sensor goes through the same chain (sensor, estimator and detector are
+    built for the tray at reset): four pushes, the right sector each."""
+    from pathpref.sim.arm import ArmBase
+    from pathpref.sim.body import scene_for
+
+    w = worlds["simple"]
+    arm = ArmBase(scene_for(w, 0.5, "carry"), sensor_model=SensorModel.realistic(),
+                  rng=np.random.default_rng(0))
+    arm.reset(w.cell((3, 3)))
+    assert arm.faulty.sensor is arm.sensor and arm.estimator.body == arm.tray
+    for heading in (0, 3, 4, 6):
+        cue = arm.receive_push(_push(float(ACTION_ANGLES[heading])))
+        assert cue is not None and cue.heading == heading
+        arm.move_to(arm.cell)

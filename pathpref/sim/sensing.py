@@ -18,8 +18,8 @@ white noise per output sample, an initial constant bias of a given magnitude in 
 horizontal direction, a random-walk drift of that bias, an extra sensed mass (the grip and the
 sensor's tool plate, which the MJCF handle does not model) whose inertia the sensor feels, and
 an output rate (each sample the mean of the physics steps since the last, held in between).
-MuJoCo 3.17 ignores the MJCF sensor ``noise`` attribute,
-so the faults are drawn here from a NumPy ``Generator`` the caller passes (reproducible).
+MuJoCo 3.17 ignores the MJCF sensor ``noise`` attribute, so the faults are drawn here from a
+NumPy ``Generator`` the caller passes (reproducible).
 See ``docs/sensing.md`` for the figures behind :meth:`SensorModel.realistic`.
 """
 
