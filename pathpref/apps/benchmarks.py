@@ -279,6 +279,131 @@ def false_cues(seconds: float = 1000.0, seed: int = 0) -> tuple[int, float]:
     return len(base.cues_while_driving), float(base.data.time)
 
 
+def realistic_pushes(n: int, seed: int = 0, noise_deg: float = 10.0) -> list[tuple]:
+    """``n`` pushes of the realistic benchmark on ``simple``: a random walk of legal moves and
+    at each cell a push toward a random sector, peak U[10, 60] N over U[0.1, 0.5] s, heading
+    noise ``noise_deg``; rows ``(cell, heading, angle, profile)``."""
+    from ..sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    rng = np.random.default_rng(seed)
+    cell, rows = world.cell((3, 3)), []
+    for _ in range(n):
+        moves = np.flatnonzero(~world.motion.blocked[cell])
+        cell = int(world.motion.next_cell[cell, rng.choice(moves)])
+        h = int(rng.integers(8))
+        profile = PushProfile(peak_n=float(rng.uniform(10.0, 60.0)),
+                              duration_s=float(rng.uniform(0.1, 0.5)), noise_deg=noise_deg)
+        rows.append((cell, h, HumanPush.sample(h, 0.0, profile, rng).angle, profile))
+    return rows
+
+
+def run_pushes(pushes: list[tuple], sensor_model=None, seed: int = 0, rest_s: float = 0.3,
+               estimator=None) -> dict[str, Any]:
+    """Give ``pushes`` (from :func:`realistic_pushes`) to one base with ``sensor_model``:
+    drive to each push's cell, wait ``rest_s``, push. Hits (detected sector = intended),
+    onset latencies (push onset to the detector going active) and release latencies (push
+    end to the cue)."""
+    from ..sim.force_cue import HumanPush
+    from ..sim.mobile_base import MobileBase
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world), sensor_model=sensor_model,
+                      rng=np.random.default_rng(seed + 1), estimator=estimator)
+    base.reset(world.cell((3, 3)))
+    hits, onset, release = [], [], []
+    for cell, h, angle, profile in pushes:
+        base.move_to(cell)
+        t_end = base.data.time + rest_s
+        while base.data.time < t_end:
+            base.substep()
+        push = HumanPush(angle, 0.0, profile, h)
+        cue = base.receive_push(push)
+        hits.append(cue is not None and cue.heading == h)
+        if base.last_onset_s is not None:
+            onset.append(base.last_onset_s)
+        if cue is not None:
+            release.append(float(base.data.time) - push.t0 - profile.duration_s)
+    return {"hits": hits, "onset_s": onset, "release_s": release,
+            "accuracy": float(np.mean(hits)) if hits else 0.0}
+
+
+def cue_accuracy_realistic(n: int = 200, seed: int = 0) -> dict[str, Any]:
+    """The same ``n`` pushes (:func:`realistic_pushes`) sensed by the ideal sensor and by
+    ``SensorModel.realistic()`` (2 N noise per axis at 100 Hz, 6 N bias drifting by
+    0.05 N/sqrt(s), inertia with 0.6 kg sensed) through the estimator and the filtered
+    detector: both accuracies, their ratio, latencies (ms, medians)."""
+    from ..sim.sensing import SensorModel
+
+    pushes = realistic_pushes(n, seed)
+    ideal = run_pushes(pushes, None, seed)
+    real = run_pushes(pushes, SensorModel.realistic(), seed)
+
+    def ms(xs: list[float]) -> float:
+        return 1e3 * float(np.median(xs)) if xs else float("nan")
+
+    return {
+        "cue_accuracy_realistic": real["accuracy"] / max(ideal["accuracy"], 1e-12),
+        "cue_accuracy_realistic_raw": real["accuracy"],
+        "cue_accuracy_ideal_raw": ideal["accuracy"],
+        "cue_latency_ms": ms(real["onset_s"]),
+        "cue_latency_ideal_ms": ms(ideal["onset_s"]),
+        "cue_latency_p90_ms": (1e3 * float(np.quantile(real["onset_s"], 0.9))
+                               if real["onset_s"] else float("nan")),
+        "cue_release_ms": ms(real["release_s"]),
+        "cue_release_ideal_ms": ms(ideal["release_s"]),
+        "cue_missed_realistic": int(n - len(real["release_s"])),
+        "cue_missed_ideal": int(n - len(ideal["release_s"])),
+        "cue_pushes_realistic": n,
+    }
+
+
+def hard_driving(base, seconds: float, rng: np.random.Generator) -> list:
+    """Drive ``base`` hard for ``seconds`` of simulated time: an aggressive controller (gain
+    8, 1 m/s: the actuators saturate at 120 N, about 10 m/s^2) whose target jumps every
+    U[0.2, 1.0] s to a random legal neighbour of the current cell (hard starts, braking and
+    reversals). Returns the cues detected (all false: nobody pushes)."""
+    from ..sim.controller import TrackingController
+
+    world = base.scene.world
+    base.controller = TrackingController(kp=8.0, v_max=1.0)
+    cues, t_end = [], base.data.time + seconds
+    while base.data.time < t_end:
+        s = base.cell
+        moves = np.flatnonzero(~world.motion.blocked[s])
+        base.target = base.scene.cell_centre(int(world.motion.next_cell[s, rng.choice(moves)]))
+        t_switch = base.data.time + rng.uniform(0.2, 1.0)
+        while base.data.time < min(t_switch, t_end):
+            cue = base.substep()
+            if cue is not None:
+                cues.append(cue)
+    return cues
+
+
+def false_cues_realistic(seconds: float = 1000.0, seed: int = 0, sensor_model=None,
+                         estimator=None) -> tuple[int, float, float]:
+    """False cues during :func:`hard_driving` on ``office`` with ``sensor_model`` (default
+    ``SensorModel.realistic()``): count, simulated seconds, peak |push estimate| (N)."""
+    from ..sim.mobile_base import MobileBase
+    from ..sim.sensing import SensorModel
+
+    world = cached_world("office")
+    model = SensorModel.realistic() if sensor_model is None else sensor_model
+    base = MobileBase(scene_for(world), sensor_model=model, rng=np.random.default_rng(seed + 1),
+                      estimator=estimator)
+    base.reset(world.cell((1, 1)))
+    peak = [0.0]
+
+    def watch(b, _push):
+        f = b.force_estimate if b.sensor_model is not None else b.sensor.force_xy(b.data)
+        peak[0] = max(peak[0], float(np.hypot(f[0], f[1])))
+
+    base.on_substep.append(watch)
+    t0 = base.data.time
+    cues = hard_driving(base, seconds, np.random.default_rng(seed))
+    return len(cues), float(base.data.time - t0), peak[0]
+
+
 def render_fps(width: int = 640, height: int = 480, frames: int = 60) -> float:
     """Frames per second of the top view of ``simple`` (one bare view, no episode)."""
     import mujoco
@@ -301,7 +426,9 @@ def render_fps(width: int = 640, height: int = 480, frames: int = 60) -> float:
 
 
 def bench_physics(quick: bool = False) -> dict[str, Any]:
-    """Cue detection (with and without heading noise), false cues, episode time, rendering."""
+    """Cue detection (with and without heading noise), false cues, episode time, rendering;
+    the same with realistic sensing (``*_realistic``, :func:`cue_accuracy_realistic`,
+    :func:`false_cues_realistic`; ``docs/sensing.md``)."""
     n_push = 50 if quick else 200
     secs = 100.0 if quick else 1000.0
     n_cues, sim_s = false_cues(secs)
@@ -312,7 +439,26 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         t = time.perf_counter()
         run_episode(spec)
         times.append(time.perf_counter() - t)
+    from ..sim.estimator import EstimatorConfig
+    from ..sim.sensing import SensorModel
+
+    drive = 120.0 if quick else 1000.0
+    n_real, real_s, real_peak = false_cues_realistic(drive)
+    n_unc, unc_s, unc_peak = false_cues_realistic(
+        drive, estimator=EstimatorConfig(compensate_inertia=False))
+    inertia_only = SensorModel(extra_mass_kg=0.4)  # no noise, no bias: the inertia alone
+    _, _, raw_peak = false_cues_realistic(30.0, sensor_model=inertia_only,
+                                          estimator=EstimatorConfig(compensate_inertia=False))
+    _, _, comp_peak = false_cues_realistic(30.0, sensor_model=inertia_only)
     return {
+        **cue_accuracy_realistic(100 if quick else 400),
+        "false_cues_per_hour_realistic": n_real / real_s * 3600.0,
+        "false_cue_drive_realistic_s": real_s,
+        "force_estimate_peak_driving_n": real_peak,
+        "false_cues_per_hour_realistic_uncompensated": n_unc / unc_s * 3600.0,
+        "force_estimate_peak_driving_uncompensated_n": unc_peak,
+        "inertia_peak_raw_n": raw_peak,
+        "inertia_peak_compensated_n": comp_peak,
         "cue_sector_accuracy": cue_accuracy(n_push, 10.0),
         "cue_sector_accuracy_no_noise": cue_accuracy(n_push, 0.0),
         "cue_pushes": n_push,

@@ -144,7 +144,7 @@ class ArmBase(MobileBase):
         self.data.ctrl[self.arm_ctrl] = ARM_HOME
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)
-        self.detector.reset()
+        self._reset_sensing()
         self._k = 0
         self.tilts = []
         self.deepest = 0.0

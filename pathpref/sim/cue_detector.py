@@ -47,6 +47,9 @@ class CueDetector:
 
     def reset(self) -> None:
         """Forget any cue in progress."""
+        self._clear()
+
+    def _clear(self) -> None:
         self.active = False
         self._above = 0.0
         self._below = 0.0
@@ -70,7 +73,7 @@ class CueDetector:
                     self.active = True
                     self._below = 0.0
             else:
-                self.reset()
+                self._clear()
             return None
         self._impulse += f_xy * self.dt
         self._peak = max(self._peak, mag)
@@ -78,6 +81,79 @@ class CueDetector:
         self._below = self._below + self.dt if mag < self.off_n else 0.0
         if self._below >= self.off_s - 1e-12:
             cue = Cue(self._impulse.copy(), self._peak, self._duration)
-            self.reset()
+            self._clear()
+            return cue
+        return None
+
+
+class FilteredCueDetector(CueDetector):
+    """The hysteresis detector for a noisy force estimate.
+
+    * a first-order low-pass (time constant ``tau_s``, 15 ms) before the thresholds;
+    * thresholds relative to the noise: ``on = max(on_n, on_k sigma)``,
+      ``off = max(off_n, off_k sigma)`` with ``sigma`` the per-axis spread of the filtered
+      force, learnt (exponential average over ``floor_tau_s``) while the caller says the robot
+      is at rest and no cue is under way; the on/off hysteresis and its timers are kept;
+    * the impulse sums the filtered force only while its magnitude is above ``off``, so the
+      release tail (pure noise) does not turn the cue's direction.
+
+    :meth:`update` takes ``at_rest`` (from the estimator) besides the force sample.
+    """
+
+    def __init__(self, dt: float, tau_s: float = 0.015, on_n: float = 8.0, on_s: float = 0.025,
+                 off_n: float = 4.0, off_s: float = 0.05, on_k: float = 6.0, off_k: float = 3.0,
+                 floor_tau_s: float = 2.0):
+        self.tau_s, self.on_k, self.off_k, self.floor_tau_s = tau_s, on_k, off_k, floor_tau_s
+        self.base_on_n, self.base_off_n = on_n, off_n
+        self._alpha = dt / (tau_s + dt)
+        self._beta = dt / (floor_tau_s + dt)
+        self.var = 0.0  # per-axis variance of the filtered force at rest (N^2)
+        super().__init__(dt, on_n, on_s, off_n, off_s)
+
+    def reset(self) -> None:
+        """Forget any cue in progress and the filter's state (the noise level stays)."""
+        self._clear()
+        self.f = np.zeros(2)
+
+    @property
+    def noise_n(self) -> float:
+        """The learnt per-axis spread of the filtered force at rest (N, 1 sigma)."""
+        return float(np.sqrt(self.var))
+
+    def update(self, f_xy: np.ndarray, at_rest: bool = False) -> Cue | None:
+        """One force sample (and whether the robot is at rest with no push): low-pass, then
+        the hysteresis of :class:`CueDetector` on the filtered force; the cue or None."""
+        f_xy = np.asarray(f_xy, float)
+        if not np.isfinite(f_xy).all():
+            return None
+        self.f = self.f + self._alpha * (f_xy - self.f)
+        f = self.f
+        mag = float(np.hypot(f[0], f[1]))
+        if not self.active and self._above == 0.0:
+            if at_rest:
+                self.var += self._beta * (0.5 * (f[0] ** 2 + f[1] ** 2) - self.var)
+            sigma = self.noise_n
+            self.on_n = max(self.base_on_n, self.on_k * sigma)
+            self.off_n = max(self.base_off_n, self.off_k * sigma)
+        if not self.active:
+            if mag > self.on_n:
+                self._above += self.dt
+                self._impulse += f * self.dt
+                self._peak = max(self._peak, mag)
+                self._duration += self.dt
+                if self._above >= self.on_s - 1e-12:
+                    self.active = True
+                    self._below = 0.0
+            else:
+                self._clear()
+            return None
+        if mag > self.off_n:
+            self._impulse += f * self.dt
+        self._peak = max(self._peak, mag)
+        self._duration += self.dt
+        self._below = self._below + self.dt if mag < self.off_n else 0.0
+        if self._below >= self.off_s - 1e-12:
+            cue = Cue(self._impulse.copy(), self._peak, self._duration)
+            self._clear()
             return cue
         return None

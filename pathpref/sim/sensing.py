@@ -1,14 +1,36 @@
-"""What the robot measures of a push: the handle's force sensor rotated into the world frame.
+"""What the robot measures of a push: the handle's force sensor rotated into the world frame,
+and, optionally, the faults of a real force/torque sensor (:class:`SensorModel`).
 
-The force sensor at ``handle_site`` reports, in the site frame, the force between the handle and
-the base; a push ``F`` on the handle reads ``-F`` (minus the handle's own weight and inertia).
-So the horizontal interaction force in the world frame is ``-(R f)_xy`` with ``R`` the site's
-rotation (``site_xmat``). The robot never reads ``xfrc_applied``.
+The force sensor at ``handle_site`` reports, in the site frame, the force the base exerts on
+the handle (``s = R^T (m (a - g) - F)`` for a push ``F`` on a handle of mass ``m`` with
+acceleration ``a``); a push ``F`` on a still handle reads ``-F``. So the horizontal interaction
+force in the world frame is ``-(R s)_xy`` with ``R`` the site's rotation (``site_xmat``). The
+robot never reads ``xfrc_applied``.
+
+**Inertia is in the raw reading.** MuJoCo computes the sensor from the handle's own dynamics
+(``cacc``/``cfrc_int``), so when the base accelerates the raw reading includes ``-m a``:
+measured on ``simple``, a base starting towards a target 1 m away (0.8 m/s, 7.9 m/s^2 at
+the start) reads 1.57 N on the 0.2 kg handle, which is exactly ``m * qacc`` (fit: 0.200 kg).
+The ideal sensor (the default) is that raw reading: no noise, no bias, the model's inertia.
+
+**Faults** (:class:`SensorModel`, applied by :class:`FaultySensor` in the sensor's own frame):
+white noise per output sample, an initial constant bias of a given magnitude in a random
+horizontal direction, a random-walk drift of that bias, an extra sensed mass (the grip and the
+sensor's tool plate, which the MJCF handle does not model) whose inertia the sensor feels, and
+an output rate (each sample the mean of the physics steps since the last, held in between).
+MuJoCo 3.17 ignores the MJCF sensor ``noise`` attribute, so the faults are drawn here from a
+NumPy ``Generator`` the caller passes (reproducible).
+See ``docs/sensing.md`` for the figures behind :meth:`SensorModel.realistic`.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
+import mujoco
 import numpy as np
+
+from ..errors import ConfigError
 
 
 class HandleSensor:
@@ -23,3 +45,155 @@ class HandleSensor:
         f_site = data.sensordata[self.adr:self.adr + 3]
         R = data.site_xmat[self.site].reshape(3, 3)
         return -(R @ f_site)[:2]
+
+    def raw(self, data) -> np.ndarray:
+        """The sensor's own reading (N, site frame, 3 axes): the force on the handle from the
+        base."""
+        return data.sensordata[self.adr:self.adr + 3].copy()
+
+    def rotation(self, data) -> np.ndarray:
+        """The site's rotation (site frame to world frame, 3x3)."""
+        return data.site_xmat[self.site].reshape(3, 3).copy()
+
+
+@dataclass(frozen=True)
+class SensorModel:
+    """The faults of a force sensor (all zero: the ideal sensor, MuJoCo's raw reading).
+
+    ``noise_n``: white noise per axis per output sample (N, 1 sigma);
+    ``bias_n``: magnitude of the initial constant bias (N), in a random horizontal direction
+    of the sensor frame;
+    ``drift_n_per_sqrt_s``: random-walk drift of the bias per horizontal axis (N after 1 s,
+    1 sigma; after ``t`` seconds its spread is ``drift sqrt(t)``);
+    ``inertia``: keep the handle's inertia in the reading (physical; MuJoCo computes it); False
+    removes it with the simulator's true acceleration (an idealisation, for comparisons);
+    ``extra_mass_kg``: mass on the sensor's tool side that the scene does not model (grip,
+    tool plate): the sensor also reads ``-m_extra (a - g)``, the dynamics do not change;
+    ``rate_hz``: output rate (each sample averages the physics steps since the previous one,
+    as an anti-aliasing filter does, and is held until the next); None: every physics step.
+    """
+
+    noise_n: float = 0.0
+    bias_n: float = 0.0
+    drift_n_per_sqrt_s: float = 0.0
+    inertia: bool = True
+    extra_mass_kg: float = 0.0
+    rate_hz: float | None = None
+
+    def __post_init__(self):
+        for name in ("noise_n", "bias_n", "drift_n_per_sqrt_s", "extra_mass_kg"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise ConfigError(f"sensor {name} must be a finite number >= 0, got {v}")
+        if self.rate_hz is not None and not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
+            raise ConfigError(f"sensor rate_hz must be a positive number, got {self.rate_hz}")
+
+    @classmethod
+    def ideal(cls) -> SensorModel:
+        """MuJoCo's raw reading: no noise, no bias, no drift, the model's own inertia."""
+        return cls()
+
+    @classmethod
+    def ft300s(cls) -> SensorModel:
+        """The datasheet of a Robotiq FT 300-S on a still bench (figures recalled, not
+        verified here; see ``docs/sensing.md``): signal noise 0.1 N (1 sigma, Fx/Fy/Fz) at its
+        100 Hz stream rate, offset removed at start (the sensor is zeroed), a slow thermal drift
+        of the zero (about 1 N over an hour: 0.02 N/sqrt(s)), a tool side (plate and grip) of
+        about 0.3 kg beyond the model's handle."""
+        return cls(noise_n=0.1, bias_n=0.0, drift_n_per_sqrt_s=0.02, inertia=True,
+                   extra_mass_kg=0.3, rate_hz=100.0)
+
+    @classmethod
+    def realistic(cls) -> SensorModel:
+        """A handle F/T sensor of the FT 300-S / ATI Mini45 class as mounted on a driving base,
+        with margins for what a bench datasheet leaves out: 2 N noise per axis per sample at
+        100 Hz (20 times the FT 300-S's 0.1 N: floor and wheel vibration, cable pull), a 6 N
+        offset the robot has not zeroed (tool weight and mounting preload, thermal offset) that
+        drifts by 0.05 N/sqrt(s) (3 N over an hour), inertia on, and 0.4 kg of grip and tool
+        plate beyond the model's 0.2 kg handle (so 0.6 kg sensed: about 6 N at the base's
+        10 m/s^2 peak acceleration)."""
+        return cls(noise_n=2.0, bias_n=6.0, drift_n_per_sqrt_s=0.05, inertia=True,
+                   extra_mass_kg=0.4, rate_hz=100.0)
+
+    @property
+    def is_ideal(self) -> bool:
+        """Whether this is the raw reading (the default path, bit for bit)."""
+        return self == SensorModel()
+
+
+class FaultySensor:
+    """A :class:`HandleSensor` with the faults of a :class:`SensorModel`; its randomness comes
+    from ``rng`` only. Call :meth:`read` once per physics step (after ``mj_step``)."""
+
+    def __init__(self, model: mujoco.MjModel, sensor: HandleSensor, body: int,
+                 sensor_model: SensorModel, rng: np.random.Generator):
+        if not isinstance(rng, np.random.Generator):
+            raise ConfigError("a sensor with faults needs a numpy Generator (the body's rng)")
+        self.model, self.sensor, self.body = model, sensor, int(body)
+        self.spec = sensor_model
+        self.rng = rng
+        self.mass = float(model.body_subtreemass[self.body])  # the model's sensed mass
+        self.dt = float(model.opt.timestep)
+        self.period = self.dt if sensor_model.rate_hz is None else 1.0 / sensor_model.rate_hz
+        phi = rng.uniform(0.0, 2.0 * np.pi)
+        #: the current bias (N, sensor frame); drifts as a random walk
+        self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
+        self._acc = np.zeros(6)
+        self.restart()
+
+    def true_acceleration(self, data) -> np.ndarray:
+        """World-frame linear acceleration of the sensed body's centre of mass, minus gravity
+        (the simulator's truth; the sensor model uses it, the robot's estimator does not)."""
+        mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
+                                     self._acc, 0)
+        return self._acc[3:].copy()
+
+    def _physical(self, data) -> np.ndarray:
+        """This physics step's reading before the electronics (N, sensor frame): MuJoCo's, with
+        the extra mass's inertia and weight, or without the model's inertia."""
+        s, sm = self.sensor.raw(data), self.spec
+        if sm.extra_mass_kg > 0 or not sm.inertia:
+            R = self.sensor.rotation(data)
+            m = sm.extra_mass_kg - (0.0 if sm.inertia else self.mass)
+            s = s + R.T @ (m * self.true_acceleration(data))
+        return s
+
+    def _emit(self, mean: np.ndarray) -> np.ndarray:
+        sm = self.spec
+        if sm.drift_n_per_sqrt_s > 0:
+            self.bias[:2] += sm.drift_n_per_sqrt_s * np.sqrt(self.period) * \
+                self.rng.standard_normal(2)
+        noise = sm.noise_n * self.rng.standard_normal(3) if sm.noise_n > 0 else 0.0
+        return mean + self.bias + noise
+
+    def read(self, data) -> np.ndarray:
+        """The sensor's output after this physics step (N, sensor frame, 3 axes). Every
+        ``1/rate_hz`` seconds a new sample: the mean of the physical readings since the last
+        one (the electronics' anti-aliasing average), plus bias and noise; held in between.
+        :attr:`fresh` says whether this step gave a new sample, :attr:`window_s` over how
+        long it averaged."""
+        t = float(data.time)
+        self._sum += self._physical(data)
+        self._count += 1
+        if self._next_t == -np.inf:
+            self._next_t = t
+        self.fresh = t >= self._next_t - 1e-9 or self._held is None
+        if self.fresh:
+            self.window_s = self._count * self.dt
+            self._held = self._emit(self._sum / self._count)
+            self._sum, self._count = np.zeros(3), 0
+            while self._next_t <= t + 1e-9:
+                self._next_t += self.period
+        return self._held.copy()
+
+    def read_still(self, data) -> np.ndarray:
+        """A fresh output sample of the current (still) state that advances the sensor's
+        clock by one period without physics: what the robot reads while it waits at rest."""
+        return self._emit(self._physical(data))
+
+    def restart(self) -> None:
+        """Forget the held sample (after a physics reset); the bias stays (same device)."""
+        self._held: np.ndarray | None = None
+        self._next_t = -np.inf
+        self._sum, self._count = np.zeros(3), 0
+        self.fresh, self.window_s = False, self.dt

@@ -1,0 +1,168 @@
+"""The robot's estimate of the human's push from a faulty force sensor and its own motion.
+
+:class:`ForceEstimator` removes what the robot can know (``docs/sensing.md``):
+
+* **inertia and weight** of what hangs on the sensor: the sensor reads
+  ``s = R^T (m (a - g) - F) + b + noise``, so the estimate is
+  ``F_hat = -(R (s - b_hat - R^T m_hat (a_hat - g)))_xy``; ``m_hat`` is the tool-side mass the
+  robot knows (its handle or tray and the sensor's tool plate), ``a_hat`` the acceleration of
+  that body's centre of mass from the robot's *own* state: ``J_com(q) (qvel_now -
+  qvel_then) / T``, the body's Jacobian (kinematics) times the finite difference of the
+  measured joint velocities over the sensor's averaging window ``T`` (so a 100 Hz sensor that
+  averages 10 ms is compensated with the mean acceleration of the same 10 ms). It never
+  reads ``xfrc_applied``, ``cacc`` or ``qacc``.
+* **the bias**: a zero (tare) from the mean of ``tare_s`` of readings at rest when the robot
+  starts, then an exponential average of the residual with a slow time constant
+  (``bias_tau_s``), updated only while the robot is at rest (no cue under way, the sensed
+  body slower than ``still_mps`` and accelerating less than ``still_mps2``) and frozen
+  otherwise. A sample enters the average only ``quiet_s`` after it was taken, if the robot
+  stayed at rest meanwhile: the first newtons of a push (before the detector goes active or
+  the base yields) are dropped, not averaged in.
+
+:class:`ResidualEstimator` is the alternative without a sensor (PHRI_NOTES 2.2 (b)):
+``mj_inverse`` with ``qacc = dqvel/dt`` gives ``qfrc_inverse``; minus the robot's own
+actuator forces, the residual on the base's slide joints is the horizontal external force.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections import deque
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from ..errors import ConfigError
+
+GRAVITY_UP = np.array([0.0, 0.0, 9.81])
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Settings of :class:`ForceEstimator` (see the module docstring)."""
+
+    bias_tau_s: float = 2.0
+    tare_s: float = 0.2
+    still_mps: float = 0.02
+    still_mps2: float = 0.3
+    quiet_s: float = 0.15
+    compensate_inertia: bool = True
+
+    def __post_init__(self):
+        for name in ("bias_tau_s", "tare_s", "still_mps", "still_mps2", "quiet_s"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0 or (name == "bias_tau_s" and v == 0):
+                raise ConfigError(f"estimator {name} must be a finite number >= 0, got {v}")
+
+
+class ForceEstimator:
+    """Bias tracking and inertial compensation for the force sensed at ``body``.
+
+    Call :meth:`update` once per physics step with the sensor's output and the site's
+    rotation; it returns the horizontal push estimate."""
+
+    def __init__(self, model: mujoco.MjModel, body: int, mass_kg: float,
+                 config: EstimatorConfig | None = None):
+        self.model, self.body, self.mass = model, int(body), float(mass_kg)
+        self.config = config or EstimatorConfig()
+        self.dt = float(model.opt.timestep)
+        self._jac = np.zeros((3, model.nv))
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the bias estimate and the rest timer (a new robot, not yet zeroed)."""
+        self.bias = np.zeros(3)
+        self.quiet = 0.0
+        self.at_rest = False
+        self.acc = np.zeros(3)
+        self.force = np.zeros(2)
+        self._qvel_mark: np.ndarray | None = None
+        self._pending: deque[np.ndarray] = deque()
+
+    def mark(self, data) -> None:
+        """Start a sensor window at the current joint velocities (after a reset)."""
+        self._qvel_mark = data.qvel.copy()
+
+    def acceleration(self, data, window_s: float) -> np.ndarray:
+        """The sensed body's mean centre-of-mass acceleration (m/s^2, world frame) over the
+        last ``window_s`` from the robot's joint velocities: ``J_com (qvel - qvel_mark) /
+        window_s`` (the sensor averaged its reading over the same window)."""
+        mujoco.mj_jacBodyCom(self.model, data, self._jac, None, self.body)
+        if self._qvel_mark is None:
+            self._qvel_mark = data.qvel.copy()
+        acc = self._jac @ ((data.qvel - self._qvel_mark) / window_s)
+        self._qvel_mark = data.qvel.copy()
+        return acc
+
+    def expected(self, R: np.ndarray, acc: np.ndarray) -> np.ndarray:
+        """What the sensor reads without a push and without faults (N, sensor frame): the
+        known mass's inertia and weight, ``R^T m (a - g)``."""
+        a = acc if self.config.compensate_inertia else np.zeros(3)
+        return R.T @ (self.mass * (a + GRAVITY_UP))
+
+    def tare(self, readings: list[np.ndarray], R: np.ndarray) -> None:
+        """Zero the sensor from readings taken at rest (the mean residual becomes the bias)."""
+        if readings:
+            r = np.mean(readings, axis=0) - self.expected(R, np.zeros(3))
+            self.bias = np.asarray(r, float).copy()
+
+    def update(self, reading: np.ndarray, R: np.ndarray, data, cue_idle: bool,
+               fresh: bool = True, window_s: float | None = None) -> np.ndarray:
+        """The horizontal push estimate (N, world frame) after one physics step. On a
+        ``fresh`` sensor sample (averaged over ``window_s``, one step by default) the estimate
+        is recomputed and, at rest with ``cue_idle`` (the detector has nothing under way), the
+        bias tracked; between samples the last estimate is held."""
+        c = self.config
+        if not fresh:
+            if not cue_idle:
+                self.quiet, self.at_rest = 0.0, False
+                self._pending.clear()
+            return self.force
+        window = self.dt if window_s is None else window_s
+        self.acc = acc = self.acceleration(data, window)
+        residual = reading - self.expected(R, acc)
+        speed = float(np.linalg.norm(self._jac @ data.qvel))  # the sensed body's speed
+        still = cue_idle and speed < c.still_mps and float(np.linalg.norm(acc)) < c.still_mps2
+        if still:
+            self.quiet += window
+            self._pending.append(residual)
+        else:
+            self.quiet = 0.0
+            self._pending.clear()  # the samples just before a push or a start never count
+        self.at_rest = self.quiet >= c.quiet_s - 1e-12
+        a = min(1.0, window / (c.bias_tau_s + window))
+        while len(self._pending) * window > c.quiet_s + 1e-12:
+            self.bias += a * (self._pending.popleft() - self.bias)
+        self.force = -(R @ (residual - self.bias))[:2]
+        return self.force
+
+
+class ResidualEstimator:
+    """The push from inverse dynamics, no sensor (PHRI_NOTES 2.2 (b)): with ``qacc`` from the
+    finite difference of the measured joint velocities, ``mj_inverse`` gives the generalised
+    force the motion needed; minus the robot's own actuator forces, the residual on the base's
+    slide joints is the horizontal external force (``J^T`` of the push; contacts are modelled
+    by the inverse and so are not in it). Works on a copy of the model with discrete-time
+    inverse dynamics (``mjENBL_INVDISCRETE``, consistent with the ``implicitfast`` step, so
+    the velocity actuators' implicit damping leaves no residual) and a scratch ``MjData``."""
+
+    def __init__(self, model: mujoco.MjModel, slide_dofs: np.ndarray):
+        self.model = copy.deepcopy(model)
+        self.model.opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_INVDISCRETE)
+        self.scratch = mujoco.MjData(self.model)
+        self.dofs = np.asarray(slide_dofs, int)
+        self.dt = float(model.opt.timestep)
+
+    def estimate(self, qpos_before: np.ndarray, qvel_before: np.ndarray, data) -> np.ndarray:
+        """The horizontal external force (N, world frame) during the step that led from
+        ``(qpos_before, qvel_before)`` to ``data``'s state; ``data.qfrc_actuator`` is the
+        actuator force of that step (the robot's own command)."""
+        s = self.scratch
+        s.qpos[:] = qpos_before
+        s.qvel[:] = qvel_before
+        s.act[:] = data.act
+        s.ctrl[:] = data.ctrl
+        s.qacc[:] = (data.qvel - qvel_before) / self.dt
+        mujoco.mj_inverse(self.model, s)
+        return (s.qfrc_inverse - data.qfrc_actuator)[self.dofs].copy()
