@@ -13,7 +13,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from pathpref.apps.benchmarks import false_cues_realistic  # noqa: E402
+from pathpref.apps.benchmarks.physics import false_cues_realistic  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 from pathpref.geometry.grid import ACTION_ANGLES  # noqa: E402
 from pathpref.sim.cue_detector import FilteredCueDetector  # noqa: E402

@@ -35,6 +35,7 @@ def test_wheel_contents(wheel):
                    "pathpref_tasks/navigate.py", "pathpref/geometry/coarse.py",
                    "pathpref/episode/runner.py", "pathpref/apps/cli.py",
                    "pathpref/apps/commands.py", "pathpref_tasks/gym.py",
+                   "pathpref/apps/benchmarks/physics.py",
                    "pathpref/experiments/migrate.py"):
         assert needed in names, needed
     assert not any(n.startswith(("tests/", "mjcf/")) for n in names)

@@ -1,0 +1,40 @@
+"""Benchmarks behind ``pathpref bench --json`` and ``scripts/bench.py``, in sections:
+
+* ``maps``: per map, setup (arrangement, cost tables), belief updates, POMCP decisions (paper
+  and robust search) against the paper's Table II;
+* ``scale``: the 200 x 200 floor plan (fresh process), Ray throughput, rotated 40 x 40 maps;
+* ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK.
+
+They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
+issues are a contract: add keys, never rename them. Layout::
+
+    {"machine": {...},
+     "maps": {"simple": {"arrangement_build_s": ..., "cost_tables_s": ...,
+                         "belief_update_ms": ..., "goal_belief_update_ms": ..., ...}, ...},
+     "physics": {...}, "arm": {...}, "scale": {...}}
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .maps import bench_map, bench_pomcp, machine_info
+from .physics import bench_arm, bench_physics
+from .scale import bench_ray, bench_scale
+
+__all__ = ["bench_arm", "bench_map", "bench_physics", "bench_pomcp", "bench_ray", "bench_scale",
+           "machine_info", "run_benchmarks"]
+
+
+def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
+                   physics: bool = True) -> dict[str, Any]:
+    """All benchmarks as one JSON-ready dictionary (``scale`` is skipped with ``quick``)."""
+    maps = maps or ["simple", "office", "classroom"]
+    out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
+    if physics:
+        out["physics"] = bench_physics(quick=quick)
+        out["arm"] = bench_arm(quick=quick)
+    if not quick:
+        out["scale"] = {**bench_ray(), **bench_scale()}
+    return out
+

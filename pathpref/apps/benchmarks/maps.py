@@ -1,0 +1,127 @@
+"""``maps`` section: per map, setup (arrangement, cost tables), belief updates and POMCP
+decisions (paper and robust search), next to the paper's Table II."""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from statistics import median
+from typing import Any
+
+import numpy as np
+
+from ...experiments import paper
+from ...geometry.maps import load_map
+from ...geometry.world import World
+from ...inference.belief import GoalBelief, PreferenceBelief
+from ...inference.human import ObservationModel
+from ...planning.pomcp import POMCP
+from ...planning.pomdp import get_preset
+
+
+# --- maps: setup, belief, POMCP ------------------------------------------------------------
+def _timeit(fn, repeat: int) -> list[float]:
+    """Wall times (s) of ``repeat`` calls of ``fn``."""
+    out = []
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t)
+    return out
+
+
+def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
+    """Build, table and belief-update timings for one map (10 goal candidates)."""
+    rng = np.random.default_rng(seed)
+    spec = load_map(name)
+    reps = 3 if quick else 7
+    build = _timeit(lambda: World.from_spec(spec), reps)
+    world = World.from_spec(spec)
+    goals = rng.choice(world.n_cells, size=min(10, world.n_cells), replace=False)
+
+    def tables():
+        m = ObservationModel.build(world, goals)
+        return m.likelihood, m.goal_likelihood
+
+    tab = _timeit(tables, reps)
+    model = ObservationModel.build(world, goals)
+    n_upd = 200 if quick else 1000
+    cells = rng.integers(0, world.n_cells, size=n_upd)
+    heads = rng.integers(0, 8, size=n_upd)
+    pb, gb = PreferenceBelief(model), GoalBelief(model)
+    pb.update(0, 0)
+    gb.update(0, 0)  # warm the cached tables
+    t_pref, t_goal = [], []
+    for c, h in zip(cells.tolist(), heads.tolist(), strict=True):
+        t = time.perf_counter()
+        pb.update(c, h)
+        t_pref.append(time.perf_counter() - t)
+        t = time.perf_counter()
+        gb.update(c, h)
+        t_goal.append(time.perf_counter() - t)
+    planning = bench_pomcp(world, name, quick=quick, seed=seed)
+    return {
+        "polytopes": world.n_polytopes,
+        "edges": world.graph.n_edges,
+        "free_cells": world.n_cells,
+        "arrangement_build_s": median(build),
+        "cost_tables_s": median(tab),
+        "setup_s": median(build) + median(tab),
+        "belief_update_ms": 1e3 * median(t_pref),
+        "belief_update_p99_ms": 1e3 * float(np.percentile(t_pref, 99)),
+        "goal_belief_update_ms": 1e3 * median(t_goal),
+        "belief_updates": n_upd,
+        "paper_belief_update_ms": paper.update_ms(name),
+        **planning,
+    }
+
+
+def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
+    """First-decision POMCP time: 5000 queries at depth T_max, median over random instances."""
+    preset = get_preset("paper")
+    robust = get_preset("robust")
+    depth = world.spec.t_max
+    n = 5 if quick else 20
+    rng = np.random.default_rng(seed + 1)
+    t_pp, t_go, t_rb, t_rb_go = [], [], [], []
+    for i in range(n + 1):
+        goals = rng.choice(world.n_cells, size=10, replace=False)
+        start = int(rng.integers(world.n_cells))
+        model = ObservationModel.build(world, goals)
+        pushed = PreferenceBelief(model, coupling=False)
+        pushed.update(start, int(rng.integers(8)))  # one push: the start polytope is known
+        for planner, belief, out in (
+            (POMCP(world, goals, preset.path_preference), PreferenceBelief(model), t_pp),
+            (POMCP(world, goals, preset.goal_only), GoalBelief(model), t_go),
+            (POMCP(world, goals, robust.path_preference.for_mission(depth),
+                   tables=model.tables), pushed, t_rb),
+            (POMCP(world, goals, robust.goal_only.for_mission(depth), tables=model.tables),
+             GoalBelief(model), t_rb_go),
+        ):
+            t = time.perf_counter()
+            planner.search(start, belief, depth, seed=i)
+            if i > 0:  # the first search compiles or loads the kernel
+                out.append(time.perf_counter() - t)
+    return {
+        "pomcp_queries": preset.queries,
+        "pomcp_depth": depth,
+        "pomcp_decision_ms": 1e3 * median(t_pp),
+        "pomcp_goal_only_decision_ms": 1e3 * median(t_go),
+        "pomcp_queries_per_s": preset.queries / median(t_pp),
+        "pomcp_decisions": n,
+        "paper_pomcp_decision_ms": paper.solve_ms(name),
+        "robust_decision_ms": 1e3 * median(t_rb),
+        "robust_goal_only_decision_ms": 1e3 * median(t_rb_go),
+    }
+
+
+def machine_info() -> dict[str, Any]:
+    """Python version, CPU count and platform of this machine."""
+    return {
+        "python": platform.python_version(),
+        "cpu_count": os.cpu_count(),
+        "platform": platform.platform(),
+    }
+
+

@@ -1,0 +1,115 @@
+"""``scale`` section: the 200 x 200 floor plan (setup in a fresh process, one episode), Ray
+throughput, reachable space on rotated 40 x 40 maps."""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Any
+
+import numpy as np
+
+from ...episode import EpisodeSpec, run_episode, sample_instance
+from ...geometry.maps import load_map
+from ...geometry.world import World
+
+
+# --- scale: Ray, big maps -------------------------------------------------------------------
+def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
+    """Episode throughput: one worker in-process vs Ray on a local 2-CPU cluster.
+
+    The same ``n`` goal-only episodes on ``simple`` (the paper's 5000 queries per decision)
+    both ways; Ray's start-up and a warm-up batch (workers importing pathpref and loading the
+    compiled kernel) are not timed.
+    """
+    try:
+        import ray
+    except ImportError:
+        return {"ray_speedup": None, "ray_note": "ray not installed (pip install pathpref[ray])"}
+    from ...experiments.backends import iter_local, iter_ray
+    from ...experiments.sweep import sweep_specs
+
+    specs = sweep_specs("simple", ["goal_only"], [5], instances=n, runs=1, seed=3,
+                        queries=queries)
+    list(iter_local(specs[:2], workers=1))  # warm this process
+    t = time.perf_counter()
+    list(iter_local(specs, workers=1))
+    t_local = time.perf_counter() - t
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=False)
+    try:
+        list(iter_ray(specs[:4]))  # warm the workers
+        t = time.perf_counter()
+        list(iter_ray(specs))
+        t_ray = time.perf_counter() - t
+    finally:
+        ray.shutdown()
+    return {"ray_speedup": t_local / t_ray, "ray_episodes": n,
+            "single_worker_episodes_per_s": n / t_local, "ray_episodes_per_s": n / t_ray}
+
+
+SCALE_MAP = {"width": 200, "height": 200, "n_rotated": 20, "n_boxes": 40, "seed": 0,
+             "size_range": (2.0, 12.0)}
+
+
+def scale_map() -> dict[str, Any]:
+    """The 200 x 200 benchmark floor plan: 60 obstacles, a third of them rotated, with a loop
+    preference around the map."""
+    from ...geometry.generate import random_floor_plan, with_loop_preference
+
+    return with_loop_preference(random_floor_plan(name="floor_200", **SCALE_MAP))
+
+
+def _scale_setup_child() -> None:
+    """Run in a fresh interpreter: arrangement + graph + cost tables for 10 goals on the
+    benchmark floor plan; prints ``seconds peak_MB``."""
+    import resource
+
+    from ...inference.costs import build_cost_tables
+
+    raw = scale_map()
+    World.from_spec(load_map({"width": 12, "height": 12, "obstacles": []}))  # JIT warm-up
+    t = time.perf_counter()
+    world = World.from_spec(load_map(raw))
+    build_cost_tables(world, np.array(sample_instance(world, 0, 10).goals))
+    dt = time.perf_counter() - t
+    print(dt, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+
+
+def bench_scale(queries: int = 1000) -> dict[str, Any]:
+    """Large-map figures: the 200 x 200 floor plan's setup time and peak memory (fresh process),
+    one path-preference episode on it, and the 40 x 40 rotated maps' reachable fraction."""
+    import json
+    import subprocess
+    import sys
+    import tempfile
+
+    from ...geometry.generate import four_connected_components, random_floor_plan
+    from ...geometry.maps import free_cell_mask
+
+    code = "from pathpref.apps.benchmarks.scale import _scale_setup_child; _scale_setup_child()"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.split()
+    res: dict[str, Any] = {"map_200_setup_s": float(out[0]), "map_200_peak_mb": float(out[1])}
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "floor_200.json")
+        with open(path, "w") as f:
+            json.dump(scale_map(), f)
+        spec = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=0, run=0,
+                           instance_seed=1, run_seed=2, queries=queries,
+                           t_max=load_map(path).t_max)
+        t = time.perf_counter()
+        ep = run_episode(spec)
+        res["map_200_episode_s"] = time.perf_counter() - t
+        res["map_200_episode_steps"] = ep.steps
+        res["map_200_episode_goal_reached"] = ep.goal_reached
+    fractions = []
+    for n in (32, 64):
+        for seed in range(3):
+            world = World.from_spec(load_map(random_floor_plan(40, 40, n, seed=seed)))
+            lab, _ = four_connected_components(free_cell_mask(world.spec))
+            largest4 = np.bincount(lab[lab > 0]).max()
+            fractions.append(np.bincount(world.motion.components()).max() / largest4)
+    res["rotated_40_reachable_fraction"] = float(min(fractions))
+    return res
+
+
