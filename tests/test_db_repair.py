@@ -11,6 +11,7 @@ import pytest
 
 from pathpref.apps.cli import main
 from pathpref.experiments.migrate import check_database
+from pathpref.experiments.store import SCHEMA_VERSION
 
 from .store_helpers import corrupt_page, leaf_page_of, snapshot, synthetic_db
 
@@ -32,7 +33,7 @@ def damaged_copy(intact: Path, folder: Path, table: str) -> Path:
 def test_check_intact_database(intact, capsys):
     assert main(["db", "check", str(intact)]) == 0
     out = capsys.readouterr().out
-    assert f"{intact}: intact" in out and "schema 3" in out
+    assert f"{intact}: intact" in out and f"schema {SCHEMA_VERSION}" in out
     assert "episodes: 100 readable, 0 unreadable" in out and "step rows: 2100 readable" in out
 
 

@@ -82,6 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
+        sp.add_argument("--prior", choices=["independent", "routes"], default=None,
+                        help="the path-preference belief's prior (default: the preset's; "
+                        "independent for paper and original, routes for robust: preferences "
+                        "that lead to the goal)")
         sp.add_argument("--ucb-c", action=RangeAction, limits="ucb_c", default=None,
                         help="POMCP UCB constant (the preset's: 1)")
         sp.add_argument("--episode-timeout", action=RangeAction, limits="episode_timeout",

@@ -150,6 +150,7 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
         "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",
         "coupling": args.coupling,
+        "prior": args.prior,
         "ucb_c": args.ucb_c,
         "timeout_s": args.episode_timeout,
     }

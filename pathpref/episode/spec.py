@@ -9,7 +9,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..geometry.maps import MAX_T_MAX
-from ..planning.pomdp import PRESETS, Preset, get_preset
+from ..planning.pomdp import PRESETS, PRIORS, Preset, get_preset
 from .cache import cached_map
 from .instances import HUMANS, seed_for
 
@@ -75,11 +75,11 @@ def check_limit(option: str, value: Any, name: str) -> int | float:
 class EpisodeSpec:
     """Everything that determines an episode. ``key()`` identifies it in the results store.
 
-    ``queries``, ``ucb_c`` and ``coupling`` left as None take the preset's values (resolved at
-    construction, so the key holds numbers); :meth:`planner` is the one place the preset and
-    these overrides meet. ``coupling`` (on in the ``paper`` and ``original`` presets, as in the
-    authors' code) applies the paper's back-edge remark to the robot's belief at every real
-    polytope change; without it the paper's reward can be farmed by crossing a confidently
+    ``queries``, ``ucb_c``, ``coupling`` and ``prior`` left as None take the preset's values
+    (resolved at construction, so the key holds them); :meth:`planner` is the one place the
+    preset and these overrides meet. ``coupling`` (on in the ``paper`` and ``original`` presets,
+    as in the authors' code) applies the paper's back-edge remark to the robot's belief at every
+    real polytope change; without it the paper's reward can be farmed by crossing a confidently
     preferred edge back and forth (see README, "Reproducing Table I").
 
     ``fixed`` optionally pins the instance: JSON of ``{"start": [x, y], "goals": [[x, y], ...],
@@ -110,12 +110,16 @@ class EpisodeSpec:
     #: the human's preference: "map" (the map's, the paper's protocol) or "consistent" (the
     #: true goal is drawn among candidates the map's preference leads to; see instances.py)
     human: str = "map"
+    #: the path-preference belief's prior: "independent" (the paper's) or "routes"
+    #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
+    #: of episodes stored before the field existed (all independent) stay as they were
+    prior: str | None = None
     #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
     timeout_s: float = field(default=0.0, compare=False)
 
     def __post_init__(self) -> None:
         preset = PRESETS.get(self.preset)  # an unknown name is reported by validate()
-        for name in ("queries", "ucb_c", "coupling"):
+        for name in ("queries", "ucb_c", "coupling", "prior"):
             if getattr(self, name) is None:
                 object.__setattr__(self, name,
                                    getattr(preset, name) if preset else
@@ -134,7 +138,8 @@ class EpisodeSpec:
     def planner(self) -> Preset:
         """The preset with this episode's overrides: every setting a policy reads."""
         return get_preset(self.preset, queries=self.queries, ucb_c=self.ucb_c,
-                          coupling=self.coupling, time_budget_ms=self.time_budget_ms)
+                          coupling=self.coupling, time_budget_ms=self.time_budget_ms,
+                          prior=self.prior)
 
     @property
     def map_hash(self) -> str:
@@ -148,6 +153,8 @@ class EpisodeSpec:
         d = asdict(self)
         d.pop("timeout_s")
         d.pop("map")
+        if d["prior"] == "independent":
+            d.pop("prior")
         d["map_hash"] = self.map_hash
         return "|".join(f"{k}={d[k]}" for k in sorted(d))
 
@@ -173,6 +180,8 @@ class EpisodeSpec:
                               ("fixed", self.fixed)):
             if not isinstance(value, str):
                 raise ConfigError(f"{option} must be a string, got {_show(value)}")
+        if self.prior not in PRIORS:
+            raise ConfigError(f"unknown prior '{self.prior}'; choose {' or '.join(PRIORS)}")
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")

@@ -9,7 +9,7 @@ schema lacks take their defaults, which reproduce the old behaviour), and writes
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schema2.bak``; nothing is changed when any map cannot be loaded.
+``NAME.schemaN.bak``; nothing is changed when any map cannot be loaded.
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -74,6 +74,7 @@ def _new_spec(row: dict[str, Any], map_paths: dict[str, str]) -> EpisodeSpec:
     names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
     fields = {k: row[k] for k in names if k in row and row[k] is not None}
     fields["map"] = map_paths.get(row["map"], row["map"])
+    fields.setdefault("prior", "independent")  # rows before schema 4 ran with the paper's prior
     for flag in ("normalize", "coupling"):
         if flag in fields:
             fields[flag] = bool(fields[flag])

@@ -182,12 +182,19 @@ class PreferenceBelief(Belief):
         w = np.exp(w - w.max())
         return w / w.sum()
 
-    def preference_given_goal(self, v: int) -> np.ndarray:
-        """``(G, deg v)`` table ``P(p_v = N(v)[k] | g, o_1:t)``."""
+    route_prior = False  # the independent prior (see :mod:`.routes` for the route prior)
+
+    def local_given_goal(self, v: int) -> np.ndarray:
+        """``(G, deg v)`` table ``T_v`` normalised per goal: ``P(p_v = N(v)[k] | g, o_1:t)``
+        under this independent prior."""
         t = self.tables.get(v)
         if t is None:
             return np.full((len(self.log_prior), self.degree[v]), 1.0 / self.degree[v])
         return t / t.sum(axis=1, keepdims=True)
+
+    def preference_given_goal(self, v: int) -> np.ndarray:
+        """``(G, deg v)`` table ``P(p_v = N(v)[k] | g, o_1:t)``."""
+        return self.local_given_goal(v)
 
     def preference_marginal(self, v: int) -> np.ndarray:
         """``P(p_v = N(v)[k] | o_1:t)`` over the neighbours of ``v``."""

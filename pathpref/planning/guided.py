@@ -1,19 +1,32 @@
 """The `robust` search: PO-UCT for the probability of success, guided by the human model's cost
 tables (compiled with numba).
 
-Same tree, root sampling (``g ~ P(g | o)``, each ``p_v ~ P(p_v | g, o)`` drawn lazily) and
-observation model as the paper's search (:mod:`.pomcp`); what it optimises and how it searches
-differ.
+Same tree and observation model as the paper's search (:mod:`.pomcp`); what it optimises, where
+its root states come from and how it searches differ.
 
+0. **Root states.** Under the route prior (:mod:`pathpref.inference.routes`, the ``robust``
+   preset's) each simulation starts from one of :data:`~.pomcp.TREE_POOL` particles
+   ``(g, theta)`` drawn exactly from the posterior before the search (:func:`tree_pool`:
+   Wilson's algorithm, compiled); a full tree per particle lets every rollout follow a
+   preferred route that reaches ``g``. (Drawing a fresh tree in every simulation is exact too,
+   but a random walk to the goal's polytope costs ~400 steps on ``classroom``: 4x the search.)
+   Under the independent prior, ``g ~ P(g | o)`` and each ``p_v ~ P(p_v | g, o)`` are drawn
+   lazily per simulation, as in the paper's search.
 1. **Success reward.** A simulation earns ``R_g gamma^(L-1)`` when it reaches the sampled goal
    at its ``L``-th step, and ``rho`` times that if some transition, in the simulation or earlier
    in the episode (the search is given the episode's transitions), left a *known* polytope ``v``
    by a face other than the sampled ``p_v`` (``rho``:
    :attr:`~.pomdp.Rewards.goal_after_violation`). No other reward. A polytope is known once the
-   belief holds an observation made in it; the preferences of the others are not sampled and
-   their transitions count as allowed, because the robot will be told about them (pushed) when
-   it gets there. With ``rho = 0``, ``gamma = 1`` and every polytope known, the expected reward
-   is the probability of the paper's success (goal reached, every transition preferred); under
+   belief holds an observation made in it. Under the independent prior the transitions out of
+   the others count as allowed, because the robot will be told about them (pushed) when it gets
+   there. Under the route prior this is modelled: the search is told when the human is next
+   expected to push and how often (``push_next``, ``push_every``, estimated by the policy from
+   the inputs so far); a polytope in which a simulated push falls counts as told (its exits
+   allowed), and leaving any other unknown polytope is judged by the particle's ``p_v``. So
+   the robot crosses polytopes between two pushes only where the preferred route is likely, and
+   may wait for a push where it is not; with a push every step, it is told everywhere.
+   With ``rho = 0``, ``gamma = 1`` and every polytope known, the expected reward is the
+   probability of the paper's success (goal reached, every transition preferred); under
    the independent uniform prior, a random preference vector almost never leads to the goal, so
    valuing unknown polytopes by their prior would make every route look hopeless and the robot
    would take the shortest one. ``rho > 0`` keeps the goal worth reaching when no preferred
@@ -26,13 +39,15 @@ differ.
    ``w -> v``: the success rule would need ``v -> w`` again, a cycle).
 2. **Guided rollouts.** Past the tree, with probability ``1 - eps`` the move minimising
    ``c(s, a) + h(s')`` with ``h = D_{v, p_v}(., g)``, the constrained cost-to-go of the human
-   model in the current known polytope ``v`` (:mod:`pathpref.inference.costs`), ``h = d(., g)``
-   across ``p_v``'s face, in unknown polytopes and once the simulation has made ``v``'s
-   preferred crossing (mutual preferences cannot trap a rollout); otherwise a random move that
-   stays in ``v``. The goal-only planner rolls out along ``d(., g)``. The tables are those of the
-   belief, so guidance costs a look-up per move.
-3. **Only moves.** Blocked moves (the robot stays) are not in the tree: waiting never earns
-   anything here.
+   model in the current polytope ``v`` (:mod:`pathpref.inference.costs`), known ``v`` only
+   under the independent prior, every ``v`` under the route prior (the particle's tree leads
+   onward to ``g``, never back through a polytope by a face it does not prefer); ``h = d(., g)``
+   across ``p_v``'s face, in unknown polytopes under the independent prior, and once the
+   simulation has made ``v``'s preferred crossing (mutual preferences cannot trap a rollout);
+   otherwise a random move that stays in ``v``. The goal-only planner rolls out along
+   ``d(., g)``. The tables are those of the belief, so guidance costs a look-up per move.
+3. **Only moves.** Blocked moves (the robot stays) are not in the tree: waiting in place never
+   earns anything here (waiting for a push is done by moving within a polytope).
 4. **Exploration scaled to the returns.** UCB1 with ``c R sqrt(log N / n)``, ``R`` the spread
    (max - min) of the returns seen so far in this search: ``c`` is unitless.
 5. **Anytime.** With ``budget_s > 0`` the search stops after that much wall time (checked every
@@ -61,22 +76,66 @@ def _clock():
 @nb.njit(cache=True, inline="always")
 def _theta(v, gi, q, nbr, pref_cdf, theta, stamp):
     """Slot ``k`` of the preferred neighbour of ``v`` in simulation ``q``, drawn lazily from
-    ``P(p_v | g)`` (cumulative ``pref_cdf[gi, v]``)."""
+    ``P(p_v | g)`` (cumulative ``pref_cdf[gi, v]``) under the independent prior; under the route
+    prior every slot was set at the start of the simulation (:func:`tree_pool`)."""
     if stamp[v] != q:
         stamp[v] = q
         theta[v] = sample_slot(v, gi, nbr, pref_cdf)
     return theta[v]
 
 
+@nb.njit(cache=True)
+def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed):
+    """``m`` exact draws of ``(g, theta)`` from the route-prior posterior
+    (:mod:`pathpref.inference.routes`): ``g`` from ``goal_cdf``, then ``theta`` by Wilson's
+    algorithm, ``pref_cdf[g]`` holding the walk's rows: from each polytope not yet in the tree,
+    a random walk until it meets the tree, loop-erased, joins it (the goal's polytope
+    ``root[g]`` first, with no exit, slot -1). Polytopes outside the goal's component (and
+    without neighbours) are drawn independently from their rows.
+
+    Returns ``(goal index (m,), slot of p_v (m, P))``."""
+    np.random.seed(seed)
+    P = nbr.shape[0]
+    goals = np.zeros(m, np.int64)
+    slots = np.zeros((m, P), np.int64)
+    in_tree = np.zeros(P, np.bool_)
+    walk = np.zeros(P, np.int64)
+    for j in range(m):
+        gi = sample_index(goal_cdf)
+        goals[j] = gi
+        r = root[gi]
+        in_tree[:] = False
+        in_tree[r] = True
+        slots[j, r] = -1
+        for v0 in range(P):
+            if in_tree[v0]:
+                continue
+            if comp[v0] != comp[r] or nbr[v0, 0] < 0:
+                slots[j, v0] = sample_slot(v0, gi, nbr, pref_cdf)
+                in_tree[v0] = True
+                continue
+            u = v0
+            while not in_tree[u]:
+                k = sample_slot(u, gi, nbr, pref_cdf)
+                walk[u] = k
+                u = nbr[u, k]
+            u = v0
+            while not in_tree[u]:
+                in_tree[u] = True
+                slots[j, u] = walk[u]
+                u = nbr[u, walk[u]]
+    return goals, slots
+
+
 @nb.njit(cache=True, inline="always")
 def _step(s, a, gi, q, next_cell, cross_slot, cell_poly, nbr, goal_cells, pref_cdf, theta,
-          stamp, made_q, known, use_pref, viol):
+          stamp, made_q, known, use_pref, viol, judged):
     """Generative step: (next cell, violated so far, done). Records preferred crossings made in
     simulation ``q`` in ``made_q``."""
     s2 = next_cell[s, a]
     k = cross_slot[s, a]
     v = cell_poly[s]
-    if use_pref and k >= 0 and known[v]:
+    if use_pref and k >= 0 and (known[v] or judged):
         if _theta(v, gi, q, nbr, pref_cdf, theta, stamp) == k:
             made_q[v] = q
         else:
@@ -86,7 +145,7 @@ def _step(s, a, gi, q, next_cell, cross_slot, cell_poly, nbr, goal_cells, pref_c
 
 @nb.njit(cache=True, inline="always")
 def _guided_action(s, gi, q, next_cell, cost, blocked, cross_slot, cell_poly, nbr, pref_cdf,
-                   theta, stamp, made_q, known, ctg, dist, use_pref):
+                   theta, stamp, made_q, known, ctg, dist, use_pref, tree):
     """The rollout move (module docstring, 2)."""
     v = cell_poly[s]
     if np.random.random() < EPS_RANDOM:  # a random move that stays in v, if there is one
@@ -96,7 +155,7 @@ def _guided_action(s, gi, q, next_cell, cost, blocked, cross_slot, cell_poly, nb
             if not blocked[s, a] and cross_slot[s, a] < 0:
                 return a
     kv = -1
-    if use_pref and known[v] and nbr[v, 0] >= 0 and made_q[v] != q:
+    if use_pref and (known[v] or tree) and nbr[v, 0] >= 0 and made_q[v] != q:
         kv = _theta(v, gi, q, nbr, pref_cdf, theta, stamp)
     best = 1e300
     off = np.random.randint(8)
@@ -122,7 +181,8 @@ def _guided_action(s, gi, q, next_cell, cost, blocked, cross_slot, cell_poly, nb
 @nb.njit(cache=True)
 def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cells, goal_cdf,
                   pref_cdf, known, ctg, dist, hist_v, hist_k, s0, depth, queries, c, discount,
-                  Rg, rho, use_pref, seed, budget_s):
+                  Rg, rho, use_pref, seed, budget_s, pool_g, pool_theta, push_next,
+                  push_every):
     """PO-UCT of the module docstring; returns
     ``(best action, root visits, root values, nodes, queries run)``."""
     np.random.seed(seed)
@@ -133,6 +193,8 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     theta = -np.ones(P, np.int64)
     stamp = -np.ones(P, np.int64)
     made_q = -np.ones(P, np.int64)
+    tree = pool_g.shape[0] > 0
+    told_q = -np.ones(P, np.int64)
     path_node = np.zeros(depth + 1, np.int64)
     path_a = np.zeros(depth + 1, np.int64)
     ret_lo, ret_hi = 1e300, -1e300
@@ -141,7 +203,13 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
         if budget_s > 0 and q % 32 == 0 and q > 0 and _clock() - t0 > budget_s:
             break
         done_q += 1
-        gi = sample_index(goal_cdf)
+        if tree:  # a particle of the route-prior posterior (tree_pool)
+            j = np.random.randint(pool_g.shape[0])
+            gi = pool_g[j]
+            theta[:] = pool_theta[j]
+            stamp[:] = q
+        else:
+            gi = sample_index(goal_cdf)
         s = s0
         node = 0
         L = 0
@@ -151,7 +219,8 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
                 v = hist_v[i]
                 if not known[v]:
                     continue
-                if _theta(v, gi, q, nbr, pref_cdf, theta, stamp) == hist_k[i]:
+                k = _theta(v, gi, q, nbr, pref_cdf, theta, stamp)
+                if k == hist_k[i]:
                     made_q[v] = q
                 else:
                     viol = True
@@ -160,6 +229,9 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
         in_tree = True
         n_tree = 0
         while L < depth:
+            # a push expected now tells the robot the preference of the polytope it is in
+            if tree and L >= push_next and (L - push_next) % push_every == 0:
+                told_q[cell_poly[s]] = q
             if in_tree:
                 a = -1
                 off = np.random.randint(8)
@@ -193,10 +265,10 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
             else:
                 a = _guided_action(s, gi, q, next_cell, cost, blocked, cross_slot, cell_poly,
                                    nbr, pref_cdf, theta, stamp, made_q, known, ctg, dist,
-                                   use_pref)
+                                   use_pref, tree)
             s, viol, done = _step(s, a, gi, q, next_cell, cross_slot, cell_poly, nbr,
                                   goal_cells, pref_cdf, theta, stamp, made_q, known, use_pref,
-                                  viol)
+                                  viol, tree and told_q[cell_poly[s]] != q)
             L += 1
             if done:
                 # the goal pays at step L - 1 (counted from 0 at the root)

@@ -31,6 +31,7 @@ from ..geometry.grid import STAY
 from ..geometry.world import World
 from ..inference.belief import Belief, GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel
+from ..inference.routes import RouteBelief
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
 
@@ -52,6 +53,14 @@ class PolicyContext:
     rng: np.random.Generator
     true_goal: int = -1
     true_preference: np.ndarray | None = None
+
+
+def preference_belief(ctx: PolicyContext, prior: np.ndarray | None = None) -> PreferenceBelief:
+    """The path-preference belief of the preset's prior (``independent``, with the preset's
+    coupling, or ``routes``), with goal prior ``prior`` (uniform when None)."""
+    if ctx.preset.prior == "routes":
+        return RouteBelief(ctx.model, prior=prior)
+    return PreferenceBelief(ctx.model, prior=prior, coupling=ctx.preset.coupling)
 
 
 class Policy(ABC):
@@ -98,6 +107,7 @@ class PlannerPolicy(Policy):
                              tables=ctx.model.tables if robust else None,
                              budget_ms=p.time_budget_ms if robust else 0.0)
         self.history: list[tuple[int, int]] = []
+        self.input_steps: list[int] = []
 
     def enter(self, v_from: int, v_to: int) -> None:
         """Record the transition (the robust search scores the episode's history)."""
@@ -107,7 +117,20 @@ class PlannerPolicy(Policy):
     def act(self, t: int, cell: int, heading: int | None) -> int:
         """POMCP's action from ``cell`` with depth ``T_max - t + 1``."""
         depth = self.ctx.t_max - t + 1
-        return self.planner.search(cell, self.belief, depth, self._seed(), self.history).action
+        if heading is not None:
+            self.input_steps.append(t)
+        return self.planner.search(cell, self.belief, depth, self._seed(), self.history,
+                                   self.expected_pushes(t)).action
+
+    def expected_pushes(self, t: int) -> tuple[int, int]:
+        """``(next, every)``: in how many steps the human is expected to push next, and how
+        often after that, from the inputs seen so far (the last interval between two of
+        them; every step until two were seen)."""
+        s = self.input_steps
+        if len(s) < 2:
+            return 1, 1
+        every = max(s[-1] - s[-2], 1)
+        return every - (t - s[-1]) % every, every
 
 
 class PathPreferencePolicy(PlannerPolicy):
@@ -116,7 +139,7 @@ class PathPreferencePolicy(PlannerPolicy):
     name = "path_preference"
 
     def __init__(self, ctx: PolicyContext):
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.preset.coupling),
+        super().__init__(ctx, preference_belief(ctx),
                          ctx.preset.path_preference)
 
 
@@ -131,7 +154,7 @@ class GoalKnownPolicy(PlannerPolicy):
             raise ConfigError("goal_known needs the episode's true goal")
         prior = np.zeros(len(ctx.model.goals))
         prior[ctx.true_goal] = 1.0
-        belief = PreferenceBelief(ctx.model, prior=prior, coupling=ctx.preset.coupling)
+        belief = preference_belief(ctx, prior)
         super().__init__(ctx, belief, ctx.preset.path_preference)
 
 
@@ -149,7 +172,7 @@ class OraclePolicy(Policy):
     def __init__(self, ctx: PolicyContext):
         if ctx.true_goal < 0 or ctx.true_preference is None:
             raise ConfigError("oracle needs the episode's true goal and the map's preference")
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.preset.coupling))
+        super().__init__(ctx, preference_belief(ctx))
         goal = int(ctx.model.goals[ctx.true_goal])
         self.togo = preference_following_distance(ctx.world, ctx.true_preference, goal)
         self.dist = ctx.model.tables.dist[ctx.true_goal]
@@ -189,7 +212,7 @@ class CompliantPolicy(Policy):
     name = "compliant"
 
     def __init__(self, ctx: PolicyContext):
-        super().__init__(ctx, PreferenceBelief(ctx.model, coupling=ctx.preset.coupling))
+        super().__init__(ctx, preference_belief(ctx))
         self.last = STAY
         self.remaining = 0
 

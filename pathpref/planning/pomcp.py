@@ -27,9 +27,13 @@ from ..errors import ConfigError
 from ..geometry.world import World
 from ..inference.belief import Belief
 from ..inference.costs import CostTables
-from .guided import search_robust
+from ..inference.routes import components
+from .guided import search_robust, tree_pool
 from .pomdp import Rewards
 from .tree import best_root_action, new_tree, sample_index, sample_slot
+
+#: root particles of a route-prior belief per decision (exact draws, :func:`.guided.tree_pool`)
+TREE_POOL = 512
 
 
 @nb.njit(cache=True, inline="always")
@@ -187,22 +191,27 @@ class POMCP:
             self.cross_slot = np.where(self.crossed >= 0, slot.argmax(axis=2), -1)
             self.ctg = np.ascontiguousarray(tables.constrained, dtype=np.float64)
             self.dist = np.ascontiguousarray(tables.dist, dtype=np.float64)
+            self.component = components(world.graph.neighbors)
 
     def preference_cdf(self, belief: Belief) -> np.ndarray:
-        """``(G, P, K)`` cumulative ``P(p_v = N(v)[k] | g)`` (uniform where never observed)."""
+        """``(G, P, K)`` cumulative per-polytope rows ``T_v(g, k)`` normalised (uniform where
+        never observed): ``P(p_v = N(v)[k] | g)`` under the independent prior, the rows of
+        Wilson's walk under the route prior (:mod:`pathpref.inference.routes`)."""
         G = len(self.goal_cells)
         cdf = np.broadcast_to(self._uniform_cdf, (G, *self._uniform_cdf.shape)).copy()
         for v in belief.observed_polytopes():
-            cond = belief.preference_given_goal(v)
+            cond = belief.local_given_goal(v)
             cdf[:, v, : cond.shape[1]] = np.cumsum(cond, axis=1)
         return cdf
 
-    def search(self, cell: int, belief: Belief, depth: int,
-               seed: int, history: list[tuple[int, int]] = ()) -> SearchResult:
+    def search(self, cell: int, belief: Belief, depth: int, seed: int,
+               history: list[tuple[int, int]] = (), pushes: tuple[int, int] = (1, 1)
+               ) -> SearchResult:
         """Plan from ``cell`` with root states drawn from ``belief``; return the best action.
 
         ``history``: the episode's polytope transitions ``(v, w)`` so far (robust search: they
-        count toward the success reward)."""
+        count toward the success reward). ``pushes``: ``(next, every)``, the simulation step of
+        the next expected push and the interval after it (robust search, route prior)."""
         goal_cdf = np.cumsum(belief.goal_marginal())
         cdf = self.preference_cdf(belief) if self.rewards.use_preference else self._dummy_cdf()
         r = self.rewards
@@ -212,7 +221,8 @@ class POMCP:
                 self.nbr, self.goal_cells, goal_cdf, cdf, self._known(belief), self.ctg,
                 self.dist, *self._history(history), int(cell), int(max(depth, 1)),
                 self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
-                r.use_preference, int(seed) % (2**32), self.budget_s)
+                r.use_preference, int(seed) % (2**32), self.budget_s,
+                *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1))
             return SearchResult(int(a), visits, values, int(nodes), int(done))
         a, visits, values, nodes = _search(
             self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,
@@ -221,6 +231,15 @@ class POMCP:
             int(seed) % (2**32),
         )
         return SearchResult(int(a), visits, values, int(nodes), self.queries)
+
+    def _pool(self, belief: Belief, goal_cdf: np.ndarray, cdf: np.ndarray, seed: int):
+        """Root particles ``(goal index, preference slots)`` of a route-prior belief
+        (:func:`~.guided.tree_pool`, :data:`TREE_POOL` exact draws); empty otherwise (the search
+        then draws ``g`` and each ``p_v`` lazily, independently)."""
+        if not (self.rewards.use_preference and getattr(belief, "route_prior", False)):
+            return np.zeros(0, np.int64), np.zeros((0, len(self.nbr)), np.int64)
+        return tree_pool(self.nbr, cdf, goal_cdf, self.goal_poly, self.component,
+                         min(TREE_POOL, self.queries), (int(seed) + 1) % (2**32))
 
     def _known(self, belief: Belief) -> np.ndarray:
         """``(P,)`` True for the polytopes with at least one observation in ``belief``."""

@@ -61,8 +61,11 @@ class Preset:
         search: ``paper`` (PO-UCT with uniform rollouts, :mod:`.pomcp`) or ``robust``
             (guided rollouts, scaled exploration, preferred crossings paid once per episode,
             anytime budget: :mod:`.guided`).
-        coupling: the back-edge coupling of the belief (a heuristic; ``robust`` keeps the
-            exact posterior under the independent prior instead).
+        coupling: the back-edge coupling of the belief (a heuristic; ``robust`` uses the route
+            prior instead).
+        prior: the preference prior of the path-preference belief: ``independent`` (the
+            paper's: each ``p_v`` uniform and independent) or ``routes`` (preferences form a
+            tree toward the goal, :mod:`pathpref.inference.routes`; exact posterior).
         queries: POMCP simulations per decision (the cap under a time budget).
         ucb_c: UCB exploration constant.
         time_budget_ms: robust search's wall-time budget per decision (0: ``queries`` only).
@@ -81,6 +84,11 @@ class Preset:
     search: str = "paper"
     coupling: bool = True
     time_budget_ms: float = 0.0
+    prior: str = "independent"
+
+
+#: the preference priors of the path-preference belief (:attr:`Preset.prior`)
+PRIORS = ("independent", "routes")
 
 
 PRESETS: dict[str, Preset] = {
@@ -108,6 +116,7 @@ PRESETS: dict[str, Preset] = {
         momentum=5,
         search="robust",
         coupling=False,
+        prior="routes",
     ),
 }
 
@@ -119,6 +128,8 @@ def get_preset(name: str, **overrides) -> Preset:
     """A preset by name (``paper``, ``original`` or ``robust``), with optional field overrides."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
+    if overrides.get("prior") not in (None, *PRIORS):
+        raise ConfigError(f"unknown prior '{overrides['prior']}'; choose {' or '.join(PRIORS)}")
     preset = PRESETS[name]
     overrides = {k: v for k, v in overrides.items() if v is not None}
     return replace(preset, **overrides) if overrides else preset
