@@ -324,6 +324,54 @@ def cmd_interact(args: argparse.Namespace) -> int:
     return 0
 
 
+# --- studies --------------------------------------------------------------------------------
+def cmd_study_run(args: argparse.Namespace) -> int:
+    """``pathpref study run``: a participant's trials through the browser, the viewer or a
+    push script, recorded in ``--db`` (:mod:`pathpref.study`)."""
+    from ..study.conduct import check_participant, run_study
+    from ..study.plan import load_study
+
+    study = load_study(args.study)
+    check_participant(args.participant)
+    check_database(args.db)
+    if not 0 <= args.port <= 65535:
+        raise ConfigError(f"--port must be an integer in 0..65535, got {args.port}")
+    if args.script:
+        from ..study.script import PushScript, ScriptedFrontEnd
+
+        front = ScriptedFrontEnd(PushScript.load(args.script))
+        print(f"scripted participant {args.participant}: pushes from {args.script} "
+              "(no screen; faster than real time)", flush=True)
+    elif args.ui == "viewer":
+        os.environ.setdefault("MUJOCO_GL", "glfw")
+        from ..study.viewer import ViewerFrontEnd
+
+        front = ViewerFrontEnd()
+    else:
+        from ..study.server import BrowserFrontEnd
+
+        front = BrowserFrontEnd(host=args.host, port=args.port)
+        print(f"open {front.url} in a browser (Ctrl-C to stop)", flush=True)
+    rows = run_study(study, args.participant, args.db, front, resume=args.resume,
+                     log=lambda m: print(m, flush=True))
+    ok = sum(r["success"] or 0 for r in rows)
+    print(f"{args.participant}: {len(rows)} trial(s) recorded in {args.db}, {ok} successful")
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``pathpref replay``: a recorded study trial as a video."""
+    out = check_writable(args.out, "--out", (".mp4",))
+    check_database(args.db, "database", must_exist=True)
+    from ..study.replay import replay_trial
+
+    with staged_outputs([out]) as (tmp,):
+        frames = replay_trial(args.db, args.participant, args.trial, tmp, args.width,
+                              args.height)
+    print(f"wrote {out} ({frames} frames)")
+    return 0
+
+
 # --- bench / demo ---------------------------------------------------------------------------
 def cmd_bench(args: argparse.Namespace) -> int:
     """``pathpref bench``: the benchmarks as JSON (:mod:`pathpref.apps.benchmarks`)."""

@@ -9,7 +9,8 @@ schema lacks take their defaults, which reproduce the old behaviour), and writes
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schema2.bak``; nothing is changed when any map cannot be loaded.
+``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 -> 4 only
+adds the (empty) study tables of :mod:`.trials`, in place; every row stays as it was.
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -37,6 +38,7 @@ from typing import Any
 from ..episode import EpisodeSpec, cached_map
 from ..errors import ConfigError, PathprefError
 from .store import (
+    ADDITIVE,
     EPISODE_COLUMNS,
     SCHEMA_VERSION,
     UPGRADABLE,
@@ -95,6 +97,10 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
                 "backup": None}
+    if version in ADDITIVE:  # only the study tables are added, in place: no row changes
+        ResultStore(path).close()
+        return {"from": version, "to": SCHEMA_VERSION, "episodes": len(rows), "merged": 0,
+                "steps": len(steps), "backup": "(none: tables added in place)"}
     if version not in UPGRADABLE:
         raise ConfigError(f"{path} has schema {version}; 'db upgrade' migrates schema "
                           f"{', '.join(map(str, UPGRADABLE))} to {SCHEMA_VERSION}")
@@ -298,9 +304,10 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
         ro = open_readonly(path)
         try:
             version = schema_version(ro, path)
-            if version != SCHEMA_VERSION:
+            if version != SCHEMA_VERSION and version not in ADDITIVE:
                 raise ConfigError(f"{path} has schema {version}; salvage copies schema "
-                                  f"{SCHEMA_VERSION} databases")
+                                  f"{', '.join(map(str, (*ADDITIVE, SCHEMA_VERSION)))} "
+                                  "databases")
             episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
             steps, steps_lost, exact_s = _read_table(ro, "steps")
         finally:
