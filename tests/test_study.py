@@ -90,15 +90,22 @@ def _db(path):
     return sqlite3.connect(path)
 
 
-def test_scripted_demo_records_everything(tmp_path, capsys):
+ARGV = ["study", "run", str(STUDY), "--participant", "demo", "--script", str(PUSHES)]
+
+
+@pytest.fixture(scope="module")
+def demo_db(tmp_path_factory):
+    """The shipped example run once, as a user would (the command line)."""
+    db = tmp_path_factory.mktemp("demo") / "study.sqlite"
+    assert main([*ARGV, "--db", str(db)]) == 0
+    return db
+
+
+def test_scripted_demo_records_everything(demo_db, capsys):
     """The shipped example completes unattended; every push of the script is in the database
     with a cue in its direction, effort = sum |F| dt of the script's pushes, rerun files."""
-    db = tmp_path / "study.sqlite"
-    argv = ["study", "run", str(STUDY), "--participant", "demo", "--db", str(db), "--script",
-            str(PUSHES)]
-    assert main(argv) == 0
-    out = capsys.readouterr().out
-    assert "2 trial(s) recorded" in out
+    db = demo_db
+    argv = [*ARGV, "--db", str(db)]
     script = json.loads(PUSHES.read_text())["trials"]
     c = _db(db)
     trials = c.execute("SELECT trial, name, status, outcome, pushes, cues, effort_ns, rerun, "
@@ -200,3 +207,67 @@ def test_bad_command_line_writes_nothing(tmp_path, capsys, argv, message):
     err = capsys.readouterr().err
     assert message in err and err.count("\n") == 1
     assert not db.exists()
+
+
+def test_replay_runs_the_recorded_forces_again(demo_db, tmp_path, capsys):
+    """The replay feeds the recorded forces through the same physics and planner: it matches
+    the recorded steps and writes a real-time video; with the forces removed it departs from
+    the recording and writes nothing."""
+    import imageio.v2 as imageio
+
+    out = tmp_path / "t1.mp4"
+    assert main(["replay", str(demo_db), "--participant", "demo", "--trial", "1", "--out",
+                 str(out), "--width", "96", "--height", "72"]) == 0
+    time_s = _db(demo_db).execute("SELECT time_s FROM trials WHERE trial = 1").fetchone()[0]
+    n = imageio.get_reader(str(out)).count_frames()
+    assert abs(n - time_s * 25) <= 2
+    assert main(["replay", str(demo_db), "--participant", "demo", "--trial", "9", "--out",
+                 str(tmp_path / "x.mp4")]) == 2
+    assert "no trial 9" in capsys.readouterr().err
+    from pathpref.study import replay
+
+    spec, seed, forces, steps = replay.load_recorded_trial(demo_db, "demo", 1)
+    assert len(forces) == pytest.approx(time_s / 0.002, abs=2) and forces.any()
+    quiet = tmp_path / "quiet.sqlite"
+    shutil.copy(demo_db, quiet)
+    with sqlite3.connect(quiet) as c:
+        c.execute("UPDATE trial_forces SET fx = 0, fy = 0")
+    with pytest.raises(ConfigError, match="departs from the recording"):
+        replay.replay_trial(quiet, "demo", 1, tmp_path / "q.mp4", 32, 24)
+    assert not (tmp_path / "q.mp4").exists()
+
+
+def test_report_has_study_tables(demo_db, capsys):
+    assert main(["report", str(demo_db)]) == 0
+    out = capsys.readouterr().out
+    # two successes of two: Wilson 95% interval [0.34, 1.00]; pushes 7 and 7 (the script's)
+    assert "| demo | 2 | 1.00 [0.34, 1.00] |" in out
+    row = next(line for line in out.splitlines() if line.startswith("| demo |"))
+    assert "| 7.0 [7.0, 7.0] |" in row
+    assert "| path_preference, belief=hidden | 1 | 1.00 [0.21, 1.00] |" in out
+
+
+def test_scripted_ten_trial_study_within_three_minutes(tmp_path):
+    """Ten trials (the demo's two, five times each, counterbalanced) run unattended well
+    within 3 minutes, and every scripted push is recorded as a push and felt as a cue."""
+    import time
+
+    from pathpref.study.conduct import run_study
+    from pathpref.study.script import PushScript, ScriptedFrontEnd
+
+    raw = json.loads(STUDY.read_text())
+    base = raw["trials"]
+    raw["trials"] = [{**base[k % 2], "name": f"{base[k % 2]['name']}{k}"} for k in range(10)]
+    script = json.loads(PUSHES.read_text())["trials"]
+    pushes = {f"{t['name']}": script[t["name"].rstrip("0123456789")] for t in raw["trials"]}
+    study = parse_study(raw, "ten.json")
+    t0 = time.perf_counter()
+    rows = run_study(study, "p10", tmp_path / "ten.sqlite",
+                     ScriptedFrontEnd(PushScript({"trials": pushes})), log=lambda m: None)
+    wall = time.perf_counter() - t0
+    assert wall < 180 and len(rows) == 10
+    for r in rows:  # a trial that ends early (goal reached) ends its script there
+        made = [p for p in pushes[r["name"]] if p["t"] < r["time_s"]]
+        felt = [p for p in made if p["t"] + p["duration"] + 0.1 < r["time_s"]]
+        assert r["pushes"] == len(made) and r["cues"] == len(felt)
+    assert sum(r["pushes"] for r in rows) >= 40

@@ -197,7 +197,14 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """``pathpref report``: tables, side-by-side with the paper, CSV and optional figure."""
-    from ..experiments.report import load_records, markdown_tables, side_by_side, write_csv
+    from ..experiments.report import (
+        load_records,
+        load_trials,
+        markdown_tables,
+        side_by_side,
+        study_tables,
+        write_csv,
+    )
 
     check_database(args.db, "database", must_exist=True)
     csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
@@ -205,6 +212,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     if args.figure:
         check_writable(args.figure, "--figure", FIGURE_SUFFIXES)
     recs = load_records(args.db)
+    trials = load_trials(args.db)
+    if trials:
+        print(study_tables(trials) + ("\n" if recs else ""))
+        if not recs:
+            return 0
     if not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
     print(markdown_tables(recs))

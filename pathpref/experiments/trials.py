@@ -30,7 +30,8 @@ from typing import Any
 STUDY_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
     ("trials", (
         ("participant", "TEXT"), ("trial", "INTEGER"), ("name", "TEXT"),
-        ("study", "TEXT"), ("study_hash", "TEXT"), ("condition", "TEXT"),
+        ("study_index", "INTEGER"), ("study", "TEXT"), ("study_hash", "TEXT"),
+        ("condition", "TEXT"),
         ("show_belief", "INTEGER"), ("front_end", "TEXT"),
         ("map", "TEXT"), ("map_hash", "TEXT"), ("method", "TEXT"), ("preset", "TEXT"),
         ("queries", "INTEGER"), ("start", "TEXT"), ("goal", "TEXT"), ("candidates", "TEXT"),

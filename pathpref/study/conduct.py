@@ -105,7 +105,8 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
     rerun = rerun_path(db, participant, position, trial)
     rerun.parent.mkdir(parents=True, exist_ok=True)
     writer.begin(position, {
-        "name": trial.name, "study": study.path, "study_hash": study.hash,
+        "name": trial.name, "study_index": trial.index, "study": study.path,
+        "study_hash": study.hash,
         "condition": dumps(trial.condition), "show_belief": int(trial.show_belief),
         "front_end": front.name, "map": trial.map,
         "map_hash": cached_map(trial.map).content_hash, "method": trial.method,
