@@ -98,7 +98,7 @@ def run_viewer(session: InteractiveSession, realtime: bool = True) -> None:
         while viewer.is_running() and not session.runner.done:
             session.step()
             r = session.runner
-            print(f"t={r.t:3d} cell={tuple(r.world.cells[r.cell])} "
+            print(f"t={r.t:3d} cell={tuple(int(v) for v in r.world.cells[r.cell])} "
                   f"P(goal)={np.round(r.policy.belief.goal_marginal(), 2)}", flush=True)
 
 

@@ -42,7 +42,7 @@ class TrialRecorder:
                                  cell_size=runner.base.scene.cell_size) if rerun else None
         if self.rerun:
             self.rerun.log_route(np.array(runner.trial.route))
-        runner.base.on_substep.append(self._substep)
+        runner.base.on_substep.insert(0, self._substep)  # first: the force of this step
         runner.base.on_cue.append(self._cue)
         runner.on_belief.append(self._belief)
         self._belief("start")

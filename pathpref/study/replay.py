@@ -101,7 +101,7 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
             b.data, goal_cells=goals, belief=runner.policy.belief.goal_marginal(),
             true_goal=spec.goal_index, polygon=polygons[world.cell_polytope[b.cell]],
             push_origin=b.data.xpos[b.pushed_body].copy(),
-            push_force=np.array([*runner.body.felt, 0.0]), route=route))
+            push_force=np.array([*runner.body.applied, 0.0]), route=route))
 
     def departs(at: int) -> ConfigError:
         return ConfigError(f"the replay departs from the recording at decision step {at} "

@@ -57,22 +57,22 @@ class StudyBody(MujocoBody):
         super().__init__(world, spec, rng)
         self.source = source
         self.base.external_forces = True
-        self.applied = np.zeros(2)  # set for the coming physics step
-        self.felt = np.zeros(2)  # acted during the last physics step
+        self.applied = np.zeros(2)  # the source's force, set for the coming physics step
         if source is not None:
             self.base.on_substep.insert(0, self._apply)
 
     def _apply(self, base: MobileBase, push) -> None:
         """Set the handle's force for the next physics step from the source."""
         f = np.asarray(self.source.force(), float)
-        self.felt, self.applied = self.applied, f
+        self.applied = f
         base.data.xfrc_applied[base.pushed_body, :] = 0.0
         base.data.xfrc_applied[base.pushed_body, :2] = f
 
     def felt_force(self) -> np.ndarray:
-        """The participant's force (N, world x-y) that acted during the last physics step."""
+        """The participant's force (N, world x-y) on the handle now: read by a physics-step
+        hook that runs first, it is the force that acted during the step just taken."""
         if self.source is not None:
-            return self.felt
+            return self.applied
         return self.base.data.xfrc_applied[self.base.pushed_body, :2].copy()
 
     def human_input(self, heading: int) -> int | None:
