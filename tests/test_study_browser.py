@@ -10,6 +10,7 @@ import shutil
 import sqlite3
 import subprocess
 import sys
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -72,17 +73,37 @@ def test_malformed_and_oversized_messages_are_ignored(caplog):
                 ws.send(bad)
             ws.send('{"type": "push", "fx": 20, "fy": -10}')
             ws.ping().wait(5)
-        assert front.controls.ignored == 4
-        assert front.controls.force().tolist() == [20.0, -10.0]
+            assert front.controls.ignored == 4
+            assert front.controls.force().tolist() == [20.0, -10.0]
         with connect(url, max_size=None) as ws:  # a frame over 64 KiB closes that connection
             ws.send("x" * 100_000)
             with pytest.raises(Exception):  # noqa: B017 - closed with 1009, whatever the type
                 for _ in range(3):
                     ws.recv(timeout=5)
         with connect(url) as ws:  # the session goes on: a new connection works
-            ws.send('{"type": "release"}')
+            ws.send('{"type": "push", "fx": 0, "fy": 30}')
             ws.ping().wait(5)
+            assert front.controls.force().tolist() == [0.0, 30.0]
+        for _ in range(50):  # the page closed mid-drag: the push ends with it
+            if not front.controls.force().any():
+                break
+            time.sleep(0.02)
         assert not front.controls.force().any()
+    finally:
+        front.close()
+
+
+def test_port_in_use_is_one_line(tmp_path, capsys):
+    front = BrowserFrontEnd(port=0)
+    try:
+        from pathpref.apps.cli import main
+
+        study = Path(__file__).resolve().parents[1] / "examples" / "study_demo.json"
+        assert main(["study", "run", str(study), "--participant", "p", "--db",
+                     str(tmp_path / "s.sqlite"), "--port", str(front.port)]) == 2
+        err = capsys.readouterr().err
+        assert f"cannot serve on 127.0.0.1:{front.port}" in err and err.count("\n") == 1
+        assert not (tmp_path / "s.sqlite").exists()
     finally:
         front.close()
 

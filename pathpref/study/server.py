@@ -134,6 +134,8 @@ class BrowserFrontEnd:
             log.info("a page disconnected: %s", e)
         finally:
             self.clients.discard(ws)
+            if not self.clients:  # the last page went away mid-drag: nobody pushes now
+                self.controls.handle('{"type": "release"}')
 
     async def _broadcast(self) -> None:
         sent_scene, sent_state = None, -1
