@@ -8,8 +8,8 @@ overlay (:func:`overlay_text`). The participant presses Space to start, double-c
 orange handle and pushes with Ctrl + right-drag: the viewer's perturbation becomes
 ``xfrc_applied`` on the handle when the viewer syncs, and the robot senses it through its force
 sensor like any push. Closing the window stops the study (resume with ``--resume``); the
-viewer is closed and its thread joined before the next trial or the end, so nothing renders
-while Python tears the model down.
+viewer is closed and its thread joined before the next trial or the end
+(:func:`close_viewer`), so nothing renders while Python tears the model down.
 
 The window-free parts take any object with the viewer handle's attributes, so they are tested
 headlessly with a real ``MjvScene``/``MjvCamera`` and ``mjv_applyPerturbForce``.
@@ -92,25 +92,42 @@ def overlay_text(runner: TrialRunner, position: int, total: int, status: str) ->
     return "\n".join(lines)
 
 
-def _launch(model, data, key_callback):
-    """The passive viewer without its side panels (a ConfigError when there is no display)."""
+def launch_viewer(model, data, key_callback=None, panels: bool = False):
+    """The passive MuJoCo viewer (side panels off unless ``panels``) and the threads it
+    started; a ConfigError when there is no display.
+
+    The viewer renders in a daemon thread that, after the window closes, still tears down its
+    GL context; :func:`close_viewer` waits for it, because a process that exits during that
+    teardown can crash (it did under Xvfb: a segmentation fault on exit 2 times in 3)."""
     if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ConfigError("--ui viewer needs a display (DISPLAY is not set): run it in a "
-                          "desktop session, or on a virtual screen with xvfb-run, or use the "
-                          "browser front end (the default)")
+        raise ConfigError("the MuJoCo viewer needs a display (DISPLAY is not set): run in a "
+                          "desktop session or on a virtual screen with xvfb-run (for a study, "
+                          "the browser front end is the default)")
+    before = set(threading.enumerate())
     try:
         import mujoco.viewer
 
-        return mujoco.viewer.launch_passive(model, data, key_callback=key_callback,
-                                            show_left_ui=False, show_right_ui=False)
+        handle = mujoco.viewer.launch_passive(model, data, key_callback=key_callback,
+                                              show_left_ui=panels, show_right_ui=panels)
     except Exception as e:  # noqa: BLE001 - GLFW raises several types
-        raise ConfigError(f"the MuJoCo viewer cannot open a window ({e}); use the browser "
-                          "front end (the default)") from None
+        raise ConfigError(f"the MuJoCo viewer cannot open a window ({e})") from None
+    return handle, [t for t in threading.enumerate() if t not in before]
+
+
+def close_viewer(handle, threads, timeout_s: float = 5.0) -> None:
+    """Close the viewer's window and wait for its threads to finish their teardown."""
+    handle.close()
+    for t in threads:
+        t.join(timeout_s)
+
+
+def _launch(model, data, key_callback):
+    return launch_viewer(model, data, key_callback)
 
 
 class ViewerFrontEnd:
     """Trials in the MuJoCo viewer (module docstring); ``launch(model, data, key_callback)``
-    opens the window (replaceable for headless tests)."""
+    opens the window and returns its handle and threads (replaceable for headless tests)."""
 
     name = "viewer"
 
@@ -118,6 +135,7 @@ class ViewerFrontEnd:
         self.launch = launch
         self.realtime = realtime
         self.handle = None
+        self.threads: list[threading.Thread] = []
         self.started = threading.Event()
         self.position = self.total = 0
         self._k = 0
@@ -144,7 +162,7 @@ class ViewerFrontEnd:
         self.position, self.total = position, total
         self.started.clear()
         base = runner.base
-        self.handle = self.launch(base.model, base.data, self._key)
+        self.handle, self.threads = self.launch(base.model, base.data, self._key)
         with self.handle.lock():
             frame_map(self.handle.cam, runner)
         self._show(runner, "waiting")
@@ -178,9 +196,5 @@ class ViewerFrontEnd:
     def close(self) -> None:
         """Close the window and wait for the viewer's thread to end."""
         if self.handle is not None:
-            self.handle.close()
-            for _ in range(100):  # up to 2 s for the viewer's thread to stop rendering
-                if not self.handle.is_running():
-                    break
-                threading.Event().wait(0.02)
-            self.handle = None
+            close_viewer(self.handle, self.threads)
+            self.handle, self.threads = None, []
