@@ -11,7 +11,8 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet --upgrade pip "setuptools>=77"
 	$(BIN)/pip install --quiet -e '.[dev,ray]'
 	@# the study's browser tests drive Debian's chromium (Playwright, no browser download)
-	command -v chromium >/dev/null || (apt-get update -qq && apt-get install -y -qq chromium) \
+	command -v chromium >/dev/null || (apt-get update -qq && \
+		DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium) \
 		|| echo "chromium could not be installed: the browser tests will be skipped"
 	touch $(STAMP)
 

@@ -271,3 +271,15 @@ def test_scripted_ten_trial_study_within_three_minutes(tmp_path):
         felt = [p for p in made if p["t"] + p["duration"] + 0.1 < r["time_s"]]
         assert r["pushes"] == len(made) and r["cues"] == len(felt)
     assert sum(r["pushes"] for r in rows) >= 40
+
+
+def test_resume_with_another_study_file_is_refused(demo_db, tmp_path, capsys):
+    other = tmp_path / "other.json"
+    raw = json.loads(STUDY.read_text())
+    raw["defaults"]["time_limit_s"] = 20
+    other.write_text(json.dumps(raw))
+    before = _db(demo_db).execute("SELECT count(*) FROM trial_steps").fetchone()[0]
+    assert main(["study", "run", str(other), "--participant", "demo", "--db", str(demo_db),
+                 "--script", str(PUSHES), "--resume"]) == 2
+    assert "ran another study file" in capsys.readouterr().err
+    assert _db(demo_db).execute("SELECT count(*) FROM trial_steps").fetchone()[0] == before
