@@ -27,6 +27,16 @@ ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-f
 HEADING = {(-1, 0): 6, (1, 0): 2, (0, 1): 0, (0, -1): 4}
 
 
+def wait_for(cond, timeout_s: float = 5.0) -> bool:
+    """Poll ``cond`` (the server handles a message after answering a ping, not before)."""
+    end = time.perf_counter() + timeout_s
+    while time.perf_counter() < end:
+        if cond():
+            return True
+        time.sleep(0.01)
+    return cond()
+
+
 def _get(url: str) -> tuple[int, bytes]:
     try:
         with urllib.request.urlopen(url, timeout=5) as r:
@@ -72,9 +82,8 @@ def test_malformed_and_oversized_messages_are_ignored(caplog):
                         json.dumps({"type": "push", "fx": 1, "fy": 1, "pad": "x" * 400})):
                 ws.send(bad)
             ws.send('{"type": "push", "fx": 20, "fy": -10}')
-            ws.ping().wait(5)
+            assert wait_for(lambda: front.controls.force().tolist() == [20.0, -10.0])
             assert front.controls.ignored == 4
-            assert front.controls.force().tolist() == [20.0, -10.0]
         with connect(url, max_size=None) as ws:  # a frame over 64 KiB closes that connection
             ws.send("x" * 100_000)
             with pytest.raises(Exception):  # noqa: B017 - closed with 1009, whatever the type
@@ -82,13 +91,9 @@ def test_malformed_and_oversized_messages_are_ignored(caplog):
                     ws.recv(timeout=5)
         with connect(url) as ws:  # the session goes on: a new connection works
             ws.send('{"type": "push", "fx": 0, "fy": 30}')
-            ws.ping().wait(5)
-            assert front.controls.force().tolist() == [0.0, 30.0]
-        for _ in range(50):  # the page closed mid-drag: the push ends with it
-            if not front.controls.force().any():
-                break
-            time.sleep(0.02)
-        assert not front.controls.force().any()
+            assert wait_for(lambda: front.controls.force().tolist() == [0.0, 30.0])
+        # the page closed mid-drag: the push ends with it
+        assert wait_for(lambda: not front.controls.force().any())
     finally:
         front.close()
 
