@@ -147,13 +147,19 @@ def test_browser_drag_end_to_end(tmp_path):
             page.wait_for_function("window.study.scene !== null", timeout=20000)
             page.click("#start")
             page.wait_for_function("window.study.scene.status === 'running'")
+            latency = []
             for dx, dy in drags:
                 x, y = page.evaluate("window.study.robotPx()")
+                cues = page.evaluate("window.study.state ? window.study.state.cues : 0")
                 page.mouse.move(x, y)
                 page.mouse.down()
                 page.mouse.move(x + 110 * dx, y - 110 * dy, steps=4)  # screen y points down
                 page.wait_for_timeout(400)
-                page.mouse.up()
+                t0 = time.perf_counter()
+                page.mouse.up()  # the cue is complete when the push ends
+                page.wait_for_function(f"window.study.state.cues > {cues}", timeout=5000,
+                                       polling="raf")
+                latency.append(time.perf_counter() - t0)
                 page.wait_for_timeout(1000)
             fps = page.evaluate("window.study.fps")
             shot = tmp_path / "page.png"
@@ -166,6 +172,10 @@ def test_browser_drag_end_to_end(tmp_path):
             proc.kill()
     assert proc.returncode == 0, out
     assert fps >= 20
+    # release in the page -> the page shows the cue in the belief (the target: 0.2 s
+    # median; asserted loosely, the machine is shared)
+    assert sorted(latency)[len(latency) // 2] < 1.0, latency
+    print(f"drag release to cue on the page: {[round(1000 * v) for v in latency]} ms")
     c = sqlite3.connect(db)
     status, outcome, pushes, cues, rerun = c.execute(
         "SELECT status, outcome, pushes, cues, rerun FROM trials").fetchone()

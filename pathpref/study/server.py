@@ -25,6 +25,7 @@ import hmac
 import json
 import logging
 import secrets
+import socket
 import threading
 import time
 from http import HTTPStatus
@@ -95,7 +96,7 @@ class BrowserFrontEnd:
     @property
     def url(self) -> str:
         """The address to open (with the token when serving other machines)."""
-        host = self.host if self.host not in ("0.0.0.0", "::") else "<this machine's address>"
+        host = self.host if self.host not in ("0.0.0.0", "::") else socket.gethostname()
         return f"http://{host}:{self.port}/" + (f"?token={self.token}" if self.token else "")
 
     def _allowed(self, path: str) -> bool:
