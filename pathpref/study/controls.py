@@ -42,7 +42,6 @@ class Controls:
         self.ignored = 0
         #: wall time (perf_counter) of the last message that ended a push (release)
         self.released_at: float | None = None
-        self.messages = 0
 
     def force(self) -> np.ndarray:
         """The force (N, world x-y) the participant applies now."""
@@ -88,7 +87,6 @@ class Controls:
         else:
             self._ignore(f"unknown type {str(kind)[:20]!r} (push, release, start)")
             return False
-        self.messages += 1
         return True
 
     def reset(self) -> None:

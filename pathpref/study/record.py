@@ -48,11 +48,6 @@ class TrialRecorder:
         self._belief("start")
         self._step_row()
 
-    @property
-    def pushes(self) -> int:
-        """Pushes finished so far (one in progress counts when the trial ends)."""
-        return self.k_push
-
     def _substep(self, base: MobileBase, push) -> None:
         r = self.runner
         t = r.time_s

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..episode import EpisodeRunner, EpisodeSpec, simulator_rng
 from ..episode.instances import seed_for
+from ..geometry.grid import STAY
 from ..sim.body import MujocoBody
 from ..sim.cue_detector import Cue
 from ..sim.mobile_base import MobileBase
@@ -81,8 +82,6 @@ class StudyBody(MujocoBody):
 
     def move(self, action: int) -> int:
         """Drive to the grid neighbour (at least :data:`MIN_STEP_S`); the cell reached."""
-        from ..geometry.grid import STAY
-
         target = self.cell if action == STAY else int(self.world.motion.next_cell[self.cell,
                                                                                   action])
         self.cell = self.base.move_to(target, min_s=MIN_STEP_S)

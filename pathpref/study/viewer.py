@@ -121,17 +121,13 @@ def close_viewer(handle, threads, timeout_s: float = 5.0) -> None:
         t.join(timeout_s)
 
 
-def _launch(model, data, key_callback):
-    return launch_viewer(model, data, key_callback)
-
-
 class ViewerFrontEnd:
     """Trials in the MuJoCo viewer (module docstring); ``launch(model, data, key_callback)``
     opens the window and returns its handle and threads (replaceable for headless tests)."""
 
     name = "viewer"
 
-    def __init__(self, launch=_launch, realtime: bool = True):
+    def __init__(self, launch=launch_viewer, realtime: bool = True):
         self.launch = launch
         self.realtime = realtime
         self.handle = None
