@@ -147,7 +147,7 @@ class Killed(Exception):
     pass
 
 
-def test_killed_session_resumes_at_the_unfinished_trial(tmp_path):
+def test_killed_session_resumes_at_the_unfinished_trial(tmp_path, capsys):
     """A session dying in trial 2 keeps trial 1 whole; --resume deletes trial 2's partial rows
     and runs it again, giving the same rows as an uninterrupted run."""
     from pathpref.study.conduct import run_study
@@ -168,6 +168,8 @@ def test_killed_session_resumes_at_the_unfinished_trial(tmp_path):
     assert c.execute("SELECT trial, status FROM trials ORDER BY trial").fetchall() == [
         (1, "done"), (2, "running")]
     assert c.execute("SELECT count(*) FROM trial_steps WHERE trial = 2").fetchone()[0] == 5
+    assert main(["db", "check", str(db)]) == 0  # not damage: a trial to run again
+    assert "study trials: 1 finished, 1 unfinished" in capsys.readouterr().out
     with pytest.raises(ConfigError, match="--resume"):
         run_study(study, "p1", db, ScriptedFrontEnd(script), log=lambda m: None)
     rows = run_study(study, "p1", db, ScriptedFrontEnd(script), resume=True,
@@ -283,3 +285,21 @@ def test_resume_with_another_study_file_is_refused(demo_db, tmp_path, capsys):
                  "--script", str(PUSHES), "--resume"]) == 2
     assert "ran another study file" in capsys.readouterr().err
     assert _db(demo_db).execute("SELECT count(*) FROM trial_steps").fetchone()[0] == before
+
+
+def test_the_robot_is_not_told_the_goal_or_the_route():
+    from pathpref.study.session import TrialRunner
+
+    trial = parse_study(one_trial()).trials[0]
+    r = TrialRunner(trial, seed=0)
+    assert r.policy.ctx.true_goal == -1 and r.policy.ctx.true_preference is None
+    # no simulated human input: the heading the policy sees comes from cues only
+    r.begin()
+    assert r.pending_heading is None and r.result.inputs == 0
+    # driving over a wrong candidate rules nothing out (the paper's protocol would)
+    before = r.policy.belief.goal_marginal().copy()
+    r._arrive(trial.world.cell(trial.candidates[0]))
+    assert not r.result.goal_reached
+    assert (r.policy.belief.goal_marginal() == before).all()
+    r._arrive(trial.world.cell(trial.goal))
+    assert r.result.goal_reached

@@ -49,6 +49,7 @@ from .store import (
     require_sqlite_file,
     schema_version,
 )
+from .trials import has_study_tables
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
@@ -258,12 +259,25 @@ def check_database(path: str | Path) -> dict[str, Any]:
             out["lost_exact"] = exact_e and exact_s
             out["episodes"], out["steps"] = len(episodes), len(steps)
             _, out["incomplete"], out["orphans"] = _whole_episodes(episodes, steps)
+            out["trials"] = _trial_counts(ro)
     finally:
         ro.close()
     out["intact"] = (out["integrity"] == ["ok"] and out["pathpref"] is None
                      and not (out["episodes_lost"] or out["steps_lost"] or out["incomplete"]
                               or out["orphans"]))
     return out
+
+
+def _trial_counts(conn: sqlite3.Connection) -> tuple[int, int] | None:
+    """Finished and unfinished study trials (None without study tables or when unreadable)."""
+    try:
+        if not has_study_tables(conn):
+            return None
+        done, total = conn.execute("SELECT count(*) FILTER (WHERE status = 'done'), count(*) "
+                                   "FROM trials").fetchone()
+    except sqlite3.DatabaseError:
+        return None
+    return int(done), int(total - done)
 
 
 def check_text(r: dict[str, Any]) -> str:
@@ -284,6 +298,11 @@ def check_text(r: dict[str, Any]) -> str:
                   f"  episodes with missing step rows: {len(incomplete)}",
                   *(f"    {k}" for k in incomplete[:10]), *(["    ..."] * (len(incomplete) > 10)),
                   f"  orphan step rows (of no episode): {r['orphans']}"]
+        if r.get("trials"):
+            done, running = r["trials"]
+            lines.append(f"  study trials: {done} finished, {running} unfinished" + (
+                " (a session was stopped; 'study run --resume' runs them again)" if running
+                else ""))
         if not r["intact"]:
             lines.append(f"'pathpref db salvage {db} NEW.sqlite' copies the intact episodes")
     return "\n".join(lines)

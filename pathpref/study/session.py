@@ -108,6 +108,9 @@ class TrialRunner(EpisodeRunner):
         self.cues: list[tuple[float, int, Cue]] = []  # (trial time, cell, cue)
         self._since_decision: list[Cue] = []
         super().__init__(spec, world, body)
+        # the episode layer hands every policy the goal and the preference (for the reference
+        # methods, refused in studies); a trial's robot gets neither
+        self.policy.ctx.true_goal, self.policy.ctx.true_preference = -1, None
         self.goal_cell = world.cell(trial.goal)
         self.t_start = float(self.body.base.data.time)
         self.on_belief: list[Callable[[str], None]] = []
