@@ -65,10 +65,12 @@ class InteractiveSession:
 def run_viewer(session: InteractiveSession, realtime: bool = True) -> None:
     """Open the MuJoCo viewer on the session (needs a display); on exit, wait for the
     viewer's thread (:func:`~pathpref.study.viewer.close_viewer`)."""
-    from ..study.viewer import close_viewer, launch_viewer
+    from ..study.viewer import close_viewer, frame_map, launch_viewer
 
     base = session.base
     viewer, threads = launch_viewer(base.model, base.data, panels=True)
+    with viewer.lock():  # the whole map in view, not a close-up of a wall
+        frame_map(viewer.cam, session.runner.world, base.scene.cell_size)
     clock = {"wall": time.perf_counter(), "sim": float(base.data.time), "k": 0}
 
     def sync(b, push) -> None:

@@ -31,10 +31,11 @@ ROUTE_RGBA = [0.94, 0.55, 0.08, 1.0]
 GOAL_RGBA = [0.88, 0.13, 0.54, 1.0]
 
 
-def frame_map(cam: mujoco.MjvCamera, runner: TrialRunner, fovy_deg: float = 45.0) -> None:
-    """Point the free camera at the map's centre from far enough to see all of it."""
-    spec, cs = runner.world.spec, runner.base.scene.cell_size
-    w, h = spec.width * cs, spec.height * cs
+def frame_map(cam: mujoco.MjvCamera, world, cell_size: float, fovy_deg: float = 45.0) -> None:
+    """Point the free camera at the map's centre from far enough to see all of it: distance
+    ``1.15 * side / (2 tan(fovy / 2)) + 0.5`` m for the longer side, 70 degrees down."""
+    spec = world.spec
+    w, h = spec.width * cell_size, spec.height * cell_size
     cam.type = mujoco.mjtCamera.mjCAMERA_FREE
     cam.lookat[:] = [w / 2, h / 2, 0.0]
     cam.distance = 1.15 * max(w, h) / (2 * np.tan(np.radians(fovy_deg) / 2)) + 0.5
@@ -160,7 +161,7 @@ class ViewerFrontEnd:
         base = runner.base
         self.handle, self.threads = self.launch(base.model, base.data, self._key)
         with self.handle.lock():
-            frame_map(self.handle.cam, runner)
+            frame_map(self.handle.cam, runner.world, base.scene.cell_size)
         self._show(runner, "waiting")
         while not self.started.wait(0.05):
             if not self.handle.is_running():
