@@ -10,6 +10,12 @@ $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip "setuptools>=77"
 	$(BIN)/pip install --quiet -e '.[dev,ray]'
+	@# the study's browser tests drive Debian's chromium (Playwright, no browser download);
+	@# its viewer test opens a real MuJoCo window on a virtual screen (xvfb-run)
+	(command -v chromium >/dev/null && command -v xvfb-run >/dev/null) || \
+		(apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq \
+		chromium xvfb xauth) \
+		|| echo "chromium/xvfb could not be installed: the browser/viewer tests will be skipped"
 	touch $(STAMP)
 
 install: $(STAMP)

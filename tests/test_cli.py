@@ -189,6 +189,8 @@ def test_bench_json_keys():
     arm = res["arm"]
     assert arm["ik_solves_per_s"] > 0 and arm["cue_sector_accuracy"] >= 0.9
     assert arm["tilt_rms_deg"] <= 3.0 and arm["max_penetration_mm"] <= 5.0
+    st = res["study"]  # every push reaches the belief; the target is <= 200 ms
+    assert st["study_cues_seen"] == st["study_pushes"] and 0 < st["study_latency_ms"] < 1000
 
 
 def test_demo_grid(tmp_path):

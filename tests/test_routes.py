@@ -218,6 +218,7 @@ def test_prior_in_the_episode_key_and_rows(tmp_path):
     conn.row_factory = sqlite3.Row
     rows = [dict(r) for r in conn.execute("SELECT * FROM episodes WHERE preset = 'robust'")]
     conn.close()
-    assert rows and all(r["prior"] == "independent" for r in rows)
-    assert all(row_spec(r).key() == r["key"] for r in rows)
+    assert rows and all(r["prior"] is None for r in rows)  # added in place, empty
+    assert all(row_spec(r).prior == "independent" and row_spec(r).key() == r["key"]
+               for r in rows)
     assert row_spec({**rows[0], "prior": None}).prior == "independent"

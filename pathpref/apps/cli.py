@@ -183,6 +183,38 @@ def build_parser() -> argparse.ArgumentParser:
     force_option(it)
     it.set_defaults(func=c.cmd_interact)
 
+    st = sub.add_parser("study", help="force-interaction studies with people (browser, "
+                        "viewer or scripted participants), recorded in a results database")
+    stsub = st.add_subparsers(dest="study_command", required=True)
+    sr = stsub.add_parser("run", help="run a participant's trials of a study file")
+    sr.add_argument("study", help="study file (.json or .toml; see README 'Studies with "
+                    "people')")
+    sr.add_argument("--participant", required=True, help="participant id (letters, digits, "
+                    "_ . -)")
+    sr.add_argument("--db", required=True, help="results database (.sqlite; sweeps' store)")
+    sr.add_argument("--ui", choices=["browser", "viewer"], default="browser",
+                    help="browser (default: serves a page, prints its URL) or the MuJoCo "
+                    "viewer (needs a display)")
+    sr.add_argument("--port", type=int, default=8765,
+                    help="browser: TCP port (0: any free port; default 8765)")
+    sr.add_argument("--host", default="127.0.0.1",
+                    help="browser: address to bind (default 127.0.0.1; any other serves "
+                    "other machines and needs the random token printed in the URL)")
+    sr.add_argument("--script", default=None, help="scripted participant: a JSON file of "
+                    "timed pushes (no screen; runs faster than real time)")
+    sr.add_argument("--resume", action="store_true",
+                    help="continue a participant's trials (the unfinished one runs again)")
+    sr.set_defaults(func=c.cmd_study_run)
+
+    rpl = sub.add_parser("replay", help="render a recorded study trial to a video")
+    rpl.add_argument("db", help="results database holding study trials")
+    rpl.add_argument("--participant", required=True)
+    rpl.add_argument("--trial", type=int, required=True, help="the trial's position (1, 2, ...)")
+    rpl.add_argument("--out", required=True, help="video file (.mp4)")
+    rpl.add_argument("--width", action=RangeAction, limits="frame_size", default=480)
+    rpl.add_argument("--height", action=RangeAction, limits="frame_size", default=360)
+    rpl.set_defaults(func=c.cmd_replay)
+
     b = sub.add_parser("bench", help="measure build, update and planning times")
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])

@@ -198,7 +198,14 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 def cmd_report(args: argparse.Namespace) -> int:
     """``pathpref report``: tables, side-by-side with the paper, CSV and optional figure."""
-    from ..experiments.report import load_records, markdown_tables, side_by_side, write_csv
+    from ..experiments.report import (
+        load_records,
+        load_trials,
+        markdown_tables,
+        side_by_side,
+        study_tables,
+        write_csv,
+    )
 
     check_database(args.db, "database", must_exist=True)
     csv_path = Path(args.csv) if args.csv else Path(args.db).with_suffix(".csv")
@@ -206,6 +213,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     if args.figure:
         check_writable(args.figure, "--figure", FIGURE_SUFFIXES)
     recs = load_records(args.db)
+    trials = load_trials(args.db)
+    if trials:
+        print(study_tables(trials) + ("\n" if recs else ""))
+        if not recs:
+            return 0
     if not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
     print(markdown_tables(recs))
@@ -322,6 +334,54 @@ def cmd_interact(args: argparse.Namespace) -> int:
                                  queries=args.queries)
     print("Double-click the orange handle, then Ctrl + right-drag to push the robot.")
     run_viewer(session)
+    return 0
+
+
+# --- studies --------------------------------------------------------------------------------
+def cmd_study_run(args: argparse.Namespace) -> int:
+    """``pathpref study run``: a participant's trials through the browser, the viewer or a
+    push script, recorded in ``--db`` (:mod:`pathpref.study`)."""
+    from ..study.conduct import check_participant, run_study
+    from ..study.plan import load_study
+
+    study = load_study(args.study)
+    check_participant(args.participant)
+    check_database(args.db)
+    if not 0 <= args.port <= 65535:
+        raise ConfigError(f"--port must be an integer in 0..65535, got {args.port}")
+    if args.script:
+        from ..study.script import PushScript, ScriptedFrontEnd
+
+        front = ScriptedFrontEnd(PushScript.load(args.script))
+        print(f"scripted participant {args.participant}: pushes from {args.script} "
+              "(no screen; faster than real time)", flush=True)
+    elif args.ui == "viewer":
+        os.environ.setdefault("MUJOCO_GL", "glfw")
+        from ..study.viewer import ViewerFrontEnd
+
+        front = ViewerFrontEnd()
+    else:
+        from ..study.server import BrowserFrontEnd
+
+        front = BrowserFrontEnd(host=args.host, port=args.port)
+        print(f"open {front.url} in a browser (Ctrl-C to stop)", flush=True)
+    rows = run_study(study, args.participant, args.db, front, resume=args.resume,
+                     log=lambda m: print(m, flush=True))
+    ok = sum(r["success"] or 0 for r in rows)
+    print(f"{args.participant}: {len(rows)} trial(s) recorded in {args.db}, {ok} successful")
+    return 0
+
+
+def cmd_replay(args: argparse.Namespace) -> int:
+    """``pathpref replay``: a recorded study trial as a video."""
+    out = check_writable(args.out, "--out", (".mp4",))
+    check_database(args.db, "database", must_exist=True)
+    from ..study.replay import replay_trial
+
+    with staged_outputs([out]) as (tmp,):
+        frames = replay_trial(args.db, args.participant, args.trial, tmp, args.width,
+                              args.height)
+    print(f"wrote {out} ({frames} frames)")
     return 0
 
 

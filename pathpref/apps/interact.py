@@ -18,7 +18,6 @@ import time
 import numpy as np
 
 from ..episode import EpisodeRunner, EpisodeSpec, cached_world, simulator_rng
-from ..errors import ConfigError
 from ..sim.body import MujocoBody
 from ..sim.mobile_base import MobileBase
 
@@ -64,23 +63,14 @@ class InteractiveSession:
 
 
 def run_viewer(session: InteractiveSession, realtime: bool = True) -> None:
-    """Open the MuJoCo viewer on the session (needs a display)."""
-    import os
+    """Open the MuJoCo viewer on the session (needs a display); on exit, wait for the
+    viewer's thread (:func:`~pathpref.study.viewer.close_viewer`)."""
+    from ..study.viewer import close_viewer, frame_map, launch_viewer
 
-    if not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ConfigError("pathpref interact needs a display (DISPLAY is not set): run it in a "
-                          "desktop session, or on a virtual screen with xvfb-run")
-    try:
-        import mujoco.viewer
-    except Exception as e:  # noqa: BLE001
-        raise ConfigError(f"the MuJoCo viewer is unavailable: {e}") from None
     base = session.base
-    try:
-        viewer = mujoco.viewer.launch_passive(base.model, base.data)
-    except Exception as e:  # noqa: BLE001 - GLFW raises several types
-        raise ConfigError(
-            "pathpref interact needs a display: run it in a desktop session (or under "
-            f"xvfb-run for a virtual screen) with MUJOCO_GL=glfw ({e})") from None
+    viewer, threads = launch_viewer(base.model, base.data, panels=True)
+    with viewer.lock():  # the whole map in view, not a close-up of a wall
+        frame_map(viewer.cam, session.runner.world, base.scene.cell_size)
     clock = {"wall": time.perf_counter(), "sim": float(base.data.time), "k": 0}
 
     def sync(b, push) -> None:
@@ -94,11 +84,11 @@ def run_viewer(session: InteractiveSession, realtime: bool = True) -> None:
                 time.sleep(ahead)
 
     base.on_substep.append(sync)
-    with viewer:
+    try:
         while viewer.is_running() and not session.runner.done:
             session.step()
             r = session.runner
-            print(f"t={r.t:3d} cell={tuple(r.world.cells[r.cell])} "
+            print(f"t={r.t:3d} cell={tuple(int(v) for v in r.world.cells[r.cell])} "
                   f"P(goal)={np.round(r.policy.belief.goal_marginal(), 2)}", flush=True)
-
-
+    finally:
+        close_viewer(viewer, threads)

@@ -50,7 +50,7 @@ class EpisodeRunner:
         model = (cached_model(spec.map, inst.goals, spec.normalize) if cached else
                  ObservationModel.build(world, np.array(inst.goals), normalize=spec.normalize))
         self.world, self.instance, self.model = world, inst, model
-        self.pref = human_preference(world, inst, free_goal)
+        self.pref = self._preference(free_goal)
         human_seq, policy_seq, _ = np.random.SeedSequence(spec.run_seed).spawn(3)
         self.human_rng = np.random.default_rng(human_seq)
         ctx = PolicyContext(world=world, model=model, preset=spec.planner(), t_max=spec.t_max,
@@ -71,6 +71,10 @@ class EpisodeRunner:
         self.started = False
         self.body.reset(self.cell)
         self._log(STAY, -1)
+
+    def _preference(self, free_goal: bool) -> np.ndarray:
+        """The human's preference per polytope (the map's; see ``human_preference``)."""
+        return human_preference(self.world, self.instance, free_goal)
 
     def begin(self) -> None:
         """The human's input before step 1 (when due); :meth:`step` calls it if needed."""
@@ -129,18 +133,23 @@ class EpisodeRunner:
         self._score(before, self.cell)
         self.t = t
         self.result.steps = t
-        k = self.goal_index.get(self.cell)
-        if k is not None:
-            if k == self.instance.true_goal:
-                self.result.goal_reached = True
-            else:
-                self.policy.rule_out(k)
+        self._arrive(self.cell)
         self._log(action, -1 if heading is None else heading)
         self._human_phase()
         self.result.wall_s = time.perf_counter() - self.t0
         if self.done:
             self.result.metrics = self.body.metrics()
         return self.result.log[-1]
+
+    def _arrive(self, cell: int) -> None:
+        """The robot ended a step on ``cell``: the true goal ends the episode, another
+        candidate is ruled out (the paper's protocol)."""
+        k = self.goal_index.get(cell)
+        if k is not None:
+            if k == self.instance.true_goal:
+                self.result.goal_reached = True
+            else:
+                self.policy.rule_out(k)
 
     def _score(self, before: int, after: int) -> None:
         """The success rule on the move ``before -> after``: leaving ``v`` toward anything but

@@ -9,7 +9,9 @@ schema lacks take their defaults, which reproduce the old behaviour), and writes
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schemaN.bak``; nothing is changed when any map cannot be loaded.
+``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 -> 4 only
+adds the ``prior`` column (empty in old rows: the independent prior they ran with) and the
+(empty) study tables of :mod:`.trials`, in place; every row and key stays as it was.
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -37,6 +39,7 @@ from typing import Any
 from ..episode import EpisodeSpec, cached_map
 from ..errors import ConfigError, PathprefError
 from .store import (
+    ADDITIVE,
     EPISODE_COLUMNS,
     SCHEMA_VERSION,
     UPGRADABLE,
@@ -47,6 +50,7 @@ from .store import (
     require_sqlite_file,
     schema_version,
 )
+from .trials import has_study_tables
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
@@ -96,6 +100,10 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
                 "backup": None}
+    if version in ADDITIVE:  # a column and the study tables added in place: no row changes
+        ResultStore(path).close()
+        return {"from": version, "to": SCHEMA_VERSION, "episodes": len(rows), "merged": 0,
+                "steps": len(steps), "backup": "(none: tables added in place)"}
     if version not in UPGRADABLE:
         raise ConfigError(f"{path} has schema {version}; 'db upgrade' migrates schema "
                           f"{', '.join(map(str, UPGRADABLE))} to {SCHEMA_VERSION}")
@@ -253,12 +261,25 @@ def check_database(path: str | Path) -> dict[str, Any]:
             out["lost_exact"] = exact_e and exact_s
             out["episodes"], out["steps"] = len(episodes), len(steps)
             _, out["incomplete"], out["orphans"] = _whole_episodes(episodes, steps)
+            out["trials"] = _trial_counts(ro)
     finally:
         ro.close()
     out["intact"] = (out["integrity"] == ["ok"] and out["pathpref"] is None
                      and not (out["episodes_lost"] or out["steps_lost"] or out["incomplete"]
                               or out["orphans"]))
     return out
+
+
+def _trial_counts(conn: sqlite3.Connection) -> tuple[int, int] | None:
+    """Finished and unfinished study trials (None without study tables or when unreadable)."""
+    try:
+        if not has_study_tables(conn):
+            return None
+        done, total = conn.execute("SELECT count(*) FILTER (WHERE status = 'done'), count(*) "
+                                   "FROM trials").fetchone()
+    except sqlite3.DatabaseError:
+        return None
+    return int(done), int(total - done)
 
 
 def check_text(r: dict[str, Any]) -> str:
@@ -279,6 +300,11 @@ def check_text(r: dict[str, Any]) -> str:
                   f"  episodes with missing step rows: {len(incomplete)}",
                   *(f"    {k}" for k in incomplete[:10]), *(["    ..."] * (len(incomplete) > 10)),
                   f"  orphan step rows (of no episode): {r['orphans']}"]
+        if r.get("trials"):
+            done, running = r["trials"]
+            lines.append(f"  study trials: {done} finished, {running} unfinished" + (
+                " (a session was stopped; 'study run --resume' runs them again)" if running
+                else ""))
         if not r["intact"]:
             lines.append(f"'pathpref db salvage {db} NEW.sqlite' copies the intact episodes")
     return "\n".join(lines)
@@ -299,9 +325,10 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
         ro = open_readonly(path)
         try:
             version = schema_version(ro, path)
-            if version != SCHEMA_VERSION:
+            if version != SCHEMA_VERSION and version not in ADDITIVE:
                 raise ConfigError(f"{path} has schema {version}; salvage copies schema "
-                                  f"{SCHEMA_VERSION} databases")
+                                  f"{', '.join(map(str, (*ADDITIVE, SCHEMA_VERSION)))} "
+                                  "databases")
             episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
             steps, steps_lost, exact_s = _read_table(ro, "steps")
         finally:

@@ -166,3 +166,73 @@ def load_records(db: str | Path) -> list[dict[str, Any]]:
         except sqlite3.DatabaseError as e:
             raise ConfigError(f"cannot read results from {db}: {e} (the file is damaged)"
                               ) from None
+
+
+# --- force-interaction studies (the study tables, schema 4) ----------------------------------
+def mean_interval(values: list[float], z_level: float = 0.975) -> tuple[float, float, float]:
+    """Mean and its 95% Student-t interval ``mean -+ t_{n-1} s / sqrt(n)`` (``s`` the sample
+    standard deviation); a single value has the interval ``(nan, nan)``."""
+    from scipy.stats import t as student
+
+    n = len(values)
+    if n == 0:
+        return float("nan"), float("nan"), float("nan")
+    m = sum(values) / n
+    if n == 1:
+        return m, float("nan"), float("nan")
+    s = math.sqrt(sum((v - m) ** 2 for v in values) / (n - 1))
+    h = float(student.ppf(z_level, n - 1)) * s / math.sqrt(n)
+    return m, m - h, m + h
+
+
+def load_trials(db: str | Path) -> list[dict[str, Any]]:
+    """Every finished study trial of ``db`` (none when it has no study tables)."""
+    from .trials import has_study_tables, read_rows
+
+    with ResultStore(db, create=False) as store:
+        try:
+            if not has_study_tables(store.conn):
+                return []
+            return read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
+                             "participant, trial")
+        except sqlite3.DatabaseError as e:
+            raise ConfigError(f"cannot read trials from {db}: {e} (the file is damaged)"
+                              ) from None
+
+
+def condition_label(row: dict[str, Any]) -> str:
+    """A trial's condition as ``method, label=value, ...`` (the labels of the study file)."""
+    import json
+
+    labels = json.loads(row["condition"] or "{}")
+    return ", ".join([row["method"], *(f"{k}={v}" for k, v in sorted(labels.items()))])
+
+
+def study_tables(trials: list[dict[str, Any]]) -> str:
+    """Markdown: per participant and per condition, success rate [95% Wilson], and the means
+    [95% t interval] of time (s; a timed-out trial counts its full time), pushes and effort
+    (integral of |F| dt, N s)."""
+    def fmt(v: tuple[float, float, float], digits: int = 1) -> str:
+        m, lo, hi = v
+        if math.isnan(lo):
+            return f"{m:.{digits}f}"
+        return f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+    def table(title: str, key) -> list[str]:
+        groups: dict[str, list[dict]] = defaultdict(list)
+        for r in trials:
+            groups[key(r)].append(r)
+        lines = [f"**{title}**", "", f"| {title.split()[-1]} | n | success | time (s) | "
+                 "pushes | effort (N s) |", "|---|---|---|---|---|---|"]
+        for g, rs in sorted(groups.items()):
+            k = sum(r["success"] for r in rs)
+            lo, hi = wilson(k, len(rs))
+            lines.append(
+                f"| {g} | {len(rs)} | {k / len(rs):.2f} [{lo:.2f}, {hi:.2f}] | "
+                f"{fmt(mean_interval([r['time_s'] for r in rs]))} | "
+                f"{fmt(mean_interval([float(r['pushes']) for r in rs]))} | "
+                f"{fmt(mean_interval([r['effort_ns'] for r in rs]))} |")
+        return lines
+
+    return "\n".join(table("Study trials per participant", lambda r: r["participant"]) + [""]
+                     + table("Study trials per condition", condition_label))

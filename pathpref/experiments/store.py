@@ -25,11 +25,18 @@ from typing import Any
 
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
+from .trials import STUDY_TABLE_NAMES, create_study_tables, study_sql
 
 #: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the belief's
-#: preference prior (``prior``; older rows ran with the independent one)
+#: preference prior (``prior``; rows without it ran with the independent one) and the study
+#: tables (trials with people, :mod:`.trials`)
 SCHEMA_VERSION = 4
-UPGRADABLE = (2, 3)  # older schemas that 'pathpref db upgrade' migrates
+UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
+#: older schemas whose tables are a subset of this one's: read as they are; opened for writing
+#: (a sweep or a study), the ``prior`` column (empty: the independent prior the rows ran with,
+#: keys unchanged) and the study tables are added in place and the version set to 4 (so every
+#: stored episode reads and replays as before)
+ADDITIVE = (3,)
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
@@ -49,7 +56,8 @@ EPISODE_COLUMNS = {
 META_SQL = "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)"
 STEPS_SQL = ("CREATE TABLE steps (key TEXT, t INTEGER, x INTEGER, y INTEGER, action INTEGER, "
              "heading INTEGER, p_true_goal REAL, goal_entropy REAL, PRIMARY KEY (key, t))")
-TABLES = ("meta", "episodes", "steps")
+BASE_TABLES = ("meta", "episodes", "steps")  # schema 3
+TABLES = BASE_TABLES + STUDY_TABLE_NAMES
 
 
 def episodes_sql(columns: Iterable[str] = EPISODE_COLUMNS) -> str:
@@ -101,11 +109,12 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     """Schema version of a pathpref database, None when it holds no objects at all.
 
     Raises :class:`ConfigError` unless ``sqlite_master`` holds exactly pathpref's tables
-    ``meta``, ``episodes`` and ``steps`` with their primary-key indexes, each created by
-    pathpref's own statement (the episode columns are a subset of :data:`EPISODE_COLUMNS`, all
-    of them at :data:`SCHEMA_VERSION`), and ``meta`` names an integer schema version. A view or
-    trigger, another table or index, or a changed column is refused: each could make a report
-    print rows that were never run.
+    ``meta``, ``episodes`` and ``steps`` (and, from schema 4 on, the study tables of
+    :mod:`.trials`) with their primary-key indexes, each created by pathpref's own statement
+    (the episode columns are a subset of :data:`EPISODE_COLUMNS`, all of them at
+    :data:`SCHEMA_VERSION`), and ``meta`` names an integer schema version. A view or trigger,
+    another table or index, or a changed column is refused: each could make a report print
+    rows that were never run.
     """
     objects = {(r[0], r[1]): r for r in conn.execute(
         "SELECT type, name, tbl_name, sql FROM sqlite_master")}
@@ -116,8 +125,10 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
         return ConfigError(f"{path} is an SQLite file not written by pathpref ({what}); it is "
                            "left untouched: give another --db path")
 
-    expected = {("table", t) for t in TABLES} | {
-        ("index", f"sqlite_autoindex_{t}_1") for t in TABLES}
+    study = any(("table", t) in objects for t in STUDY_TABLE_NAMES)
+    tables = TABLES if study else BASE_TABLES
+    expected = {("table", t) for t in tables} | {
+        ("index", f"sqlite_autoindex_{t}_1") for t in tables}
     extra = sorted(set(objects) - expected)
     if extra:
         listed = ", ".join(f"{kind} {name!r}" for kind, name in extra[:4])
@@ -126,19 +137,24 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     missing = sorted(name for _, name in expected - set(objects))
     if missing:
         raise foreign(f"it lacks {', '.join(missing)}")
-    for t in TABLES:
+    for t in tables:
         if objects[("index", f"sqlite_autoindex_{t}_1")][2:] != (t, None):
             raise foreign(f"its index of {t} is not pathpref's")
     columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")]
     if not set(columns) <= set(EPISODE_COLUMNS):
         raise foreign(f"episodes has columns {sorted(set(columns) - set(EPISODE_COLUMNS))}")
-    for t, sql in (("meta", META_SQL), ("steps", STEPS_SQL), ("episodes", episodes_sql(columns))):
+    sqls = [("meta", META_SQL), ("steps", STEPS_SQL), ("episodes", episodes_sql(columns))]
+    sqls += [(t, study_sql(t)) for t in tables if t in STUDY_TABLE_NAMES]
+    for t, sql in sqls:
         if objects[("table", t)][2:] != (t, sql):
             raise foreign(f"its table {t} is not defined as pathpref defines it")
     row = conn.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
     if row is None or not str(row[0]).isdigit():
         raise foreign("it has no schema version")
     version = int(row[0])
+    if version == SCHEMA_VERSION and not study or study and version in (*UPGRADABLE,
+                                                                         *ADDITIVE):
+        raise foreign(f"schema {version} {'with' if study else 'without'} the study tables")
     if version == SCHEMA_VERSION and columns != list(EPISODE_COLUMNS):
         lacking = [c for c in EPISODE_COLUMNS if c not in columns]
         raise ConfigError(
@@ -192,12 +208,14 @@ def inspect_results_file(path: str | Path, create: bool = False) -> int | None:
 
 
 def check_results_file(path: str | Path, create: bool = True) -> bool:
-    """True for an intact pathpref database of this schema, False for a file to create the
-    tables in (see :func:`inspect_results_file`); an older schema is pointed at
-    ``pathpref db upgrade``, any other at a new path."""
+    """True for an intact pathpref database of this schema (or of an :data:`ADDITIVE` one),
+    False for a file to create the tables in (see :func:`inspect_results_file`); an older
+    schema is pointed at ``pathpref db upgrade``, any other at a new path."""
     version = inspect_results_file(path, create)
     if version is None:
         return False
+    if version in ADDITIVE:
+        return True
     if version in UPGRADABLE:
         raise ConfigError(
             f"{path} was written by an older pathpref (schema {version}, this version "
@@ -228,6 +246,8 @@ class ResultStore:
             self.conn.execute("PRAGMA synchronous=NORMAL")
             if not existing:
                 self._create_schema()
+            elif create:
+                self._complete_schema()
 
     @contextlib.contextmanager
     def _errors(self, doing: str) -> Iterator[None]:
@@ -248,6 +268,23 @@ class ResultStore:
             c.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
             c.execute(episodes_sql())
             c.execute(STEPS_SQL)
+            create_study_tables(c)
+
+    def _complete_schema(self) -> None:
+        """Bring an :data:`ADDITIVE` (schema 3) file to this schema: add the ``prior`` column
+        (NULL in the old rows: the independent prior) and the study tables."""
+        c = self.conn
+        row = c.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
+        if int(row[0]) not in ADDITIVE:
+            return
+        columns = [r[1] for r in c.execute("PRAGMA table_xinfo(episodes)")]
+        with c:
+            for name, kind in EPISODE_COLUMNS.items():
+                if name not in columns:
+                    c.execute(f"ALTER TABLE episodes ADD COLUMN {name} {kind}")
+            create_study_tables(c)
+            c.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
+                      (str(SCHEMA_VERSION),))
 
     def done_keys(self, include_failed: bool = True) -> set[str]:
         """Keys of the stored episodes (only successful runs when ``include_failed`` is False)."""

@@ -66,6 +66,8 @@ class MobileBase:
         self.dt = float(self.model.opt.timestep)
         self.detector = CueDetector(self.dt)
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
+        #: called with each cue detected while driving (study mode feeds it to the belief)
+        self.on_cue: list[Callable[[MobileBase, Cue], None]] = []
         self.target = np.zeros(2)
         #: cues detected while driving (no simulated push is given then: a person pushing
         #: live in study mode, or a false cue in a simulated episode)
@@ -199,14 +201,20 @@ class MobileBase:
         self.detector.reset()
         return cue
 
-    def move_to(self, cell: int) -> int:
-        """Drive to the centre of ``cell``; return the cell the base ends in."""
+    def move_to(self, cell: int, min_s: float = 0.0) -> int:
+        """Drive to the centre of ``cell`` (for at least ``min_s`` simulated seconds, holding
+        it once there); return the cell the base ends in. A cue detected on the way is kept
+        in ``cues_while_driving`` and given to every ``on_cue`` hook at once."""
         self.target = self.scene.cell_centre(cell)
-        t_end = self.data.time + self.controller.time_limit_s
+        t0 = self.data.time
+        t_end = t0 + max(self.controller.time_limit_s, min_s)
         while self.data.time < t_end:
             cue = self.substep()
             if cue is not None:
                 self.cues_while_driving.append(cue)
-            if self.controller.settled(self.position, self.velocity, self.target):
+                for hook in self.on_cue:
+                    hook(self, cue)
+            if self.data.time - t0 >= min_s and self.controller.settled(
+                    self.position, self.velocity, self.target):
                 break
         return self.cell

@@ -57,10 +57,16 @@ class RolloutRenderer:
 
     def overlays(self, goal_cells: np.ndarray, belief: np.ndarray, true_goal: int,
                  polygon: np.ndarray | None, push_origin: np.ndarray | None,
-                 push_force: np.ndarray | None) -> None:
-        """Draw the goals (tinted by belief), the current polytope and the push arrow."""
+                 push_force: np.ndarray | None, route: np.ndarray | None = None) -> None:
+        """Draw the goals (tinted by belief), the current polytope, the push arrow and, when
+        given, a route to convey (cells ``(x, y)``, an orange line through their centres)."""
         scn = self.renderer.scene
         cs = self.scene.cell_size
+        if route is not None:
+            pts = (np.asarray(route, float) - 0.5) * cs
+            for a, b in zip(pts[:-1], pts[1:], strict=True):
+                _add_line(scn, [a[0], a[1], 0.015], [b[0], b[1], 0.015], 0.03,
+                          [0.94, 0.55, 0.08, 0.9])
         pmax = max(float(belief.max()), 1e-9)
         for k, c in enumerate(goal_cells):
             xy = (np.asarray(c) - 0.5) * cs

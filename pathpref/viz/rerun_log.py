@@ -1,11 +1,12 @@
 """Rerun recordings of episodes (offline ``.rrd`` files, ``rr.RecordingStream``, no viewer).
 
 Entities: ``map/obstacles``, ``map/polytopes`` (outlines, labelled with ids), ``map/graph``
-(edges between polytope centres), ``map/goals``; per decision step (timeline ``step``):
-``robot/path``, ``robot/position``, ``human/push`` (the detected impulse as an arrow),
-``belief/goals`` (bar chart), ``belief/p_true_goal`` and ``belief/entropy`` (scalars);
-per physics frame (timeline ``sim_time``): ``robot/trajectory`` and, for the arm,
-``robot/ee_trajectory`` and ``robot/ee_height``. Map units: metres.
+(edges between polytope centres), ``map/goals``, ``map/route`` (a study trial's route,
+:meth:`RerunLogger.log_route`); per decision step (timeline ``step``): ``robot/path``,
+``robot/position``, ``human/push`` (the detected impulse as an arrow), ``belief/goals`` (bar
+chart), ``belief/p_true_goal`` and ``belief/entropy`` (scalars); per physics frame (timeline
+``sim_time``): ``robot/trajectory`` and, for the arm, ``robot/ee_trajectory`` and
+``robot/ee_height``. Map units: metres.
 """
 
 from __future__ import annotations
@@ -43,6 +44,11 @@ class RerunLogger:
         colors = [[255, 80, 180] if k == true_goal else [80, 170, 255] for k in range(len(g))]
         rec.log("map/goals", rr.Points2D(g, radii=0.08, colors=colors,
                                          labels=[f"g{k}" for k in range(len(g))]), static=True)
+
+    def log_route(self, cells: np.ndarray) -> None:
+        """A route to convey (cells ``(x, y)``, 1-based) as a line through their centres."""
+        pts = (np.asarray(cells, float) - 0.5) * self.cs
+        self.rec.log("map/route", rr.LineStrips2D([pts], colors=[240, 140, 20]), static=True)
 
     def log_frame(self, sim_time: float, xy: np.ndarray, ee: np.ndarray | None = None) -> None:
         """The base (and, for the arm, the end-effector) position at a physics frame."""

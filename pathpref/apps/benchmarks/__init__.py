@@ -3,7 +3,8 @@
 * ``maps``: per map, setup (arrangement, cost tables), belief updates, POMCP decisions (paper
   and robust search) against the paper's Table II;
 * ``scale``: the 200 x 200 floor plan (fresh process), Ray throughput, rotated 40 x 40 maps;
-* ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK.
+* ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK;
+* ``study``: browser front end, WebSocket push to the cue in the belief (``study_latency_ms``).
 
 They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
 issues are a contract: add keys, never rename them. Layout::
@@ -11,7 +12,7 @@ issues are a contract: add keys, never rename them. Layout::
     {"machine": {...},
      "maps": {"simple": {"arrangement_build_s": ..., "cost_tables_s": ...,
                          "belief_update_ms": ..., "goal_belief_update_ms": ..., ...}, ...},
-     "physics": {...}, "arm": {...}, "scale": {...}}
+     "physics": {...}, "arm": {...}, "study": {"study_latency_ms": ...}, "scale": {...}}
 """
 
 from __future__ import annotations
@@ -21,9 +22,10 @@ from typing import Any
 from .maps import bench_map, bench_pomcp, machine_info
 from .physics import bench_arm, bench_physics
 from .scale import bench_ray, bench_scale
+from .study import bench_study
 
 __all__ = ["bench_arm", "bench_map", "bench_physics", "bench_pomcp", "bench_ray", "bench_scale",
-           "machine_info", "run_benchmarks"]
+           "bench_study", "machine_info", "run_benchmarks"]
 
 
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
@@ -34,6 +36,7 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
     if physics:
         out["physics"] = bench_physics(quick=quick)
         out["arm"] = bench_arm(quick=quick)
+        out["study"] = bench_study(quick=quick)
     if not quick:
         out["scale"] = {**bench_ray(), **bench_scale()}
     return out

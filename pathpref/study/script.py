@@ -1,0 +1,134 @@
+"""Scripted participants (pilots, tests): a file of timed pushes sent through the front-end
+code path (:meth:`~.controls.Controls.handle`), as a person's browser would.
+
+Format (JSON)::
+
+    {"pushes": [{"t": 0.5, "fx": 0, "fy": 35, "duration": 0.4}, ...],
+     "trials": {"right": [{"t": 0.5, "fx": 35, "fy": 0, "duration": 0.4}]}}
+
+``t`` is the push's start in seconds since the trial began (simulated time), ``fx``, ``fy``
+the force (N, world x-y; capped like a person's at 60 N), ``duration`` its length in seconds
+(0.05..10). ``trials`` gives the pushes of the trials it names; ``pushes`` those of every
+other trial. At each physics step the script sends ``push`` when a push starts and
+``release`` when it ends.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError
+from .controls import Controls
+
+
+def _pushes(raw: Any, where: str) -> list[tuple[float, float, float, float]]:
+    if not isinstance(raw, list):
+        raise ConfigError(f"{where} must be a list of pushes {{t, fx, fy, duration}}")
+    out = []
+    for k, p in enumerate(raw):
+        w = f"{where}[{k}]"
+        if not isinstance(p, dict) or set(p) != {"t", "fx", "fy", "duration"}:
+            raise ConfigError(f"{w} must be an object with exactly t, fx, fy, duration")
+        vals = [p[n] for n in ("t", "fx", "fy", "duration")]
+        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+                   for v in vals):
+            raise ConfigError(f"{w}: t, fx, fy and duration must be finite numbers")
+        t, fx, fy, d = map(float, vals)
+        if not 0 <= t <= 3600:
+            raise ConfigError(f"{w}.t must be in 0..3600 s, got {t:g}")
+        if not 0.05 <= d <= 10:
+            raise ConfigError(f"{w}.duration must be in 0.05..10 s, got {d:g}")
+        out.append((t, fx, fy, d))
+    out.sort()
+    for (t0, _, _, d0), (t1, _, _, _) in zip(out[:-1], out[1:], strict=True):
+        if t1 < t0 + d0:
+            raise ConfigError(f"{where}: the push at t={t1:g} s starts before the one at "
+                              f"t={t0:g} s ends")
+    return out
+
+
+class PushScript:
+    """A validated push file (module docstring)."""
+
+    def __init__(self, raw: Any, path: str = "<script>"):
+        if not isinstance(raw, dict) or not raw or set(raw) - {"pushes", "trials"}:
+            raise ConfigError(f"{path}: a push file is an object with 'pushes' and/or 'trials'")
+        self.default = _pushes(raw.get("pushes", []), "pushes")
+        named = raw.get("trials", {})
+        if not isinstance(named, dict):
+            raise ConfigError("trials must map trial names to lists of pushes")
+        self.named = {n: _pushes(v, f"trials.{n}") for n, v in named.items()}
+
+    @classmethod
+    def load(cls, path: str | Path) -> PushScript:
+        """Read and validate a push file."""
+        try:
+            raw = json.loads(Path(path).read_bytes())
+        except OSError as e:
+            raise ConfigError(f"cannot read push file {path}: {e.strerror}") from None
+        except ValueError as e:
+            raise ConfigError(f"{path} is not valid JSON: {e}") from None
+        return cls(raw, str(path))
+
+    def for_trial(self, name: str) -> list[tuple[float, float, float, float]]:
+        """The pushes ``(t, fx, fy, duration)`` of the trial ``name``."""
+        return self.named.get(name, self.default)
+
+
+class ScriptedParticipant:
+    """Plays one trial's pushes into ``controls`` at their simulated times: call it once per
+    physics step with the trial time (a hook of the trial's physics)."""
+
+    def __init__(self, controls: Controls, pushes: list[tuple[float, float, float, float]]):
+        self.controls = controls
+        self.pushes = pushes
+        self.k = 0
+        self.active = False
+
+    def tick(self, t: float) -> None:
+        """Send ``push``/``release`` messages due at trial time ``t``."""
+        if self.active:
+            t0, _, _, d = self.pushes[self.k]
+            if t >= t0 + d:
+                self.controls.handle('{"type": "release"}')
+                self.active = False
+                self.k += 1
+        if not self.active and self.k < len(self.pushes) and t >= self.pushes[self.k][0]:
+            _, fx, fy, _ = self.pushes[self.k]
+            self.controls.handle(json.dumps({"type": "push", "fx": fx, "fy": fy}))
+            self.active = True
+
+
+class ScriptedFrontEnd:
+    """The front end of a scripted participant: no screen; each trial's pushes
+    (:meth:`PushScript.for_trial`) go through :class:`~.controls.Controls` as a browser's
+    messages do. Runs as fast as the machine allows (no real-time pacing)."""
+
+    name = "script"
+
+    def __init__(self, script: PushScript):
+        self.script = script
+        self.controls = Controls()
+
+    def source(self) -> Controls:
+        """The participant's push source: the controls the script writes to."""
+        return self.controls
+
+    def begin_trial(self, position: int, total: int, runner) -> None:
+        """Start at once; play the trial's pushes at their simulated times."""
+        self.controls.reset()
+        self.controls.handle('{"type": "start"}')
+        player = ScriptedParticipant(self.controls, self.script.for_trial(runner.trial.name))
+        runner.base.on_substep.append(lambda base, push: player.tick(runner.time_s))
+
+    def after_decision(self, runner) -> None:
+        """Nothing to show."""
+
+    def end_trial(self, runner, outcome: dict) -> None:
+        """Nothing to show."""
+
+    def close(self) -> None:
+        """Nothing to release."""

@@ -1,0 +1,192 @@
+"""The study's browser front end: end to end in headless Chromium (Debian's ``chromium``,
+driven by Playwright), the token rule, and bad WebSocket messages."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import sqlite3
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pathpref.study.server import BrowserFrontEnd
+
+CHROMIUM = shutil.which("chromium") or ("/usr/bin/chromium" if os.path.exists(
+    "/usr/bin/chromium") else None)
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+HEADING = {(-1, 0): 6, (1, 0): 2, (0, 1): 0, (0, -1): 4}
+
+
+def wait_for(cond, timeout_s: float = 5.0) -> bool:
+    """Poll ``cond`` (the server handles a message after answering a ping, not before)."""
+    end = time.perf_counter() + timeout_s
+    while time.perf_counter() < end:
+        if cond():
+            return True
+        time.sleep(0.01)
+    return cond()
+
+
+def _get(url: str) -> tuple[int, bytes]:
+    try:
+        with urllib.request.urlopen(url, timeout=5) as r:
+            return r.status, r.read()
+    except urllib.error.HTTPError as e:
+        return e.code, b""
+
+
+def test_other_hosts_need_the_token():
+    front = BrowserFrontEnd(host="0.0.0.0", port=0)
+    try:
+        assert front.token and len(front.token) >= 16 and f"token={front.token}" in front.url
+        base = f"http://127.0.0.1:{front.port}/"
+        assert _get(base)[0] == 403
+        assert _get(base + "?token=wrong")[0] == 403
+        status, body = _get(base + f"?token={front.token}")
+        assert status == 200 and b"<canvas" in body
+        from websockets.exceptions import InvalidStatus
+        from websockets.sync.client import connect
+
+        with pytest.raises(InvalidStatus, match="403"):
+            connect(f"ws://127.0.0.1:{front.port}/ws")
+        with connect(f"ws://127.0.0.1:{front.port}/ws?token={front.token}") as ws:
+            ws.send('{"type": "push", "fx": 5, "fy": 0}')
+            ws.send('{"type": "release"}')
+    finally:
+        front.close()
+    loop = BrowserFrontEnd(port=0)
+    try:
+        assert loop.token is None and _get(f"http://127.0.0.1:{loop.port}/")[0] == 200
+    finally:
+        loop.close()
+
+
+def test_malformed_and_oversized_messages_are_ignored(caplog):
+    from websockets.sync.client import connect
+
+    front = BrowserFrontEnd(port=0)
+    try:
+        url = f"ws://127.0.0.1:{front.port}/ws"
+        with connect(url) as ws:
+            for bad in ("{not json", "[]", '{"type": "push", "fx": 1e400, "fy": 0}',
+                        json.dumps({"type": "push", "fx": 1, "fy": 1, "pad": "x" * 400})):
+                ws.send(bad)
+            ws.send('{"type": "push", "fx": 20, "fy": -10}')
+            assert wait_for(lambda: front.controls.force().tolist() == [20.0, -10.0])
+            assert front.controls.ignored == 4
+        with connect(url, max_size=None) as ws:  # a frame over 64 KiB closes that connection
+            ws.send("x" * 100_000)
+            with pytest.raises(Exception):  # noqa: B017 - closed with 1009, whatever the type
+                for _ in range(3):
+                    ws.recv(timeout=5)
+        with connect(url) as ws:  # the session goes on: a new connection works
+            ws.send('{"type": "push", "fx": 0, "fy": 30}')
+            assert wait_for(lambda: front.controls.force().tolist() == [0.0, 30.0])
+        # the page closed mid-drag: the push ends with it
+        assert wait_for(lambda: not front.controls.force().any())
+    finally:
+        front.close()
+
+
+def test_port_in_use_is_one_line(tmp_path, capsys):
+    front = BrowserFrontEnd(port=0)
+    try:
+        from pathpref.apps.cli import main
+
+        study = Path(__file__).resolve().parents[1] / "examples" / "study_demo.json"
+        assert main(["study", "run", str(study), "--participant", "p", "--db",
+                     str(tmp_path / "s.sqlite"), "--port", str(front.port)]) == 2
+        err = capsys.readouterr().err
+        assert f"cannot serve on 127.0.0.1:{front.port}" in err and err.count("\n") == 1
+        assert not (tmp_path / "s.sqlite").exists()
+    finally:
+        front.close()
+
+
+def _colour_pixels(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 12) -> int:
+    return int((np.abs(img[..., :3].astype(int) - np.array(rgb)).max(axis=-1) <= tol).sum())
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium not found (make install puts it there "
+                    "with apt-get install chromium)")
+def test_browser_drag_end_to_end(tmp_path):
+    """Open the page in Chromium, start the trial, drag from the robot west, west, north,
+    north: the database holds cues in those directions, the trial's outcome and a rerun file;
+    the screenshot shows the map (obstacle), the robot and the goal; the page draws >= 20 fps."""
+    playwright = pytest.importorskip("playwright.sync_api")
+    import imageio.v2 as imageio
+
+    study = tmp_path / "one.json"
+    study.write_text(json.dumps({"trials": [{
+        "name": "left", "map": "simple", "start": [5, 2], "goal": [5, 9],
+        "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [2, 2], [2, 9], [5, 9]],
+        "time_limit_s": 8, "queries": 200}]}))
+    db = tmp_path / "b.sqlite"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pathpref", "study", "run", str(study), "--participant", "p",
+         "--db", str(db), "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True, env={**os.environ, "MUJOCO_GL": "egl"})
+    try:
+        line = proc.stdout.readline()
+        url = re.search(r"(http://\S+)", line).group(1)
+        drags = [(-1, 0), (-1, 0), (0, 1), (0, 1)]  # west, west, north, north (map frame)
+        with playwright.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1100, "height": 700})
+            page.goto(url)
+            page.wait_for_function("window.study.scene !== null", timeout=20000)
+            page.click("#start")
+            page.wait_for_function("window.study.scene.status === 'running'")
+            latency = []
+            for dx, dy in drags:
+                x, y = page.evaluate("window.study.robotPx()")
+                cues = page.evaluate("window.study.state ? window.study.state.cues : 0")
+                page.mouse.move(x, y)
+                page.mouse.down()
+                page.mouse.move(x + 110 * dx, y - 110 * dy, steps=4)  # screen y points down
+                page.wait_for_timeout(400)
+                t0 = time.perf_counter()
+                page.mouse.up()  # the cue is complete when the push ends
+                page.wait_for_function(f"window.study.state.cues > {cues}", timeout=5000,
+                                       polling="raf")
+                latency.append(time.perf_counter() - t0)
+                page.wait_for_timeout(1000)
+            fps = page.evaluate("window.study.fps")
+            shot = tmp_path / "page.png"
+            page.screenshot(path=str(shot))
+            page.wait_for_function("window.study.scene.status === 'finished'", timeout=30000)
+            browser.close()
+        out = proc.communicate(timeout=60)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    assert fps >= 20
+    # release in the page -> the page shows the cue in the belief (the issue's target: 0.2 s
+    # median; asserted loosely, the machine is shared)
+    assert sorted(latency)[len(latency) // 2] < 1.0, latency
+    print(f"drag release to cue on the page: {[round(1000 * v) for v in latency]} ms")
+    c = sqlite3.connect(db)
+    status, outcome, pushes, cues, rerun = c.execute(
+        "SELECT status, outcome, pushes, cues, rerun FROM trials").fetchone()
+    assert status == "done" and outcome in ("success", "timeout")
+    assert pushes == len(drags)
+    headings = [r[0] for r in c.execute("SELECT heading FROM trial_cues ORDER BY k")]
+    assert headings == [HEADING[d] for d in drags]
+    peaks = [r[0] for r in c.execute("SELECT peak_n FROM trial_pushes ORDER BY k")]
+    assert all(20 < p <= 60.0 + 1e-9 for p in peaks), peaks  # 110 px ~ 0.89 m x 40 N/m
+    assert Path(rerun).is_file() and Path(rerun).stat().st_size > 1000
+    img = imageio.imread(shot)
+    assert _colour_pixels(img, (0x3C, 0x3C, 0x46)) > 5000  # the table (obstacle) and walls
+    assert _colour_pixels(img, (0x1E, 0x6E, 0xDC)) > 500  # the robot
+    assert _colour_pixels(img, (0xE0, 0x21, 0x8A)) > 200  # the goal ring
