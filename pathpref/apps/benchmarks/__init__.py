@@ -3,7 +3,8 @@
 * ``maps``: per map, setup (arrangement, cost tables), belief updates, POMCP decisions (paper
   and robust search) against the paper's Table II;
 * ``scale``: the 200 x 200 floor plan (fresh process), Ray throughput, rotated 40 x 40 maps;
-* ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK.
+* ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK;
+  the dm_control tasks' step rates (``control_steps_per_s``, :mod:`.tasks`).
 
 They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
 issues are a contract: add keys, never rename them. Layout::
@@ -21,9 +22,10 @@ from typing import Any
 from .maps import bench_map, bench_pomcp, machine_info
 from .physics import bench_arm, bench_physics
 from .scale import bench_ray, bench_scale
+from .tasks import bench_tasks
 
 __all__ = ["bench_arm", "bench_map", "bench_physics", "bench_pomcp", "bench_ray", "bench_scale",
-           "machine_info", "run_benchmarks"]
+           "bench_tasks", "machine_info", "run_benchmarks"]
 
 
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
@@ -32,7 +34,7 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
     maps = maps or ["simple", "office", "classroom"]
     out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
     if physics:
-        out["physics"] = bench_physics(quick=quick)
+        out["physics"] = {**bench_physics(quick=quick), **bench_tasks(quick=quick)}
         out["arm"] = bench_arm(quick=quick)
     if not quick:
         out["scale"] = {**bench_ray(), **bench_scale()}
