@@ -247,15 +247,26 @@ def test_action_spec_is_discrete():
     spec.validate(np.int32(8))
 
 
-@pytest.mark.parametrize("env_id", ["pathpref/Navigate-v0", "pathpref/Carry-v0"])
+@pytest.mark.parametrize("env_id", ["pathpref/Navigate-v0", "pathpref/NavigateControl-v0",
+                                    "pathpref/Carry-v0"])
 def test_gymnasium_env_passes_check_env(env_id):
-    """Registered ids, Discrete(9) actions, the env checker (seeding determinism included)."""
+    """Registered ids, Discrete(9) or Box(2) actions, bounded boxes where the dm_env spec is
+    bounded, the env checker (seeding determinism included), rendering, a clear error when
+    stepping after the end."""
     gym = pytest.importorskip("gymnasium")
     from gymnasium.utils.env_checker import check_env
 
+    control = "Control" in env_id
     env = gym.make(f"pathpref_tasks:{env_id}", map="simple", method="compliant", delta_t=2,
-                   queries=20, t_max=4, render_mode="rgb_array", width=64, height=48)
-    assert env.action_space == gym.spaces.Discrete(9)
+                   queries=20, t_max=4, render_mode="rgb_array", width=64, height=48,
+                   time_limit=1.0 if control else None)
+    if control:
+        assert env.action_space == gym.spaces.Box(-0.8, 0.8, (2,), np.float32)
+    else:
+        assert env.action_space == gym.spaces.Discrete(9)
+    space = env.observation_space
+    assert space["goal_belief"].is_bounded() and space["position"].is_bounded()
+    assert space["position"].high[0] == 5.0  # the 10 x 10 map at 0.5 m per cell
     check_env(env.unwrapped, skip_render_check=False)
     a, _ = env.reset(seed=3)
     b, _ = env.reset(seed=3)
@@ -264,7 +275,25 @@ def test_gymnasium_env_passes_check_env(env_id):
     assert frame.shape == (48, 64, 3)
     done = False
     while not done:
-        _, r, term, trunc, info = env.step(8)
+        _, r, term, trunc, info = env.step(np.zeros(2, np.float32) if control else 8)
         done = term or trunc
     assert trunc or info["goal_reached"]
+    with pytest.raises(ConfigError, match="call reset"):
+        env.step(np.zeros(2, np.float32) if control else 8)
     env.close()
+
+
+def test_readme_vector_example_runs():
+    """The README's ``gymnasium.vector`` example, run as written (shortened to 20 steps)."""
+    pytest.importorskip("gymnasium")
+    from pathlib import Path
+
+    text = (Path(__file__).parents[1] / "README.md").read_text()
+    block = next(b.split("\n", 1)[1] for b in text.split("```python")[1:]
+                 if "gym.vector" in b).split("```")[0]
+    assert "range(100)" in block
+    scope: dict = {}
+    exec(block.replace("range(100)", "range(20)"), scope)
+    obs = scope["obs"]
+    assert obs["position"].shape == (4, 2) and obs["goal_belief"].shape == (4, 10)
+    assert len({tuple(p) for p in obs["goal_cells"][:, 0]}) > 1  # seeds 0..3: other goals
