@@ -220,3 +220,43 @@ def test_report_puts_grid_and_physics_side_by_side(tmp_path):
     assert "grid / mujoco side by side" in p.stdout
     row = next(ln for ln in p.stdout.splitlines() if ln.startswith("| compliant |") and "/" in ln)
     assert len(row.split("/")) == 2
+
+
+def _subparsers(parser, prefix=()):
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield (*prefix, name), sub
+                yield from _subparsers(sub, (*prefix, name))
+
+
+def test_every_option_has_help_and_its_default():
+    """Every listed option of every command has help text; one with a default (not None, not
+    a switch) shows it in --help; ``render --help`` lists no sweep-only option."""
+    import argparse
+
+    from pathpref.apps.cli import build_parser
+
+    missing = []
+    for names, sub in _subparsers(build_parser()):
+        text = " ".join(sub.format_help().split())
+        for a in sub._actions:
+            if not a.option_strings or a.help == argparse.SUPPRESS or a.dest == "help":
+                continue
+            if not a.help:
+                missing.append(f"{' '.join(names)} {a.option_strings[0]}: no help")
+            elif (a.default is not None and not isinstance(a, argparse._StoreTrueAction)
+                  and "default" not in " ".join(a.help.split())):
+                shown = " ".join(map(str, a.default)) if isinstance(a.default, list) \
+                    else str(a.default)
+                if f"(default: {shown})" not in text:
+                    missing.append(f"{' '.join(names)} {a.option_strings[0]}: no default")
+    assert not missing, missing
+    render = build_parser()._subparsers._group_actions[0].choices["render"].format_help()
+    assert "--workers" not in render and "--episode-timeout" not in render
+    assert "--size WxH" in render
+    evaluate = " ".join(build_parser()._subparsers._group_actions[0].choices["evaluate"]
+                        .format_help().split())
+    assert "(default: 50)" in evaluate and "6000" in evaluate
