@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -84,14 +85,29 @@ def test_short_rollout_video_and_rerun(tmp_path):
     spec = EpisodeSpec(map="simple", method="compliant", delta_t=2, instance=0, run=0,
                        instance_seed=seed_for(5, 0), run_seed=seed_for(5, 0, 0), sim="mujoco",
                        t_max=6)
-    rec = record_rollout(spec, video=tmp_path / "r.mp4", rerun=tmp_path / "r.rrd", width=160,
-                         height=120)
+    rec = record_rollout(spec, video=tmp_path / "r.mp4", rerun=tmp_path / "r.rrd")
     assert rec.frames > 10 and (tmp_path / "r.mp4").stat().st_size > 2000
     assert (tmp_path / "r.rrd").stat().st_size > 2000
     import imageio.v2 as iio
 
     frame = iio.get_reader(str(tmp_path / "r.mp4")).get_data(rec.frames // 2)
     assert frame.std() > 10
+    assert frame.shape == (540, 960, 3)  # the default size
+    # the recording: its entities and the blueprint stored with it (read back with the
+    # rerun CLI that rerun-sdk installs next to this Python)
+    cli = Path(sys.executable).with_name("rerun")
+    if not cli.exists():
+        pytest.skip("no rerun CLI next to this Python")
+    out = subprocess.run([str(cli), "rrd", "print", "-vvv", str(tmp_path / "r.rrd")],
+                         capture_output=True, text=True, timeout=120).stdout
+    for entity in ("/map/preference", "/map/goals", "/robot/position", "/belief/goals",
+                   "/belief/p/g0", "/belief/p_true_goal", "/force/magnitude",
+                   "/detector/active", "/camera"):
+        assert entity in out, entity
+    for view in ("P(goal) now", "P(goal) over time", "force on the handle (N)",
+                 "detector active", "camera"):
+        assert view in out, view
+    assert "Blueprint" in out
 
 
 def test_blank_video_is_refused(tmp_path):

@@ -31,6 +31,10 @@ VIDEO_FPS = 25
 DEFAULT_SIZE = (960, 540)
 HOLD_S = 2.0  # s of simulated time a push or cue stays drawn (>= 1 s of video at speed 2)
 TRAIL_EVERY_S = 0.1
+#: the rerun file's camera: every CAMERA_EVERY-th frame (5 per second of video), at the video's
+#: size or, without a video, CAMERA_SIZE
+CAMERA_EVERY = 5
+CAMERA_SIZE = (640, 360)
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -166,9 +170,11 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
     base = body.base
     every = max(1, int(round(speed / VIDEO_FPS / base.dt)))
     every_push = max(1, int(round(1.0 / VIDEO_FPS / base.dt)))  # pushes play in real time
-    maker = FrameMaker(world, body, spec, width, height) if video else None
+    # the rerun file's camera shows the video's frames, or frames of its own without a video
+    size = (width, height) if video else CAMERA_SIZE
+    maker = FrameMaker(world, body, spec, *size) if video or rerun else None
     writer = VideoWriter(video, VIDEO_FPS) if video else None
-    state: dict = {"k": 0, "frames": 0}
+    state: dict = {"k": 0, "frames": 0, "slot": 0}
     logger = None
 
     def hook(b, push) -> None:
@@ -177,11 +183,19 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
         state["k"] += 1
         if state["k"] % (every_push if push is not None else every):
             return
+        camera = logger is not None and state["slot"] % CAMERA_EVERY == 0
+        state["slot"] += 1
+        frame = None
+        if maker is not None and maker.runner is not None and (writer is not None or camera):
+            frame = maker.frame(b, push)
+            if writer is not None:
+                writer.append(frame)
+                state["frames"] += 1
         if logger is not None:
-            logger.log_frame(b.data.time, b.position, b.end_effector)
-        if maker is not None and maker.runner is not None:
-            writer.append(maker.frame(b, push))
-            state["frames"] += 1
+            force = b.sensor.force_xy(b.data) if b.sensor_model is None else b.force_estimate
+            logger.log_frame(b.data.time, b.position, b.end_effector, force=force,
+                             detector_active=b.detector.active,
+                             image=frame if camera else None)
 
     base.on_substep.append(hook)
     runner = EpisodeRunner(spec, world, body)
@@ -191,7 +205,8 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
         from ..viz.rerun_log import RerunLogger
 
         logger = RerunLogger(world, world.cells[list(runner.instance.goals)],
-                             runner.instance.true_goal, rerun, body.scene.cell_size)
+                             runner.instance.true_goal, rerun, body.scene.cell_size,
+                             preference=runner.pref)
 
     def log_step() -> None:
         if logger is None:
@@ -200,7 +215,7 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
         b = runner.policy.belief
         logger.log_step(runner.t, base.position, b.goal_marginal(),
                         float(b.goal_marginal()[runner.instance.true_goal]), b.goal_entropy(),
-                        None if cue is None else cue.impulse)
+                        None if cue is None else cue.impulse, sim_time=float(base.data.time))
 
     started = time.perf_counter()
     runner.begin()
