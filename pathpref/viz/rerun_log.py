@@ -8,9 +8,9 @@ Entities (metres; the map's y axis points up on screen, so 2-D points are logged
   arrows);
 * per decision step (timelines ``step`` and ``sim_time``): ``map/goals`` (coloured by their
   absolute probability, as in the video; the true goal labelled), ``robot/path``,
-  ``robot/position``, ``human/push`` (the detected impulse's direction, 0.6 m), ``belief/goals`` (bar
-  chart), ``belief/p/g0`` ... (each goal's probability over time), ``belief/p_true_goal`` and
-  ``belief/entropy``;
+  ``robot/position``, ``human/push`` (the detected impulse's direction, 0.6 m),
+  ``belief/goals`` (bar chart), ``belief/p/g0`` ... (each goal's probability over time),
+  ``belief/p_true_goal`` and ``belief/entropy``;
 * per rendered physics frame (timeline ``sim_time``): ``robot/trajectory``, ``force/x``,
   ``force/y``, ``force/magnitude`` (the push estimate the detector reads, N),
   ``detector/active`` (0 or 1), ``camera`` (the video frame, JPEG) and, for the arm,
