@@ -46,6 +46,17 @@ TASKS = {"navigate": Navigate, "navigate_control": NavigateControl, "carry": Car
 ENVIRONMENT_KWARGS = ("control_timestep", "flat_observation", "legacy_step")
 
 
+class Environment(control.Environment):
+    """dm_control's ``control.Environment``; an action outside the spec is refused before
+    dm_control runs (a one-line ConfigError raised from here, not from inside dm_control)."""
+
+    def step(self, action):
+        """Check ``action`` against the task's spec, then dm_control's ``step``."""
+        if not self._reset_next_step:
+            self._task.check_action(action)
+        return super().step(action)
+
+
 def _task_args(cls) -> list[str]:
     names = []
     for c in cls.__mro__:
@@ -95,8 +106,8 @@ def load(name: str, task_kwargs: dict | None = None, environment_kwargs: dict | 
         time_limit = check_number("time_limit", time_limit, 0.01, 1e7, integer=False)
     # dm_control wraps the compiled mujoco.MjModel; the wrapper copies nothing
     physics = Physics.from_model(core.MjModel(task.scene.model))
-    return control.Environment(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps,
-                               **env_args)
+    return Environment(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps,
+                       **env_args)
 
 
 try:  # Gymnasium is optional for the dm_control tasks; with it, the ids are registered

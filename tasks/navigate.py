@@ -205,9 +205,13 @@ class Navigate(base.Task):
             b.substep()
         self.filter.update()
 
+    def check_action(self, action) -> int:
+        """``action`` as 0..8 (:func:`parse_action`)."""
+        return parse_action(action)
+
     def before_step(self, action, physics: Physics) -> None:
         """Set the base's target: the grid neighbour the action names (module docstring)."""
-        a = parse_action(action)
+        a = self.check_action(action)
         self._action = STAY if a == STAY_ACTION else a
         b, cell = self.base, self.body.cell
         target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])

@@ -110,16 +110,23 @@ class NavigateControl(Navigate):
                 b.cues_while_driving.append(cue)
         self.filter.update()
 
-    def before_step(self, action, physics: Physics) -> None:
-        """Hold the commanded velocity; start the human's push when one is due."""
-        a = np.asarray(action, dtype=float) if not isinstance(action, str) else None
+    def check_action(self, action) -> np.ndarray:
+        """``action`` as ``(vx, vy)``; a one-line ConfigError naming the shape or the range."""
+        try:
+            a = None if isinstance(action, str) else np.asarray(action, dtype=float)
+        except (TypeError, ValueError):
+            a = None
         if a is None or a.shape != (2,):
             shown = repr(action)[:40] if a is None else f"an array of shape {a.shape}"
             raise ConfigError(f"action must be (vx, vy) in m/s, shape (2,), got {shown}")
         if not (np.isfinite(a).all() and (np.abs(a) <= self.v_max + 1e-9).all()):
             raise ConfigError(f"action must be (vx, vy) with each in [-{self.v_max:g}, "
                               f"{self.v_max:g}] m/s, got {np.array2string(a, precision=3)}")
-        self.command.hold(a)
+        return a
+
+    def before_step(self, action, physics: Physics) -> None:
+        """Hold the commanded velocity; start the human's push when one is due."""
+        self.command.hold(self.check_action(action))
         self._reward = 0.0
         if (self.push is None and float(self.base.data.time) >= self._next_push - 1e-9
                 and not self.runner.done):

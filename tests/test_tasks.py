@@ -173,11 +173,28 @@ def test_bad_load_arguments_name_the_field(kwargs, msg):
 @pytest.mark.parametrize("bad", [np.array([np.nan, 0.0]), np.zeros(3), np.array([2.0, 0.0]),
                                  "fast", None])
 def test_bad_control_actions_name_the_field(bad):
+    import traceback
+
     env = load("navigate_control", map="simple", seed=0, queries=20)
     env.reset()
+    t = env.physics.time()
     with pytest.raises(ConfigError, match="action must be \\(vx, vy\\)") as e:
         env.step(bad)
-    assert "\n" not in str(e.value)
+    assert "\n" not in str(e.value) and env.physics.time() == t  # refused before any step
+    frames = traceback.extract_tb(e.value.__traceback__)
+    assert not any("dm_control" in f.filename for f in frames)
+
+
+@pytest.mark.parametrize("bad", [np.nan, 9, -1, np.zeros(2), "n", None])
+def test_bad_moves_are_refused_outside_dm_control(bad):
+    import traceback
+
+    env = load("navigate", map="simple", seed=0, queries=20, t_max=3)
+    env.reset()
+    with pytest.raises(ConfigError, match="action must be 0..8") as e:
+        env.step(bad)
+    assert not any("dm_control" in f.filename
+                   for f in traceback.extract_tb(e.value.__traceback__))
 
 
 def run(env):
