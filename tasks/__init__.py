@@ -10,8 +10,9 @@ way ``dm_control.suite.load`` loads the suite's::
 
 Tasks (:data:`TASKS`): ``navigate`` (one step = one decision of ``decision_s`` physics seconds;
 actions 0..8), ``navigate_control`` (control rate, 20 Hz by default; the agent commands the
-base's velocity while the simulated human pushes) and ``carry`` (a Jaco arm on the base
-carries a tray; pushes on the tray; decision steps). ``task_kwargs`` go to the task (map,
+base's velocity while the simulated human pushes), ``carry`` (a Jaco arm on the base
+carries a tray; pushes on the tray; decision steps) and ``carry_control`` (the arm at control
+rate). ``task_kwargs`` go to the task (map,
 method, delta_t, seed, preset, queries, t_max, n_goals, coupling, force, decision_s;
 push_period_s at control rate), ``environment_kwargs`` to ``control.Environment``
 (``control_timestep`` at control rate, ``flat_observation``), ``time_limit`` (s) caps an
@@ -35,13 +36,14 @@ from dm_control.rl import control  # noqa: E402
 from pathpref.episode.spec import check_number  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 
-from .carry import Carry  # noqa: E402
+from .carry import Carry, CarryControl  # noqa: E402
 from .navigate import Navigate  # noqa: E402
 from .navigate_control import CONTROL_TIMESTEP, CONTROL_TIMESTEPS, NavigateControl  # noqa: E402
 from .stage import Physics  # noqa: E402
 
 #: task name -> task class
-TASKS = {"navigate": Navigate, "navigate_control": NavigateControl, "carry": Carry}
+TASKS = {"navigate": Navigate, "navigate_control": NavigateControl, "carry": Carry,
+         "carry_control": CarryControl}
 #: environment_kwargs the tasks accept
 ENVIRONMENT_KWARGS = ("control_timestep", "flat_observation", "legacy_step")
 

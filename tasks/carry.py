@@ -19,6 +19,7 @@ from dm_env import specs
 from pathpref.sim.arm import ArmBase, tilt_deg
 
 from .navigate import Navigate
+from .navigate_control import NavigateControl, VelocityCommand
 from .stage import Physics
 
 TILT_PENALTY = 50.0
@@ -60,3 +61,22 @@ class Carry(Navigate):
         obs["tray_tilt"] = np.array([tilt_deg(b.data, b.tray)])
         obs["tray_position"] = b.data.xpos[b.tray].copy()
         return obs
+
+
+class CarryControl(Carry, NavigateControl):
+    """``carry_control``: :mod:`.navigate_control`'s control rate with the arm of ``carry``.
+    The agent's velocity ``(vx, vy)`` becomes the whole-body IK's base target, led by one IK
+    period (``target = p + v * ik_dt``: the IK's base velocity toward it is ``v``, within the
+    base's 0.8 m/s limit); rewards and observations as ``navigate_control`` plus the tilt
+    penalty and the tray's tilt and position of ``carry``."""
+
+    def make_base(self, data) -> ArmBase:
+        """The arm base; the agent's command is held for the IK target."""
+        self.command = VelocityCommand(self.v_max)
+        return ArmBase(self.scene, data=data)
+
+    def substep(self) -> None:
+        """Lead the IK's base target by the commanded velocity, then the physics step."""
+        b = self.base
+        b.target = b.position + self.command.u[:2] * b.ik_dt
+        super().substep()

@@ -1,6 +1,6 @@
 """Gymnasium environments over the dm_control tasks: ``pathpref/Navigate-v0``,
-``pathpref/NavigateControl-v0`` and ``pathpref/Carry-v0``, registered when
-:mod:`pathpref_tasks` is imported::
+``pathpref/NavigateControl-v0``, ``pathpref/Carry-v0`` and ``pathpref/CarryControl-v0``,
+registered when :mod:`pathpref_tasks` is imported::
 
     import gymnasium as gym
     env = gym.make("pathpref_tasks:pathpref/Navigate-v0", map="simple", delta_t=5)
@@ -36,7 +36,7 @@ from pathpref.errors import ConfigError
 
 #: gymnasium id -> dm_control task name
 IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/NavigateControl-v0": "navigate_control",
-       "pathpref/Carry-v0": "carry"}
+       "pathpref/Carry-v0": "carry", "pathpref/CarryControl-v0": "carry_control"}
 
 
 def box(spec) -> spaces.Box:

@@ -28,6 +28,26 @@ class NavigateControlConformance(test_utils.EnvironmentTestMixin, unittest.TestC
                     time_limit=3.0)
 
 
+class CarryControlConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    def make_object_under_test(self):
+        return load("carry_control", task_kwargs={"map": "simple", "method": "compliant",
+                                                  "delta_t": 1, "seed": 0, "queries": 20},
+                    time_limit=2.0)
+
+
+def test_carry_control_reaches_the_goal_with_the_tray_level():
+    """The arm at control rate: the method's own velocities reach the goal; the tray stays
+    within 10 degrees of level and the reward carries the tilt penalty."""
+    env = load("carry_control", map="simple", method="compliant", delta_t=1, seed=0,
+               queries=20)
+    ts, tilt, n = env.reset(), 0.0, 0
+    while not ts.last() and n < 600:
+        ts, n = env.step(env.task.policy_action()), n + 1
+        tilt = max(tilt, float(ts.observation["tray_tilt"][0]))
+    assert env.task.runner.result.goal_reached and ts.discount == 0.0
+    assert tilt < 10.0 and env.control_timestep() == pytest.approx(0.02)
+
+
 class CarryConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
     def make_object_under_test(self):
         return load("carry", task_kwargs={"map": "simple", "method": "compliant",
@@ -265,7 +285,7 @@ def test_action_spec_is_discrete():
 
 
 @pytest.mark.parametrize("env_id", ["pathpref/Navigate-v0", "pathpref/NavigateControl-v0",
-                                    "pathpref/Carry-v0"])
+                                    "pathpref/Carry-v0", "pathpref/CarryControl-v0"])
 def test_gymnasium_env_passes_check_env(env_id):
     """Registered ids, Discrete(9) or Box(2) actions, bounded boxes where the dm_env spec is
     bounded, the env checker (seeding determinism included), rendering, a clear error when
