@@ -27,11 +27,12 @@ from __future__ import annotations
 import collections
 from typing import Any
 
+import mujoco
 import numpy as np
 from dm_env import specs
 
 from pathpref.episode.spec import check_number
-from pathpref.errors import ConfigError
+from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.grid import STAY
 from pathpref.sim.controller import TrackingController
 from pathpref.sim.mobile_base import MobileBase
@@ -63,6 +64,53 @@ class VelocityCommand:
         return self.u
 
 
+class HeldCommandBase(MobileBase):
+    """The planar base at control rate: the actuator commands are set once per control step
+    (:meth:`hold`, a zero-order hold of the agent's velocity and the yaw regulation) and a
+    physics step is the push, ``mj_step``, the ideal sensor's force and the detector, and the
+    hooks; a non-finite state is checked once per control step (:meth:`check_finite`). With a
+    faulty sensor model every step goes through ``MobileBase.substep`` (its estimator)."""
+
+    def __init__(self, scene, v_max: float, **kwargs: Any):
+        self.command = VelocityCommand(v_max)
+        super().__init__(scene, controller=self.command, **kwargs)
+        d = self.data
+        # views into MjData (its buffers stay put): the sensor's rotation and reading
+        self._R = d.site_xmat[self.sensor.site].reshape(3, 3)[:2]
+        self._reading = d.sensordata[self.sensor.adr:self.sensor.adr + 3]
+        self._pushed = False
+
+    def hold(self, v: np.ndarray) -> None:
+        """Command ``v = (vx, vy)`` (m/s) and ``wz = -k_yaw yaw`` until the next call."""
+        self.command.hold(v)
+        self.data.ctrl[self.actuators] = self.command.command(None, float(
+            self.data.qpos[self.yaw]), None)
+
+    def substep(self, push=None):
+        """One physics step (class docstring); the detected cue or None."""
+        if self.sensor_model is not None:
+            return super().substep(push)
+        d = self.data
+        if push is not None and push.active(float(d.time)):
+            push.apply(d, self.pushed_body)
+            self._pushed = True
+        elif self._pushed and not self.external_forces:
+            d.xfrc_applied[self.pushed_body, :] = 0.0
+            self._pushed = False
+        mujoco.mj_step(self.model, d)
+        self.force_estimate = -(self._R @ self._reading)
+        cue = self.detector.update(self.force_estimate)
+        for hook in self.on_substep:
+            hook(self, push)
+        return cue
+
+    def check_finite(self) -> None:
+        """An EpisodeError when the simulation diverged (as ``MobileBase.substep`` checks)."""
+        d = self.data
+        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
+            raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
+
+
 class NavigateControl(Navigate):
     """The ``navigate_control`` task (module docstring)."""
 
@@ -80,10 +128,11 @@ class NavigateControl(Navigate):
         """The default time limit: ``T_max`` decisions' worth of physics."""
         return self.template.t_max * self.decision_s
 
-    def make_base(self, data) -> MobileBase:
-        """The base with :class:`VelocityCommand` as its onboard loop."""
-        self.command = VelocityCommand(self.v_max)
-        return MobileBase(self.scene, controller=self.command, data=data)
+    def make_base(self, data) -> HeldCommandBase:
+        """The base with the agent's command held over each control step."""
+        base = HeldCommandBase(self.scene, self.v_max, data=data)
+        self.command = base.command
+        return base
 
     def initialize_episode(self, physics: Physics) -> None:
         """Draw the episode (as ``navigate``); the first push plays during the first steps,
@@ -108,7 +157,7 @@ class NavigateControl(Navigate):
             cue = b.substep()
             if cue is not None:
                 b.cues_while_driving.append(cue)
-        self.filter.update()
+        self.filter.update(b.force_estimate if isinstance(b, HeldCommandBase) else None)
 
     def check_action(self, action) -> np.ndarray:
         """``action`` as ``(vx, vy)``; a one-line ConfigError naming the shape or the range."""
@@ -126,7 +175,11 @@ class NavigateControl(Navigate):
 
     def before_step(self, action, physics: Physics) -> None:
         """Hold the commanded velocity; start the human's push when one is due."""
-        self.command.hold(self.check_action(action))
+        a = self.check_action(action)
+        if isinstance(self.base, HeldCommandBase):
+            self.base.hold(a)
+        else:  # the arm (carry_control) reads the command for its IK target
+            self.command.hold(a)
         self._reward = 0.0
         if (self.push is None and float(self.base.data.time) >= self._next_push - 1e-9
                 and not self.runner.done):
@@ -136,6 +189,8 @@ class NavigateControl(Navigate):
     def after_step(self, physics: Physics) -> None:
         """A cell change is a step of the runner (success rule, goal, log) and earns the
         reward of its grid move."""
+        if isinstance(self.base, HeldCommandBase):
+            self.base.check_finite()
         r, cell = self.runner, self.base.cell
         if cell == r.cell:
             return

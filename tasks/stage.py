@@ -121,9 +121,11 @@ class ForceFilter:
         self._R = d.site_xmat[s.site].reshape(3, 3)[:2]
         self._reading = d.sensordata[s.adr:s.adr + 3]
 
-    def update(self) -> None:
-        """Feed this physics step's estimate (the raw sensor for the ideal model, as
-        ``HandleSensor.force_xy``: minus the reading rotated into the world frame)."""
+    def update(self, raw: np.ndarray | None = None) -> None:
+        """Feed this physics step's estimate: ``raw`` when the caller has it, else the raw
+        sensor for the ideal model (as ``HandleSensor.force_xy``: minus the reading rotated
+        into the world frame) or the estimator's output."""
         b = self.base
-        raw = -(self._R @ self._reading) if b.sensor_model is None else b.force_estimate
+        if raw is None:
+            raw = -(self._R @ self._reading) if b.sensor_model is None else b.force_estimate
         self.f += self.alpha * (raw - self.f)
