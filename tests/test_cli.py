@@ -186,6 +186,8 @@ def test_bench_json_keys():
     ph = res["physics"]
     assert ph["cue_sector_accuracy_no_noise"] == 1.0 and ph["cue_sector_accuracy"] >= 0.9
     assert ph["false_cues_per_hour"] == 0 and ph["episode_s"] > 0 and ph["render_fps"] > 0
+    assert ph["render_fps_video"] > 0 and ph["control_steps_per_s"] > 0
+    assert ph["decision_steps_per_s"] > 0 and ph["control_steps_per_s_20hz"] > 0
     arm = res["arm"]
     assert arm["ik_solves_per_s"] > 0 and arm["cue_sector_accuracy"] >= 0.9
     assert arm["tilt_rms_deg"] <= 3.0 and arm["max_penetration_mm"] <= 5.0
