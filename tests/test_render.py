@@ -158,3 +158,29 @@ def test_parse_size():
     from pathpref.apps.rollout import DEFAULT_SIZE, parse_size
 
     assert parse_size("1280x720") == (1280, 720) and parse_size("960X540") == DEFAULT_SIZE
+
+
+def test_push_arrow_is_one_metre_per_30_newtons(worlds):
+    """The push arrow ends at the pushed body and is 1 m long per 30 N (MuJoCo draws an
+    arrow geom half as long as its size, which the renderer compensates)."""
+    import mujoco
+
+    sc = build_scene(worlds["simple"])
+    d = mujoco.MjData(sc.model)
+    mujoco.mj_forward(sc.model, d)
+    r = RolloutRenderer(sc, 600, 600)
+    red_rgba = np.array([[1.0, 0.0, 0.0, 1.0]] * 2)
+    discs, _ = r.views(d, Overlay(goal_cells=np.array([[1, 1], [10, 1]]), goal_rgba=red_rgba))
+    arrow, _ = r.views(d, Overlay(push_origin=np.array([3.0, 0.75, 0.05]),
+                                  push_force=np.array([30.0, 0.0, 0.0])))
+    r.close()
+
+    def red_x(img, lo=100):
+        m = (img[..., 0] > lo) & (img[..., 1] < 80) & (img[..., 2] < 80)
+        xs = np.nonzero(m)[1]
+        return xs.min(), xs.max()
+
+    a, b = red_x(discs)
+    px_per_m = (b - a) / (4.5 + 0.3)  # centres 4.5 m apart, discs 0.3 m across
+    lo, hi = red_x(arrow, 180)
+    assert (hi - lo) / px_per_m == pytest.approx(1.0, abs=0.12)

@@ -125,15 +125,16 @@ class FrameMaker:
                     robot_xy=b.position.copy())
         push_n = None
         if self.push is not None and t - self.push[0] <= HOLD_S:
-            t0, origin, peak, live = self.push
+            t0, _, peak, live = self.push
             now = live.force(t) if live.active(t) else None
-            o.push_origin = origin
+            o.push_origin = b.data.xpos[b.pushed_body].copy()  # it follows the robot
             o.push_force = now if now is not None and np.linalg.norm(now) > 0.5 else peak
             o.push_alpha = 1.0 if now is not None else 0.7
             push_n = float(np.linalg.norm(o.push_force))
         cue_heading = None
         if self.cue is not None and t - self.cue[0] <= HOLD_S:
-            o.cue_origin, o.cue_direction, cue_heading = self.cue[1], self.cue[2], self.cue[3]
+            o.cue_origin, o.cue_direction, cue_heading = b.position.copy(), self.cue[2], \
+                self.cue[3]
         top, persp = self.renderer.views(b.data, o)
         panel = None
         if self.renderer.column >= 16 and self.height - self.renderer.persp_h >= 16:

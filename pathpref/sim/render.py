@@ -23,6 +23,7 @@ from . import GL_HELP
 from .scene import Scene
 
 PUSH_M_PER_N = 1.0 / 30.0  # arrow length per newton of push
+CUE_ARROW_M = 0.8  # length of the detected cue's arrow
 #: the scene's lights brighten a horizontal matte surface seen from above by 1.65x
 #: (measured: rgb (71, 41, 120) renders as (119, 69, 198)); overlay colours meant as given
 #: are scaled by its inverse
@@ -80,9 +81,15 @@ def _add_geom(scn: mujoco.MjvScene, gtype, size, pos, rgba, mat=None,
 
 
 def _add_line(scn, a, b, width, rgba, gtype=mujoco.mjtGeom.mjGEOM_CAPSULE) -> None:
+    """A capsule, line or arrow from ``a`` to ``b`` (an arrow's head at ``b``)."""
     i = _add_geom(scn, gtype, [0, 0, 0], [0, 0, 0], rgba)
     if i >= 0:
-        mujoco.mjv_connector(scn.geoms[i], gtype, width, np.asarray(a, float), np.asarray(b, float))
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        if gtype == mujoco.mjtGeom.mjGEOM_ARROW:
+            # MuJoCo draws an arrow of size[2] = |b - a| half as long (measured: a 1 m arrow
+            # covers 0.53 m of the top view), so it is given twice the length
+            b = a + 2.0 * (b - a)
+        mujoco.mjv_connector(scn.geoms[i], gtype, width, a, b)
 
 
 class RolloutRenderer:
@@ -160,7 +167,7 @@ class RolloutRenderer:
                           gtype=mujoco.mjtGeom.mjGEOM_ARROW)
         if o.cue_origin is not None and o.cue_direction is not None:
             d = np.asarray(o.cue_direction, float)
-            d = d / max(np.linalg.norm(d), 1e-9) * 1.2 * cs * 2
+            d = d / max(np.linalg.norm(d), 1e-9) * CUE_ARROW_M
             a = np.array([o.cue_origin[0], o.cue_origin[1], 0.5])
             _add_line(scn, a, a + np.array([d[0], d[1], 0.0]), 0.06,
                       [0.1, 0.85, 0.3, o.cue_alpha], gtype=mujoco.mjtGeom.mjGEOM_ARROW)
