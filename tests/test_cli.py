@@ -262,3 +262,18 @@ def test_every_option_has_help_and_its_default():
     evaluate = " ".join(build_parser()._subparsers._group_actions[0].choices["evaluate"]
                         .format_help().split())
     assert "(default: 50)" in evaluate and "6000" in evaluate
+
+
+def test_version(capsys):
+    """``pathpref --version`` prints the package's version (the one pathpref.__version__ and
+    the installed metadata carry)."""
+    import pytest
+
+    import pathpref
+    from pathpref.apps.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"pathpref {pathpref.__version__}"
+    assert pathpref.__version__ == "0.2.0"
