@@ -1,33 +1,115 @@
-"""dm_control tasks of pathpref, installed as the package ``pathpref_tasks``.
+"""dm_control tasks of pathpref, installed as the package ``pathpref_tasks``; loaded the
+way ``dm_control.suite.load`` loads the suite's::
 
     from pathpref_tasks import load
-    env = load("navigate", map="simple", method="path_preference", delta_t=5, seed=0)
+    env = load("navigate", task_kwargs={"map": "simple", "method": "path_preference",
+                                        "delta_t": 5, "seed": 0})
     ts = env.reset()
     while not ts.last():
-        ts = env.step(env.task.policy_action())   # or any agent's action in 0..7
+        ts = env.step(env.task.policy_action())   # or any agent's action
 
-Tasks: ``navigate`` (the planar base, human force cues through its handle) and ``carry``
-(a Jaco arm on the base carries a tray; pushes on the tray; mink IK).
+Tasks (:data:`TASKS`): ``navigate`` (one step = one decision of ``decision_s`` physics seconds;
+actions 0..8), ``navigate_control`` (control rate, 20 Hz by default; the agent commands the
+base's velocity while the simulated human pushes), ``carry`` (a Jaco arm on the base
+carries a tray; pushes on the tray; decision steps) and ``carry_control`` (the arm at control
+rate). ``task_kwargs`` go to the task (map,
+method, delta_t, seed, preset, queries, t_max, n_goals, coupling, force, decision_s;
+push_period_s at control rate), ``environment_kwargs`` to ``control.Environment``
+(``control_timestep`` at control rate, ``flat_observation``), ``time_limit`` (s) caps an
+episode. Task arguments may also be given as keywords (``load("navigate", map="office")``).
+Unknown names and bad values are one-line :class:`~pathpref.errors.ConfigError` s (a
+``ValueError``).
 """
 
 from __future__ import annotations
 
+import inspect
+import math
 import os
+from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+from dm_control.mujoco.wrapper import core  # noqa: E402
+from dm_control.rl import control  # noqa: E402
+
+from pathpref.episode.spec import check_number  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 
-from . import carry, navigate  # noqa: E402
+from .carry import Carry, CarryControl  # noqa: E402
+from .navigate import Navigate  # noqa: E402
+from .navigate_control import CONTROL_TIMESTEP, CONTROL_TIMESTEPS, NavigateControl  # noqa: E402
+from .stage import Physics  # noqa: E402
 
-TASKS = {"navigate": navigate.load, "carry": carry.load}
+#: task name -> task class
+TASKS = {"navigate": Navigate, "navigate_control": NavigateControl, "carry": Carry,
+         "carry_control": CarryControl}
+#: environment_kwargs the tasks accept
+ENVIRONMENT_KWARGS = ("control_timestep", "flat_observation", "legacy_step")
 
 
-def load(name: str, **kwargs):
-    """Build a dm_env environment by task name (see module docstring for the arguments)."""
+class Environment(control.Environment):
+    """dm_control's ``control.Environment``; an action outside the spec is refused before
+    dm_control runs (a one-line ConfigError raised from here, not from inside dm_control)."""
+
+    def step(self, action):
+        """Check ``action`` against the task's spec, then dm_control's ``step``."""
+        if not self._reset_next_step:
+            self._task.check_action(action)
+        return super().step(action)
+
+
+def _task_args(cls) -> list[str]:
+    names = []
+    for c in cls.__mro__:
+        if c.__init__ is object.__init__ or not c.__module__.startswith(__name__):
+            continue
+        names += [p for p in inspect.signature(c.__init__).parameters
+                  if p not in ("self", "kwargs", "task") and p not in names]
+    return names
+
+
+def load(name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
+         time_limit: float | None = None, **kwargs: Any) -> control.Environment:
+    """The dm_control environment of task ``name`` (module docstring)."""
     if name not in TASKS:
-        raise ConfigError(f"unknown task '{name}'; choose one of {', '.join(TASKS)}")
-    return TASKS[name](**kwargs)
+        raise ConfigError(f"unknown task {name!r}; choose one of {', '.join(TASKS)}")
+    cls = TASKS[name]
+    args = {**(task_kwargs or {}), **kwargs}
+    allowed = _task_args(cls)
+    for k in args:
+        if k not in allowed:
+            raise ConfigError(f"unknown argument {k!r} of task {name!r}; choose from "
+                              f"{', '.join(allowed)}")
+    env_args = dict(environment_kwargs or {})
+    for k in env_args:
+        if k not in ENVIRONMENT_KWARGS:
+            raise ConfigError(f"unknown environment_kwargs {k!r}; choose from "
+                              f"{', '.join(ENVIRONMENT_KWARGS)}")
+    task = cls(**args)
+    timestep = task.dt
+    if cls.decides:
+        if "control_timestep" in env_args:
+            raise ConfigError(f"task {name!r} steps one decision: set task_kwargs "
+                              "{'decision_s': ...}, not environment_kwargs control_timestep")
+        n_sub_steps = task.n_sub_steps
+    else:
+        lo, hi = CONTROL_TIMESTEPS
+        dt = check_number("control_timestep", env_args.pop("control_timestep",
+                                                           CONTROL_TIMESTEP), lo, hi,
+                          integer=False)
+        n_sub_steps = int(round(dt / timestep))
+        if abs(n_sub_steps * timestep - dt) > 1e-9:
+            raise ConfigError(f"control_timestep must be a multiple of the physics step "
+                              f"{timestep:g} s in [{lo:g}, {hi:g}], got {dt:g}")
+    if time_limit is None:
+        time_limit = getattr(task, "time_limit_s", math.inf)
+    elif time_limit != math.inf:
+        time_limit = check_number("time_limit", time_limit, 0.01, 1e7, integer=False)
+    # dm_control wraps the compiled mujoco.MjModel; the wrapper copies nothing
+    physics = Physics.from_model(core.MjModel(task.scene.model))
+    return Environment(physics, task, time_limit=time_limit, n_sub_steps=n_sub_steps,
+                       **env_args)
 
 
 try:  # Gymnasium is optional for the dm_control tasks; with it, the ids are registered

@@ -2,10 +2,11 @@
 human's preferred path; the human pushes the tray (end-effector), as people pushed the arm
 in Bajcsy et al.
 
-Everything of :mod:`navigate` (actions, observations, termination, seeding), with the arm
-driven by whole-body mink IK (:mod:`pathpref.sim.arm`), plus: the reward subtracts
-``TILT_PENALTY * tilt^2`` (tilt in radians, RMS over the step's physics steps) and the
-observation adds the tray's tilt (degrees) and position (m).
+Everything of :mod:`.navigate` (decision steps of ``decision_s`` physics seconds, actions,
+observations, termination, seeding), with the arm driven by whole-body mink IK
+(:mod:`pathpref.sim.arm`), plus: the reward subtracts ``TILT_PENALTY * mean(tilt^2)`` (tilt in
+radians over the step's physics steps) and the observation adds the tray's tilt (degrees) and
+position (m).
 """
 
 from __future__ import annotations
@@ -15,7 +16,11 @@ import collections
 import numpy as np
 from dm_env import specs
 
-from .navigate import Navigate, Physics, environment
+from pathpref.sim.arm import ArmBase, tilt_deg
+
+from .navigate import Navigate
+from .navigate_control import NavigateControl, VelocityCommand
+from .stage import Physics
 
 TILT_PENALTY = 50.0
 
@@ -26,33 +31,52 @@ class Carry(Navigate):
     def __init__(self, **kwargs):
         super().__init__(task="carry", **kwargs)
 
+    def make_base(self, data) -> ArmBase:
+        """The base with the arm and tray on the Environment's ``MjData``."""
+        return ArmBase(self.scene, data=data)
+
     def before_step(self, action, physics: Physics) -> None:
-        """The navigate step, minus the tilt penalty over its physics steps."""
-        base = self.runner.body.base
-        start = len(base.tilts)
+        """The navigate step's target; remember where this step's tilt samples start."""
         super().before_step(action, physics)
-        tilts = np.radians(base.tilts[start:]) if len(base.tilts) > start else np.zeros(1)
-        self._reward -= TILT_PENALTY * float(np.mean(np.square(tilts)))
+        self._tilt_start = len(self.base.tilts)
+
+    def get_reward(self, physics: Physics) -> float:
+        """The navigate reward minus the tilt penalty over the step's physics steps."""
+        tilts = np.radians(self.base.tilts[self._tilt_start:])
+        penalty = TILT_PENALTY * float(np.mean(np.square(tilts))) if len(tilts) else 0.0
+        return super().get_reward(physics) - penalty
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
-        """Navigate's observations plus the tray's tilt and position."""
+        """Navigate's observations plus the tray's tilt (0..180 degrees) and position."""
         obs = super().observation_spec(physics)
-        obs["tray_tilt"] = specs.Array(shape=(1,), dtype=np.float64, name="tray_tilt")
+        obs["tray_tilt"] = specs.BoundedArray(shape=(1,), dtype=np.float64, minimum=0.0,
+                                              maximum=180.0, name="tray_tilt")
         obs["tray_position"] = specs.Array(shape=(3,), dtype=np.float64, name="tray_position")
         return obs
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
         """Navigate's observations plus the tray's tilt (degrees) and position (m)."""
         obs = super().get_observation(physics)
-        base = self.runner.body.base
-        from pathpref.sim.arm import tilt_deg
-
-        obs["tray_tilt"] = np.array([tilt_deg(base.data, base.tray)])
-        obs["tray_position"] = base.data.xpos[base.tray].copy()
+        b = self.base
+        obs["tray_tilt"] = np.array([tilt_deg(b.data, b.tray)])
+        obs["tray_position"] = b.data.xpos[b.tray].copy()
         return obs
 
 
-def load(map: str = "simple", method: str = "path_preference", delta_t: int = 5, seed: int = 0,
-         **kwargs):
-    """The ``carry`` environment (see module docstring)."""
-    return environment(Carry(map=map, method=method, delta_t=delta_t, seed=seed, **kwargs))
+class CarryControl(Carry, NavigateControl):
+    """``carry_control``: :mod:`.navigate_control`'s control rate with the arm of ``carry``.
+    The agent's velocity ``(vx, vy)`` becomes the whole-body IK's base target, led by one IK
+    period (``target = p + v * ik_dt``: the IK's base velocity toward it is ``v``, within the
+    base's 0.8 m/s limit); rewards and observations as ``navigate_control`` plus the tilt
+    penalty and the tray's tilt and position of ``carry``."""
+
+    def make_base(self, data) -> ArmBase:
+        """The arm base; the agent's command is held for the IK target."""
+        self.command = VelocityCommand(self.v_max)
+        return ArmBase(self.scene, data=data)
+
+    def substep(self) -> None:
+        """Lead the IK's base target by the commanded velocity, then the physics step."""
+        b = self.base
+        b.target = b.position + self.command.u[:2] * b.ik_dt
+        super().substep()

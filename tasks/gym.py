@@ -1,5 +1,6 @@
-"""Gymnasium environments over the dm_control tasks: ``pathpref/Navigate-v0`` and
-``pathpref/Carry-v0``, registered when :mod:`pathpref_tasks` is imported::
+"""Gymnasium environments over the dm_control tasks: ``pathpref/Navigate-v0``,
+``pathpref/NavigateControl-v0``, ``pathpref/Carry-v0`` and ``pathpref/CarryControl-v0``,
+registered when :mod:`pathpref_tasks` is imported::
 
     import gymnasium as gym
     env = gym.make("pathpref_tasks:pathpref/Navigate-v0", map="simple", delta_t=5)
@@ -7,12 +8,20 @@
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
 (``"pathpref_tasks:"`` imports the package first, so the ids exist; after ``import
-pathpref_tasks`` the bare id works too.) One step is one decision of the dm_control task, the
-same reward and termination: ``terminated`` at the goal (dm_env discount 0), ``truncated`` after
-``T_max`` decisions (discount 1). ``reset(seed=s)`` starts the episode sequence of
-``load(seed=s)`` again, so a seed gives the same episode every time; ``reset()`` moves to the
-next episode. Observations are the dm_env ones, as float64 boxes; ``render_mode="rgb_array"``
-renders the top camera.
+pathpref_tasks`` the bare id works too.) One step is one step of the dm_control task (a
+decision; at control rate a velocity command, a ``Box(-0.8, 0.8, (2,))``), the same reward and
+termination: ``terminated`` at the goal (dm_env discount 0), ``truncated`` at the time or step
+limit (discount 1); stepping after either without ``reset`` is a one-line error.
+``reset(seed=s)`` starts the episode sequence of ``load(seed=s)`` again, so a seed gives the
+same episode every time; ``reset()`` moves to the next episode. Observations are the dm_env
+ones, as float64 boxes bounded where the spec is; ``render_mode="rgb_array"`` renders the top
+camera. Keyword arguments are the task's (``task_kwargs``), plus ``environment_kwargs`` and
+``time_limit`` of :func:`pathpref_tasks.load`.
+
+Vectorised (each sub-environment gets its own seed from ``reset(seed=...)``)::
+
+    envs = gym.vector.SyncVectorEnv([lambda: gym.make("pathpref/Navigate-v0", map="simple")
+                                     for _ in range(4)])
 """
 
 from __future__ import annotations
@@ -26,7 +35,16 @@ from gymnasium import spaces
 from pathpref.errors import ConfigError
 
 #: gymnasium id -> dm_control task name
-IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/Carry-v0": "carry"}
+IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/NavigateControl-v0": "navigate_control",
+       "pathpref/Carry-v0": "carry", "pathpref/CarryControl-v0": "carry_control"}
+
+
+def box(spec) -> spaces.Box:
+    """The Box of a dm_env spec: its bounds for a ``BoundedArray``, else unbounded."""
+    lo, hi = getattr(spec, "minimum", -np.inf), getattr(spec, "maximum", np.inf)
+    return spaces.Box(np.broadcast_to(np.asarray(lo, np.float64), spec.shape).copy(),
+                      np.broadcast_to(np.asarray(hi, np.float64), spec.shape).copy(),
+                      shape=spec.shape, dtype=np.float64)
 
 
 class PathprefEnv(gym.Env):
@@ -35,36 +53,55 @@ class PathprefEnv(gym.Env):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
 
     def __init__(self, task: str = "navigate", render_mode: str | None = None,
-                 width: int = 480, height: int = 360, **task_kwargs: Any):
+                 width: int = 480, height: int = 360, environment_kwargs: dict | None = None,
+                 time_limit: float | None = None, **task_kwargs: Any):
         from . import load
 
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.task_name, self.task_kwargs = task, dict(task_kwargs)
         self.render_mode, self.width, self.height = render_mode, int(width), int(height)
-        self._load = load
-        self._env = load(task, **{**self.task_kwargs, "seed": self.task_kwargs.get("seed", 0)})
-        self.action_space = spaces.Discrete(self._env.action_spec().num_values)
+        self._load = lambda seed: load(task, task_kwargs={**self.task_kwargs, "seed": seed},
+                                       environment_kwargs=environment_kwargs,
+                                       time_limit=time_limit)
+        self._env = self._load(self.task_kwargs.get("seed", 0))
+        self._over = False
+        a = self._env.action_spec()
+        self.action_space = spaces.Discrete(a.num_values) if hasattr(a, "num_values") else \
+            spaces.Box(np.float32(a.minimum), np.float32(a.maximum), shape=a.shape,
+                       dtype=np.float32)
         self.observation_space = spaces.Dict({
-            k: spaces.Box(-np.inf, np.inf, shape=v.shape, dtype=np.float64)
-            for k, v in self._env.observation_spec().items()})
+            k: box(v) for k, v in self._env.observation_spec().items()})
+        self.metadata = {**self.metadata,
+                         "render_fps": max(1, round(1.0 / self._env.control_timestep()))}
 
     def _obs(self, ts) -> dict[str, np.ndarray]:
-        return {k: np.asarray(v, dtype=np.float64).reshape(self.observation_space[k].shape)
-                for k, v in ts.observation.items()}
+        out = {}
+        for k, v in ts.observation.items():
+            space = self.observation_space[k]
+            out[k] = np.clip(np.asarray(v, dtype=np.float64).reshape(space.shape), space.low,
+                             space.high)
+        return out
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode: the first of ``load(seed=seed)`` when a seed is given, else the
         next one."""
         super().reset(seed=seed)
         if seed is not None:
-            self._env = self._load(self.task_name, **{**self.task_kwargs, "seed": int(seed)})
+            self._env = self._load(int(seed))
         ts = self._env.reset()
+        self._over = False
         return self._obs(ts), self._info()
 
     def step(self, action):
-        """One decision (``action`` in 0..8; 8 = stay)."""
+        """One step (a decision, ``action`` in 0..8 with 8 = stay; at control rate a velocity
+        ``(vx, vy)``)."""
+        if self._over:
+            raise ConfigError("the episode is over (terminated or truncated); call reset()")
+        if isinstance(self.action_space, spaces.Box):
+            action = np.asarray(action, dtype=np.float64)
         ts = self._env.step(action)
+        self._over = ts.last()
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
         return self._obs(ts), float(ts.reward), terminated, truncated, self._info()

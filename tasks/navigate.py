@@ -1,30 +1,37 @@
-"""``navigate``: reach an unknown goal by the human's preferred path, with force cues.
+"""``navigate``: reach an unknown goal by the human's preferred path, with force cues, one
+decision per environment step.
 
-A dm_env environment (dm_control's ``control.Environment``). One environment step is one
-decision step of the paper: the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay)
-is a move to a neighbouring cell that the base's controller tracks at physics rate; then, when an
-input is due, the simulated human pushes the handle and the robot's detector and belief process
-it.
+A dm_env environment (dm_control's ``control.Environment``) by the suite's contract: the task
+sets controls in ``before_step`` and the Environment advances the physics (see
+:mod:`.stage`). One environment step is one decision step of the paper and lasts exactly
+``decision_s`` seconds of physics (``control_timestep()``, 2.5 s by default):
 
-Observations: the base's position (m), its cell, the heading the robot detected for the coming
-step (one-hot over 8 headings, all zero when none), the goal belief, the candidates' cells,
-the current polytope and the joint entropy ``H(g, p_v)``.
+1. *move* (at most ``decision_s - 0.7 s``, and the controller's 3 s): the agent's action
+   (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a move to the grid neighbour of SPEC 3 (the
+   current cell when the grid move is blocked); the base's tracking controller drives there at
+   physics rate until it settles;
+2. *push* (when the human's input is due for the next decision, at most 0.7 s): the simulated
+   human pushes the handle where the base stopped; the robot's detector, fed only by its force
+   sensor, reports the heading and the belief is updated;
+3. *hold* the cell for the rest of the step.
 
-Reward (paper, SPEC 6, with the human's true preference): ``-c(move)`` plus ``R_p`` or ``R_n`` on
-a polytope change plus ``R_g`` on reaching the goal. The episode ends at the goal (discount 0)
-or after ``T_max`` decisions (discount 1, a time limit). Seeds: the ``k``-th episode after
-``load(seed=s)`` draws its instance from ``seed_for(s, k)`` and its run from
-``seed_for(s, k, 0)``, so a task is reproducible episode by episode.
+The episode's first push happens in ``reset`` (physics time runs there too). Observations:
+the base's position (m), its cell, the heading detected for the coming step (one-hot over 8
+headings, zero when none), the filtered force (N, world frame, low-pass with tau = 0.05 s),
+whether the detector is active, the goal belief, the candidates' cells, the current polytope
+and the joint entropy ``H(g, p_v)``. Bounded observations are ``BoundedArray`` s.
 
-``env.task.policy_action()`` is the loaded method's own choice (its planner and belief), which
-makes the environment runnable end to end without an external agent.
+Reward: :func:`pathpref.planning.pomdp.transition_reward` (the paper's, SPEC 6, the one rule
+the POMDP uses) with the human's true preference. The episode ends at the goal (discount 0) or
+after ``T_max`` decisions (discount 1). Seeds: the ``k``-th episode after ``load(seed=s)``
+draws its instance from ``seed_for(s, k)`` and its run from ``seed_for(s, k, 0)``, so a task
+is reproducible episode by episode. ``env.task.policy_action()`` is the loaded method's own
+choice (its planner and belief), so the environment runs end to end without an agent.
 
-``map`` is a built-in name, a JSON path, a map dictionary (the format of
-:mod:`pathpref.geometry.maps`; its world is built directly, nothing is written) or a
-:class:`~pathpref.geometry.maps.MapSpec`. A map whose arrangement may exceed
+``map`` is a built-in name, a JSON path, a map dictionary or a
+:class:`~pathpref.geometry.maps.MapSpec`; a map whose arrangement may exceed
 :data:`~pathpref.geometry.arrangement.MAX_POLYTOPES` is refused unless ``force=True``. Bad
-arguments (``delta_t="5"``, ``seed=-1``) and bad actions (an array of two numbers, a string,
-``None``, ``2**70``) are one-line :class:`~pathpref.errors.ConfigError` s.
+arguments and actions are one-line :class:`~pathpref.errors.ConfigError` s.
 """
 
 from __future__ import annotations
@@ -32,27 +39,35 @@ from __future__ import annotations
 import collections
 import math
 import numbers
+from dataclasses import asdict
 from typing import Any
 
 import numpy as np
-from dm_control import mujoco as dm_mujoco
-from dm_control.mujoco.wrapper import core
-from dm_control.rl import control
 from dm_control.suite import base
 from dm_env import specs
 
 from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
-from pathpref.episode.spec import check_limit
-from pathpref.errors import ConfigError
+from pathpref.episode.spec import check_limit, check_number
+from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.arrangement import check_arrangement_size
 from pathpref.geometry.grid import STAY
 from pathpref.geometry.maps import MapSpec, parse_map
 from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
-from pathpref.sim.body import MujocoBody, scene_for
+from pathpref.sim.body import scene_for
+from pathpref.sim.force_cue import HumanPush
+from pathpref.sim.mobile_base import MobileBase
+from pathpref.sim.scene import Scene
+
+from .stage import ForceFilter, Physics, PushPhase, StagedBody
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
+#: metres per grid unit of the scenes
+CELL_SIZE = 0.5
+#: physics seconds of one decision step (the default ``decision_s``)
+DECISION_S = 2.5
+MOVE, PUSH, HOLD = "move", "push", "hold"
 
 
 def task_world(map: Any, force: bool = False) -> tuple[World, str]:
@@ -90,21 +105,21 @@ def parse_action(action: Any) -> int:
     return int(a)
 
 
-class Physics(dm_mujoco.Physics):
-    """Named accessors for the navigation scene."""
-
-    def base_position(self) -> np.ndarray:
-        """The base's planar position (m), read from the joints ``slide_x``, ``slide_y``."""
-        return self.named.data.qpos[["slide_x", "slide_y"]].copy()
+def bounded(shape: tuple, lo: float, hi: float, name: str) -> specs.BoundedArray:
+    """A float64 ``BoundedArray`` spec."""
+    return specs.BoundedArray(shape=shape, dtype=np.float64, minimum=lo, maximum=hi, name=name)
 
 
 class Navigate(base.Task):
     """The ``navigate`` task (module docstring); ``task="carry"`` gives the arm's scene."""
 
+    #: one environment step is one decision (False: control rate, :mod:`.control`)
+    decides = True
+
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
-                 task: str = "navigate", force: bool = False):
+                 task: str = "navigate", force: bool = False, decision_s: float = DECISION_S):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -116,17 +131,31 @@ class Navigate(base.Task):
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
             sim="mujoco", task=task)
         self.template.validate()
+        self.scene: Scene = scene_for(self.world, CELL_SIZE, task)
+        self.dt = float(self.scene.model.opt.timestep)
+        self.decision_s = check_number("decision_s", decision_s, 1.5, 10.0, integer=False)
         # the environment's reward is the paper's (SPEC 6) whatever preset the planner uses
         self.rewards = get_preset("paper").path_preference
         self.episode = -1
         self.runner: EpisodeRunner | None = None
+        self.base: MobileBase | None = None
+        self.push: PushPhase | None = None
+        self.phase = HOLD
         self._reward = 0.0
 
-    # --- episode -------------------------------------------------------------------------
-    def initialize_episode(self, physics: Physics) -> None:
-        """Draw the next episode's instance and run (see module docstring for seeds)."""
-        from dataclasses import asdict
+    # --- the physics of a step -----------------------------------------------------------
+    @property
+    def n_sub_steps(self) -> int:
+        """Physics steps of one environment step."""
+        return int(round(self.decision_s / self.dt))
 
+    def make_base(self, data) -> MobileBase:
+        """The robot's base on the Environment's ``MjData``."""
+        return MobileBase(self.scene, data=data)
+
+    def initialize_episode(self, physics: Physics) -> None:
+        """Draw the next episode's instance and run (see module docstring for seeds), place
+        the base and play the human's first push."""
         self.episode += 1
         fields = {k: v for k, v in asdict(self.template).items()
                   if k not in ("map", "method", "delta_t", "instance", "run", "instance_seed",
@@ -134,21 +163,77 @@ class Navigate(base.Task):
         spec = EpisodeSpec.single(self.template.map, self.template.method,
                                   self.template.delta_t, seed=self.seed, instance=self.episode,
                                   **fields)
-        body = MujocoBody(self.world, spec, simulator_rng(spec),
-                          scene=scene_for(self.world, 0.5, spec.task), data=physics.data.ptr)
-        self.runner = EpisodeRunner(spec, self.world, body)
-        self.runner.begin()
-        self._reward = 0.0
+        self.base = self.make_base(physics.data.ptr)
+        self.body = StagedBody(self.base, simulator_rng(spec), self._start_push)
+        self.filter = ForceFilter(self.base)
+        self.push, self.phase, self._reward = None, HOLD, 0.0
+        self.runner = EpisodeRunner(spec, self.world, self.body)
+        physics.substep = self.substep
+        if self.decides:
+            self.runner.begin()
+            while self.push is not None:  # the first push, before the first decision
+                self.substep()
+
+    def _start_push(self, push: HumanPush) -> None:
+        """The human pushes now: hold the cell while the push plays (phase ``push``)."""
+        b = self.base
+        b.target = self.scene.cell_centre(b.cell)
+        self.push, self.phase = PushPhase(push, b), PUSH
+
+    def _end_push(self, cue) -> None:
+        """The push is over: the detected heading (or None) goes to the robot's belief."""
+        self.base.detector.reset()
+        self.body.last_cue, self.body.cell = cue, self.base.cell
+        self.push, self.phase = None, HOLD
+        self.runner.receive_input(None if cue is None else cue.heading)
+
+    def substep(self) -> None:
+        """One physics step of the current phase (module docstring)."""
+        b = self.base
+        if self.phase == PUSH:
+            over, cue = self.push.substep(b)
+            if over:
+                self._end_push(cue)
+        elif self.phase == MOVE:
+            cue = b.substep()
+            if cue is not None:
+                b.cues_while_driving.append(cue)
+            if (b.controller.settled(b.position, b.velocity, b.target)
+                    or b.data.time - self._move_t0 >= self._move_limit - 1e-9):
+                self._arrive()
+        else:
+            b.substep()
+        self.filter.update()
+
+    def check_action(self, action) -> int:
+        """``action`` as 0..8 (:func:`parse_action`)."""
+        return parse_action(action)
 
     def before_step(self, action, physics: Physics) -> None:
-        """Run the decision step with the agent's action and keep its reward."""
+        """Set the base's target: the grid neighbour the action names (module docstring)."""
+        a = self.check_action(action)
+        self._action = STAY if a == STAY_ACTION else a
+        b, cell = self.base, self.body.cell
+        target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])
+        b.target = self.scene.cell_centre(target)
+        self._move_t0 = float(b.data.time)
+        self._move_limit = min(b.controller.time_limit_s,
+                               self.decision_s - PushPhase.window_s(b) - 2 * self.dt)
+        self.phase, self._reward = MOVE, 0.0
+
+    def _arrive(self) -> None:
+        """The move is over: the runner records the decision (success rule, goal, log) and
+        gives the human's next input when due (which starts a push)."""
         r = self.runner
-        a = parse_action(action)
-        if a == STAY_ACTION:
-            a = STAY
         before = r.cell
-        r.step(a)
-        self._reward = self._step_reward(before, r.cell, a)
+        self.phase = HOLD
+        r.step(self._action)
+        self._reward = self._step_reward(before, r.cell, self._action)
+
+    def after_step(self, physics: Physics) -> None:
+        """Every phase of the decision fits in ``decision_s`` by construction."""
+        if self.phase != HOLD:  # pragma: no cover - a broken invariant, not bad input
+            raise EpisodeError(f"decision step ended in phase {self.phase}")
 
     def _step_reward(self, before: int, after: int, a: int) -> float:
         """The paper's reward (SPEC 6) of the move, with the human's true preference."""
@@ -163,24 +248,35 @@ class Navigate(base.Task):
         return specs.DiscreteArray(num_values=STAY_ACTION + 1, dtype=np.int32, name="move")
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
-        """Shapes of the observations (module docstring)."""
-        G = self.template.n_goals
-        shapes = {"position": (2,), "cell": (2,), "heading": (8,), "goal_belief": (G,),
-                  "goal_cells": (G, 2), "polytope": (1,), "entropy": (1,)}
-        return collections.OrderedDict(
-            (k, specs.Array(shape=v, dtype=np.float64, name=k)) for k, v in shapes.items())
+        """Shapes and bounds of the observations (module docstring)."""
+        G, w = self.template.n_goals, self.world.spec
+        side = float(max(w.width, w.height))
+        h_max = math.log(G) + math.log(max(2, self.world.n_polytopes))
+        return collections.OrderedDict([
+            ("position", bounded((2,), 0.0, side * CELL_SIZE, "position")),
+            ("cell", bounded((2,), 1.0, side, "cell")),
+            ("heading", bounded((8,), 0.0, 1.0, "heading")),
+            ("force", specs.Array((2,), np.float64, name="force")),
+            ("detector_active", bounded((1,), 0.0, 1.0, "detector_active")),
+            ("goal_belief", bounded((G,), 0.0, 1.0, "goal_belief")),
+            ("goal_cells", bounded((G, 2), 1.0, side, "goal_cells")),
+            ("polytope", bounded((1,), 0.0, self.world.n_polytopes - 1.0, "polytope")),
+            ("entropy", bounded((1,), 0.0, h_max, "entropy")),
+        ])
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
-        """Position, cell, detected heading, goal belief, candidates, polytope, entropy."""
+        """The observations of the module docstring."""
         r = self.runner
         heading = np.zeros(8)
         if r.pending_heading is not None:
             heading[r.pending_heading] = 1.0
         v = int(self.world.cell_polytope[r.cell])
         obs = collections.OrderedDict()
-        obs["position"] = physics.base_position()
+        obs["position"] = self.base.position.copy()
         obs["cell"] = self.world.cells[r.cell].astype(np.float64)
         obs["heading"] = heading
+        obs["force"] = self.filter.f.copy()
+        obs["detector_active"] = np.array([float(self.base.detector.active)])
         obs["goal_belief"] = r.policy.belief.goal_marginal().astype(np.float64)
         obs["goal_cells"] = self.world.cells[list(r.instance.goals)].astype(np.float64)
         obs["polytope"] = np.array([v], dtype=np.float64)
@@ -204,17 +300,3 @@ class Navigate(base.Task):
         r = self.runner
         a = int(r.policy.act(r.t + 1, r.cell, r.pending_heading))
         return STAY_ACTION if a == STAY else a
-
-
-def environment(task: Navigate) -> control.Environment:
-    """Wrap a task over the compiled scene of its map (and variant) in dm_control."""
-    scene = scene_for(task.world, 0.5, task.template.task)
-    # dm_control wraps a compiled mujoco.MjModel; the wrapper copies nothing
-    return control.Environment(Physics.from_model(core.MjModel(scene.model)), task,
-                               n_sub_steps=1)
-
-
-def load(map: str = "simple", method: str = "path_preference", delta_t: int = 5, seed: int = 0,
-         **kwargs) -> control.Environment:
-    """The ``navigate`` environment (see module docstring)."""
-    return environment(Navigate(map=map, method=method, delta_t=delta_t, seed=seed, **kwargs))

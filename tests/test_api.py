@@ -28,3 +28,16 @@ def test_docstring_tour_runs(tmp_path):
     res = pp.run_episode(pp.EpisodeSpec(map="simple", method="compliant", delta_t=5,
                                         instance=0, run=0, instance_seed=1, run_seed=2))
     assert res.steps >= 1
+
+
+def test_import_is_light():
+    """``import pathpref`` loads neither NumPy nor a simulator (names resolve on first use)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, pathpref; "
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in "
+            "('numpy', 'mujoco', 'dm_control', 'numba', 'scipy', 'matplotlib')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == "[]"

@@ -186,6 +186,8 @@ def test_bench_json_keys():
     ph = res["physics"]
     assert ph["cue_sector_accuracy_no_noise"] == 1.0 and ph["cue_sector_accuracy"] >= 0.9
     assert ph["false_cues_per_hour"] == 0 and ph["episode_s"] > 0 and ph["render_fps"] > 0
+    assert ph["render_fps_video"] > 0 and ph["control_steps_per_s"] > 0
+    assert ph["decision_steps_per_s"] > 0 and ph["control_steps_per_s_20hz"] > 0
     arm = res["arm"]
     assert arm["ik_solves_per_s"] > 0 and arm["cue_sector_accuracy"] >= 0.9
     assert arm["tilt_rms_deg"] <= 3.0 and arm["max_penetration_mm"] <= 5.0
@@ -222,3 +224,58 @@ def test_report_puts_grid_and_physics_side_by_side(tmp_path):
     assert "grid / mujoco side by side" in p.stdout
     row = next(ln for ln in p.stdout.splitlines() if ln.startswith("| compliant |") and "/" in ln)
     assert len(row.split("/")) == 2
+
+
+def _subparsers(parser, prefix=()):
+    import argparse
+
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield (*prefix, name), sub
+                yield from _subparsers(sub, (*prefix, name))
+
+
+def test_every_option_has_help_and_its_default():
+    """Every listed option of every command has help text; one with a default (not None, not
+    a switch) shows it in --help; ``render --help`` lists no sweep-only option."""
+    import argparse
+
+    from pathpref.apps.cli import build_parser
+
+    missing = []
+    for names, sub in _subparsers(build_parser()):
+        text = " ".join(sub.format_help().split())
+        for a in sub._actions:
+            if not a.option_strings or a.help == argparse.SUPPRESS or a.dest == "help":
+                continue
+            if not a.help:
+                missing.append(f"{' '.join(names)} {a.option_strings[0]}: no help")
+            elif (a.default is not None and not isinstance(a, argparse._StoreTrueAction)
+                  and "default" not in " ".join(a.help.split())):
+                shown = " ".join(map(str, a.default)) if isinstance(a.default, list) \
+                    else str(a.default)
+                if f"(default: {shown})" not in text:
+                    missing.append(f"{' '.join(names)} {a.option_strings[0]}: no default")
+    assert not missing, missing
+    render = build_parser()._subparsers._group_actions[0].choices["render"].format_help()
+    assert "--workers" not in render and "--episode-timeout" not in render
+    assert "--size WxH" in render
+    evaluate = " ".join(build_parser()._subparsers._group_actions[0].choices["evaluate"]
+                        .format_help().split())
+    assert "(default: 50)" in evaluate and "6000" in evaluate
+
+
+def test_version(capsys):
+    """``pathpref --version`` prints the package's version (the one pathpref.__version__ and
+    the installed metadata carry)."""
+    import pytest
+
+    import pathpref
+    from pathpref.apps.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0
+    assert capsys.readouterr().out.strip() == f"pathpref {pathpref.__version__}"
+    assert pathpref.__version__ == "0.2.0"

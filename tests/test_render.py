@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -16,8 +17,9 @@ from pathpref.apps.rollout import record_rollout  # noqa: E402
 from pathpref.episode import EpisodeSpec  # noqa: E402
 from pathpref.episode.instances import seed_for  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
-from pathpref.sim.render import RolloutRenderer, write_video  # noqa: E402
+from pathpref.sim.render import Overlay, RolloutRenderer, write_video  # noqa: E402
 from pathpref.sim.scene import build_scene  # noqa: E402
+from pathpref.viz.video import belief_rgba  # noqa: E402
 
 
 def test_frames_are_not_blank_and_show_overlays(worlds):
@@ -27,30 +29,85 @@ def test_frames_are_not_blank_and_show_overlays(worlds):
     d = mujoco.MjData(sc.model)
     d.qpos[:2] = sc.cell_centre(0)
     mujoco.mj_forward(sc.model, d)
-    r = RolloutRenderer(sc, 160, 120)
-    plain = r.frame(d, goal_cells=np.zeros((0, 2)), belief=np.ones(1), true_goal=-1,
-                    polygon=None, push_origin=None, push_force=None)
-    pushed = r.frame(d, goal_cells=np.array([[1, 8], [5, 8]]), belief=np.array([0.9, 0.1]),
-                     true_goal=0, polygon=worlds["simple"].arrangement.polygons[0],
-                     push_origin=np.array([0.25, 0.25, 0.35]), push_force=np.array([30, 0, 0]))
+    r = RolloutRenderer(sc, 400, 200)
+    plain, persp = r.views(d, Overlay())
+    o = Overlay(goal_cells=np.array([[1, 8], [5, 8]]), goal_rgba=belief_rgba([0.9, 0.1]),
+                true_goal=0, polygons=worlds["simple"].arrangement.polygons, current=0,
+                push_origin=np.array([1.5, 0.25, 0.35]), push_force=np.array([30, 0, 0]))
+    pushed, _ = r.views(d, o)
     r.close()
-    assert plain.shape == (120, 320, 3) and plain.std() > 10
+    assert plain.shape == (200, 200, 3) and persp.shape == (100, 200, 3) and plain.std() > 10
     red = (pushed[..., 0] > 180) & (pushed[..., 1] < 80) & (pushed[..., 2] < 80)
     assert red.sum() > 20 and np.abs(pushed.astype(int) - plain).sum() > 0
+
+
+def test_goal_colours_are_absolute_and_shown_as_given(worlds):
+    """A uniform belief over 10 goals paints every goal viridis(0.1), dark purple, never
+    bright; the disc renders within 30 of the given colour per channel (the scene's light
+    is compensated), and p = 1 is yellow."""
+    import mujoco
+
+    rgba = belief_rgba(np.full(10, 0.1))
+    assert np.allclose(rgba, rgba[0]) and rgba[0, :3].mean() < 0.35
+    assert belief_rgba([1.0])[0, 0] > 0.9 and belief_rgba([1.0])[0, 2] < 0.3  # yellow
+    sc = build_scene(worlds["simple"])
+    d = mujoco.MjData(sc.model)
+    mujoco.mj_forward(sc.model, d)
+    r = RolloutRenderer(sc, 200, 200)
+    img, _ = r.views(d, Overlay(goal_cells=np.array([[3, 3]]), goal_rgba=rgba[:1]))
+    r.close()
+    # cell (3, 3) is at (1.25, 1.25) m; the top camera looks at the map's centre (2.5, 2.5)
+    px = img.reshape(-1, 3).astype(int)
+    want = (rgba[0, :3] * 255).astype(int)
+    close = np.abs(px - want).max(axis=1) <= 30
+    assert close.sum() > 30
+
+
+def test_info_panel_and_grid():
+    """The panel draws bars whose heights follow the absolute probabilities."""
+    from pathpref.viz.video import PanelInfo, frame_grid, info_panel
+
+    p = np.array([0.7, 0.2, 0.1])
+    img = info_panel(420, 270, PanelInfo(title="m", step=1, t_max=9, sim_time=1.0, belief=p,
+                                         true_goal=0, push_n=30.0, cue_heading=2))
+    assert img.shape == (270, 420, 3)
+    heights = []
+    for k in range(3):
+        col = (belief_rgba(p[k:k + 1])[0, :3] * 255).astype(int)
+        hit = np.abs(img.astype(int) - col).max(axis=2) <= 2
+        heights.append(hit.any(axis=1).sum())
+    assert heights[0] > heights[1] > heights[2] > 0
+    assert heights[0] / heights[1] == pytest.approx(3.5, rel=0.25)
+    assert frame_grid([img] * 6, cols=3, scale=0.5).shape == (270, 630, 3)
 
 
 def test_short_rollout_video_and_rerun(tmp_path):
     spec = EpisodeSpec(map="simple", method="compliant", delta_t=2, instance=0, run=0,
                        instance_seed=seed_for(5, 0), run_seed=seed_for(5, 0, 0), sim="mujoco",
                        t_max=6)
-    rec = record_rollout(spec, video=tmp_path / "r.mp4", rerun=tmp_path / "r.rrd", width=160,
-                         height=120)
+    rec = record_rollout(spec, video=tmp_path / "r.mp4", rerun=tmp_path / "r.rrd")
     assert rec.frames > 10 and (tmp_path / "r.mp4").stat().st_size > 2000
     assert (tmp_path / "r.rrd").stat().st_size > 2000
     import imageio.v2 as iio
 
     frame = iio.get_reader(str(tmp_path / "r.mp4")).get_data(rec.frames // 2)
     assert frame.std() > 10
+    assert frame.shape == (540, 960, 3)  # the default size
+    # the recording: its entities and the blueprint stored with it (read back with the
+    # rerun CLI that rerun-sdk installs next to this Python)
+    cli = Path(sys.executable).with_name("rerun")
+    if not cli.exists():
+        pytest.skip("no rerun CLI next to this Python")
+    out = subprocess.run([str(cli), "rrd", "print", "-vvv", str(tmp_path / "r.rrd")],
+                         capture_output=True, text=True, timeout=120).stdout
+    for entity in ("/map/preference", "/map/goals", "/robot/position", "/belief/goals",
+                   "/belief/p/g0", "/belief/p_true_goal", "/force/magnitude",
+                   "/detector/active", "/camera"):
+        assert entity in out, entity
+    for view in ("P(goal) now", "P(goal) over time", "force on the handle (N)",
+                 "detector active", "camera"):
+        assert view in out, view
+    assert "Blueprint" in out
 
 
 def test_blank_video_is_refused(tmp_path):
@@ -63,9 +120,12 @@ def test_render_command_and_missing_gl(tmp_path):
     out = tmp_path / "v.mp4"
     base = [sys.executable, "-m", "pathpref", "render", "--map", "simple", "--method",
             "compliant", "--delta-t", "2", "--t-max", "4", "--width", "160", "--height", "120"]
-    p = subprocess.run([*base, "--out", str(out)], capture_output=True, text=True, timeout=300)
+    p = subprocess.run(["sh", "-c", 'umask 022 && exec "$@"', "sh", *base, "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     assert out.stat().st_size > 1000
+    assert "step 1/4: P(true goal) = " in p.stderr  # progress, one line per decision
+    assert oct(out.stat().st_mode & 0o777) == oct(0o644)  # the umask's mode, not mkstemp's
     env = dict(os.environ, MUJOCO_GL="osmesa", PYOPENGL_PLATFORM="osmesa")
     out2 = tmp_path / "nogl.mp4"
     p = subprocess.run([*base, "--out", str(out2)], capture_output=True, text=True, env=env,
@@ -75,3 +135,52 @@ def test_render_command_and_missing_gl(tmp_path):
     assert p.returncode == 2
     assert "pathpref: error:" in p.stderr and "libosmesa6" in p.stderr
     assert "Traceback" not in p.stderr and not out2.exists()
+
+
+@pytest.mark.parametrize("args,msg", [
+    (["--size", "1280"], "--size must be WxH with W and H in 16..4096 (e.g. 960x540 or "
+                         "1280x720), got '1280'"),
+    (["--size", "axb"], "--size must be WxH"),
+    (["--size", "540x960"], "at least as wide as high"),
+    (["--method", "all"], "--method must be one method (render shows one episode)"),
+])
+def test_render_bad_input_is_one_line(tmp_path, capsys, args, msg):
+    from pathpref.apps.cli import main
+
+    out = tmp_path / "v.mp4"
+    assert main(["render", "--out", str(out), *args]) == 2
+    err = capsys.readouterr().err
+    assert msg in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_parse_size():
+    from pathpref.apps.rollout import DEFAULT_SIZE, parse_size
+
+    assert parse_size("1280x720") == (1280, 720) and parse_size("960X540") == DEFAULT_SIZE
+
+
+def test_push_arrow_is_one_metre_per_30_newtons(worlds):
+    """The push arrow ends at the pushed body and is 1 m long per 30 N (MuJoCo draws an
+    arrow geom half as long as its size, which the renderer compensates)."""
+    import mujoco
+
+    sc = build_scene(worlds["simple"])
+    d = mujoco.MjData(sc.model)
+    mujoco.mj_forward(sc.model, d)
+    r = RolloutRenderer(sc, 600, 600)
+    red_rgba = np.array([[1.0, 0.0, 0.0, 1.0]] * 2)
+    discs, _ = r.views(d, Overlay(goal_cells=np.array([[1, 1], [10, 1]]), goal_rgba=red_rgba))
+    arrow, _ = r.views(d, Overlay(push_origin=np.array([3.0, 0.75, 0.05]),
+                                  push_force=np.array([30.0, 0.0, 0.0])))
+    r.close()
+
+    def red_x(img, lo=100):
+        m = (img[..., 0] > lo) & (img[..., 1] < 80) & (img[..., 2] < 80)
+        xs = np.nonzero(m)[1]
+        return xs.min(), xs.max()
+
+    a, b = red_x(discs)
+    px_per_m = (b - a) / (4.5 + 0.3)  # centres 4.5 m apart, discs 0.3 m across
+    lo, hi = red_x(arrow, 180)
+    assert (hi - lo) / px_per_m == pytest.approx(1.0, abs=0.12)

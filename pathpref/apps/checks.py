@@ -167,9 +167,20 @@ def write_error(out: Path | str, e: BaseException) -> ConfigError:
     return ConfigError(f"cannot write {out}: {reason} (no partial file was kept)")
 
 
+def new_file_mode() -> int:
+    """The mode a new file gets from ``open()``: ``0o666`` less the process's umask (read
+    without changing it, through ``os.umask`` twice)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def _temp_beside(out: Path) -> Path:
+    """An exclusive temporary file beside ``out``; ``mkstemp`` makes it 0600, so it gets the
+    mode a file written directly would have (the user's umask) before it is moved on ``out``."""
     parent = out.parent if str(out.parent) else Path(".")
     fd, tmp = tempfile.mkstemp(dir=parent, prefix=f".{out.stem}.", suffix=out.suffix)
+    os.fchmod(fd, new_file_mode())
     os.close(fd)
     return Path(tmp)
 
@@ -187,8 +198,10 @@ def staged_outputs(outs: Sequence[str | Path | None]) -> Iterator[list[Path | No
             yield temps
         except OSError as e:
             raise write_error(next(o for o in outs if o is not None), e) from None
+        mode = new_file_mode()
         for out, tmp in zip(outs, temps, strict=True):
             if tmp is not None:
+                os.chmod(tmp, mode)  # a writer may have replaced the file
                 os.replace(tmp, out)
     finally:
         for tmp in temps:

@@ -28,8 +28,30 @@ def force_option(sp: argparse.ArgumentParser) -> None:
                     "(arrangement.MAX_POLYTOPES, see README 'Limits')")
 
 
+class DefaultsFormatter(argparse.HelpFormatter):
+    """Help with every option's default: ``(default: X)`` is appended unless the text already
+    says it (``%(default)s`` or the word "default"), the default is None (the text says what
+    None means) or the option is a switch."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if (action.default is None or action.default is argparse.SUPPRESS
+                or isinstance(action, argparse._StoreTrueAction | argparse._VersionAction
+                              | argparse._HelpAction)
+                or "default" in text or not action.option_strings):
+            return text
+        shown = " ".join(map(str, action.default)) if isinstance(action.default, list) \
+            else action.default
+        return f"{text} (default: {shown})"
+
+
 class OneLineParser(argparse.ArgumentParser):
-    """Usage errors as one line (``pathpref: error: ...``) and exit status 2."""
+    """Usage errors as one line (``pathpref: error: ...``) and exit status 2; help lists
+    every option's default (:class:`DefaultsFormatter`)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", DefaultsFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):  # type: ignore[override]
         """Print the usage error as one line and exit with status 2."""
@@ -56,15 +78,20 @@ def build_parser() -> argparse.ArgumentParser:
     force_option(mi)
     mi.set_defaults(func=c.cmd_map_info)
     md = msub.add_parser("draw", help="draw obstacles, polytopes, edges and preference arrows")
-    md.add_argument("map")
+    md.add_argument("map", help="built-in name (simple, office, classroom) or a JSON map file")
     md.add_argument("--out", required=True, help="output image (.png, .pdf, .svg)")
     force_option(md)
     md.set_defaults(func=c.cmd_map_draw)
 
-    def episode_options(sp: argparse.ArgumentParser, preset: str = DEFAULT_PRESET) -> None:
+    def episode_options(sp: argparse.ArgumentParser, preset: str = DEFAULT_PRESET,
+                        sweep: bool = True) -> None:
+        """The planner and episode options; ``sweep=False`` (one episode, ``render``)
+        accepts but does not list ``--workers`` and ``--episode-timeout``, which do nothing
+        there."""
+        hidden = None if sweep else argparse.SUPPRESS
         sp.add_argument("--preset", default=preset, choices=sorted(PRESETS),
-                        help=f"robust (guided search, exact belief), paper (the paper's "
-                        f"planner) or original (the authors' code); default {preset}")
+                        help="robust (guided search, exact belief), paper (the paper's "
+                        "planner) or original (the authors' code)")
         sp.add_argument("--time-budget-ms", action=RangeAction, limits="time_budget_ms",
                         default=None,
                         help="robust search: wall time per decision (anytime; default: the "
@@ -73,12 +100,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the human's preference: the map's (the paper's protocol, "
                         "default) or consistent with its goal (goals the preference leads to)")
         sp.add_argument("--queries", action=RangeAction, limits="queries", default=None,
-                        help="POMCP queries (5000)")
+                        help="POMCP queries per decision (default: the preset's, 5000)")
         sp.add_argument("--t-max", action=RangeAction, limits="t_max", default=None,
                         help="mission time in decision steps (default: the map's t_max field, "
                         "else 3 x its longer side: 30 on simple/office, 60 on classroom)")
         sp.add_argument("--likelihood", choices=["normalized", "unnormalized"],
-                        default="normalized", help="robot's likelihood (authors: unnormalized)")
+                        default="normalized",
+                        help="the robot's observation likelihood (the authors' code: "
+                        "unnormalized)")
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
@@ -90,11 +119,14 @@ def build_parser() -> argparse.ArgumentParser:
                         help="POMCP UCB constant (the preset's: 1)")
         sp.add_argument("--episode-timeout", action=RangeAction, limits="episode_timeout",
                         default=0.0,
-                        help="record an episode as failed after this many seconds (0: none)")
-        sp.add_argument("--seed", action=RangeAction, limits="seed", default=0)
+                        help=hidden or "record an episode as failed after this many seconds "
+                        "(0: none)")
+        sp.add_argument("--seed", action=RangeAction, limits="seed", default=0,
+                        help="seed of the instances and runs (the same seed, the same episodes)")
         sp.add_argument("--workers", action=RangeAction, limits="workers",
-                        default=os.cpu_count() or 1)
-        sp.add_argument("--no-progress", action="store_true", help="no progress bar")
+                        default=os.cpu_count() or 1,
+                        help=hidden or "worker processes (default: the number of CPUs)")
+        sp.add_argument("--no-progress", action="store_true", help="no progress output")
         force_option(sp)
 
     dbp = sub.add_parser("db", help="maintain results databases")
@@ -113,19 +145,25 @@ def build_parser() -> argparse.ArgumentParser:
     ds.set_defaults(func=c.cmd_db_salvage)
 
     ev = sub.add_parser("evaluate", help="run a sweep of episodes into a results database")
-    ev.add_argument("--map", default="simple")
+    ev.add_argument("--map", default="simple",
+                    help="built-in name (simple, office, classroom) or a JSON map file")
     ev.add_argument("--methods", nargs="+", default=["all"],
                     help="compliant goal_only path_preference blended oracle goal_known; "
                     "all (the paper's four) or reference (oracle, goal_known)")
     ev.add_argument("--delta-t", nargs="+", action=RangeAction, limits="delta_t",
-                    default=[1, 5, 10, 20, 30])
-    ev.add_argument("--instances", action=RangeAction, limits="instances", default=6)
-    ev.add_argument("--runs", action=RangeAction, limits="runs", default=50)
+                    default=[1, 5, 10, 20, 30],
+                    help="decision steps between the human's inputs (one or more)")
+    ev.add_argument("--instances", action=RangeAction, limits="instances", default=6,
+                    help="instances (start, goal candidates, true goal) per method and ΔT")
+    ev.add_argument("--runs", action=RangeAction, limits="runs", default=50,
+                    help="runs per instance; a sweep is methods x ΔT x instances x runs "
+                    "episodes, 4 x 5 x 6 x 50 = 6000 if nothing is changed")
     ev.add_argument("--goals", action=RangeAction, limits="goals", default=10,
                     help="goal candidates per instance")
-    ev.add_argument("--db", default="results.sqlite")
+    ev.add_argument("--db", default="results.sqlite",
+                    help="results database (SQLite); episodes already in it are skipped")
     ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
-                    help="grid world (default) or the MuJoCo base with force cues")
+                    help="grid world or the MuJoCo base with force cues")
     ev.add_argument("--task", default="navigate", choices=["navigate", "carry"],
                     help="navigate, or carry (arm on the base; needs --sim mujoco)")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
@@ -136,50 +174,68 @@ def build_parser() -> argparse.ArgumentParser:
     ev.set_defaults(func=c.cmd_evaluate)
 
     rp = sub.add_parser("report", help="Table I from a results database (Markdown + CSV)")
-    rp.add_argument("db")
+    rp.add_argument("db", help="results database (.sqlite)")
     rp.add_argument("--csv", default=None, help="CSV path (default: DB name with .csv)")
     rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png, .pdf, .svg)")
     rp.set_defaults(func=c.cmd_report)
 
     tm = sub.add_parser("timing", help="Table II: solve and update time at the first decision")
-    tm.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
-    tm.add_argument("--instances", action=RangeAction, limits="instances", default=100)
-    tm.add_argument("--queries", action=RangeAction, limits="queries", default=5000)
-    tm.add_argument("--preset", default="paper", choices=sorted(PRESETS))
-    tm.add_argument("--seed", action=RangeAction, limits="seed", default=0)
-    tm.add_argument("--json", action="store_true")
-    tm.add_argument("--no-progress", action="store_true")
+    tm.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"],
+                    help="maps (built-in names or JSON files)")
+    tm.add_argument("--instances", action=RangeAction, limits="instances", default=100,
+                    help="instances per map")
+    tm.add_argument("--queries", action=RangeAction, limits="queries", default=5000,
+                    help="POMCP queries per decision")
+    tm.add_argument("--preset", default="paper", choices=sorted(PRESETS),
+                    help="planner preset")
+    tm.add_argument("--seed", action=RangeAction, limits="seed", default=0,
+                    help="seed of the instances")
+    tm.add_argument("--json", action="store_true", help="print one JSON object")
+    tm.add_argument("--no-progress", action="store_true", help="no progress output")
     force_option(tm)
     tm.set_defaults(func=c.cmd_timing)
 
     bc = sub.add_parser("belief-curves", help="Fig. 4: P(true goal) and entropy over time")
-    bc.add_argument("--out", default="fig4.png")
+    bc.add_argument("--out", default="fig4.png", help="figure (.png, .pdf, .svg)")
     bc.add_argument("--db", default=None, help="episode store (default: OUT with .sqlite)")
-    bc.add_argument("--map", default="simple")
-    bc.add_argument("--runs", action=RangeAction, limits="runs", default=50)
-    bc.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=1)
+    bc.add_argument("--map", default="simple",
+                    help="built-in name (simple, office, classroom) or a JSON map file")
+    bc.add_argument("--runs", action=RangeAction, limits="runs", default=50,
+                    help="runs averaged per curve")
+    bc.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=1,
+                    help="decision steps between the human's inputs")
     episode_options(bc, preset="paper")
     bc.set_defaults(func=c.cmd_belief_curves)
 
     rd = sub.add_parser("render", help="render a MuJoCo rollout to MP4 and/or a rerun file")
-    rd.add_argument("--map", default="simple")
-    rd.add_argument("--method", default="path_preference")
-    rd.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5)
+    rd.add_argument("--map", default="simple",
+                    help="built-in name (simple, office, classroom) or a JSON map file")
+    rd.add_argument("--method", default="path_preference",
+                    help="the one method to render (compliant, goal_only, path_preference, "
+                    "blended, goal_known, oracle)")
+    rd.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5,
+                    help="decision steps between the human's pushes")
     rd.add_argument("--task", default="navigate", choices=["navigate", "carry"],
                     help="navigate (base) or carry (arm on the base, mink IK)")
     rd.add_argument("--out", default=None, help="video file (.mp4)")
     rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
-    rd.add_argument("--width", action=RangeAction, limits="frame_size", default=480,
-                    help="width of each of the two views")
-    rd.add_argument("--height", action=RangeAction, limits="frame_size", default=360)
-    episode_options(rd)
+    rd.add_argument("--size", default=None, metavar="WxH",
+                    help="video size: 960x540 (default), 1280x720 or any WxH")
+    rd.add_argument("--width", action=RangeAction, limits="frame_size", default=None,
+                    help="video width (default: from --size)")
+    rd.add_argument("--height", action=RangeAction, limits="frame_size", default=None,
+                    help="video height (default: from --size)")
+    episode_options(rd, sweep=False)
     rd.set_defaults(func=c.cmd_render)
 
     it = sub.add_parser("interact", help="push the robot yourself in the MuJoCo viewer")
-    it.add_argument("--map", default="office")
-    it.add_argument("--method", default="path_preference")
-    it.add_argument("--seed", action=RangeAction, limits="seed", default=0)
-    it.add_argument("--queries", action=RangeAction, limits="queries", default=2000)
+    it.add_argument("--map", default="office",
+                    help="built-in name (simple, office, classroom) or a JSON map file")
+    it.add_argument("--method", default="path_preference", help="the robot's method")
+    it.add_argument("--seed", action=RangeAction, limits="seed", default=0,
+                    help="seed of the instance")
+    it.add_argument("--queries", action=RangeAction, limits="queries", default=2000,
+                    help="POMCP queries per decision")
     force_option(it)
     it.set_defaults(func=c.cmd_interact)
 
@@ -217,19 +273,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     b = sub.add_parser("bench", help="measure build, update and planning times")
     b.add_argument("--json", action="store_true", help="print one JSON object")
-    b.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"])
+    b.add_argument("--maps", nargs="+", default=["simple", "office", "classroom"],
+                    help="maps to time")
     b.add_argument("--quick", action="store_true", help="fewer repetitions (smoke test)")
     b.add_argument("--no-physics", action="store_true", help="skip the MuJoCo figures")
     force_option(b)
     b.set_defaults(func=c.cmd_bench)
 
     d = sub.add_parser("demo", help="the main job: run the demo and write its outputs")
-    d.add_argument("--out", default="out", help="output folder (default: out)")
-    d.add_argument("--seed", action=RangeAction, limits="seed", default=0)
-    d.add_argument("--sim", default="mujoco", choices=["mujoco", "grid"])
+    d.add_argument("--out", default="out", help="output folder")
+    d.add_argument("--seed", action=RangeAction, limits="seed", default=0,
+                   help="seed of the instances and runs")
+    d.add_argument("--sim", default="mujoco", choices=["mujoco", "grid"],
+                   help="body of the representative episodes")
     d.add_argument("--runs", action=RangeAction, limits="runs", default=30,
                    help="grid runs per method behind the rates")
-    d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS))
+    d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS),
+                   help="planner preset")
     d.set_defaults(func=c.cmd_demo)
     return p
 

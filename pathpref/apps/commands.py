@@ -304,8 +304,22 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out is not None and rerun is not None and out.resolve() == rerun.resolve():
         raise ConfigError("--out and --rerun name the same file")
     from ..episode import EpisodeSpec
-    from .rollout import record_rollout  # imports MuJoCo: checks MUJOCO_GL
+    from ..planning.policies import METHODS
+    from .rollout import (
+        DEFAULT_SIZE,
+        parse_size,
+        print_progress,
+        record_rollout,  # imports MuJoCo: checks MUJOCO_GL
+    )
 
+    if args.method not in METHODS:
+        raise ConfigError(f"--method must be one method (render shows one episode): "
+                          f"{', '.join(METHODS)}; got {args.method!r}")
+    width, height = parse_size(args.size) if args.size else DEFAULT_SIZE
+    width, height = args.width or width, args.height or height
+    if width < height:
+        raise ConfigError(f"the video must be at least as wide as high (the top view is "
+                          f"H x H), got {width}x{height}")
     load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
@@ -313,8 +327,9 @@ def cmd_render(args: argparse.Namespace) -> int:
     spec.validate()
     # temporary files made exclusively (mkstemp) beside the outputs, moved on success
     with staged_outputs([out, rerun]) as (tmp_video, tmp_rerun):
-        rec = record_rollout(spec, video=tmp_video, rerun=tmp_rerun, width=args.width,
-                             height=args.height)
+        rec = record_rollout(spec, video=tmp_video, rerun=tmp_rerun, width=width,
+                             height=height,
+                             progress=None if args.no_progress else print_progress)
     r = rec.result
     print(f"{args.method} on {args.map}: goal reached {r.goal_reached}, preference followed "
           f"{r.pref_followed}, {r.steps} steps, {r.inputs} pushes; {rec.frames} frames")

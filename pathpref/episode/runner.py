@@ -104,9 +104,20 @@ class EpisodeRunner:
         self.pending_heading = None
         if self.done or self.t % self.spec.delta_t != 0:
             return
+        self.give_input()
+
+    def give_input(self) -> None:
+        """The human gives an input now, at the robot's cell: a heading drawn from the human
+        model goes to the body, and the robot updates with what the body observed. A body
+        that senses over time (the dm_control tasks) returns None here and reports the cue
+        later through :meth:`receive_input`."""
         intended = self.human.sample(self.cell, self.human_rng)
         self.result.inputs += 1
-        observed = self.body.human_input(intended)
+        self.receive_input(self.body.human_input(intended))
+
+    def receive_input(self, observed: int | None) -> None:
+        """The robot observed ``observed`` (a heading 0..7, None: nothing detected) for the
+        human's last input: the belief update, and the heading of the coming step."""
         if observed is not None:
             self.policy.observe(self.cell, observed)
         self.pending_heading = observed
@@ -128,18 +139,25 @@ class EpisodeRunner:
             if not (np.isfinite(a) and a == int(a) and (int(a) == STAY or 0 <= int(a) < 8)):
                 raise ConfigError(f"action must be 0..7 (N, NE, ..., NW), got {action!r}")
         action = int(action)
-        before = self.cell
-        self.cell = int(self.body.move(action))
-        self._score(before, self.cell)
-        self.t = t
-        self.result.steps = t
-        self._arrive(self.cell)
-        self._log(action, -1 if heading is None else heading)
+        self.arrive(action, int(self.body.move(action)), heading)
         self._human_phase()
         self.result.wall_s = time.perf_counter() - self.t0
         if self.done:
             self.result.metrics = self.body.metrics()
         return self.result.log[-1]
+
+    def arrive(self, action: int, cell: int, heading: int | None) -> None:
+        """Record step t+1: ``action`` (0..7 or STAY) took the robot to ``cell`` with
+        ``heading`` observed before it (None: none). The success rule, the goal (reaching
+        a wrong candidate rules it out) and the step's log; :meth:`step` calls it after the
+        body's move, a control-rate task at every cell change."""
+        before = self.cell
+        self.cell = cell
+        self._score(before, cell)
+        self.t += 1
+        self.result.steps = self.t
+        self._arrive(cell)
+        self._log(action, -1 if heading is None else heading)
 
     def _arrive(self, cell: int) -> None:
         """The robot ended a step on ``cell``: the true goal ends the episode, another

@@ -1,13 +1,18 @@
 """Rendering rollouts headlessly (EGL by default; ``MUJOCO_GL`` is set to ``egl`` when unset).
 
-Each video frame shows two views side by side, top-down and perspective, with overlays drawn as
-extra geoms in the MuJoCo scene: goal candidates as discs tinted by the robot's belief (grey =
-unlikely, green = likely; the true goal ringed in pink), the human's push as an arrow from the
-handle (1 m per 30 N), and the outline of the polytope the robot is in.
+:class:`RolloutRenderer` renders the two 3-D views of a video frame, top-down (square) and
+perspective, with overlays drawn as extra geoms in the MuJoCo scene from an :class:`Overlay`:
+every polytope outlined (the robot's current one thick, yellow), the human's preferred
+transitions as dark grey arrows, goal candidates as discs in the colours the caller gives (the
+video tints them by absolute probability) with the true goal ringed in pink, a blue ring on the
+robot and its trail, the human's push as a red arrow into the pushed body (1 m per 30 N) and the
+detected cue as a green arrow from the robot. The caller (``pathpref render``) composes the
+views with the text and chart panel of :mod:`pathpref.viz.video`.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -16,6 +21,39 @@ import numpy as np
 from ..errors import ConfigError
 from . import GL_HELP
 from .scene import Scene
+
+PUSH_M_PER_N = 1.0 / 30.0  # arrow length per newton of push
+CUE_ARROW_M = 0.8  # length of the detected cue's arrow
+#: the scene's lights brighten a horizontal matte surface seen from above by 1.65x
+#: (measured: rgb (71, 41, 120) renders as (119, 69, 198)); overlay colours meant as given
+#: are scaled by its inverse
+UNLIT = 1.0 / 1.65
+
+
+@dataclass
+class Overlay:
+    """What a frame shows besides the physics (map units: grid cells; vectors: world)."""
+
+    goal_cells: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    goal_rgba: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    true_goal: int = -1
+    #: every polytope's outline (grid units) and the index of the robot's (-1: none)
+    polygons: list = field(default_factory=list)
+    current: int = -1
+    #: preferred transitions as (from, to) points in grid units
+    preference: list = field(default_factory=list)
+    #: the base's past positions (m)
+    trail: np.ndarray | None = None
+    robot_xy: np.ndarray | None = None
+    #: the push: origin (m, 3-D) and force (N, 3-D); the detected cue: origin and direction
+    push_origin: np.ndarray | None = None
+    push_force: np.ndarray | None = None
+    push_alpha: float = 1.0
+    cue_origin: np.ndarray | None = None
+    cue_direction: np.ndarray | None = None
+    cue_alpha: float = 1.0
+    #: a route to convey (a study trial's): cells ``(x, y)``, an orange line through their centres
+    route: np.ndarray | None = None
 
 
 def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Renderer:
@@ -30,91 +68,176 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
         raise ConfigError(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", "")) + f" ({e})") from None
 
 
-def _add_geom(scn: mujoco.MjvScene, gtype, size, pos, rgba, mat=None) -> int:
+def _add_geom(scn: mujoco.MjvScene, gtype, size, pos, rgba, mat=None,
+              emission: float = 0.0) -> int:
+    """Append a geom to ``scn`` (``emission`` 1: its own colour, unshaded); -1 when full."""
     if scn.ngeom >= scn.maxgeom:
         return -1
     g = scn.geoms[scn.ngeom]
     mujoco.mjv_initGeom(g, gtype, np.asarray(size, float), np.asarray(pos, float),
                         np.eye(3).ravel() if mat is None else np.asarray(mat, float).ravel(),
                         np.asarray(rgba, np.float32))
+    g.emission = emission
     scn.ngeom += 1
     return scn.ngeom - 1
 
 
 def _add_line(scn, a, b, width, rgba, gtype=mujoco.mjtGeom.mjGEOM_CAPSULE) -> None:
+    """A capsule, line or arrow from ``a`` to ``b`` (an arrow's head at ``b``)."""
     i = _add_geom(scn, gtype, [0, 0, 0], [0, 0, 0], rgba)
     if i >= 0:
-        mujoco.mjv_connector(scn.geoms[i], gtype, width, np.asarray(a, float), np.asarray(b, float))
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        if gtype == mujoco.mjtGeom.mjGEOM_ARROW:
+            # MuJoCo draws an arrow of size[2] = |b - a| half as long (measured: a 1 m arrow
+            # covers 0.53 m of the top view), so it is given twice the length
+            b = a + 2.0 * (b - a)
+        mujoco.mjv_connector(scn.geoms[i], gtype, width, a, b)
 
 
 class RolloutRenderer:
-    """Renders frames of a :class:`Scene` with the overlays of the module docstring."""
+    """Renders the views of a video frame of ``width`` x ``height`` pixels: the top view is
+    ``height`` square on the left, the perspective view fills the right column's top
+    ``persp_share`` (the rest of the column is the caller's panel); a frame narrower than
+    ``height * 1.2`` gets the top view only."""
 
-    def __init__(self, scene: Scene, width: int = 480, height: int = 360):
+    def __init__(self, scene: Scene, width: int = 960, height: int = 540,
+                 persp_share: float = 0.5):
         self.scene = scene
-        self.renderer = make_renderer(scene.model, height, width)
+        self.width, self.height = int(width), int(height)
+        self.side = min(self.height, self.width)
+        self.column = self.width - self.side
+        self.persp_h = max(16, int(round(self.height * persp_share)))
+        vis = scene.model.vis  # visual settings only; the physics is untouched
+        vis.global_.offwidth = max(vis.global_.offwidth, self.width)
+        vis.global_.offheight = max(vis.global_.offheight, self.height)
+        # for software GL (llvmpipe, what EGL gives on a machine without a GPU): coarser
+        # tessellation of rounded geoms (2x the frame rate of MuJoCo's 28 x 16, no visible
+        # difference at video sizes) and no multisampling (1.4x; the lines are drawn thick)
+        vis.quality.numslices, vis.quality.numstacks = 12, 6
+        vis.quality.offsamples = 0
+        self.top = make_renderer(scene.model, self.side, self.side)
+        self.persp = (make_renderer(scene.model, self.persp_h, self.column)
+                      if self.column >= 16 else None)
         self.opt = mujoco.MjvOption()
 
-    def overlays(self, goal_cells: np.ndarray, belief: np.ndarray, true_goal: int,
-                 polygon: np.ndarray | None, push_origin: np.ndarray | None,
-                 push_force: np.ndarray | None, route: np.ndarray | None = None) -> None:
-        """Draw the goals (tinted by belief), the current polytope, the push arrow and, when
-        given, a route to convey (cells ``(x, y)``, an orange line through their centres)."""
-        scn = self.renderer.scene
+    def overlays(self, scn: mujoco.MjvScene, o: Overlay) -> None:
+        """Add the overlay geoms of ``o`` to ``scn`` (module docstring)."""
         cs = self.scene.cell_size
-        if route is not None:
-            pts = (np.asarray(route, float) - 0.5) * cs
-            for a, b in zip(pts[:-1], pts[1:], strict=True):
-                _add_line(scn, [a[0], a[1], 0.015], [b[0], b[1], 0.015], 0.03,
-                          [0.94, 0.55, 0.08, 0.9])
-        pmax = max(float(belief.max()), 1e-9)
-        for k, c in enumerate(goal_cells):
-            xy = (np.asarray(c) - 0.5) * cs
-            a = float(belief[k]) / pmax
-            rgba = [0.6 * (1 - a) + 0.1 * a, 0.6 * (1 - a) + 0.8 * a, 0.6 * (1 - a) + 0.2 * a, 0.9]
-            _add_geom(scn, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.18 * cs, 0.005, 0],
-                      [xy[0], xy[1], 0.01], rgba)
-            if k == true_goal:
-                _add_geom(scn, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.24 * cs, 0.003, 0],
-                          [xy[0], xy[1], 0.005], [1.0, 0.3, 0.7, 0.9])
-        if polygon is not None and len(polygon) >= 3:
-            pts = np.asarray(polygon) * cs
+        line = mujoco.mjtGeom.mjGEOM_LINE  # width in pixels; no lighting, cheap to draw
+        px = max(1.0, self.side / 360)
+        for k, poly in enumerate(o.polygons):
+            if len(poly) < 3 or k == o.current:
+                continue
+            pts = np.asarray(poly) * cs
             for a, b in zip(pts, np.roll(pts, -1, axis=0), strict=True):
-                _add_line(scn, [a[0], a[1], 0.02], [b[0], b[1], 0.02], 0.015,
-                          [1.0, 0.85, 0.1, 0.9])
-        if push_origin is not None and push_force is not None:
-            f = np.asarray(push_force, float)
-            n = np.linalg.norm(f[:2])
-            if n > 0.5:
-                tip = np.asarray(push_origin, float) + np.array([*f[:2] / 30.0 * 1.0, 0.0])
-                _add_line(scn, push_origin, tip, 0.05, [0.9, 0.1, 0.1, 1.0],
+                _add_line(scn, [a[0], a[1], 0.012], [b[0], b[1], 0.012], px,
+                          [0.3, 0.4, 0.65, 1.0], gtype=line)
+        if 0 <= o.current < len(o.polygons) and len(o.polygons[o.current]) >= 3:
+            pts = np.asarray(o.polygons[o.current]) * cs
+            for a, b in zip(pts, np.roll(pts, -1, axis=0), strict=True):
+                _add_line(scn, [a[0], a[1], 0.02], [b[0], b[1], 0.02], 3 * px,
+                          [1.0, 0.8, 0.05, 1.0], gtype=line)
+        if o.route is not None and len(o.route) >= 2:
+            pts = (np.asarray(o.route, float) - 0.5) * cs
+            for a, b in zip(pts[:-1], pts[1:], strict=True):
+                _add_line(scn, [a[0], a[1], 0.015], [b[0], b[1], 0.015], 4 * px,
+                          [0.94, 0.55, 0.08, 1.0], gtype=line)
+        for a, b in o.preference:
+            a3 = [a[0] * cs, a[1] * cs, 0.03]
+            b3 = [b[0] * cs, b[1] * cs, 0.03]
+            _add_line(scn, a3, b3, 0.035, [0.2, 0.2, 0.22, 1.0], gtype=mujoco.mjtGeom.mjGEOM_ARROW)
+        for k, c in enumerate(o.goal_cells):
+            xy = (np.asarray(c) - 0.5) * cs
+            rgba = np.array(o.goal_rgba[k], float)
+            rgba[:3] *= UNLIT  # shown in the colour given (the chart's), not brightened
+            i = _add_geom(scn, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.3 * cs, 0.006, 0],
+                          [xy[0], xy[1], 0.012], rgba)
+            if i >= 0:
+                scn.geoms[i].specular = 0.0
+            if k == o.true_goal:
+                _add_geom(scn, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.4 * cs, 0.004, 0],
+                          [xy[0], xy[1], 0.006], [1.0, 0.3, 0.7, 1.0])
+        if o.trail is not None and len(o.trail) >= 2:
+            for a, b in zip(o.trail[:-1], o.trail[1:], strict=True):
+                if np.hypot(*(b - a)) > 1e-3:
+                    _add_line(scn, [a[0], a[1], 0.04], [b[0], b[1], 0.04], 2.5 * px,
+                              [0.1, 0.4, 1.0, 1.0], gtype=line)
+        if o.robot_xy is not None:
+            _add_geom(scn, mujoco.mjtGeom.mjGEOM_CYLINDER, [0.55 * cs, 0.008, 0],
+                      [o.robot_xy[0], o.robot_xy[1], 0.045], [0.1, 0.4, 1.0, 0.55])
+        if o.push_origin is not None and o.push_force is not None:
+            f = np.asarray(o.push_force, float)
+            if np.linalg.norm(f[:2]) > 0.5:  # the arrow's tip at the pushed body, like a hand
+                tip = np.asarray(o.push_origin, float)
+                tail = tip - np.array([*f[:2] * PUSH_M_PER_N, 0.0])
+                _add_line(scn, tail, tip, 0.06, [0.95, 0.1, 0.1, o.push_alpha],
                           gtype=mujoco.mjtGeom.mjGEOM_ARROW)
+        if o.cue_origin is not None and o.cue_direction is not None:
+            d = np.asarray(o.cue_direction, float)
+            d = d / max(np.linalg.norm(d), 1e-9) * CUE_ARROW_M
+            a = np.array([o.cue_origin[0], o.cue_origin[1], 0.5])
+            _add_line(scn, a, a + np.array([d[0], d[1], 0.0]), 0.06,
+                      [0.1, 0.85, 0.3, o.cue_alpha], gtype=mujoco.mjtGeom.mjGEOM_ARROW)
 
-    def frame(self, data: mujoco.MjData, **overlay) -> np.ndarray:
-        """One RGB frame (H x 2W x 3): top-down view | perspective view."""
-        views = []
-        for cam in ("top", "perspective"):
-            self.renderer.update_scene(data, camera=cam, scene_option=self.opt)
-            self.overlays(**overlay)
-            views.append(self.renderer.render())
-        return np.concatenate(views, axis=1)
+    def views(self, data: mujoco.MjData, overlay: Overlay) -> tuple[np.ndarray,
+                                                                     np.ndarray | None]:
+        """The top view (``height`` square) and the perspective view (None when the frame
+        has no room for it), both with the overlays."""
+        out = []
+        for r, cam in ((self.top, "top"), (self.persp, "perspective")):
+            if r is None:
+                out.append(None)
+                continue
+            r.update_scene(data, camera=cam, scene_option=self.opt)
+            r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False  # a floor, not a mirror
+            self.overlays(r.scene, overlay)
+            out.append(r.render())
+        return out[0], out[1]
 
     def close(self) -> None:
-        """Release the renderer's GL context."""
-        self.renderer.close()
+        """Release the renderers' GL contexts."""
+        for r in (self.top, self.persp):
+            if r is not None:
+                r.close()
+
+
+class VideoWriter:
+    """H.264 MP4 (imageio-ffmpeg) written frame by frame, so a long video never sits in
+    memory; :meth:`close` refuses a blank video (every sampled frame flat: the GL backend
+    drew nothing) and removes the file."""
+
+    def __init__(self, out: str | Path, fps: int = 25, sample_every: int = 10):
+        import imageio.v2 as imageio
+
+        self.out = Path(out)
+        self.frames, self.sample_every, self.drawn = 0, sample_every, False
+        self._w = imageio.get_writer(str(out), fps=fps, codec="libx264", quality=7,
+                                     macro_block_size=2, format="FFMPEG")
+
+    def append(self, frame: np.ndarray) -> None:
+        """Encode one ``H x W x 3`` uint8 frame."""
+        if not self.drawn and self.frames % self.sample_every == 0:
+            self.drawn = float(np.asarray(frame).std()) >= 1.0
+        self._w.append_data(np.ascontiguousarray(frame))
+        self.frames += 1
+
+    def close(self) -> Path:
+        """Finish the file; a ConfigError (and no file) when nothing was drawn."""
+        self._w.close()
+        if not self.frames or not self.drawn:
+            self.out.unlink(missing_ok=True)
+            if not self.frames:
+                raise ConfigError("no frames were rendered")
+            raise ConfigError("rendered frames are blank: the GL backend produced no image; "
+                              + GL_HELP.format(gl="egl"))
+        return self.out
 
 
 def write_video(frames: list[np.ndarray], out: str | Path, fps: int = 25) -> Path:
-    """Encode frames as H.264 MP4 (imageio-ffmpeg); refuses a blank video."""
-    import imageio.v2 as imageio
-
+    """Encode frames as H.264 MP4 (:class:`VideoWriter`); refuses a blank video."""
     if not frames:
         raise ConfigError("no frames were rendered")
-    if all(float(np.asarray(f).std()) < 1.0 for f in frames[:: max(1, len(frames) // 10)]):
-        raise ConfigError("rendered frames are blank: the GL backend produced no image; "
-                          + GL_HELP.format(gl="egl"))
-    with imageio.get_writer(str(out), fps=fps, codec="libx264", quality=7,
-                            macro_block_size=8, format="FFMPEG") as w:
-        for f in frames:
-            w.append_data(np.ascontiguousarray(f))
-    return Path(out)
+    w = VideoWriter(out, fps, sample_every=max(1, len(frames) // 10))
+    for f in frames:
+        w.append(f)
+    return w.close()

@@ -20,7 +20,8 @@ import numpy as np
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import has_study_tables, read_rows
-from ..sim.render import RolloutRenderer, write_video
+from ..sim.render import Overlay, RolloutRenderer, write_video
+from ..viz.video import belief_rgba, compose
 from .plan import Trial
 from .session import TrialRunner
 
@@ -97,11 +98,13 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
         k["n"] += 1
         if k["n"] % every:
             return
-        frames.append(renderer.frame(
-            b.data, goal_cells=goals, belief=runner.policy.belief.goal_marginal(),
-            true_goal=spec.goal_index, polygon=polygons[world.cell_polytope[b.cell]],
-            push_origin=b.data.xpos[b.pushed_body].copy(),
-            push_force=np.array([*runner.body.applied, 0.0]), route=route))
+        o = Overlay(goal_cells=goals, goal_rgba=belief_rgba(runner.policy.belief.goal_marginal()),
+                    true_goal=spec.goal_index, polygons=polygons,
+                    current=int(world.cell_polytope[b.cell]), robot_xy=b.position.copy(),
+                    push_origin=b.data.xpos[b.pushed_body].copy(),
+                    push_force=np.array([*runner.body.applied, 0.0]), route=route)
+        top, persp = renderer.views(b.data, o)
+        frames.append(compose(top, persp, None, width, height))
 
     def departs(at: int) -> ConfigError:
         return ConfigError(f"the replay departs from the recording at decision step {at} "

@@ -1,12 +1,20 @@
-"""Rerun recordings of episodes (offline ``.rrd`` files, ``rr.RecordingStream``, no viewer).
+"""Rerun recordings of episodes (offline ``.rrd`` files, ``rr.RecordingStream``, no viewer),
+with a blueprint stored in the file so the viewer opens a ready layout (:func:`blueprint`).
 
-Entities: ``map/obstacles``, ``map/polytopes`` (outlines, labelled with ids), ``map/graph``
-(edges between polytope centres), ``map/goals``, ``map/route`` (a study trial's route,
-:meth:`RerunLogger.log_route`); per decision step (timeline ``step``): ``robot/path``,
-``robot/position``, ``human/push`` (the detected impulse as an arrow), ``belief/goals`` (bar
-chart), ``belief/p_true_goal`` and ``belief/entropy`` (scalars); per physics frame (timeline
-``sim_time``): ``robot/trajectory`` and, for the arm, ``robot/ee_trajectory`` and
-``robot/ee_height``. Map units: metres.
+Entities (metres; the map's y axis points up on screen, so 2-D points are logged as ``(x, -y)``):
+
+* static: ``map/obstacles``, ``map/polytopes`` (outlines), ``map/polytope_ids``, ``map/graph``
+  (edges between polytope centres), ``map/preference`` (the human's preferred transitions as
+  arrows), ``map/route`` (a study trial's route to convey, :meth:`RerunLogger.log_route`);
+* per decision step (timelines ``step`` and ``sim_time``): ``map/goals`` (coloured by their
+  absolute probability, as in the video; the true goal labelled), ``robot/path``,
+  ``robot/position``, ``human/push`` (the detected impulse's direction, 0.6 m),
+  ``belief/goals`` (bar chart), ``belief/p/g0`` ... (each goal's probability over time),
+  ``belief/p_true_goal`` and ``belief/entropy``;
+* per rendered physics frame (timeline ``sim_time``): ``robot/trajectory``, ``force/x``,
+  ``force/y``, ``force/magnitude`` (the push estimate the detector reads, N),
+  ``detector/active`` (0 or 1), ``camera`` (the video frame, JPEG) and, for the arm,
+  ``robot/ee_trajectory`` and ``robot/ee_height``.
 """
 
 from __future__ import annotations
@@ -15,63 +23,143 @@ from pathlib import Path
 
 import numpy as np
 import rerun as rr
+import rerun.blueprint as rrb
 
 from ..geometry.world import World
 from .mapdraw import polytope_centres
+from .video import belief_rgba
+
+FLIP = np.array([1.0, -1.0])  # map y up -> rerun 2-D y down
+
+
+def _xy(points) -> np.ndarray:
+    return np.asarray(points, float)[..., :2] * FLIP
+
+
+def blueprint() -> rrb.Blueprint:
+    """The layout an opened recording shows: the map with the robot, goals, preference and
+    pushes and the camera on the left; the goal belief (bars, then over time), the force and
+    the detector over time on the right."""
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.Spatial2DView(name="map", origin="/",
+                                  contents=["map/**", "robot/**", "human/**"]),
+                rrb.Spatial2DView(name="camera", origin="camera"),
+                row_shares=[3, 2]),
+            rrb.Vertical(
+                rrb.BarChartView(name="P(goal) now", origin="belief/goals"),
+                rrb.TimeSeriesView(name="P(goal) over time", origin="belief/p"),
+                rrb.TimeSeriesView(name="P(true goal), entropy (nats)", origin="belief",
+                                   contents=["belief/p_true_goal", "belief/entropy"]),
+                rrb.TimeSeriesView(name="force on the handle (N)", origin="force"),
+                rrb.TimeSeriesView(name="detector active", origin="detector")),
+            column_shares=[3, 2]),
+        rrb.TimePanel(state="collapsed"),
+        collapse_panels=False,
+    )
 
 
 class RerunLogger:
     """Writes an episode to an offline rerun file (entities in the module docstring)."""
+
     def __init__(self, world: World, goal_cells: np.ndarray, true_goal: int, out: str | Path,
-                 cell_size: float = 0.5, app: str = "pathpref"):
+                 cell_size: float = 0.5, app: str = "pathpref",
+                 preference: np.ndarray | None = None):
         self.rec = rr.RecordingStream(app)
-        self.rec.save(str(out))
+        self.rec.save(str(out), default_blueprint=blueprint())
         self.cs = cell_size
         self.path: list[np.ndarray] = []
+        self.goals = _xy((np.asarray(goal_cells, float) - 0.5) * cell_size)
+        self.true_goal = true_goal
         rec, cs = self.rec, cell_size
         rec.log("map/obstacles", rr.LineStrips2D(
-            [np.vstack([o.vertices, o.vertices[:1]]) * cs for o in world.spec.obstacles],
+            [_xy(np.vstack([o.vertices, o.vertices[:1]]) * cs) for o in world.spec.obstacles],
             colors=[60, 60, 70]), static=True)
-        polys = [np.vstack([p, p[:1]]) * cs for p in world.arrangement.polygons if len(p) >= 3]
+        polys = [_xy(np.vstack([p, p[:1]]) * cs) for p in world.arrangement.polygons
+                 if len(p) >= 3]
         centres = polytope_centres(world) * cs
         rec.log("map/polytopes", rr.LineStrips2D(polys, colors=[120, 160, 220]), static=True)
         rec.log("map/polytope_ids", rr.Points2D(
-            centres, labels=[str(v) for v in range(world.n_polytopes)], radii=0.02), static=True)
-        rec.log("map/graph", rr.LineStrips2D(
-            [centres[[u, w]] for u, w in world.graph.edges], colors=[150, 150, 150]),
+            _xy(centres), labels=[str(v) for v in range(world.n_polytopes)], radii=0.02),
             static=True)
-        g = (np.asarray(goal_cells) - 0.5) * cs
-        colors = [[255, 80, 180] if k == true_goal else [80, 170, 255] for k in range(len(g))]
-        rec.log("map/goals", rr.Points2D(g, radii=0.08, colors=colors,
-                                         labels=[f"g{k}" for k in range(len(g))]), static=True)
+        rec.log("map/graph", rr.LineStrips2D(
+            [_xy(centres[[u, w]]) for u, w in world.graph.edges], colors=[150, 150, 150]),
+            static=True)
+        if preference is not None:
+            pairs = [(v, int(w)) for v, w in enumerate(np.asarray(preference)) if w >= 0]
+            if pairs:
+                a = np.array([centres[v] for v, _ in pairs])
+                b = np.array([centres[w] for _, w in pairs])
+                rec.log("map/preference", rr.Arrows2D(
+                    origins=_xy(a + 0.2 * (b - a)), vectors=_xy(0.6 * (b - a)),
+                    colors=[50, 50, 56], radii=0.025), static=True)
+        for k in range(len(self.goals)):
+            rec.log(f"belief/p/g{k}", rr.SeriesLines(names=f"g{k}" + (
+                " (true)" if k == true_goal else "")), static=True)
 
     def log_route(self, cells: np.ndarray) -> None:
         """A route to convey (cells ``(x, y)``, 1-based) as a line through their centres."""
         pts = (np.asarray(cells, float) - 0.5) * self.cs
-        self.rec.log("map/route", rr.LineStrips2D([pts], colors=[240, 140, 20]), static=True)
+        self.rec.log("map/route", rr.LineStrips2D([_xy(pts)], colors=[240, 140, 20]),
+                     static=True)
 
-    def log_frame(self, sim_time: float, xy: np.ndarray, ee: np.ndarray | None = None) -> None:
-        """The base (and, for the arm, the end-effector) position at a physics frame."""
+    def _time(self, sim_time: float, step: int | None = None) -> None:
+        if step is not None:
+            self.rec.set_time("step", sequence=int(step))
         self.rec.set_time("sim_time", duration=float(sim_time))
-        self.rec.log("robot/trajectory", rr.Points2D([xy], radii=0.03, colors=[30, 110, 220]))
+
+    def log_frame(self, sim_time: float, xy: np.ndarray, ee: np.ndarray | None = None,
+                  force: np.ndarray | None = None, detector_active: bool | None = None,
+                  image: np.ndarray | None = None) -> None:
+        """A physics frame: the base (and the arm's end-effector), the force estimate, the
+        detector's state and the camera image (each when given)."""
+        rec = self.rec
+        self._time(sim_time)
+        rec.log("robot/trajectory", rr.Points2D(_xy([xy]), radii=0.03, colors=[30, 110, 220]))
         if ee is not None:
-            self.rec.log("robot/ee_trajectory", rr.Points2D([np.asarray(ee)[:2]], radii=0.02,
-                                                            colors=[240, 170, 30]))
-            self.rec.log("robot/ee_height", rr.Scalars(float(np.asarray(ee)[2])))
+            rec.log("robot/ee_trajectory", rr.Points2D(_xy([np.asarray(ee)]), radii=0.02,
+                                                       colors=[240, 170, 30]))
+            rec.log("robot/ee_height", rr.Scalars(float(np.asarray(ee)[2])))
+        if force is not None:
+            f = np.asarray(force, float)
+            rec.log("force/x", rr.Scalars(float(f[0])))
+            rec.log("force/y", rr.Scalars(float(f[1])))
+            rec.log("force/magnitude", rr.Scalars(float(np.hypot(f[0], f[1]))))
+        if detector_active is not None:
+            rec.log("detector/active", rr.Scalars(float(bool(detector_active))))
+        if image is not None:
+            rec.log("camera", rr.Image(np.asarray(image, np.uint8)).compress(jpeg_quality=80))
 
     def log_step(self, t: int, xy: np.ndarray, belief: np.ndarray, p_true: float,
-                 entropy: float, push: np.ndarray | None) -> None:
-        """A decision step: path, position, detected push, goal belief, P(true goal), entropy."""
+                 entropy: float, push: np.ndarray | None, sim_time: float | None = None
+                 ) -> None:
+        """A decision step: goals in their belief colours, path, position, detected push, the
+        goal belief (bars and per-goal series), P(true goal), entropy."""
         rec = self.rec
         rec.set_time("step", sequence=int(t))
+        if sim_time is not None:
+            rec.set_time("sim_time", duration=float(sim_time))
+        belief = np.asarray(belief, float)
+        colors = (belief_rgba(belief)[:, :3] * 255).astype(np.uint8)
+        rec.log("map/goals", rr.Points2D(
+            self.goals, radii=0.1, colors=colors,
+            labels=[f"g{k}" + (" (true)" if k == self.true_goal else "")
+                    for k in range(len(self.goals))]))
         self.path.append(np.asarray(xy, float))
-        rec.log("robot/path", rr.LineStrips2D([np.array(self.path)], colors=[30, 110, 220]))
-        rec.log("robot/position", rr.Points2D([xy], radii=0.1, colors=[30, 110, 220]))
-        if push is not None:
-            rec.log("human/push", rr.Arrows2D(origins=[xy], vectors=[push], colors=[220, 30, 30]))
+        rec.log("robot/path", rr.LineStrips2D([_xy(np.array(self.path))],
+                                              colors=[30, 110, 220]))
+        rec.log("robot/position", rr.Points2D(_xy([xy]), radii=0.1, colors=[30, 110, 220]))
+        if push is not None:  # the impulse's direction, 0.6 m long
+            v = np.asarray(push, float)[:2]
+            v = v / max(float(np.hypot(*v)), 1e-9) * 0.6
+            rec.log("human/push", rr.Arrows2D(origins=_xy([xy]), vectors=_xy([v]),
+                                              colors=[220, 30, 30], radii=0.03))
         else:
             rec.log("human/push", rr.Clear(recursive=False))
-        rec.log("belief/goals", rr.BarChart(np.asarray(belief, float)))
+        rec.log("belief/goals", rr.BarChart(belief))
+        for k, p in enumerate(belief):
+            rec.log(f"belief/p/g{k}", rr.Scalars(float(p)))
         rec.log("belief/p_true_goal", rr.Scalars(float(p_true)))
         rec.log("belief/entropy", rr.Scalars(float(entropy)))
 

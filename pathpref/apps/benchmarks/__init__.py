@@ -4,6 +4,7 @@
   and robust search) against the paper's Table II;
 * ``scale``: the 200 x 200 floor plan (fresh process), Ray throughput, rotated 40 x 40 maps;
 * ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK;
+  the dm_control tasks' step rates (``control_steps_per_s``, :mod:`.tasks`);
 * ``study``: browser front end, WebSocket push to the cue in the belief (``study_latency_ms``).
 
 They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
@@ -23,9 +24,10 @@ from .maps import bench_map, bench_pomcp, machine_info
 from .physics import bench_arm, bench_physics
 from .scale import bench_ray, bench_scale
 from .study import bench_study
+from .tasks import bench_tasks
 
 __all__ = ["bench_arm", "bench_map", "bench_physics", "bench_pomcp", "bench_ray", "bench_scale",
-           "bench_study", "machine_info", "run_benchmarks"]
+           "bench_study", "bench_tasks", "machine_info", "run_benchmarks"]
 
 
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
@@ -34,7 +36,7 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
     maps = maps or ["simple", "office", "classroom"]
     out = {"machine": machine_info(), "maps": {m: bench_map(m, quick=quick) for m in maps}}
     if physics:
-        out["physics"] = bench_physics(quick=quick)
+        out["physics"] = {**bench_physics(quick=quick), **bench_tasks(quick=quick)}
         out["arm"] = bench_arm(quick=quick)
         out["study"] = bench_study(quick=quick)
     if not quick:

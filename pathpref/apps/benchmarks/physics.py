@@ -180,24 +180,63 @@ def false_cues_realistic(seconds: float = 1000.0, seed: int = 0, sensor_model=No
 
 
 def render_fps(width: int = 640, height: int = 480, frames: int = 60) -> float:
-    """Frames per second of the top view of ``simple`` (one bare view, no episode)."""
+    """Frames per second of the top view of ``simple`` (one bare view, no overlay, no episode;
+    ``render_fps_video`` times what a video frame costs)."""
     import mujoco
 
-    from ...sim.render import RolloutRenderer
+    from ...sim.render import make_renderer
 
     scene = scene_for(cached_world("simple"))
     data = mujoco.MjData(scene.model)
     mujoco.mj_forward(scene.model, data)
-    r = RolloutRenderer(scene, width, height)
-    r.renderer.update_scene(data, camera="top")
-    r.renderer.render()
+    r = make_renderer(scene.model, height, width)
+    r.update_scene(data, camera="top")
+    r.render()
     t = time.perf_counter()
     for _ in range(frames):
-        r.renderer.update_scene(data, camera="top")
-        r.renderer.render()
+        r.update_scene(data, camera="top")
+        r.render()
     fps = frames / (time.perf_counter() - t)
     r.close()
     return fps
+
+
+def render_fps_video(width: int = 960, height: int = 540, frames: int = 60) -> float:
+    """Frames per second of the real video path of ``pathpref render``: both views with every
+    overlay, the info panel, composition and H.264 encoding (``FrameMaker.frame`` and
+    ``VideoWriter.append``), on an episode of ``simple`` moving between frames (the physics
+    and planning between frames are not timed)."""
+    import tempfile
+    from pathlib import Path
+
+    from ...episode import EpisodeRunner, EpisodeSpec, simulator_rng
+    from ...sim.body import MujocoBody
+    from ...sim.render import VideoWriter
+    from ..rollout import FrameMaker
+
+    spec = EpisodeSpec.single("simple", "goal_only", 3, seed=0, sim="mujoco", queries=50)
+    world = cached_world("simple")
+    body = MujocoBody(world, spec, simulator_rng(spec))
+    maker = FrameMaker(world, body, spec, width, height)
+    runner = EpisodeRunner(spec, world, body)
+    maker.attach(runner)
+    body.base.on_substep.append(maker.track)
+    runner.begin()
+    spent, made = 0.0, 0
+    with tempfile.TemporaryDirectory() as tmp:
+        writer = VideoWriter(Path(tmp) / "bench.mp4")
+        while made < frames:
+            if runner.done:
+                break
+            runner.step()
+            for _ in range(min(5, frames - made)):
+                t = time.perf_counter()
+                writer.append(maker.frame(body.base, None))
+                spent += time.perf_counter() - t
+                made += 1
+        writer.close()
+    maker.close()
+    return made / spent
 
 
 def bench_physics(quick: bool = False) -> dict[str, Any]:
@@ -242,6 +281,7 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "episode_s": median(times),
         "episode_max_s": max(times),
         "render_fps": render_fps(frames=20 if quick else 60),
+        "render_fps_video": render_fps_video(frames=20 if quick else 60),
     }
 
 
