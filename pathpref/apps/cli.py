@@ -264,11 +264,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")
     rpl.add_argument("db", help="results database holding study trials")
-    rpl.add_argument("--participant", required=True)
+    rpl.add_argument("--participant", required=True, help="the participant's id")
     rpl.add_argument("--trial", type=int, required=True, help="the trial's position (1, 2, ...)")
     rpl.add_argument("--out", required=True, help="video file (.mp4)")
-    rpl.add_argument("--width", action=RangeAction, limits="frame_size", default=480)
-    rpl.add_argument("--height", action=RangeAction, limits="frame_size", default=360)
+    rpl.add_argument("--width", action=RangeAction, limits="frame_size", default=960,
+                     help="video width in pixels (default: %(default)s)")
+    rpl.add_argument("--height", action=RangeAction, limits="frame_size", default=540,
+                     help="video height in pixels (default: %(default)s)")
     rpl.set_defaults(func=c.cmd_replay)
 
     b = sub.add_parser("bench", help="measure build, update and planning times")

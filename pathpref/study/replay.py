@@ -80,7 +80,7 @@ def load_recorded_trial(db: str | Path, participant: str, trial: int
 
 
 def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
-                 width: int = 480, height: int = 360) -> int:
+                 width: int = 960, height: int = 540) -> int:
     """Render trial ``trial`` of ``participant`` to ``out`` (MP4, real time); the number of
     frames. A replay that departs from the recorded steps is a ConfigError naming the step."""
     spec, seed, forces, recorded = load_recorded_trial(db, participant, trial)
