@@ -32,7 +32,7 @@ def damaged_copy(intact: Path, folder: Path, table: str) -> Path:
 def test_check_intact_database(intact, capsys):
     assert main(["db", "check", str(intact)]) == 0
     out = capsys.readouterr().out
-    assert f"{intact}: intact" in out and "schema 3" in out
+    assert f"{intact}: intact" in out and "schema 4" in out
     assert "episodes: 100 readable, 0 unreadable" in out and "step rows: 2100 readable" in out
 
 

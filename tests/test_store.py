@@ -96,7 +96,7 @@ def test_the_stored_row_of_an_episode_is_exact():
             "instance_seed": spec.instance_seed, "run_seed": spec.run_seed, "preset": "paper",
             "queries": 50, "t_max": 12, "n_goals": 10, "normalize": True, "coupling": True,
             "sim": "grid", "fixed": "", "task": "navigate", "ucb_c": 1.0,
-            "time_budget_ms": 0.0, "human": "map", "timeout_s": 0.0,
+            "time_budget_ms": 0.0, "human": "map", "physics": "", "timeout_s": 0.0,
             "key": spec.key(), "map_hash": spec.map_hash,
             "start": json.dumps(res.instance_cells["start"]),
             "goals": json.dumps(res.instance_cells["goals"]),

@@ -2,14 +2,16 @@
 
 **upgrade.** Schema 2 keyed an episode by its map's *path*; schema 3 keys it by the map's
 content hash (:attr:`pathpref.geometry.maps.MapSpec.content_hash`) and stores that hash in a
-``map_hash`` column. The upgrade reads every row of the old file, loads each map it names
+``map_hash`` column; schema 4 adds the ``physics`` column (the episode's physical parameters;
+older rows get ``""``, the legacy physics they ran with, and keep their keys).
+The upgrade reads every row of the old file, loads each map it names
 (``--map OLD=NEW`` points a stored name at a file that has moved), recomputes the key of each
 episode under the current :class:`~pathpref.episode.EpisodeSpec` (fields the old
 schema lacks take their defaults, which reproduce the old behaviour), and writes a new file with
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schema2.bak``; nothing is changed when any map cannot be loaded.
+``NAME.schemaN.bak``; nothing is changed when any map cannot be loaded.
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),

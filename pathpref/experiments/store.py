@@ -26,8 +26,10 @@ from typing import Any
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
 
-SCHEMA_VERSION = 3  # 2: per-episode physical metrics (JSON); 3: keys by map content hash
-UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
+#: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the physical
+#: parameters of each episode (``physics``, JSON; "" = the legacy physics of older rows)
+SCHEMA_VERSION = 4
+UPGRADABLE = (2, 3)  # older schemas that 'pathpref db upgrade' migrates
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
@@ -40,7 +42,7 @@ EPISODE_COLUMNS = {
     "status": "TEXT", "reason": "TEXT", "goal_reached": "INTEGER", "pref_followed": "INTEGER",
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
-    "human": "TEXT", "back_crossings": "INTEGER",
+    "human": "TEXT", "back_crossings": "INTEGER", "physics": "TEXT",
 }
 
 #: The CREATE statements of pathpref's tables (``episodes`` takes its column list).
@@ -301,6 +303,7 @@ class ResultStore:
 def row_spec(row: dict[str, Any]) -> EpisodeSpec:
     """The :class:`EpisodeSpec` of a stored row: ``run_episode(row_spec(row))`` replays it."""
     names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
-    spec = {k: row[k] for k in names}
+    spec = {k: row[k] for k in names if k != "physics"}
+    spec["physics"] = row.get("physics") or ""  # rows before schema 4: the legacy physics
     spec["normalize"], spec["coupling"] = bool(spec["normalize"]), bool(spec["coupling"])
     return EpisodeSpec(**spec)

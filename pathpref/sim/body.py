@@ -11,6 +11,13 @@ the episode layer's body registry when :mod:`pathpref.sim` is imported.
   base actually ends in.
 
 Scenes are built once per process and map; each episode gets fresh ``MjData``.
+
+With ``spec.physics`` set (:class:`~pathpref.episode.physics.Physics`) the body senses with the
+chosen sensor model and detector thresholds, draws each push's strength, duration and shape
+from the human model's distributions, and, unless the timing is ``decision``, takes the human
+over: pushes come at any time (:mod:`.pushing_human`), the base yields and stops on a cue,
+and the runner reads the felt cues (:meth:`MujocoBody.felt_inputs`). An empty ``physics`` is the
+legacy body, bit for bit.
 """
 
 from __future__ import annotations
@@ -20,13 +27,17 @@ from functools import lru_cache
 import numpy as np
 
 from ..episode.body import Body, register_body
+from ..episode.physics import Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
 from .force_cue import HumanPush, PushProfile
 from .mobile_base import MobileBase
+from .pushing_human import PushingHuman, sample_profile
 from .scene import Scene, build_scene
 
+#: how long a standing robot waits before its next decision when pushes come at any time (s)
+HOLD_S = 0.5
 
 @lru_cache(maxsize=8)
 def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate") -> Scene:
@@ -53,24 +64,54 @@ class MujocoBody(Body):
         self.world = world
         self.rng = rng
         task = spec.task
+        self.physics = physics = Physics.from_json(getattr(spec, "physics", ""))
+        self.delta_t = int(spec.delta_t)
         self.scene = scene or scene_for(world, cell_size, task)
+        kwargs = {} if physics is None else sensing_kwargs(physics, rng)
         if task == "carry":
             from .arm import ArmBase
 
-            self.base: MobileBase = ArmBase(self.scene, profile=profile, data=data)
+            self.base: MobileBase = ArmBase(self.scene, profile=profile, data=data, **kwargs)
         else:
-            self.base = MobileBase(self.scene, profile=profile, data=data)
+            self.base = MobileBase(self.scene, profile=profile, data=data, **kwargs)
         self.profile = self.base.profile
         self.last_cue = None
+        self.human: PushingHuman | None = None
+        self._read = 0
 
     def reset(self, cell: int) -> None:
         """Reset the physics with the base at the centre of ``cell``."""
         self.base.reset(cell)
         self.cell = cell
 
+    def attach_human(self, heading_at, probs) -> bool:
+        """Take the human over when the physics' timing is not ``decision`` (pushes at any
+        time, :mod:`.pushing_human`); the human's own stream is a child of the body's."""
+        if self.physics is None or self.physics.timing == "decision":
+            return False
+        self.base.enable_pushes_any_time(self.physics.admittance_b)
+        self.human = PushingHuman(self.physics, self.rng.spawn(1)[0], self.delta_t,
+                                  heading_at, probs)
+        self.human.attach(self.base)
+        return True
+
+    def felt_inputs(self) -> list[tuple[int, int]]:
+        """``(cell, heading)`` of the cues felt since the last call."""
+        new = self.base.felt[self._read:]
+        self._read = len(self.base.felt)
+        if new:
+            self.last_cue = new[-1].cue
+        return [(f.cell, f.heading) for f in new]
+
+    def inputs_given(self) -> int:
+        """Pushes the simulated human has begun."""
+        return 0 if self.human is None else len(self.human.given)
+
     def human_input(self, heading: int) -> int | None:
         """Push toward ``heading`` (with the profile's noise); the detected sector or None."""
-        push = HumanPush.sample(heading, float(self.base.data.time), self.profile, self.rng)
+        profile = self.profile if self.physics is None else \
+            sample_profile(self.physics, self.rng)
+        push = HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
         self.last_cue = cue = self.base.receive_push(push)
         self.cell = self.base.cell
         return None if cue is None else cue.heading
@@ -83,8 +124,33 @@ class MujocoBody(Body):
         """Drive to the grid neighbour of SPEC 3; the cell the base ends in."""
         target = self.cell if action == STAY else int(self.world.motion.next_cell[self.cell,
                                                                                   action])
-        self.cell = self.base.move_to(target)
+        if self.human is None:
+            self.cell = self.base.move_to(target)
+            return self.cell
+        self.cell = self.base.cell
+        self.human.robot_moves(self.cell, None if target == self.cell else action)
+        if target == self.cell:
+            self.cell = self.base.hold(HOLD_S)
+        else:
+            self.cell = self.base.move_to(target)
         return self.cell
+
+
+def sensing_kwargs(physics: Physics, rng: np.random.Generator) -> dict:
+    """The base's sensing settings from ``physics``: the sensor preset with its overrides,
+    the body's generator and the detector thresholds."""
+    from dataclasses import replace
+
+    from .sensing import SensorModel
+
+    model = getattr(SensorModel, physics.sensor)()
+    over = {k: v for k, v in (("noise_n", physics.sensor_noise_n),
+                              ("bias_n", physics.sensor_bias_n),
+                              ("drift_n_per_sqrt_s", physics.sensor_drift_n)) if v >= 0}
+    model = replace(model, **over)
+    detector = {"on_n": physics.on_n, "on_s": physics.on_s, "off_n": physics.off_n,
+                "off_s": physics.off_s}
+    return {"sensor_model": model, "rng": rng, "detector": detector}
 
 
 register_body("mujoco", MujocoBody)

@@ -8,7 +8,15 @@ Two operations make up a decision step:
 * :meth:`MobileBase.move_to`: the tracking controller drives to a cell centre at physics rate
   until the base settles or the time limit passes; collisions are MuJoCo contacts.
 
-Hooks (``on_substep``) see every physics step, e.g. a renderer or a logger.
+Hooks (``on_substep``) see every physics step, e.g. a renderer or a logger; ``pre_substep``
+hooks run before it (the simulated human of :mod:`.pushing_human` starts its pushes there).
+
+**Pushes at any time** (:meth:`MobileBase.enable_pushes_any_time`): pushes in :attr:`pushes`
+act whenever their time comes (driving, braking or standing), the detector splits two pushes
+into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (admittance:
+velocity command ``F_hat / b``), and every cue is recorded in :attr:`felt` with the cell and
+simulated time at which it was first felt; :meth:`move_to` and :meth:`hold` then return at
+once so that the planner replans from the new belief instead of finishing the move.
 
 Sensing: by default the detector reads the raw force sensor (:class:`HandleSensor`, ideal: no
 noise, no bias; the handle's own inertia is in it, as MuJoCo computes it). With a
@@ -23,6 +31,7 @@ compensation from its own joint velocities), and detects with
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -38,6 +47,22 @@ from .sensing import FaultySensor, HandleSensor, SensorModel
 RELEASE_WINDOW_S = 0.4  # how long after a push ends the detector may still release
 
 
+@dataclass(frozen=True)
+class FeltCue:
+    """A cue with where and when it was felt: ``cell`` and ``t_felt`` (simulated s) of the
+    first force sample above the detector's onset threshold, ``t_cue`` when it was emitted."""
+
+    cue: Cue
+    cell: int
+    t_felt: float
+    t_cue: float
+
+    @property
+    def heading(self) -> int:
+        """The cue's compass sector (0..7)."""
+        return self.cue.heading
+
+
 class MobileBase:
     """The base in ``scene``: its joints (``slide_x``, ``slide_y``, ``yaw``) and velocity
     actuators (``vx``, ``vy``, ``wz``) addressed by name; the pushed body is the ``handle``.
@@ -49,7 +74,7 @@ class MobileBase:
                  profile: PushProfile | None = None, data: mujoco.MjData | None = None,
                  sensor_model: SensorModel | None = None,
                  rng: np.random.Generator | None = None,
-                 estimator: EstimatorConfig | None = None):
+                 estimator: EstimatorConfig | None = None, detector: dict | None = None):
         self.scene = scene
         self.model = scene.model
         self.data = data if data is not None else mujoco.MjData(self.model)
@@ -64,8 +89,21 @@ class MobileBase:
         #: the body a human pushes and the sensor feels (the handle; the arm's tray)
         self.pushed_body = int(self.model.body("handle").id)
         self.dt = float(self.model.opt.timestep)
-        self.detector = CueDetector(self.dt)
+        self.detector_settings: dict = dict(detector or {})
+        self.detector = CueDetector(self.dt, **self._plain_settings())
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
+        self.pre_substep: list[Callable[[MobileBase], None]] = []
+        #: pushes that act when their time comes (pushes at any time); expired ones are dropped
+        self.pushes: list[HumanPush] = []
+        #: cues felt with their cell and time (pushes at any time)
+        self.felt: list[FeltCue] = []
+        #: admittance damping (N s/m) while a cue is under way; None: track the target
+        self.admittance_b: float | None = None
+        #: end a move or a hold as soon as a cue is felt (the planner replans)
+        self.stop_on_cue = False
+        #: pushes at any time are on (:meth:`enable_pushes_any_time`)
+        self.any_time = False
+        self._onset: tuple[float, int] | None = None
         self.target = np.zeros(2)
         #: cues detected while driving (no simulated push is given then: a person pushing
         #: live in study mode, or a false cue in a simulated episode)
@@ -87,7 +125,21 @@ class MobileBase:
                 raise ConfigError("a sensor model with faults needs the body's numpy "
                                   "Generator (rng=...)")
             self._sensor_rng = rng.spawn(1)[0]
-            self.detector = FilteredCueDetector(self.dt)
+            self.detector = FilteredCueDetector(self.dt, **self.detector_settings)
+
+    def _plain_settings(self) -> dict:
+        """The detector settings the unfiltered :class:`CueDetector` takes."""
+        keep = ("on_n", "on_s", "off_n", "off_s", "split", "turn_deg")
+        return {k: v for k, v in self.detector_settings.items() if k in keep}
+
+    def enable_pushes_any_time(self, admittance_b: float = 80.0) -> None:
+        """Pushes at any time (module docstring): the splitting detector, admittance ``b``
+        (N s/m: a 30 N push moves the yielding base at 0.375 m/s), stop on a cue."""
+        self.detector_settings["split"] = True
+        self.detector.split = True
+        self.admittance_b = float(admittance_b)
+        self.stop_on_cue = True
+        self.any_time = True
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
@@ -102,6 +154,7 @@ class MobileBase:
         """Reset the detector; with a faulty sensor, (re)build the sensing chain for the
         current sensor and pushed body and zero the sensor at rest (``tare_s`` of readings)."""
         self.detector.reset()
+        self.pushes, self.felt, self._onset = [], [], None
         if self.sensor_model is None:
             return
         if self.faulty is None or self.faulty.sensor is not self.sensor:
@@ -162,8 +215,12 @@ class MobileBase:
     def substep(self, push: HumanPush | None = None) -> Cue | None:
         """One physics step: controller, optional push, sensing and detection."""
         d = self.data
+        for hook in self.pre_substep:
+            hook(self)
         self._control()
-        if push is not None and push.active(float(d.time)):
+        if self.pushes:
+            self._apply_pushes(push)
+        elif push is not None and push.active(float(d.time)):
             push.apply(d, self.pushed_body)
         elif not self.external_forces:
             d.xfrc_applied[self.pushed_body, :] = 0.0
@@ -171,18 +228,57 @@ class MobileBase:
         if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
         if self.sensor_model is None:
-            cue = self.detector.update(self.sensor.force_xy(d))
+            f = self.sensor.force_xy(d)
+            if self.any_time:
+                self.force_estimate = f
+            cue = self.detector.update(f)
         else:
             cue = self.detector.update(self.sense(), at_rest=self.estimator.at_rest)
+        if self.any_time:
+            self._track_onset(cue)
         for hook in self.on_substep:
             hook(self, push)
         return cue
 
+    def _apply_pushes(self, push: HumanPush | None) -> None:
+        """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
+        dropped."""
+        d, t = self.data, float(self.data.time)
+        self.pushes = [p for p in self.pushes if t <= p.t0 + p.profile.duration_s]
+        total = np.zeros(3)
+        for p in [*self.pushes, *([push] if push is not None else [])]:
+            if p.active(t):
+                total += p.force(t)
+        if not np.isfinite(total).all():
+            raise ConfigError("push force is not finite; check the push parameters")
+        d.xfrc_applied[self.pushed_body, :] = 0.0
+        d.xfrc_applied[self.pushed_body, :3] = total
+
+    def _track_onset(self, cue: Cue | None) -> None:
+        """Note where and when the cue under way was first felt; record an ended cue."""
+        det, t = self.detector, float(self.data.time)
+        under_way = det.active or det._above > 0.0
+        if cue is not None:
+            t0, cell = self._onset if self._onset is not None else (t, self.cell)
+            self.felt.append(FeltCue(cue, cell, t0, t))
+            self._onset = (t, self.cell) if under_way else None
+        elif under_way and self._onset is None:
+            self._onset = (t, self.cell)
+        elif not under_way:
+            self._onset = None
+
+    def yielding(self) -> bool:
+        """Whether the base yields to a push now (admittance on and a cue under way)."""
+        return self.admittance_b is not None and (self.detector.active
+                                                  or self.detector._above > 0.0)
+
     def _control(self) -> None:
         """Actuator commands for this physics step (the base's tracking controller)."""
         d = self.data
-        d.ctrl[self.actuators] = self.controller.command(d.qpos[self.xy], d.qpos[self.yaw],
-                                                         self.target)
+        cmd = self.controller.command(d.qpos[self.xy], d.qpos[self.yaw], self.target)
+        if self.yielding():
+            cmd[:2] = self.force_estimate / self.admittance_b
+        d.ctrl[self.actuators] = cmd
 
     def receive_push(self, push: HumanPush) -> Cue | None:
         """Hold the current cell while ``push`` acts; return the detected cue or None."""
@@ -207,6 +303,20 @@ class MobileBase:
             cue = self.substep()
             if cue is not None:
                 self.cues_while_driving.append(cue)
-            if self.controller.settled(self.position, self.velocity, self.target):
+                if self.stop_on_cue:
+                    break
+            if self.controller.settled(self.position, self.velocity, self.target) and \
+                    not self.yielding():
+                break
+        return self.cell
+
+    def hold(self, seconds: float) -> int:
+        """Stand at the current cell's centre for ``seconds`` of simulated time (pushes at any
+        time may come meanwhile; with :attr:`stop_on_cue` a cue ends the hold). The cell the
+        base is in at the end."""
+        self.target = self.scene.cell_centre(self.cell)
+        t_end = self.data.time + seconds
+        while self.data.time < t_end:
+            if self.substep() is not None and self.stop_on_cue:
                 break
         return self.cell

@@ -133,6 +133,87 @@ def cue_accuracy_realistic(n: int = 200, seed: int = 0) -> dict[str, Any]:
     }
 
 
+def pushes_while_driving(pushes: list[tuple], sensor_model=None, seed: int = 0) -> dict:
+    """Pushes at random moments of motion: for each push of :func:`realistic_pushes` the base
+    (pushes at any time: splitting detector, admittance, stop on a cue) starts driving to the
+    push's cell, and the push begins ``U[0.05, 0.6]`` s into the move (accelerating,
+    cruising or braking). Hits (the felt cue's sector = intended; the first cue felt after
+    the onset), latencies (onset to first felt), and misses."""
+    from ...sim.force_cue import HumanPush
+    from ...sim.mobile_base import MobileBase
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world), sensor_model=sensor_model,
+                      rng=np.random.default_rng(seed + 1))
+    base.enable_pushes_any_time()
+    base.reset(world.cell((3, 3)))
+    base.hold(0.5)
+    rng = np.random.default_rng(seed + 2)
+    hits, onset, speeds = [], [], []
+    for cell, h, angle, profile in pushes:
+        if cell == base.cell:
+            cell = int(world.motion.next_cell[cell, int(np.flatnonzero(
+                ~world.motion.blocked[cell])[0])])
+        t0 = float(base.data.time) + float(rng.uniform(0.05, 0.6))
+        base.pushes.append(HumanPush(angle, t0, profile, h))
+        n0 = len(base.felt)
+        base.target = base.scene.cell_centre(cell)
+        t_end = t0 + profile.duration_s + 1.0
+        while base.data.time < t_end and len(base.felt) == n0:
+            base.substep()
+            if abs(base.data.time - t0) < 0.5 * base.dt:
+                speeds.append(float(np.linalg.norm(base.velocity)))
+        felt = [f for f in base.felt[n0:] if f.t_felt >= t0 - 1e-9]
+        hits.append(bool(felt) and felt[0].heading == h)
+        if felt:
+            onset.append(felt[0].t_felt - t0)
+        base.hold(0.3)  # the push's tail and release
+    return {"hits": hits, "onset_s": onset, "accuracy": float(np.mean(hits)) if hits else 0.0,
+            "speed_at_onset_mps": speeds}
+
+
+def cue_accuracy_while_driving(n: int = 200, seed: int = 0) -> dict[str, Any]:
+    """:func:`pushes_while_driving` with the ideal sensor and with
+    ``SensorModel.realistic()`` on the same pushes: accuracies and their ratio (the
+    ``cue_accuracy_while_driving`` key), median latency, median speed at push onset."""
+    from ...sim.sensing import SensorModel
+
+    pushes = realistic_pushes(n, seed + 7)
+    ideal = pushes_while_driving(pushes, None, seed)
+    real = pushes_while_driving(pushes, SensorModel.realistic(), seed)
+    return {
+        "cue_accuracy_while_driving": real["accuracy"] / max(ideal["accuracy"], 1e-12),
+        "cue_accuracy_while_driving_raw": real["accuracy"],
+        "cue_accuracy_while_driving_ideal_raw": ideal["accuracy"],
+        "cue_latency_while_driving_ms": 1e3 * float(np.median(real["onset_s"]))
+        if real["onset_s"] else float("nan"),
+        "push_onset_speed_mps": float(np.median(real["speed_at_onset_mps"]))
+        if real["speed_at_onset_mps"] else float("nan"),
+        "cue_pushes_while_driving": n,
+    }
+
+
+def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
+    """Two 30 N, 0.3 s pushes, east then north, ``gap_s`` apart, on the driving base with
+    pushes at any time: the felt cues' angles (degrees); two cues near 0 and 90 expected."""
+    from ...sim.force_cue import HumanPush, PushProfile
+    from ...sim.mobile_base import MobileBase
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world))
+    base.enable_pushes_any_time()
+    base.stop_on_cue = False
+    base.reset(world.cell((3, 3)))
+    base.target = base.scene.cell_centre(world.cell((5, 3)))
+    t0, prof = 0.3, PushProfile()
+    base.pushes = [HumanPush(0.0, t0, prof, 2), HumanPush(np.pi / 2, t0 + 0.3 + gap_s, prof, 0)]
+    while base.data.time < t0 + 1.2:
+        base.substep()
+    return {"two_push_cues": len(base.felt),
+            "two_push_angles_deg": [round(float(np.degrees(f.cue.angle)), 1)
+                                    for f in base.felt]}
+
+
 def hard_driving(base, seconds: float, rng: np.random.Generator) -> list:
     """Drive ``base`` hard for ``seconds`` of simulated time: an aggressive controller (gain
     8, 1 m/s: the actuators saturate at 120 N, about 10 m/s^2) whose target jumps every
@@ -227,6 +308,8 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
     _, _, comp_peak = false_cues_realistic(30.0, sensor_model=inertia_only)
     return {
         **cue_accuracy_realistic(100 if quick else 400),
+        **cue_accuracy_while_driving(60 if quick else 200),
+        **two_pushes(),
         "false_cues_per_hour_realistic": n_real / real_s * 3600.0,
         "false_cue_drive_realistic_s": real_s,
         "force_estimate_peak_driving_n": real_peak,

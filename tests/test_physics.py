@@ -1,0 +1,168 @@
+"""Physical interaction that matters (issue 12 items 2-7): pushes at any time, two pushes are
+two cues, the human who pushes like a person, the physical parameters of an episode."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
+from pathpref.episode import EpisodeSpec, Physics, run_episode  # noqa: E402
+from pathpref.errors import ConfigError  # noqa: E402
+from pathpref.sim.body import scene_for  # noqa: E402
+from pathpref.sim.cue_detector import CueDetector  # noqa: E402
+from pathpref.sim.force_cue import HumanPush, PushProfile  # noqa: E402
+from pathpref.sim.mobile_base import MobileBase  # noqa: E402
+from pathpref.sim.pushing_human import sample_profile  # noqa: E402
+from pathpref.sim.sensing import SensorModel  # noqa: E402
+
+
+def _driving_base(world, sensor_model=None, split=True):
+    base = MobileBase(scene_for(world), sensor_model=sensor_model,
+                      rng=np.random.default_rng(5))
+    base.enable_pushes_any_time()
+    base.detector.split = split
+    base.reset(world.cell((3, 3)))
+    return base
+
+
+def _half_sine(t, t0, peak, dur):
+    return peak * np.sin(np.pi * (t - t0) / dur) if t0 <= t <= t0 + dur else 0.0
+
+
+def test_detector_splits_two_pushes_20ms_apart():
+    """The detector alone on an exact force trace: east 30 N for 0.3 s, 20 ms of nothing,
+    north 30 N for 0.3 s. Split: two cues at 0 and 90 degrees (each impulse is a symmetric
+    half-sine along one axis). Unsplit: one cue at 45 degrees (equal impulses)."""
+    dt = 0.002
+    ts = np.arange(0.0, 1.0, dt)
+    f = [np.array([_half_sine(t, 0.1, 30, 0.3), _half_sine(t, 0.42, 30, 0.3)]) for t in ts]
+    for split, want in ((True, [0.0, 90.0]), (False, [45.0])):
+        det = CueDetector(dt, split=split)
+        angles = [np.degrees(c.angle) for c in map(det.update, f) if c is not None]
+        assert np.allclose(angles, want, atol=1.5), (split, angles)
+
+
+def test_detector_splits_an_overlapping_turn():
+    """East 30 N from 0.1 s to 0.7 s, north 30 N from 0.4 s to 1.0 s (constant forces, no
+    dip). A force sensor feels only the sum: (30, 30) during the overlap, exactly 45 degrees
+    from the east impulse, not past the turn threshold, so the overlap stays in the first cue:
+    impulse (30 x 0.6, 30 x 0.3) = (18, 9) N s. At 0.7 s the force is north, 63 degrees from
+    (18, 9): after 25 ms the first cue ends and the second (pure north) begins."""
+    dt = 0.002
+    ts = np.arange(0.0, 1.3, dt)
+    f = [np.array([30.0 * (0.1 <= t < 0.7), 30.0 * (0.4 <= t < 1.0)]) for t in ts]
+    det = CueDetector(dt, split=True)
+    cues = [c for c in map(det.update, f) if c is not None]
+    assert len(cues) == 2 and det.splits == 1
+    assert np.allclose(cues[0].impulse, [18.0, 9.0], atol=0.07)
+    assert np.degrees(cues[1].angle) == pytest.approx(90.0)
+    assert cues[1].impulse[1] == pytest.approx(30.0 * 0.3, abs=0.07)
+
+
+@pytest.mark.parametrize("model", [None, SensorModel.realistic()])
+def test_two_pushes_while_driving_are_two_cues(simple, model):
+    base = _driving_base(simple, model)
+    base.stop_on_cue = False
+    base.target = base.scene.cell_centre(simple.cell((5, 3)))
+    prof = PushProfile()
+    base.pushes = [HumanPush(0.0, 0.3, prof, 2), HumanPush(np.pi / 2, 0.62, prof, 0)]
+    while base.data.time < 1.5:
+        base.substep()
+    angles = [np.degrees(f.cue.angle) for f in base.felt]
+    assert len(angles) == 2 and abs(angles[0]) < 8 and abs(angles[1] - 90) < 8, angles
+    assert [f.heading for f in base.felt] == [2, 0]  # E, N
+    # felt within 80 ms of the onset (30 N half-sine: 8 N after 26 ms; 100 Hz filtered sensor)
+    assert 0.3 <= base.felt[0].t_felt <= 0.3 + 0.08
+
+
+def test_push_while_driving_stops_the_move_and_yields(simple):
+    """Driving east from (3, 3) to (5, 3) (one metre), a 40 N push north 0.3 s into the
+    move: the move ends on the cue (not at the target), the cue is north and was felt in the
+    cell the base was in at the push's onset; the base moved north (it yielded)."""
+    base = _driving_base(simple)
+    start_y = float(base.position[1])
+    base.pushes = [HumanPush(np.pi / 2, 0.3, PushProfile(peak_n=40.0), 0)]
+    base.move_to(simple.cell((5, 3)))
+    assert len(base.felt) == 1 and base.felt[0].heading == 0
+    assert base.data.time < 1.0  # well before the move would have settled
+    assert not np.allclose(base.position, base.scene.cell_centre(simple.cell((5, 3))),
+                           atol=0.05)
+    assert base.position[1] - start_y > 0.02  # yielded with the push
+
+
+def test_pushes_at_any_time_reach_the_belief():
+    ph = Physics(timing="interval", sensor="ideal").to_json()
+    spec = EpisodeSpec.single("simple", "path_preference", 3, seed=3, instance=1,
+                              sim="mujoco", physics=ph)
+    res = run_episode(spec)
+    assert res.inputs > 0
+    heads = [s.heading for s in res.log if s.heading >= 0]
+    assert heads, "felt cues reach the policy as the step's heading"
+    again = run_episode(spec)
+    assert [(s.x, s.y, s.heading, s.p_true_goal) for s in again.log] == \
+        [(s.x, s.y, s.heading, s.p_true_goal) for s in res.log]  # deterministic
+
+
+def test_legacy_spec_key_has_no_physics_field():
+    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco")
+    assert "physics" not in spec.key()
+    ph = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco",
+                            physics=Physics().to_json())
+    assert "physics=" in ph.key() and ph.key() != spec.key()
+
+
+def test_push_distributions():
+    """Log-normal strength and duration: the medians are the settings (to sampling error of
+    2000 draws), the clips hold."""
+    p = Physics()
+    rng = np.random.default_rng(0)
+    prof = [sample_profile(p, rng) for _ in range(2000)]
+    peaks = np.array([q.peak_n for q in prof])
+    durs = np.array([q.duration_s for q in prof])
+    assert abs(np.median(peaks) - p.peak_n) < 1.5 and abs(np.median(durs) - p.duration_s) < 0.02
+    assert peaks.min() >= p.peak_min_n and peaks.max() <= p.peak_max_n
+    assert durs.min() >= 0.1 and durs.max() <= p.duration_max_s
+    bell = PushProfile(peak_n=20.0, duration_s=0.4, shape="bell")
+    assert bell.magnitude(0.2) == pytest.approx(20.0) and bell.magnitude(0.1) == \
+        pytest.approx(16 * 20 * 0.25**2 * 0.75**2)
+
+
+@pytest.mark.parametrize("field,value,msg", [
+    ("sensor_noise_n", -2.0, "sensor_noise_n must be a number in 0..50"),
+    ("base", "tank", "base must be one of holonomic, diffdrive"),
+    ("force_limit_n", 5.0, "force_limit_n must be above the detector's on_n"),
+    ("timing", "sometimes", "timing must be one of decision, interval"),
+])
+def test_bad_physics(field, value, msg):
+    with pytest.raises(ConfigError, match=msg):
+        Physics(**{field: value})
+
+
+def test_push_longer_than_the_episode():
+    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco", t_max=2,
+                              physics=Physics(duration_max_s=3.0, duration_s=2.0).to_json())
+    with pytest.raises(ConfigError, match="duration_max_s must be below the episode"):
+        spec.validate()
+
+
+def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
+    """The saved schema-3 sweep upgrades to schema 4: same keys, ``physics`` = "" (legacy)."""
+    import shutil
+    import sqlite3
+
+    from pathpref.experiments.migrate import upgrade_database
+    from pathpref.experiments.store import ResultStore
+
+    db = tmp_path / "old.sqlite"
+    shutil.copy("tests/data/saved_sweep.sqlite", db)
+    old_keys = {r[0] for r in sqlite3.connect(db).execute("SELECT key FROM episodes")}
+    out = upgrade_database(db)
+    assert (out["from"], out["to"], out["merged"]) == (3, 4, 0)
+    with ResultStore(db) as st:
+        rows = st.episodes()
+    assert {r["key"] for r in rows} == old_keys and {r["physics"] for r in rows} == {""}
