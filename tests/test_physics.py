@@ -166,3 +166,63 @@ def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
     with ResultStore(db) as st:
         rows = st.episodes()
     assert {r["key"] for r in rows} == old_keys and {r["physics"] for r in rows} == {""}
+
+
+def test_carry_sustained_push_moves_with_it_or_holds():
+    """30 N for 3 s on the tray, north and south: the legacy carry drives against the push
+    (hundreds of mm); the physical one never does (<= 5 mm)."""
+    from pathpref.apps.benchmarks.physics import carry_drift
+
+    assert carry_drift(physical=True)["carry_drift_mm"] <= 5.0
+    assert carry_drift(physical=False)["carry_drift_mm"] > 100.0
+
+
+def test_physical_moves_settle_without_overshoot_within_limits():
+    from pathpref.apps.benchmarks.physics import carry_moves
+
+    out = carry_moves(6, seed=1)
+    assert out["carry_overshoot_max_mm"] <= 10.0
+    assert out["carry_base_peak_accel"] <= 1.0 + 1e-6  # the Ridgeback's 1.0 m/s^2
+
+
+def test_push_above_the_actuator_limit_does_not_run_away():
+    """130 N for 3 s against a 120 N drive: the legacy 12 kg base is carried metres away; the
+    physical 135 kg base braces (net 10 N: 0.5 * 10/135 * 3^2 = 0.33 m plus the yield before
+    the brace) and comes back to its cell."""
+    from pathpref.apps.benchmarks.physics import runaway
+
+    phys = runaway(physical=True, any_time=True)
+    assert phys["runaway_m"] <= 0.5 and phys["runaway_recovered_m"] < 0.05
+    assert runaway(physical=False)["runaway_m"] > 1.0
+
+
+def test_diffdrive_turns_and_cannot_slide(simple):
+    """Driving from (3, 3) to the cell north of it, the diff-drive base turns to face north
+    (yaw +90 degrees: the nearer way from yaw 0) and its velocity is along its heading."""
+    from pathpref.apps.benchmarks.physics import physical_base
+
+    base = physical_base(simple, sensor="ideal", kind="diffdrive")
+    base.reset(simple.cell((3, 3)))
+    lateral = []
+
+    def watch(b, _push):
+        yaw = float(b.data.qpos[b.yaw])
+        lateral.append(abs(-np.sin(yaw) * b.velocity[0] + np.cos(yaw) * b.velocity[1]))
+
+    base.on_substep.append(watch)
+    assert base.move_to(simple.cell((3, 4))) == simple.cell((3, 4))
+    assert float(base.data.qpos[base.yaw]) == pytest.approx(np.pi / 2, abs=0.1)
+    assert max(lateral) < 0.02
+
+
+def test_tip_force_of_the_arm_on_base(simple):
+    from pathpref.apps.benchmarks.physics import physical_base
+
+    arm = physical_base(simple, task="carry", sensor="ideal")
+    arm.reset(simple.cell((3, 3)))
+    m = arm.model
+    mass = m.body_subtreemass[m.body("base_xy").id]
+    h = arm.data.xpos[arm.tray][2]
+    assert 138 < mass < 140 and 0.8 < h < 1.0  # 135 kg base + Jaco and tray; tray height
+    assert arm.tip_force_n() == pytest.approx(mass * 9.81 * 0.15 / h)
+    assert arm.tip_force_n() > 60.0  # above the strongest default push (peak_max_n)

@@ -4,7 +4,7 @@ An :class:`~.spec.EpisodeSpec` stores it as canonical JSON in ``physics``; the e
 the *legacy* physics every row written before this field existed ran with (ideal sensor, one
 30 N / 0.3 s half-sine push at each input step while the base stands, the original base and
 ``carry`` controllers), so old rows replay bit for bit. This module only describes and checks
-the parameters (the episode layer never imports the simulator); :mod:`pathpref.sim` acts on
+the parameters (the episode layer never imports the simulator); the simulator package acts on
 them. ``docs/physics.md`` gives the sources of the defaults.
 
 Groups (field prefixes):
@@ -23,9 +23,11 @@ Groups (field prefixes):
   ``[0.1, duration_max_s]``; ``shape`` ``half_sine`` or ``bell``; angle noise ``noise_deg``;
   the human's rationality ``gamma_h`` (SPEC 4) and whether the robot weighs a cue by its
   strength (``use_strength``);
-* the base: ``base`` (``holonomic`` or ``diffdrive``), ``v_max`` (m/s), ``a_max`` (m/s^2),
-  ``force_limit_n`` (actuator force limit, N), ``admittance_b`` (N s/m, how the base yields
-  while a cue is under way).
+* the base: ``base`` (``holonomic`` or ``diffdrive``), ``v_max`` (m/s) and ``a_max`` (m/s^2)
+  the controller plans with (defaults: the Clearpath Ridgeback's velocity limit, 1.0 m/s, and
+  0.8 m/s^2, inside its 1.0 m/s^2 acceleration limit because 120 N moves its 135 kg at
+  0.89 m/s^2 at most), ``force_limit_n`` (actuator force limit per axis, N),
+  ``admittance_b`` (N s/m, how the base yields while a cue is under way).
 """
 
 from __future__ import annotations
@@ -95,8 +97,8 @@ class Physics:
     gamma_h: float = 1.5
     use_strength: bool = False
     base: str = "holonomic"
-    v_max: float = 1.1
-    a_max: float = 1.0
+    v_max: float = 1.0
+    a_max: float = 0.8
     force_limit_n: float = 120.0
     admittance_b: float = 80.0
 

@@ -188,5 +188,8 @@ class EpisodeSpec:
             if self.sim == "grid":
                 raise ConfigError("physics settings need a physical body: add --sim mujoco")
             physics.check_episode(self.t_max)
+            if physics.base == "diffdrive" and self.task == "carry":
+                raise ConfigError("physics base diffdrive runs the navigate task only (the "
+                                  "arm is mounted on the holonomic base); use base holonomic")
         if self.time_budget_ms > 0 and preset.search != "robust":
             raise ConfigError("--time-budget-ms needs the robust search: add --preset robust")

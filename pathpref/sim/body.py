@@ -31,24 +31,27 @@ from ..episode.physics import Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
+from .controller import ProfiledController
+from .diffdrive import DiffDriveBase
 from .force_cue import HumanPush, PushProfile
 from .mobile_base import MobileBase
 from .pushing_human import PushingHuman, sample_profile
-from .scene import Scene, build_scene
+from .scene import BaseParams, Scene, build_scene
 
 #: how long a standing robot waits before its next decision when pushes come at any time (s)
 HOLD_S = 0.5
 
 @lru_cache(maxsize=8)
-def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate") -> Scene:
-    """One compiled scene per world (worlds hash by identity), cell size and task."""
+def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate",
+              base: BaseParams | None = None) -> Scene:
+    """One compiled scene per world (worlds hash by identity), cell size, task and base."""
     if task == "carry":
         from .arm import build_arm_scene
 
-        return build_arm_scene(world, cell_size)
+        return build_arm_scene(world, cell_size, base)
     if task != "navigate":
         raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
-    return build_scene(world, cell_size)
+    return build_scene(world, cell_size, base)
 
 
 class MujocoBody(Body):
@@ -66,15 +69,23 @@ class MujocoBody(Body):
         task = spec.task
         self.physics = physics = Physics.from_json(getattr(spec, "physics", ""))
         self.delta_t = int(spec.delta_t)
-        self.scene = scene or scene_for(world, cell_size, task)
-        kwargs = {} if physics is None else sensing_kwargs(physics, rng)
+        base = None if physics is None else base_params(physics)
+        self.scene = scene or scene_for(world, cell_size, task, base)
+        kwargs = {} if physics is None else {**sensing_kwargs(physics, rng), "controller":
+                                             ProfiledController(v_max=physics.v_max,
+                                                                a_max=physics.a_max)}
         if task == "carry":
             from .arm import ArmBase
 
+            if physics is not None:
+                kwargs["physical"] = True
             self.base: MobileBase = ArmBase(self.scene, profile=profile, data=data, **kwargs)
+        elif base is not None and base.kind == "diffdrive":
+            self.base = DiffDriveBase(self.scene, profile=profile, data=data, **kwargs)
         else:
             self.base = MobileBase(self.scene, profile=profile, data=data, **kwargs)
         self.profile = self.base.profile
+        self.base.measure = physics is not None
         self.last_cue = None
         self.human: PushingHuman | None = None
         self._read = 0
@@ -118,7 +129,22 @@ class MujocoBody(Body):
 
     def metrics(self) -> dict[str, float]:
         """Simulated time, and the base's own measurements (tilt, penetration for the arm)."""
-        return {"sim_time_s": float(self.base.data.time), **self.base.metrics()}
+        out = {"sim_time_s": float(self.base.data.time), **self.base.metrics()}
+        if self.physics is not None:
+            out.update(self.base.physical_metrics())
+            out.update(self.cue_metrics())
+        return out
+
+    def cue_metrics(self) -> dict[str, float]:
+        """Pushes at any time: cues felt, and how many of them have the heading of the push
+        that was acting (or last began) when the cue was first felt."""
+        if self.human is None:
+            return {}
+        hits = 0
+        for f in self.base.felt:
+            began = [p for p in self.human.given if p.t0 <= f.t_felt + 1e-9]
+            hits += bool(began) and began[-1].intended_heading == f.heading
+        return {"cues_felt": float(len(self.base.felt)), "cue_hits": float(hits)}
 
     def move(self, action: int) -> int:
         """Drive to the grid neighbour of SPEC 3; the cell the base ends in."""
@@ -134,6 +160,11 @@ class MujocoBody(Body):
         else:
             self.cell = self.base.move_to(target)
         return self.cell
+
+
+def base_params(physics: Physics) -> BaseParams:
+    """The physical base of ``physics`` (kind and actuator force limit)."""
+    return BaseParams(kind=physics.base, force_limit_n=physics.force_limit_n)
 
 
 def sensing_kwargs(physics: Physics, rng: np.random.Generator) -> dict:

@@ -45,6 +45,10 @@ from .scene import Scene
 from .sensing import FaultySensor, HandleSensor, SensorModel
 
 RELEASE_WINDOW_S = 0.4  # how long after a push ends the detector may still release
+#: the admittance's spring (N/m): a yielding base gives way 0.1 m to 30 N
+ADMITTANCE_K = 400.0
+#: share of the drive's force limit above which the base braces instead of yielding
+BRACE = 0.6
 
 
 @dataclass(frozen=True)
@@ -70,6 +74,9 @@ class MobileBase:
     ``sensor_model`` (default: the ideal raw sensor) with ``rng`` (required when the model has
     faults) and ``estimator`` settings choose how the robot senses (module docstring)."""
 
+    #: the base's actuators, in the order of :meth:`_base_command`'s result
+    ACTUATORS = ("vx", "vy", "wz")
+
     def __init__(self, scene: Scene, controller: TrackingController | None = None,
                  profile: PushProfile | None = None, data: mujoco.MjData | None = None,
                  sensor_model: SensorModel | None = None,
@@ -84,7 +91,9 @@ class MobileBase:
         self.xy = np.array([m.joint(j).qposadr[0] for j in ("slide_x", "slide_y")])
         self.yaw = int(m.joint("yaw").qposadr[0])
         self.vxy = np.array([m.joint(j).dofadr[0] for j in ("slide_x", "slide_y")])
-        self.actuators = np.array([m.actuator(a).id for a in ("vx", "vy", "wz")])
+        self.actuators = np.array([m.actuator(a).id for a in self.ACTUATORS])
+        #: the planar drive's force limit (N; the first actuator's range)
+        self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
         self.sensor = HandleSensor(self.model)
         #: the body a human pushes and the sensor feels (the handle; the arm's tray)
         self.pushed_body = int(self.model.body("handle").id)
@@ -104,6 +113,13 @@ class MobileBase:
         #: pushes at any time are on (:meth:`enable_pushes_any_time`)
         self.any_time = False
         self._onset: tuple[float, int] | None = None
+        self._anchor: np.ndarray | None = None
+        #: measure the base's acceleration and forces (episodes with physical parameters)
+        self.measure = False
+        self._v_prev = np.zeros(2)
+        self.peak_accel = 0.0  # m/s^2, while no push acts (the controller's own)
+        self.peak_accel_pushed = 0.0  # m/s^2, over all steps
+        self.peak_force = 0.0  # N, the largest push estimate
         self.target = np.zeros(2)
         #: cues detected while driving (no simulated push is given then: a person pushing
         #: live in study mode, or a false cue in a simulated episode)
@@ -149,6 +165,8 @@ class MobileBase:
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
+        self._reset_control()
+        self._v_prev = np.zeros(2)
 
     def _reset_sensing(self) -> None:
         """Reset the detector; with a faulty sensor, (re)build the sensing chain for the
@@ -236,9 +254,35 @@ class MobileBase:
             cue = self.detector.update(self.sense(), at_rest=self.estimator.at_rest)
         if self.any_time:
             self._track_onset(cue)
+        if self.measure:
+            self._measure(push)
         for hook in self.on_substep:
             hook(self, push)
         return cue
+
+    def _measure(self, push: HumanPush | None) -> None:
+        """The base's acceleration (finite difference of its planar velocity) and the push
+        estimate's peak; a step with a push acting counts only toward ``peak_accel_pushed``."""
+        d, t = self.data, float(self.data.time)
+        v = d.qvel[self.vxy].copy()
+        a = float(np.linalg.norm(v - self._v_prev)) / self.dt
+        self._v_prev = v
+        self.peak_accel_pushed = max(self.peak_accel_pushed, a)
+        pushed = any(p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
+                     for p in [*self.pushes, *([push] if push is not None else [])])
+        if not pushed and not self.yielding():
+            self.peak_accel = max(self.peak_accel, a)
+        f = self.force_estimate if self.any_time or self.sensor_model is not None else \
+            self.sensor.force_xy(d)
+        self.peak_force = max(self.peak_force, float(np.hypot(f[0], f[1])))
+
+    def physical_metrics(self) -> dict[str, float]:
+        """The measurements of :meth:`_measure` (empty unless :attr:`measure`)."""
+        if not self.measure:
+            return {}
+        return {"base_peak_accel": self.peak_accel,
+                "base_peak_accel_pushed": self.peak_accel_pushed,
+                "peak_push_estimate_n": self.peak_force}
 
     def _apply_pushes(self, push: HumanPush | None) -> None:
         """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
@@ -274,11 +318,43 @@ class MobileBase:
 
     def _control(self) -> None:
         """Actuator commands for this physics step (the base's tracking controller)."""
+        self.data.ctrl[self.actuators] = self._base_command()
+
+    def _base_command(self) -> np.ndarray:
+        """The base's velocity command ``(vx, vy, wz)``: the controller's, or while yielding
+        the admittance ``v = (F_hat - k (p - p_0)) / b`` (``p_0`` where the yield began, the
+        spring ``k = ADMITTANCE_K`` keeps a push the actuators cannot resist from carrying the
+        base away); a profiled controller ramps to it within its acceleration limit."""
         d = self.data
-        cmd = self.controller.command(d.qpos[self.xy], d.qpos[self.yaw], self.target)
-        if self.yielding():
-            cmd[:2] = self.force_estimate / self.admittance_b
-        d.ctrl[self.actuators] = cmd
+        pos = d.qpos[self.xy]
+        if not self.yielding():
+            self._anchor = None
+            return self.controller.command(pos, d.qpos[self.yaw], self.target)
+        v = self.admittance_velocity()
+        ramp = getattr(self.controller, "ramp", None)
+        if ramp is not None:
+            v = ramp(v)
+        return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
+
+    def admittance_velocity(self) -> np.ndarray:
+        """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
+        above ``BRACE`` of the drive's force limit is not yielded to: the base brakes back
+        toward ``p_0`` with all its force (``-k_p (p - p_0)``), since a base that has
+        yielded and gathered speed cannot stop while a push beyond its actuators acts on it."""
+        pos = self.data.qpos[self.xy]
+        if self._anchor is None:
+            self._anchor = pos.copy()
+        f = self.force_estimate
+        if float(np.hypot(f[0], f[1])) > BRACE * self.force_limit:
+            return -self.controller.kp * (pos - self._anchor)
+        return (f - ADMITTANCE_K * (pos - self._anchor)) / self.admittance_b
+
+    def _reset_control(self) -> None:
+        """A standing base: no yield under way, the controller's state cleared."""
+        self._anchor = None
+        reset = getattr(self.controller, "reset", None)
+        if reset is not None:
+            reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:
         """Hold the current cell while ``push`` acts; return the detected cue or None."""

@@ -214,6 +214,130 @@ def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
                                     for f in base.felt]}
 
 
+def physical_base(world, task: str = "navigate", sensor: str = "realistic",
+                  kind: str = "holonomic", seed: int = 0):
+    """A base as a physical episode builds it (``Physics()`` defaults, the sensor preset
+    ``sensor``, base ``kind``): the body's own construction, not a copy of it."""
+    import dataclasses
+
+    from ...episode import Physics
+    from ...sim.body import MujocoBody
+
+    ph = Physics(sensor=sensor, base=kind)
+    spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", task=task,
+                              physics=ph.to_json())
+    spec = dataclasses.replace(spec, map=world.name)
+    return MujocoBody(world, spec, np.random.default_rng(seed)).base
+
+
+class SteadyPush:
+    """A constant horizontal force ``f`` (N, world x-y) from ``t0`` for ``duration_s``."""
+
+    def __init__(self, f, t0: float, duration_s: float):
+        from ...sim.force_cue import PushProfile
+
+        self.f, self.t0 = np.array([f[0], f[1], 0.0]), t0
+        self.profile = PushProfile(peak_n=float(np.hypot(*f)), duration_s=duration_s)
+
+    def active(self, t: float) -> bool:
+        """Whether the force acts at ``t``."""
+        return self.t0 <= t <= self.t0 + self.profile.duration_s
+
+    def force(self, t: float) -> np.ndarray:
+        """The force at ``t`` (N, 3)."""
+        return self.f if self.active(t) else np.zeros(3)
+
+
+def runaway(force_n: float = 130.0, seconds: float = 3.0, physical: bool = True,
+            any_time: bool = False, sensor: str = "realistic") -> dict[str, float]:
+    """A push above the drive's 120 N limit (``force_n`` east for ``seconds``) on the standing
+    base in the middle of ``office``'s widest free row: the largest displacement (m) and the
+    distance from the start 3 s after the push ended (the recovery; the base holds its cell)."""
+    from ...sim.body import scene_for as scene
+
+    world = cached_world("simple")
+    if physical:
+        base = physical_base(world, sensor=sensor)
+        if any_time:
+            base.enable_pushes_any_time()
+            base.stop_on_cue = False
+    else:
+        from ...sim.mobile_base import MobileBase
+
+        base = MobileBase(scene(world))
+    base.reset(world.cell((1, 3)))
+    base.hold(0.3)
+    p0 = base.position.copy()
+    base.pushes = [SteadyPush((force_n, 0.0), float(base.data.time), seconds)]
+    worst = 0.0
+    t_end = base.data.time + seconds + 3.0
+    while base.data.time < t_end:
+        base.substep()
+        worst = max(worst, float(np.linalg.norm(base.position - p0)))
+    return {"runaway_m": worst, "runaway_recovered_m": float(np.linalg.norm(base.position - p0))}
+
+
+def carry_drift(force_n: float = 30.0, seconds: float = 3.0, physical: bool = True
+                ) -> dict[str, float]:
+    """A sustained push on the tray, north and then south (``force_n`` for ``seconds``) on the
+    standing ``carry`` robot: the base's largest displacement *against* the push (mm; the
+    ``carry_drift_mm`` key, the worse direction) and along it."""
+    from ...sim.arm import ArmBase
+    from ...sim.body import scene_for as scene
+
+    world = cached_world("simple")
+    against, along = [], []
+    for sign in (1.0, -1.0):
+        base = physical_base(world, task="carry") if physical else \
+            ArmBase(scene(world, 0.5, "carry"))
+        base.reset(world.cell((3, 3)))
+        base.hold(0.2)
+        p0, u = base.position.copy(), np.array([0.0, sign])
+        base.pushes = [SteadyPush(force_n * u, float(base.data.time), seconds)]
+        worst, most = 0.0, 0.0
+        while base.data.time < base.pushes[0].t0 + seconds:
+            base.substep()
+            d = float((base.position - p0) @ u)
+            worst, most = max(worst, -d), max(most, d)
+        against.append(1e3 * worst)
+        along.append(1e3 * most)
+    return {"carry_drift_mm": max(against), "carry_yield_mm": max(along)}
+
+
+def carry_moves(n: int = 30, seed: int = 0, physical: bool = True) -> dict[str, float]:
+    """``n`` random legal one-cell moves of the ``carry`` robot on ``simple``: the overshoot
+    of each (mm past the target along the move, 0 when it never passes it), the deepest
+    arm/obstacle penetration (every physics step in physical mode), peak base acceleration."""
+    from ...sim.arm import ArmBase
+    from ...sim.body import scene_for as scene
+
+    world = cached_world("simple")
+    base = physical_base(world, task="carry") if physical else \
+        ArmBase(scene(world, 0.5, "carry"))
+    base.reset(world.cell((3, 3)))
+    rng, over = np.random.default_rng(seed), []
+    for _ in range(n):
+        s = base.cell
+        moves = np.flatnonzero(~world.motion.blocked[s])
+        tgt = base.scene.cell_centre(int(world.motion.next_cell[s, rng.choice(moves)]))
+        u = tgt - base.position
+        u = u / max(float(np.linalg.norm(u)), 1e-9)
+        worst = 0.0
+
+        def watch(b, _push, tgt=tgt, u=u):
+            nonlocal worst
+            worst = max(worst, float((b.position - tgt) @ u))
+
+        base.on_substep.append(watch)
+        base.move_to(base.scene.cell_at(tgt))
+        base.on_substep.remove(watch)
+        over.append(1e3 * worst)
+    return {"carry_overshoot_mm": float(np.median(over)),
+            "carry_overshoot_max_mm": float(max(over)),
+            "carry_moves_penetration_mm": 1e3 * base.deepest,
+            "carry_base_peak_accel": base.peak_accel}
+
+
 def hard_driving(base, seconds: float, rng: np.random.Generator) -> list:
     """Drive ``base`` hard for ``seconds`` of simulated time: an aggressive controller (gain
     8, 1 m/s: the actuators saturate at 120 N, about 10 m/s^2) whose target jumps every
@@ -285,16 +409,26 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
     """Cue detection (with and without heading noise), false cues, episode time, rendering;
     the same with realistic sensing (``*_realistic``, :func:`cue_accuracy_realistic`,
     :func:`false_cues_realistic`; ``docs/sensing.md``)."""
+    from ...episode import Physics
+
     n_push = 50 if quick else 200
     secs = 100.0 if quick else 1000.0
     n_cues, sim_s = false_cues(secs)
-    times = []
+    legacy_times, times, accel, accel_dd = [], [], [], []
     for i in range(2 if quick else 5):
+        for physics, out in (("", legacy_times), (Physics().to_json(), times)):
+            spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
+                                      sim="mujoco", t_max=30, physics=physics)
+            t = time.perf_counter()
+            res = run_episode(spec)
+            out.append(time.perf_counter() - t)
+            if physics:
+                accel.append(res.metrics["base_peak_accel"])
         spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
-                                  sim="mujoco", t_max=30)
-        t = time.perf_counter()
-        run_episode(spec)
-        times.append(time.perf_counter() - t)
+                                  sim="mujoco", t_max=30,
+                                  physics=Physics(base="diffdrive",
+                                                  timing="interval").to_json())
+        accel_dd.append(run_episode(spec).metrics["base_peak_accel"])
     from ...sim.estimator import EstimatorConfig
     from ...sim.sensing import SensorModel
 
@@ -322,8 +456,14 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "cue_pushes": n_push,
         "false_cues_per_hour": n_cues / sim_s * 3600.0,
         "false_cue_drive_s": sim_s,
-        "episode_s": median(times),
+        **runaway(),
+        "runaway_legacy_m": runaway(physical=False)["runaway_m"],
+        "base_peak_accel": max(accel),
+        "base_peak_accel_diffdrive": max(accel_dd),
+        "base_accel_limit": 1.0,  # Clearpath Ridgeback, ridgeback_control/config/control.yaml
+        "episode_s": median(times),  # Physics() defaults: realistic sensing, physical base
         "episode_max_s": max(times),
+        "episode_legacy_s": median(legacy_times),
         "render_fps": render_fps(frames=20 if quick else 60),
     }
 
@@ -348,7 +488,9 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         cue = arm.receive_push(HumanPush.sample(h, 0.0, PushProfile(), rng))
         hits += cue is not None and cue.heading == h
         arm.move_to(arm.cell)
-    tilts, pens, times = [], [], []
+    from ...episode import Physics
+
+    tilts, pens, times, legacy_pens, tips = [], [], [], [], []
     for i in range(2 if quick else 5):
         spec = EpisodeSpec.single("simple", "path_preference", 3, seed=13, instance=i,
                                   sim="mujoco", task="carry")
@@ -356,8 +498,20 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         res = run_episode(spec)
         times.append(time.perf_counter() - t)
         tilts.append(res.metrics["tilt_rms_deg"])
-        pens.append(res.metrics["max_penetration_mm"])
+        legacy_pens.append(res.metrics["max_penetration_mm"])
+        phys = run_episode(EpisodeSpec.single("simple", "path_preference", 3, seed=13,
+                                              instance=i, sim="mujoco", task="carry",
+                                              physics=Physics().to_json()))
+        pens.append(phys.metrics["max_penetration_mm"])  # every physics step
+        tips.append(phys.metrics["tip_margin"])
     return {
+        **carry_drift(),
+        "carry_drift_legacy_mm": carry_drift(physical=False)["carry_drift_mm"],
+        **carry_moves(20 if quick else 60),
+        "carry_overshoot_legacy_mm": carry_moves(20 if quick else 60,
+                                                 physical=False)["carry_overshoot_mm"],
+        "max_penetration_mm_move_ends": max(legacy_pens),
+        "tip_margin_min": min(tips),
         "ik_solves_per_s": ik_rate,
         "cue_sector_accuracy": hits / pushes,
         "cue_pushes": pushes,
