@@ -8,6 +8,11 @@
 
 Tasks: ``navigate`` (the planar base, human force cues through its handle) and ``carry``
 (a Jaco arm on the base carries a tray; pushes on the tray; mink IK).
+
+``physics=`` sets every physical parameter (:class:`pathpref.episode.Physics`, a dict of its
+fields or its JSON; ``docs/physics.md``): ``load("navigate", physics={"sensor": "realistic",
+"timing": "interval", "base": "diffdrive"})``. Without it the task keeps the legacy physics
+(ideal sensor, the original base), so environments made before the field behave as before.
 """
 
 from __future__ import annotations

@@ -42,6 +42,7 @@ from dm_control.suite import base
 from dm_env import specs
 
 from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
+from pathpref.episode import Physics as PhysicalParameters
 from pathpref.episode.spec import check_limit
 from pathpref.errors import ConfigError
 from pathpref.geometry.arrangement import check_arrangement_size
@@ -49,7 +50,7 @@ from pathpref.geometry.grid import STAY
 from pathpref.geometry.maps import MapSpec, parse_map
 from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
-from pathpref.sim.body import MujocoBody, scene_for
+from pathpref.sim.body import MujocoBody, base_params, scene_for
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
@@ -90,6 +91,12 @@ def parse_action(action: Any) -> int:
     return int(a)
 
 
+def task_scene(world, spec: EpisodeSpec):
+    """The compiled scene of ``spec``'s task and physical base (legacy without physics)."""
+    ph = PhysicalParameters.from_json(spec.physics)
+    return scene_for(world, 0.5, spec.task, None if ph is None else base_params(ph))
+
+
 class Physics(dm_mujoco.Physics):
     """Named accessors for the navigation scene."""
 
@@ -104,7 +111,7 @@ class Navigate(base.Task):
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
-                 task: str = "navigate", force: bool = False):
+                 task: str = "navigate", force: bool = False, physics=None):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -114,7 +121,7 @@ class Navigate(base.Task):
             map=map_name, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
-            sim="mujoco", task=task)
+            sim="mujoco", task=task, physics=PhysicalParameters.coerce(physics))
         self.template.validate()
         # the environment's reward is the paper's (SPEC 6) whatever preset the planner uses
         self.rewards = get_preset("paper").path_preference
@@ -135,7 +142,7 @@ class Navigate(base.Task):
                                   self.template.delta_t, seed=self.seed, instance=self.episode,
                                   **fields)
         body = MujocoBody(self.world, spec, simulator_rng(spec),
-                          scene=scene_for(self.world, 0.5, spec.task), data=physics.data.ptr)
+                          scene=task_scene(self.world, spec), data=physics.data.ptr)
         self.runner = EpisodeRunner(spec, self.world, body)
         self.runner.begin()
         self._reward = 0.0
@@ -208,7 +215,7 @@ class Navigate(base.Task):
 
 def environment(task: Navigate) -> control.Environment:
     """Wrap a task over the compiled scene of its map (and variant) in dm_control."""
-    scene = scene_for(task.world, 0.5, task.template.task)
+    scene = task_scene(task.world, task.template)
     # dm_control wraps a compiled mujoco.MjModel; the wrapper copies nothing
     return control.Environment(Physics.from_model(core.MjModel(scene.model)), task,
                                n_sub_steps=1)

@@ -133,10 +133,10 @@ def test_push_distributions():
 
 
 @pytest.mark.parametrize("field,value,msg", [
-    ("sensor_noise_n", -2.0, "sensor_noise_n must be a number in 0..50"),
-    ("base", "tank", "base must be one of holonomic, diffdrive"),
+    ("sensor_noise_n", -2.0, r"sensor_noise_n \(--sensor-noise-n\) must be a number in 0..50"),
+    ("base", "tank", r"base \(--base\) must be one of holonomic, diffdrive"),
     ("force_limit_n", 5.0, "force_limit_n must be above the detector's on_n"),
-    ("timing", "sometimes", "timing must be one of decision, interval"),
+    ("timing", "sometimes", r"timing \(--timing\) must be one of decision, interval"),
 ])
 def test_bad_physics(field, value, msg):
     with pytest.raises(ConfigError, match=msg):
@@ -226,3 +226,50 @@ def test_tip_force_of_the_arm_on_base(simple):
     assert 138 < mass < 140 and 0.8 < h < 1.0  # 135 kg base + Jaco and tray; tray height
     assert arm.tip_force_n() == pytest.approx(mass * 9.81 * 0.15 / h)
     assert arm.tip_force_n() > 60.0  # above the strongest default push (peak_max_n)
+
+
+@pytest.mark.parametrize("argv,msg", [
+    (["--sim", "mujoco", "--sensor-noise-n", "-2"], "sensor_noise_n (--sensor-noise-n) must be "
+                                                     "a number in 0..50"),
+    (["--sim", "mujoco", "--base", "tank"], "argument --base: invalid choice: 'tank'"),
+    (["--sim", "mujoco", "--force-limit-n", "5"], "force_limit_n must be above the detector"),
+    (["--sim", "mujoco", "--duration-max-s", "5", "--duration-s", "4", "--t-max", "3"],
+     "duration_max_s must be below the episode's length"),
+    (["--sensor", "ideal"], "--sensor is a physical parameter: it needs --sim mujoco"),
+    (["--sim", "mujoco", "--physics", "legacy", "--timing", "rate"], "--timing is a physical"),
+    (["--sim", "mujoco", "--task", "carry", "--base", "diffdrive"], "diffdrive runs the navigate"),
+])
+def test_bad_physical_input_on_the_command_line(tmp_path, capsys, argv, msg):
+    from tests.test_bad_input import refuse
+
+    refuse(tmp_path, capsys, ["evaluate", "--db", "r.sqlite", "--instances", "1", "--runs",
+                              "1", "--delta-t", "5", "--methods", "compliant", *argv], msg)
+
+
+def test_physical_parameters_are_stored_with_every_row(tmp_path):
+    from pathpref.apps.cli import main
+    from pathpref.experiments.store import ResultStore, row_spec
+
+    db = tmp_path / "r.sqlite"
+    assert main(["evaluate", "--db", str(db), "--sim", "mujoco", "--instances", "1", "--runs",
+                 "1", "--delta-t", "5", "--methods", "compliant", "--t-max", "6",
+                 "--timing", "interval", "--sensor-noise-n", "1.5", "--base", "diffdrive",
+                 "--gamma-h", "2", "--no-progress", "--workers", "1"]) == 0
+    with ResultStore(db) as st:
+        (row,) = st.episodes()
+    ph = Physics.from_json(row["physics"])
+    assert (ph.timing, ph.sensor_noise_n, ph.base, ph.gamma_h, ph.sensor) == \
+        ("interval", 1.5, "diffdrive", 2.0, "realistic")
+    assert run_episode(row_spec(row)).spec.key() == row["key"]
+
+
+def test_task_load_takes_physics():
+    from pathpref_tasks import load
+
+    env = load("navigate", physics={"timing": "interval", "sensor": "ideal"}, seed=1, t_max=4)
+    ts = env.reset()
+    while not ts.last():
+        ts = env.step(env.task.policy_action())
+    assert env.task.runner.continuous and env.task.runner.spec.t_max == 4
+    assert Physics.from_json(env.task.runner.spec.physics).timing == "interval"
+    assert load("navigate").task.template.physics == ""  # legacy without the argument

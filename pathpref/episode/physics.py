@@ -65,6 +65,11 @@ CHOICES: dict[str, tuple[str, ...]] = {"sensor": SENSORS, "timing": TIMINGS, "sh
                                        "base": BASES}
 
 
+def flag(name: str) -> str:
+    """The command-line flag of a field (``sensor_noise_n`` -> ``--sensor-noise-n``)."""
+    return "--" + name.replace("_", "-")
+
+
 @dataclass(frozen=True)
 class Physics:
     """The physical parameters of a MuJoCo episode (module docstring). Defaults: realistic
@@ -111,11 +116,12 @@ class Physics:
             v = getattr(self, f.name)
             if f.name in CHOICES:
                 if v not in CHOICES[f.name]:
-                    raise ConfigError(f"physics {f.name} must be one of "
+                    raise ConfigError(f"physics {f.name} ({flag(f.name)}) must be one of "
                                       f"{', '.join(CHOICES[f.name])}, got {v!r}")
             elif f.name == "use_strength":
                 if not isinstance(v, bool):
-                    raise ConfigError(f"physics use_strength must be true or false, got {v!r}")
+                    raise ConfigError(f"physics use_strength (--use-strength) must be true or "
+                                      f"false, got {v!r}")
             else:
                 lo, hi = RANGES[f.name]
                 ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and \
@@ -123,7 +129,8 @@ class Physics:
                                           (f.name in PRESET_DEFAULT and v == -1.0))
                 if not ok:
                     extra = " (or -1: the preset's)" if f.name in PRESET_DEFAULT else ""
-                    raise ConfigError(f"physics {f.name} must be a number in {lo:g}..{hi:g}"
+                    raise ConfigError(f"physics {f.name} ({flag(f.name)}) must be a number in "
+                                      f"{lo:g}..{hi:g}"
                                       f"{extra}, got {v!r}")
         if self.off_n >= self.on_n:
             raise ConfigError(f"physics off_n must be below on_n ({self.on_n:g} N), got "
@@ -158,6 +165,21 @@ class Physics:
             raise ConfigError(f"physics has unknown field '{unknown[0]}'; known: "
                               f"{', '.join(sorted(known))}")
         return cls(**raw)
+
+    @classmethod
+    def coerce(cls, value) -> str:
+        """The spec string of a Python API argument: a :class:`Physics`, a dict of its
+        fields, its JSON, or None / ``"legacy"`` / ``""`` (legacy physics)."""
+        if value is None or value in ("", "legacy"):
+            return ""
+        if isinstance(value, Physics):
+            return value.to_json()
+        if isinstance(value, dict):
+            return cls.from_json(json.dumps(value)).to_json()
+        if isinstance(value, str):
+            return cls.from_json(value).to_json()
+        raise ConfigError(f"physics must be a Physics, a dict of its fields, JSON or None, "
+                          f"got {type(value).__name__}")
 
     def check_episode(self, t_max: int) -> None:
         """Settings that contradict the episode: a push that cannot fit (the longest push

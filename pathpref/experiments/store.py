@@ -30,6 +30,9 @@ from ..errors import ConfigError
 #: parameters of each episode (``physics``, JSON; "" = the legacy physics of older rows)
 SCHEMA_VERSION = 4
 UPGRADABLE = (2, 3)  # older schemas that 'pathpref db upgrade' migrates
+#: older schemas read without an upgrade (reports, curves: ``create=False``); their rows lack
+#: only ``physics``, which :func:`row_spec` reads as the legacy physics
+READABLE = (3,)
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
@@ -192,12 +195,15 @@ def inspect_results_file(path: str | Path, create: bool = False) -> int | None:
 
 
 def check_results_file(path: str | Path, create: bool = True) -> bool:
-    """True for an intact pathpref database of this schema, False for a file to create the
-    tables in (see :func:`inspect_results_file`); an older schema is pointed at
-    ``pathpref db upgrade``, any other at a new path."""
+    """True for an intact pathpref database of this schema (or, read only, of a
+    :data:`READABLE` one), False for a file to create the tables in (see
+    :func:`inspect_results_file`); an older schema is pointed at ``pathpref db upgrade``, any
+    other at a new path."""
     version = inspect_results_file(path, create)
     if version is None:
         return False
+    if not create and version in READABLE:
+        return True
     if version in UPGRADABLE:
         raise ConfigError(
             f"{path} was written by an older pathpref (schema {version}, this version "

@@ -116,7 +116,7 @@ class MobileBase:
         self._anchor: np.ndarray | None = None
         #: measure the base's acceleration and forces (episodes with physical parameters)
         self.measure = False
-        self._v_prev = np.zeros(2)
+        self._v_prev, self._t_prev = np.zeros(2), 0.0
         self.peak_accel = 0.0  # m/s^2, while no push acts (the controller's own)
         self.peak_accel_pushed = 0.0  # m/s^2, over all steps
         self.peak_force = 0.0  # N, the largest push estimate
@@ -166,7 +166,7 @@ class MobileBase:
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
         self._reset_control()
-        self._v_prev = np.zeros(2)
+        self._v_prev, self._t_prev = np.zeros(2), float(self.data.time)
 
     def _reset_sensing(self) -> None:
         """Reset the detector; with a faulty sensor, (re)build the sensing chain for the
@@ -265,8 +265,10 @@ class MobileBase:
         estimate's peak; a step with a push acting counts only toward ``peak_accel_pushed``."""
         d, t = self.data, float(self.data.time)
         v = d.qvel[self.vxy].copy()
-        a = float(np.linalg.norm(v - self._v_prev)) / self.dt
-        self._v_prev = v
+        # over the time since the last measurement (a caller, e.g. dm_control's environment
+        # step, may step the physics without :meth:`substep`)
+        a = float(np.linalg.norm(v - self._v_prev)) / max(t - self._t_prev, self.dt)
+        self._v_prev, self._t_prev = v, t
         self.peak_accel_pushed = max(self.peak_accel_pushed, a)
         pushed = any(p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
                      for p in [*self.pushes, *([push] if push is not None else [])])
