@@ -273,3 +273,26 @@ def test_task_load_takes_physics():
     assert env.task.runner.continuous and env.task.runner.spec.t_max == 4
     assert Physics.from_json(env.task.runner.spec.physics).timing == "interval"
     assert load("navigate").task.template.physics == ""  # legacy without the argument
+
+
+@pytest.mark.parametrize("kind", ["goal", "preference"])
+def test_tempered_update_is_a_power_of_the_likelihood(simple, kind):
+    """``update(c, h, w)`` multiplies by ``P(h)^w``: weight 2 is the same update twice,
+    weight 0.5 twice is the plain update once."""
+    from pathpref.inference.belief import GoalBelief, PreferenceBelief
+    from pathpref.inference.human import ObservationModel
+
+    model = ObservationModel.build(simple, np.array([simple.cell((2, 9)), simple.cell((9, 9)),
+                                                     simple.cell((9, 2))]))
+    make = (lambda: GoalBelief(model)) if kind == "goal" else (lambda: PreferenceBelief(model))
+    cell = simple.cell((3, 3))
+    a, b, c, d = make(), make(), make(), make()
+    a.update(cell, 0, 2.0)
+    b.update(cell, 0)
+    b.update(cell, 0)
+    c.update(cell, 0, 0.5)
+    c.update(cell, 0, 0.5)
+    d.update(cell, 0)
+    assert np.allclose(a.goal_marginal(), b.goal_marginal())
+    assert np.allclose(c.goal_marginal(), d.goal_marginal())
+    assert not np.allclose(a.goal_marginal(), d.goal_marginal())

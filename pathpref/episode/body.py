@@ -56,10 +56,16 @@ class Body(ABC):
         decision steps and reads :meth:`felt_inputs` after every move. False by default."""
         return False
 
-    def felt_inputs(self) -> list[tuple[int, int]]:
-        """The ``(cell, heading)`` of every input the robot observed since the last call, in
-        order (bodies that took the human over)."""
+    def felt_inputs(self) -> list[tuple[int, int, float]]:
+        """The ``(cell, heading, strength_n)`` of every input the robot observed since the
+        last call, in order (bodies that took the human over; strength: the cue's peak
+        force)."""
         return []
+
+    def input_strength(self) -> float | None:
+        """The strength (N, peak force) of the input :meth:`human_input` last observed; None
+        when the body does not measure one."""
+        return None
 
     def inputs_given(self) -> int:
         """How many inputs the human has given (bodies that took the human over)."""

@@ -21,8 +21,11 @@ Groups (field prefixes):
   ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n, peak_max_n]``;
   duration log-normal with median ``duration_s`` and spread ``duration_spread``, clipped to
   ``[0.1, duration_max_s]``; ``shape`` ``half_sine`` or ``bell``; angle noise ``noise_deg``;
-  the human's rationality ``gamma_h`` (SPEC 4) and whether the robot weighs a cue by its
-  strength (``use_strength``);
+  the human's rationality ``gamma_h`` (SPEC 4); ``strength_confidence`` ``c``: the human
+  pushes harder when surer, median strength ``peak_n exp(c (q - 1/2))`` with ``q`` the drawn
+  heading's probability over the most likely one's (0: strength independent of the heading);
+  whether the robot weighs a cue by its strength (``use_strength``: the likelihood to the power
+  ``clip(F / peak_n, 0.5, 2)``);
 * the base: ``base`` (``holonomic`` or ``diffdrive``), ``v_max`` (m/s) and ``a_max`` (m/s^2)
   the controller plans with (defaults: the Clearpath Ridgeback's velocity limit, 1.0 m/s, and
   0.8 m/s^2, inside its 1.0 m/s^2 acceleration limit because 120 N moves its 135 kg at
@@ -55,7 +58,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "peak_n": (1.0, 300.0), "peak_spread": (1.0, 5.0), "peak_min_n": (0.5, 300.0),
     "peak_max_n": (1.0, 300.0),
     "duration_s": (0.05, 10.0), "duration_spread": (1.0, 5.0), "duration_max_s": (0.1, 10.0),
-    "noise_deg": (0.0, 90.0), "gamma_h": (0.01, 100.0),
+    "noise_deg": (0.0, 90.0), "gamma_h": (0.01, 100.0), "strength_confidence": (0.0, 3.0),
     "v_max": (0.05, 3.0), "a_max": (0.1, 10.0), "force_limit_n": (1.0, 2000.0),
     "admittance_b": (5.0, 2000.0),
 }
@@ -101,6 +104,7 @@ class Physics:
     noise_deg: float = 10.0
     gamma_h: float = 1.5
     use_strength: bool = False
+    strength_confidence: float = 0.0
     base: str = "holonomic"
     v_max: float = 1.0
     a_max: float = 0.8

@@ -58,7 +58,7 @@ class EpisodeRunner:
                             rng=np.random.default_rng(policy_seq), true_goal=inst.true_goal,
                             true_preference=self.pref)
         self.policy = make_policy(spec.method, ctx)
-        physics = Physics.from_json(spec.physics)
+        self.physics = physics = Physics.from_json(spec.physics)
         human_model = model if physics is None or physics.gamma_h == model.gamma else \
             ObservationModel(world, model.tables, physics.gamma_h, model.normalize)
         self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
@@ -114,14 +114,22 @@ class EpisodeRunner:
         self.result.inputs += 1
         observed = self.body.human_input(intended)
         if observed is not None:
-            self.policy.observe(self.cell, observed)
+            self.policy.observe(self.cell, observed, self._weight(self.body.input_strength()))
         self.pending_heading = observed
+
+    def _weight(self, strength: float | None) -> float:
+        """How confident an observation is: with ``use_strength``, its push's peak force over
+        the human model's median strength, clipped to 0.5..2 (a firm push is a confident one);
+        else 1."""
+        if self.physics is None or not self.physics.use_strength or strength is None:
+            return 1.0
+        return float(np.clip(strength / self.physics.peak_n, 0.5, 2.0))
 
     def _felt_inputs(self) -> None:
         """Pushes at any time: every cue the body felt updates the belief at the cell where it
         was felt; the last one is this step's heading."""
-        for cell, heading in self.body.felt_inputs():
-            self.policy.observe(cell, heading)
+        for cell, heading, strength in self.body.felt_inputs():
+            self.policy.observe(cell, heading, self._weight(strength))
             self.pending_heading = heading
         self.result.inputs = self.body.inputs_given()
 

@@ -98,6 +98,7 @@ class MujocoBody(Body):
     def attach_human(self, heading_at, probs) -> bool:
         """Take the human over when the physics' timing is not ``decision`` (pushes at any
         time, :mod:`.pushing_human`); the human's own stream is a child of the body's."""
+        self.probs = probs
         if self.physics is None or self.physics.timing == "decision":
             return False
         self.base.enable_pushes_any_time(self.physics.admittance_b)
@@ -106,13 +107,26 @@ class MujocoBody(Body):
         self.human.attach(self.base)
         return True
 
-    def felt_inputs(self) -> list[tuple[int, int]]:
-        """``(cell, heading)`` of the cues felt since the last call."""
+    def felt_inputs(self) -> list[tuple[int, int, float]]:
+        """``(cell, heading, peak force)`` of the cues felt since the last call."""
         new = self.base.felt[self._read:]
         self._read = len(self.base.felt)
         if new:
             self.last_cue = new[-1].cue
-        return [(f.cell, f.heading) for f in new]
+        return [(f.cell, f.heading, f.cue.peak_n) for f in new]
+
+    def input_strength(self) -> float | None:
+        """The peak force (N) of the cue :meth:`human_input` last detected."""
+        return None if self.last_cue is None else float(self.last_cue.peak_n)
+
+    def _confidence(self, heading: int) -> float:
+        """The human's confidence in ``heading`` at the current cell: its probability over
+        the most likely heading's (1 when the human model is not known)."""
+        probs = getattr(self, "probs", None)
+        if probs is None:
+            return 1.0
+        q = probs(self.base.cell)
+        return float(q[heading] / q.max())
 
     def inputs_given(self) -> int:
         """Pushes the simulated human has begun."""
@@ -121,7 +135,7 @@ class MujocoBody(Body):
     def human_input(self, heading: int) -> int | None:
         """Push toward ``heading`` (with the profile's noise); the detected sector or None."""
         profile = self.profile if self.physics is None else \
-            sample_profile(self.physics, self.rng)
+            sample_profile(self.physics, self.rng, self._confidence(heading))
         push = HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
         self.last_cue = cue = self.base.receive_push(push)
         self.cell = self.base.cell

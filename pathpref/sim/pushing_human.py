@@ -34,10 +34,16 @@ from .force_cue import HumanPush, PushProfile
 STEP_S = 1.0
 
 
-def sample_profile(physics: Physics, rng: np.random.Generator) -> PushProfile:
-    """One push's profile: log-normal strength and duration (module docstring)."""
+def sample_profile(physics: Physics, rng: np.random.Generator,
+                   confidence: float = 1.0) -> PushProfile:
+    """One push's profile: log-normal strength and duration (module docstring); with
+    ``strength_confidence`` ``c > 0`` the median strength is ``F_med exp(c (q - 1/2))`` for a
+    heading the human gives with confidence ``q`` (its probability over the most likely
+    heading's): a firm push is a confident one."""
     p = physics
-    peak = p.peak_n * p.peak_spread ** rng.standard_normal()
+    median = p.peak_n if p.strength_confidence == 0 else \
+        p.peak_n * float(np.exp(p.strength_confidence * (confidence - 0.5)))
+    peak = median * p.peak_spread ** rng.standard_normal()
     dur = p.duration_s * p.duration_spread ** rng.standard_normal()
     return PushProfile(peak_n=float(np.clip(peak, p.peak_min_n, p.peak_max_n)),
                        duration_s=float(np.clip(dur, 0.1, p.duration_max_s)),
@@ -96,7 +102,10 @@ class PushingHuman:
         if self.next_t is None or t < self.next_t:
             return
         heading = self.heading_at(base.cell)
-        push = HumanPush.sample(heading, t, sample_profile(self.physics, self.rng), self.rng)
+        q = 1.0 if self.probs is None else float(self.probs(base.cell)[heading] /
+                                                   self.probs(base.cell).max())
+        push = HumanPush.sample(heading, t, sample_profile(self.physics, self.rng, q),
+                                self.rng)
         base.pushes.append(push)
         self.given.append(push)
         self.next_t = None if self.physics.timing == "corrective" else t + self._gap()
