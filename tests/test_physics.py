@@ -296,3 +296,33 @@ def test_tempered_update_is_a_power_of_the_likelihood(simple, kind):
     assert np.allclose(a.goal_marginal(), b.goal_marginal())
     assert np.allclose(c.goal_marginal(), d.goal_marginal())
     assert not np.allclose(a.goal_marginal(), d.goal_marginal())
+
+
+def test_corrective_human_reacts_to_wrong_moves_and_withholds_from_a_failing_robot():
+    """``corrective``: a wrong move (heading 4 where 0 is the human's best) draws a push after
+    the reaction time when the robot has seemed to work; after five wrong moves in a row the
+    human has given up correcting (Wang et al. 2025: p_correct scaled by the share of right
+    moves seen); a right move with p_needless 0 never draws one."""
+    from types import SimpleNamespace
+
+    from pathpref.sim.pushing_human import PushingHuman
+
+    probs = np.array([0.6, 0.1, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05])
+    ph = Physics(timing="corrective", p_correct=1.0, p_needless=0.0, reaction_s=0.4)
+    human = PushingHuman(ph, np.random.default_rng(0), 5, lambda c: 0, lambda c: probs)
+    base = SimpleNamespace(data=SimpleNamespace(time=10.0), pre_substep=[], cell=0, pushes=[])
+    human.attach(base)
+    human.robot_moves(0, 0)  # right: nothing (p_needless 0)
+    assert human.next_t is None
+    human.robot_moves(0, 4)  # wrong, after one right move seen: certain correction
+    assert human.next_t is not None and 10.05 <= human.next_t <= 11.0
+    base.data.time = human.next_t
+    human(base)  # the push begins, toward the human's heading at the base's cell
+    assert len(base.pushes) == 1 and base.pushes[0].intended_heading == 0
+    for _ in range(5):  # the robot keeps failing (corrections may still come meanwhile)
+        human.robot_moves(0, 4)
+        if human.next_t is not None:
+            base.data.time = human.next_t
+            human(base)
+    human.robot_moves(0, 4)
+    assert human.next_t is None  # the last five moves were wrong: no more corrections

@@ -7,6 +7,7 @@ yaw held at zero. A decision step ends when the base has settled (position error
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -61,21 +62,22 @@ class ProfiledController(TrackingController):
 
     def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
         """The velocity the profile wants now, before the acceleration limit."""
-        e = np.asarray(target, float) - pos
-        d = float(np.linalg.norm(e))
+        ex, ey = float(target[0] - pos[0]), float(target[1] - pos[1])
+        d = math.hypot(ex, ey)
         if d < 1e-9:
             return np.zeros(2)
-        speed = min(self.v_max, self.kp * d, float(np.sqrt(2.0 * self.brake * self.a_max * d)))
-        return e / d * speed
+        speed = min(self.v_max, self.kp * d, math.sqrt(2.0 * self.brake * self.a_max * d))
+        return np.array([ex, ey]) * (speed / d)
 
     def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
         """Move the last command toward ``goal`` by at most ``a_max dt``; the new command."""
         step = self.a_max * (self.dt if dt is None else dt)
-        dv = np.asarray(goal, float) - self.last
-        n = float(np.linalg.norm(dv))
+        dx, dy = float(goal[0] - self.last[0]), float(goal[1] - self.last[1])
+        n = math.hypot(dx, dy)
         if n > step:
-            dv *= step / n
-        self.last[:] = self.last + dv
+            dx, dy = dx * step / n, dy * step / n
+        self.last[0] += dx
+        self.last[1] += dy
         return self.last.copy()
 
     def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:

@@ -30,6 +30,7 @@ compensation from its own joint velocities), and detects with
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -264,19 +265,22 @@ class MobileBase:
         """The base's acceleration (finite difference of its planar velocity) and the push
         estimate's peak; a step with a push acting counts only toward ``peak_accel_pushed``."""
         d, t = self.data, float(self.data.time)
-        v = d.qvel[self.vxy].copy()
+        vx, vy = float(d.qvel[self.vxy[0]]), float(d.qvel[self.vxy[1]])
         # over the time since the last measurement (a caller, e.g. dm_control's environment
         # step, may step the physics without :meth:`substep`)
-        a = float(np.linalg.norm(v - self._v_prev)) / max(t - self._t_prev, self.dt)
-        self._v_prev, self._t_prev = v, t
-        self.peak_accel_pushed = max(self.peak_accel_pushed, a)
-        pushed = any(p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
-                     for p in [*self.pushes, *([push] if push is not None else [])])
-        if not pushed and not self.yielding():
-            self.peak_accel = max(self.peak_accel, a)
+        a = math.hypot(vx - self._v_prev[0], vy - self._v_prev[1]) / \
+            max(t - self._t_prev, self.dt)
+        self._v_prev, self._t_prev = (vx, vy), t
+        if a > self.peak_accel_pushed:
+            self.peak_accel_pushed = a
+        if a > self.peak_accel:
+            pushed = any(p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
+                         for p in [*self.pushes, *([push] if push is not None else [])])
+            if not pushed and not self.yielding():
+                self.peak_accel = a
         f = self.force_estimate if self.any_time or self.sensor_model is not None else \
             self.sensor.force_xy(d)
-        self.peak_force = max(self.peak_force, float(np.hypot(f[0], f[1])))
+        self.peak_force = max(self.peak_force, math.hypot(f[0], f[1]))
 
     def physical_metrics(self) -> dict[str, float]:
         """The measurements of :meth:`_measure` (empty unless :attr:`measure`)."""
