@@ -9,7 +9,10 @@ robot heads the wrong way (:class:`~pathpref.episode.physics.Physics` holds the 
 * **Timing** (:class:`PushingHuman`, a ``pre_substep`` hook on the base, so a push may begin
   at any physics step, while the base drives, brakes or stands):
   ``interval``: the next push ``I (1 + j u)`` seconds after the last began, ``u ~ U[-1, 1]``;
-  ``rate``: exponential gaps of mean ``I`` (a Poisson process);
+  ``rate``: exponential gaps of mean ``I`` (a Poisson process); in both the first push comes
+  ``reaction_s`` after the start (the paper's protocol also gives an input before the first
+  move; without it the robot drove its first seconds uninformed: success 0.28 against 0.53 at
+  input steps in the study, ``docs/physics.md``);
   ``corrective``: when the robot starts a move the human finds wrong (its heading has less
   than half the probability of the human's most likely heading, SPEC 4), a push follows
   after a reaction time ``~ reaction_s (1 + 0.25 z)`` with probability ``p_correct``; after a
@@ -73,7 +76,9 @@ class PushingHuman:
         base.pre_substep.append(self)
         t = float(base.data.time)
         if self.physics.timing in ("interval", "rate"):
-            self.next_t = t + self._gap()
+            # the first push when the mission starts (after a reaction time), as the paper's
+            # protocol gives an input before the first move; then at the human's own times
+            self.next_t = t + self.physics.reaction_s
 
     def _gap(self) -> float:
         p = self.physics
