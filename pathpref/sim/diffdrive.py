@@ -14,6 +14,8 @@ meaningless) and closes the rest along its heading.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .mobile_base import MobileBase
@@ -52,23 +54,22 @@ class DiffDriveBase(MobileBase):
             goal = getattr(c, "goal_velocity", None)
             v = goal(pos, self.target) if goal is not None else \
                 c.command(pos, yaw, self.target)[:2]
-        speed = float(np.hypot(v[0], v[1]))
+        speed = math.hypot(v[0], v[1])
         fwd_goal, w = 0.0, 0.0
         near = not self.yielding() and \
-            float(np.linalg.norm(self.target - pos)) < self.near_m
+            math.hypot(self.target[0] - pos[0], self.target[1] - pos[1]) < self.near_m
         if near and speed > 1e-3:  # the last centimetres: along the heading, no turning
-            heading = np.array([np.cos(yaw), np.sin(yaw)])
-            fwd_goal = float(v @ heading)
+            fwd_goal = float(v[0] * math.cos(yaw) + v[1] * math.sin(yaw))
         elif speed > 1e-3:
-            e = wrap(float(np.arctan2(v[1], v[0])) - yaw)
+            e = wrap(math.atan2(v[1], v[0]) - yaw)
             sign = 1.0
             if abs(e) > np.pi / 2:
                 e, sign = wrap(e - np.pi), -1.0
             # turning while driving accelerates the base by |v| w: keep it within a_max
             w_lim = min(self.w_max, getattr(c, "a_max", 10.0) / max(abs(self.forward), 1e-6))
-            w = float(np.clip(self.k_turn * e, -w_lim, w_lim))
+            w = max(-w_lim, min(w_lim, self.k_turn * e))
             if abs(e) < self.drive_within:
-                fwd_goal = sign * speed * float(np.cos(e))
+                fwd_goal = sign * speed * math.cos(e)
         step = getattr(c, "a_max", 10.0) * self.dt
-        self.forward += float(np.clip(fwd_goal - self.forward, -step, step))
+        self.forward += max(-step, min(step, fwd_goal - self.forward))
         return np.array([self.forward, 0.0, w])
