@@ -326,3 +326,29 @@ def test_corrective_human_reacts_to_wrong_moves_and_withholds_from_a_failing_rob
             human(base)
     human.robot_moves(0, 4)
     assert human.next_t is None  # the last five moves were wrong: no more corrections
+
+
+@pytest.mark.parametrize("timing", ["interval", "rate"])
+def test_push_timing_not_locked_to_decisions(timing):
+    """The first push ``reaction_s`` after the start, then gaps of mean ``interval_s``:
+    uniform within +-50 % (interval) or exponential (rate; its spread equals its mean)."""
+    from types import SimpleNamespace
+
+    from pathpref.sim.pushing_human import PushingHuman
+
+    ph = Physics(timing=timing, interval_s=2.0, jitter=0.5, reaction_s=0.3)
+    human = PushingHuman(ph, np.random.default_rng(1), 5, lambda c: 0)
+    base = SimpleNamespace(data=SimpleNamespace(time=0.0), pre_substep=[], cell=0, pushes=[])
+    human.attach(base)
+    assert human.next_t == pytest.approx(0.3)
+    starts = []
+    for _ in range(3000):
+        base.data.time = human.next_t
+        human(base)
+        starts.append(base.pushes[-1].t0)
+    gaps = np.diff(starts)
+    assert abs(gaps.mean() - 2.0) < 0.1
+    if timing == "interval":
+        assert gaps.min() >= 1.0 - 1e-9 and gaps.max() <= 3.0 + 1e-9
+    else:
+        assert abs(gaps.std() - 2.0) < 0.15 and gaps.min() < 0.1
