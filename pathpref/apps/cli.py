@@ -16,6 +16,7 @@ from ..errors import PathprefError
 from ..planning.pomdp import DEFAULT_PRESET, PRESETS
 from . import commands as c
 from .checks import RangeAction, atomic_output, check_writable, is_disk_full, write_error
+from .physics_args import physics_options
 
 __all__ = ["atomic_output", "build_parser", "check_writable", "main"]
 
@@ -171,6 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
     ev.add_argument("--retry-failed", action="store_true", help="re-run failed episodes")
     episode_options(ev)
+    physics_options(ev)
     ev.set_defaults(func=c.cmd_evaluate)
 
     rp = sub.add_parser("report", help="Table I from a results database (Markdown + CSV)")
@@ -226,6 +228,7 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--height", action=RangeAction, limits="frame_size", default=None,
                     help="video height (default: from --size)")
     episode_options(rd, sweep=False)
+    physics_options(rd)
     rd.set_defaults(func=c.cmd_render)
 
     it = sub.add_parser("interact", help="push the robot yourself in the MuJoCo viewer")

@@ -24,6 +24,7 @@ from .checks import (
     staged_outputs,
     write_error,
 )
+from .physics_args import physics_json
 
 
 def _new_database_guard(db: str | Path):
@@ -176,6 +177,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
+                        physics=physics_json(args, args.sim),
                         **_common_episode_args(args, args.map))
     cleanup = _new_database_guard(args.db)
     try:
@@ -323,7 +325,8 @@ def cmd_render(args: argparse.Namespace) -> int:
     load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
-                              sim="mujoco", task=args.task, **common)
+                              sim="mujoco", task=args.task,
+                              physics=physics_json(args, "mujoco"), **common)
     spec.validate()
     # temporary files made exclusively (mkstemp) beside the outputs, moved on success
     with staged_outputs([out, rerun]) as (tmp_video, tmp_rerun):

@@ -7,6 +7,7 @@ simulator.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -46,6 +47,29 @@ class Body(ABC):
     def metrics(self) -> dict[str, float]:
         """Per-episode measurements stored with the result (none by default)."""
         return {}
+
+    def attach_human(self, heading_at: Callable[[int], int],
+                     probs: Callable[[int], np.ndarray]) -> bool:
+        """Offer to give the human's inputs at times of the body's own (pushes at any time):
+        ``heading_at(cell)`` draws the human's heading at a cell, ``probs(cell)`` is its
+        distribution. True when the body took them over; then the runner gives no inputs at
+        decision steps and reads :meth:`felt_inputs` after every move. False by default."""
+        return False
+
+    def felt_inputs(self) -> list[tuple[int, int, float]]:
+        """The ``(cell, heading, strength_n)`` of every input the robot observed since the
+        last call, in order (bodies that took the human over; strength: the cue's peak
+        force)."""
+        return []
+
+    def input_strength(self) -> float | None:
+        """The strength (N, peak force) of the input :meth:`human_input` last observed; None
+        when the body does not measure one."""
+        return None
+
+    def inputs_given(self) -> int:
+        """How many inputs the human has given (bodies that took the human over)."""
+        return 0
 
 
 class GridBody(Body):

@@ -25,6 +25,7 @@ from ..planning.policies import PolicyContext, make_policy
 from .body import Body, make_body
 from .cache import cached_model, cached_world
 from .instances import episode_instance, human_preference
+from .physics import Physics
 from .results import EpisodeResult, StepLog
 from .spec import EpisodeSpec
 
@@ -57,8 +58,14 @@ class EpisodeRunner:
                             rng=np.random.default_rng(policy_seq), true_goal=inst.true_goal,
                             true_preference=self.pref)
         self.policy = make_policy(spec.method, ctx)
-        self.human = SimulatedHuman(model, inst.true_goal, self.pref)
+        self.physics = physics = Physics.from_json(spec.physics)
+        human_model = model if physics is None or physics.gamma_h == model.gamma else \
+            ObservationModel(world, model.tables, physics.gamma_h, model.normalize)
+        self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
         self.body = body if body is not None else make_body(spec, world)
+        #: the body gives the human's inputs at times of its own (pushes at any time)
+        self.continuous = self.body.attach_human(
+            lambda cell: self.human.sample(cell, self.human_rng), self.human.probs)
         self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
             "start": world.cells[inst.start].tolist(),
             "goals": world.cells[list(inst.goals)].tolist(),
@@ -102,6 +109,9 @@ class EpisodeRunner:
     def _human_phase(self) -> None:
         """Before step t+1: the human gives an input when one is due; the robot updates."""
         self.pending_heading = None
+        if self.continuous:
+            self._felt_inputs()
+            return
         if self.done or self.t % self.spec.delta_t != 0:
             return
         self.give_input()
@@ -119,8 +129,24 @@ class EpisodeRunner:
         """The robot observed ``observed`` (a heading 0..7, None: nothing detected) for the
         human's last input: the belief update, and the heading of the coming step."""
         if observed is not None:
-            self.policy.observe(self.cell, observed)
+            self.policy.observe(self.cell, observed, self._weight(self.body.input_strength()))
         self.pending_heading = observed
+
+    def _weight(self, strength: float | None) -> float:
+        """How confident an observation is: with ``use_strength``, its push's peak force over
+        the human model's median strength, clipped to 0.5..2 (a firm push is a confident one);
+        else 1."""
+        if self.physics is None or not self.physics.use_strength or strength is None:
+            return 1.0
+        return float(np.clip(strength / self.physics.peak_n, 0.5, 2.0))
+
+    def _felt_inputs(self) -> None:
+        """Pushes at any time: every cue the body felt updates the belief at the cell where it
+        was felt; the last one is this step's heading."""
+        for cell, heading, strength in self.body.felt_inputs():
+            self.policy.observe(cell, heading, self._weight(strength))
+            self.pending_heading = heading
+        self.result.inputs = self.body.inputs_given()
 
     def step(self, action: int | None = None) -> StepLog:
         """Advance one decision step; returns its log entry."""

@@ -12,6 +12,7 @@ from ..geometry.maps import MAX_T_MAX
 from ..planning.pomdp import PRESETS, PRIORS, Preset, get_preset
 from .cache import cached_map
 from .instances import HUMANS, seed_for
+from .physics import Physics
 
 #: the documented range of every number a user gives (command line and Python API):
 #: name -> (lowest, highest, whole number); checked by :func:`check_number`
@@ -110,6 +111,10 @@ class EpisodeSpec:
     #: the human's preference: "map" (the map's, the paper's protocol) or "consistent" (the
     #: true goal is drawn among candidates the map's preference leads to; see instances.py)
     human: str = "map"
+    #: the physical parameters of a MuJoCo episode: canonical JSON of :class:`.physics.Physics`,
+    #: or "" for the legacy physics of rows written before the field (left out of the key then,
+    #: so their keys are unchanged)
+    physics: str = ""
     #: the path-preference belief's prior: "independent" (the paper's) or "routes"
     #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
     #: of episodes stored before the field existed (all independent) stay as they were
@@ -152,6 +157,8 @@ class EpisodeSpec:
         path reuses them)."""
         d = asdict(self)
         d.pop("timeout_s")
+        if d["physics"] == "":
+            d.pop("physics")
         d.pop("map")
         if d["prior"] == "independent":
             d.pop("prior")
@@ -177,7 +184,7 @@ class EpisodeSpec:
             check_limit("--time-budget-ms", self.time_budget_ms, "time_budget_ms")
         for option, value in (("map", self.map), ("method", self.method),
                               ("preset", self.preset), ("sim", self.sim), ("task", self.task),
-                              ("fixed", self.fixed)):
+                              ("fixed", self.fixed), ("physics", self.physics)):
             if not isinstance(value, str):
                 raise ConfigError(f"{option} must be a string, got {_show(value)}")
         if self.prior not in PRIORS:
@@ -185,5 +192,13 @@ class EpisodeSpec:
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")
+        physics = Physics.from_json(self.physics)
+        if physics is not None:
+            if self.sim == "grid":
+                raise ConfigError("physics settings need a physical body: add --sim mujoco")
+            physics.check_episode(self.t_max)
+            if physics.base == "diffdrive" and self.task == "carry":
+                raise ConfigError("physics base diffdrive runs the navigate task only (the "
+                                  "arm is mounted on the holonomic base); use base holonomic")
         if self.time_budget_ms > 0 and preset.search != "robust":
             raise ConfigError("--time-budget-ms needs the robust search: add --preset robust")

@@ -5,13 +5,14 @@ content hash (:attr:`pathpref.geometry.maps.MapSpec.content_hash`) and stores th
 ``map_hash`` column. The upgrade reads every row of the old file, loads each map it names
 (``--map OLD=NEW`` points a stored name at a file that has moved), recomputes the key of each
 episode under the current :class:`~pathpref.episode.EpisodeSpec` (fields the old
-schema lacks take their defaults, which reproduce the old behaviour), and writes a new file with
+schema lacks take the values that reproduce the old behaviour), and writes a new file with
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
 ``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 -> 4 only
-adds the ``prior`` column (empty in old rows: the independent prior they ran with) and the
-(empty) study tables of :mod:`.trials`, in place; every row and key stays as it was.
+adds the ``physics`` and ``prior`` columns (empty in old rows: the legacy physics and the
+independent prior they ran with) and the (empty) study tables of :mod:`.trials`, in place;
+every row and key stays as it was.
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -79,6 +80,7 @@ def _new_spec(row: dict[str, Any], map_paths: dict[str, str]) -> EpisodeSpec:
     fields = {k: row[k] for k in names if k in row and row[k] is not None}
     fields["map"] = map_paths.get(row["map"], row["map"])
     fields.setdefault("prior", "independent")  # rows before schema 4 ran with the paper's prior
+    fields.setdefault("physics", "")  # ... and the legacy physics
     for flag in ("normalize", "coupling"):
         if flag in fields:
             fields[flag] = bool(fields[flag])

@@ -27,15 +27,16 @@ from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
 from .trials import STUDY_TABLE_NAMES, create_study_tables, study_sql
 
-#: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the belief's
-#: preference prior (``prior``; rows without it ran with the independent one) and the study
-#: tables (trials with people, :mod:`.trials`)
+#: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the physical
+#: parameters of each episode (``physics``, JSON; "" = the legacy physics of older rows), the
+#: belief's preference prior (``prior``; empty = the independent one older rows ran with) and
+#: the study tables (trials with people, :mod:`.trials`)
 SCHEMA_VERSION = 4
 UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: older schemas whose tables are a subset of this one's: read as they are; opened for writing
-#: (a sweep or a study), the ``prior`` column (empty: the independent prior the rows ran with,
-#: keys unchanged) and the study tables are added in place and the version set to 4 (so every
-#: stored episode reads and replays as before)
+#: (a sweep, a study or 'db upgrade'), the missing columns (empty: the legacy physics and the
+#: independent prior the rows ran with, keys unchanged) and the study tables are added in place
+#: and the version set to 4 (so every stored episode reads and replays as before)
 ADDITIVE = (3,)
 
 EPISODE_COLUMNS = {
@@ -49,7 +50,8 @@ EPISODE_COLUMNS = {
     "status": "TEXT", "reason": "TEXT", "goal_reached": "INTEGER", "pref_followed": "INTEGER",
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
-    "human": "TEXT", "back_crossings": "INTEGER", "prior": "TEXT",
+    "human": "TEXT", "back_crossings": "INTEGER", "physics": "TEXT",
+    "prior": "TEXT",
 }
 
 #: The CREATE statements of pathpref's tables (``episodes`` takes its column list).
@@ -342,5 +344,7 @@ def row_spec(row: dict[str, Any]) -> EpisodeSpec:
     names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
     spec = {k: row[k] for k in names if k != "prior"}
     spec["prior"] = row.get("prior") or "independent"  # rows before schema 4
+    spec = {k: row[k] for k in names if k != "physics"}
+    spec["physics"] = row.get("physics") or ""  # rows before schema 4: the legacy physics
     spec["normalize"], spec["coupling"] = bool(spec["normalize"]), bool(spec["coupling"])
     return EpisodeSpec(**spec)

@@ -48,8 +48,10 @@ class Belief(ABC):
     """
 
     @abstractmethod
-    def update(self, cell: int, heading: int) -> None:
-        """Condition on the human's heading ``heading`` (0..7) given at free cell ``cell``."""
+    def update(self, cell: int, heading: int, weight: float = 1.0) -> None:
+        """Condition on the human's heading ``heading`` (0..7) given at free cell ``cell``;
+        ``weight`` tempers the likelihood, ``P(h | .)^weight`` (1: the plain update; above 1
+        a more confident observation, below 1 a less confident one)."""
 
     @abstractmethod
     def rule_out(self, goal_index: int) -> None:
@@ -86,9 +88,11 @@ class GoalBelief(Belief):
                                 else np.asarray(prior, float))
         self.ruled_out = np.zeros(G, dtype=bool)
 
-    def update(self, cell: int, heading: int) -> None:
-        """Condition on the human's heading ``heading`` given at free cell ``cell``."""
-        self.log_w = self.log_w + np.log(self.model.goal_likelihood[cell, heading])
+    def update(self, cell: int, heading: int, weight: float = 1.0) -> None:
+        """Condition on the human's heading ``heading`` given at free cell ``cell``
+        (likelihood to the power ``weight``)."""
+        log_lik = np.log(self.model.goal_likelihood[cell, heading])
+        self.log_w = self.log_w + (log_lik if weight == 1.0 else weight * log_lik)
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
@@ -146,10 +150,12 @@ class PreferenceBelief(Belief):
         t /= t.max()
         self.log_rowmean += np.log(t.mean(axis=1)) - old
 
-    def update(self, cell: int, heading: int) -> None:
-        """Condition on the heading ``heading`` (0..7) given at free cell ``cell``."""
+    def update(self, cell: int, heading: int, weight: float = 1.0) -> None:
+        """Condition on the heading ``heading`` (0..7) given at free cell ``cell``
+        (likelihood to the power ``weight``)."""
         v = int(self.cell_polytope[cell])
-        self._multiply(v, self.model.likelihood[cell, heading, :, : self.degree[v]])
+        lik = self.model.likelihood[cell, heading, :, : self.degree[v]]
+        self._multiply(v, lik if weight == 1.0 else lik ** weight)
 
     def enter(self, v_from: int, v_to: int) -> None:
         """Tell the belief that the robot moved from polytope ``v_from`` into ``v_to``.

@@ -72,9 +72,13 @@ class Policy(ABC):
         self.ctx = ctx
         self.belief = belief
 
-    def observe(self, cell: int, heading: int) -> None:
-        """The human gave ``heading`` at ``cell``: condition the belief on it."""
-        self.belief.update(cell, heading)
+    def observe(self, cell: int, heading: int, weight: float = 1.0) -> None:
+        """The human gave ``heading`` at ``cell``: condition the belief on it (``weight``:
+        how confident the observation is, :meth:`Belief.update`)."""
+        if weight == 1.0:
+            self.belief.update(cell, heading)
+        else:
+            self.belief.update(cell, heading, weight)
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""

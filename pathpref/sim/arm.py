@@ -18,6 +18,16 @@ joints (base x, y, yaw + arm)::
                   elbow 2 rad/s, wrist 6 rad/s),
                   CollisionAvoidanceLimit (arm and base geoms vs obstacles and walls)
 
+**Physical mode** (``physical=True``, episodes with physical parameters): the tray task is a
+``RelativeFrameTask`` (the tray relative to the base), so moving the base never serves the tray
+task. (The legacy task, a world-frame target re-anchored at the measured base every solve, drives
+the base *against* a sustained tray push without end: the pushed tray is ahead of its target,
+the IK moves the base back to pull it in, the target moves back with the base; 450 mm in 3 s at
+30 N.) The base follows the base's own profiled controller (:class:`.controller.
+ProfiledController`: speed and acceleration limits, braking margin, no overshoot) instead of
+the IK's base velocity, yields by admittance while a cue is under way, and the penetration is
+measured at every physics step.
+
 The base velocity actuators receive the IK's base velocities; the arm servos receive
 ``q + v dt`` from the measured ``q``, so the IK itself corrects the tray's orientation when a
 push deflects the soft shoulder (solved at 100 Hz; with 50 Hz and equal costs the tray tilted
@@ -37,7 +47,7 @@ import numpy as np
 from ..errors import EpisodeError
 from ..geometry.world import World
 from .mobile_base import MobileBase
-from .scene import Scene, build_spec, mjcf_path
+from .scene import BaseParams, Scene, build_spec, mjcf_path
 from .sensing import HandleSensor
 
 #: the arm's home posture: the IK solution for TRAY_OFFSET with the widest margin from the
@@ -66,9 +76,11 @@ def jaco_xml() -> Path:
     return path
 
 
-def build_arm_scene(world: World, cell_size: float = 0.5) -> Scene:
-    """Compile the arm-on-base scene of ``world`` (see module docstring)."""
-    spec = build_spec(world, cell_size)
+def build_arm_scene(world: World, cell_size: float = 0.5, base: BaseParams | None = None
+                    ) -> Scene:
+    """Compile the arm-on-base scene of ``world`` (see module docstring); ``base`` a
+    physical base."""
+    spec = build_spec(world, cell_size, base)
     mount = spec.body("base").add_site(name="arm_mount", pos=[0.0, 0.0, 0.08])
     spec.attach(mujoco.MjSpec.from_file(str(jaco_xml())), prefix="jaco/", site=mount)
     flange = spec.body("jaco/b_6").add_site(name="flange", pos=[0.0, 0.0, 0.0])
@@ -95,9 +107,11 @@ def tilt_deg(data: mujoco.MjData, body: int) -> float:
 class ArmBase(MobileBase):
     """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
 
-    def __init__(self, scene: Scene, ik_period: float = 0.01, **kwargs):
+    def __init__(self, scene: Scene, ik_period: float = 0.01, physical: bool = False,
+                 **kwargs):
         super().__init__(scene, **kwargs)
         m = self.model
+        self.physical = physical
         self.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
         self.tray = int(m.body("tool/tray").id)
         self.pushed_body = self.tray  # people push the tray
@@ -106,8 +120,14 @@ class ArmBase(MobileBase):
         self.ik_every = max(1, int(round(ik_period / self.dt)))
         self.ik_dt = self.ik_every * self.dt
         self.cfg = mink.Configuration(m)
-        self.tray_task = mink.FrameTask("tool/tray", "body", position_cost=1.0,
-                                        orientation_cost=5.0)
+        if physical:
+            self.tray_task = mink.RelativeFrameTask("tool/tray", "body", "base", "body",
+                                                    position_cost=1.0, orientation_cost=5.0)
+            self.tray_task.set_target(mink.SE3.from_rotation_and_translation(
+                mink.SO3.identity(), TRAY_OFFSET))
+        else:
+            self.tray_task = mink.FrameTask("tool/tray", "body", position_cost=1.0,
+                                            orientation_cost=5.0)
         self.base_task = mink.FrameTask("base", "body", position_cost=[1.0, 1.0, 0.0],
                                         orientation_cost=[0.0, 0.0, 10.0])
         self.posture = mink.PostureTask(m, cost=1e-2)
@@ -145,6 +165,8 @@ class ArmBase(MobileBase):
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
+        self._reset_control()
+        self._v_prev, self._t_prev = np.zeros(2), float(self.data.time)
         self._k = 0
         self.tilts = []
         self.deepest = 0.0
@@ -160,7 +182,8 @@ class ArmBase(MobileBase):
         """One whole-body IK solve from the measured state; returns joint velocities."""
         d = self.data
         self.cfg.update(d.qpos.copy())
-        self.tray_task.set_target(self.tray_target())
+        if not self.physical:
+            self.tray_task.set_target(self.tray_target())
         self.base_task.set_target(mink.SE3.from_rotation_and_translation(
             mink.SO3.identity(), np.array([self.target[0], self.target[1], 0.1])))
         try:
@@ -181,11 +204,15 @@ class ArmBase(MobileBase):
             d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + v[3:9] * self.ik_dt
         self._k += 1
         self.tilts.append(tilt_deg(d, self.tray))
+        if self.physical:
+            d.ctrl[self.actuators] = self._base_command()
+            self.deepest = max(self.deepest, self.max_penetration())
 
     def move_to(self, cell: int) -> int:
         """Drive to ``cell`` (:meth:`MobileBase.move_to`), then record the penetration."""
         reached = super().move_to(cell)
-        self.deepest = max(self.deepest, self.max_penetration())
+        if not self.physical:  # physical mode measures at every physics step
+            self.deepest = max(self.deepest, self.max_penetration())
         return reached
 
     @property
@@ -195,10 +222,26 @@ class ArmBase(MobileBase):
 
     def metrics(self) -> dict[str, float]:
         """Tray tilt (RMS and max over physics steps), deepest penetration, IK solves."""
-        return {"tilt_rms_deg": self.tilt_rms(),
-                "tilt_max_deg": float(max(self.tilts, default=0.0)),
-                "max_penetration_mm": 1e3 * self.deepest,
-                "ik_solves": float(self.ik_solves)}
+        out = {"tilt_rms_deg": self.tilt_rms(),
+               "tilt_max_deg": float(max(self.tilts, default=0.0)),
+               "max_penetration_mm": 1e3 * self.deepest,
+               "ik_solves": float(self.ik_solves)}
+        if self.physical:
+            tip = self.tip_force_n()
+            out.update(tip_force_n=tip, tip_margin=tip / max(self.peak_force, 1e-9))
+        return out
+
+    def tip_force_n(self) -> float:
+        """The horizontal push on the tray that would tip the robot over the edge of its base
+        (N): the moments about the base's rim, ``F h = M g r`` with ``M`` the robot's mass,
+        ``r`` the base's radius (its support polygon, the centre of mass over the base's
+        centre) and ``h`` the tray's height above the floor. The model's slide joints cannot
+        tip, so this is the check."""
+        m = self.model
+        mass = float(m.body_subtreemass[m.body("base_xy").id])
+        r = float(m.geom("base_geom").size[0])
+        h = float(self.data.xpos[self.tray][2])
+        return mass * 9.81 * r / h
 
     def tilt_rms(self) -> float:
         """RMS tray tilt over the physics steps since reset (degrees)."""

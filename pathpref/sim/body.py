@@ -11,6 +11,13 @@ the episode layer's body registry when :mod:`pathpref.sim` is imported.
   base actually ends in.
 
 Scenes are built once per process and map; each episode gets fresh ``MjData``.
+
+With ``spec.physics`` set (:class:`~pathpref.episode.physics.Physics`) the body senses with the
+chosen sensor model and detector thresholds, draws each push's strength, duration and shape
+from the human model's distributions, and, unless the timing is ``decision``, takes the human
+over: pushes come at any time (:mod:`.pushing_human`), the base yields and stops on a cue,
+and the runner reads the felt cues (:meth:`MujocoBody.felt_inputs`). An empty ``physics`` is the
+legacy body, bit for bit.
 """
 
 from __future__ import annotations
@@ -20,24 +27,31 @@ from functools import lru_cache
 import numpy as np
 
 from ..episode.body import Body, register_body
+from ..episode.physics import Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
+from .controller import ProfiledController
+from .diffdrive import DiffDriveBase
 from .force_cue import HumanPush, PushProfile
 from .mobile_base import MobileBase
-from .scene import Scene, build_scene
+from .pushing_human import PushingHuman, sample_profile
+from .scene import BaseParams, Scene, build_scene
 
+#: how long a standing robot waits before its next decision when pushes come at any time (s)
+HOLD_S = 0.5
 
 @lru_cache(maxsize=8)
-def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate") -> Scene:
-    """One compiled scene per world (worlds hash by identity), cell size and task."""
+def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate",
+              base: BaseParams | None = None) -> Scene:
+    """One compiled scene per world (worlds hash by identity), cell size, task and base."""
     if task == "carry":
         from .arm import build_arm_scene
 
-        return build_arm_scene(world, cell_size)
+        return build_arm_scene(world, cell_size, base)
     if task != "navigate":
         raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
-    return build_scene(world, cell_size)
+    return build_scene(world, cell_size, base)
 
 
 class MujocoBody(Body):
@@ -53,38 +67,135 @@ class MujocoBody(Body):
         self.world = world
         self.rng = rng
         task = spec.task
-        self.scene = scene or scene_for(world, cell_size, task)
+        self.physics = physics = Physics.from_json(getattr(spec, "physics", ""))
+        self.delta_t = int(spec.delta_t)
+        base = None if physics is None else base_params(physics)
+        self.scene = scene or scene_for(world, cell_size, task, base)
+        kwargs = {} if physics is None else {**sensing_kwargs(physics, rng), "controller":
+                                             ProfiledController(v_max=physics.v_max,
+                                                                a_max=physics.a_max)}
         if task == "carry":
             from .arm import ArmBase
 
-            self.base: MobileBase = ArmBase(self.scene, profile=profile, data=data)
+            if physics is not None:
+                kwargs["physical"] = True
+            self.base: MobileBase = ArmBase(self.scene, profile=profile, data=data, **kwargs)
+        elif base is not None and base.kind == "diffdrive":
+            self.base = DiffDriveBase(self.scene, profile=profile, data=data, **kwargs)
         else:
-            self.base = MobileBase(self.scene, profile=profile, data=data)
+            self.base = MobileBase(self.scene, profile=profile, data=data, **kwargs)
         self.profile = self.base.profile
+        self.base.measure = physics is not None
         self.last_cue = None
+        self.human: PushingHuman | None = None
+        self._read = 0
 
     def reset(self, cell: int) -> None:
         """Reset the physics with the base at the centre of ``cell``."""
         self.base.reset(cell)
         self.cell = cell
 
+    def attach_human(self, heading_at, probs) -> bool:
+        """Take the human over when the physics' timing is not ``decision`` (pushes at any
+        time, :mod:`.pushing_human`); the human's own stream is a child of the body's."""
+        self.probs = probs
+        if self.physics is None or self.physics.timing == "decision":
+            return False
+        self.base.enable_pushes_any_time(self.physics.admittance_b)
+        self.human = PushingHuman(self.physics, self.rng.spawn(1)[0], self.delta_t,
+                                  heading_at, probs)
+        self.human.attach(self.base)
+        return True
+
+    def felt_inputs(self) -> list[tuple[int, int, float]]:
+        """``(cell, heading, peak force)`` of the cues felt since the last call."""
+        new = self.base.felt[self._read:]
+        self._read = len(self.base.felt)
+        if new:
+            self.last_cue = new[-1].cue
+        return [(f.cell, f.heading, f.cue.peak_n) for f in new]
+
+    def input_strength(self) -> float | None:
+        """The peak force (N) of the cue :meth:`human_input` last detected."""
+        return None if self.last_cue is None else float(self.last_cue.peak_n)
+
+    def _confidence(self, heading: int) -> float:
+        """The human's confidence in ``heading`` at the current cell: its probability over
+        the most likely heading's (1 when the human model is not known)."""
+        probs = getattr(self, "probs", None)
+        if probs is None:
+            return 1.0
+        q = probs(self.base.cell)
+        return float(q[heading] / q.max())
+
+    def inputs_given(self) -> int:
+        """Pushes the simulated human has begun."""
+        return 0 if self.human is None else len(self.human.given)
+
     def human_input(self, heading: int) -> int | None:
         """Push toward ``heading`` (with the profile's noise); the detected sector or None."""
-        push = HumanPush.sample(heading, float(self.base.data.time), self.profile, self.rng)
+        profile = self.profile if self.physics is None else \
+            sample_profile(self.physics, self.rng, self._confidence(heading))
+        push = HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
         self.last_cue = cue = self.base.receive_push(push)
         self.cell = self.base.cell
         return None if cue is None else cue.heading
 
     def metrics(self) -> dict[str, float]:
         """Simulated time, and the base's own measurements (tilt, penetration for the arm)."""
-        return {"sim_time_s": float(self.base.data.time), **self.base.metrics()}
+        out = {"sim_time_s": float(self.base.data.time), **self.base.metrics()}
+        if self.physics is not None:
+            out.update(self.base.physical_metrics())
+            out.update(self.cue_metrics())
+        return out
+
+    def cue_metrics(self) -> dict[str, float]:
+        """Pushes at any time: cues felt, and how many of them have the heading of the push
+        that was acting (or last began) when the cue was first felt."""
+        if self.human is None:
+            return {}
+        hits = 0
+        for f in self.base.felt:
+            began = [p for p in self.human.given if p.t0 <= f.t_felt + 1e-9]
+            hits += bool(began) and began[-1].intended_heading == f.heading
+        return {"cues_felt": float(len(self.base.felt)), "cue_hits": float(hits)}
 
     def move(self, action: int) -> int:
         """Drive to the grid neighbour of SPEC 3; the cell the base ends in."""
         target = self.cell if action == STAY else int(self.world.motion.next_cell[self.cell,
                                                                                   action])
-        self.cell = self.base.move_to(target)
+        if self.human is None:
+            self.cell = self.base.move_to(target)
+            return self.cell
+        self.cell = self.base.cell
+        self.human.robot_moves(self.cell, None if target == self.cell else action)
+        if target == self.cell:
+            self.cell = self.base.hold(HOLD_S)
+        else:
+            self.cell = self.base.move_to(target)
         return self.cell
+
+
+def base_params(physics: Physics) -> BaseParams:
+    """The physical base of ``physics`` (kind and actuator force limit)."""
+    return BaseParams(kind=physics.base, force_limit_n=physics.force_limit_n)
+
+
+def sensing_kwargs(physics: Physics, rng: np.random.Generator) -> dict:
+    """The base's sensing settings from ``physics``: the sensor preset with its overrides,
+    the body's generator and the detector thresholds."""
+    from dataclasses import replace
+
+    from .sensing import SensorModel
+
+    model = getattr(SensorModel, physics.sensor)()
+    over = {k: v for k, v in (("noise_n", physics.sensor_noise_n),
+                              ("bias_n", physics.sensor_bias_n),
+                              ("drift_n_per_sqrt_s", physics.sensor_drift_n)) if v >= 0}
+    model = replace(model, **over)
+    detector = {"on_n": physics.on_n, "on_s": physics.on_s, "off_n": physics.off_n,
+                "off_s": physics.off_s}
+    return {"sensor_model": model, "rng": rng, "detector": detector}
 
 
 register_body("mujoco", MujocoBody)

@@ -7,7 +7,8 @@ yaw held at zero. A decision step ends when the base has settled (position error
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,3 +38,49 @@ class TrackingController:
         """Within ``tol_m`` of ``target`` and slower than ``still_mps``."""
         return (np.linalg.norm(np.asarray(target) - pos) < self.tol_m
                 and np.linalg.norm(vel) < self.still_mps)
+
+
+@dataclass(frozen=True)
+class ProfiledController(TrackingController):
+    """Tracking within a real base's limits: speed ``v_max``, acceleration ``a_max``.
+
+    The goal speed toward the target is ``min(v_max, k_p d, sqrt(2 b d))`` with ``d`` the
+    distance and ``b = brake a_max`` (a braking margin: the base stops on the target instead
+    of past it), and the command moves toward the goal velocity by at most ``a_max dt`` per
+    call (the velocity ramp of a drive controller, e.g. ROS ``diff_drive_controller``'s
+    acceleration limit). Stateful (the last command): :meth:`reset` before a new episode."""
+
+    a_max: float = 1.0
+    brake: float = 0.8
+    dt: float = 0.002
+    #: the last planar velocity command (m/s; state, updated in place)
+    last: np.ndarray = field(default_factory=lambda: np.zeros(2), compare=False)
+
+    def reset(self) -> None:
+        """Forget the last command (the base stands)."""
+        self.last[:] = 0.0
+
+    def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """The velocity the profile wants now, before the acceleration limit."""
+        ex, ey = float(target[0] - pos[0]), float(target[1] - pos[1])
+        d = math.hypot(ex, ey)
+        if d < 1e-9:
+            return np.zeros(2)
+        speed = min(self.v_max, self.kp * d, math.sqrt(2.0 * self.brake * self.a_max * d))
+        return np.array([ex, ey]) * (speed / d)
+
+    def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
+        """Move the last command toward ``goal`` by at most ``a_max dt``; the new command."""
+        step = self.a_max * (self.dt if dt is None else dt)
+        dx, dy = float(goal[0] - self.last[0]), float(goal[1] - self.last[1])
+        n = math.hypot(dx, dy)
+        if n > step:
+            dx, dy = dx * step / n, dy * step / n
+        self.last[0] += dx
+        self.last[1] += dy
+        return self.last.copy()
+
+    def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:
+        """Actuator controls ``(vx, vy, wz)`` within the limits."""
+        v = self.ramp(self.goal_velocity(pos, target))
+        return np.array([v[0], v[1], -self.k_yaw * yaw])

@@ -7,6 +7,19 @@ A hysteresis detector on the horizontal force magnitude ``|f|``:
 
 The cue's direction is that of the impulse ``J = sum f dt`` accumulated from the first sample
 above ``on_n`` to the release; its heading is binned into the 8 compass sectors (SPEC 4).
+
+**Two pushes are two cues** (``split=True``, the detector of pushes at any time): an active cue
+also ends, and the next one begins, when
+
+* *re-onset*: the force fell below ``off_n`` (for less than ``off_s``, else the cue had ended)
+  and rises above ``on_n`` again: a person's push does not dip to nothing and come back, so a
+  dip followed by a new rise is a second push (two half-sine pushes 20 ms apart dip to zero);
+* *turn*: the force, above ``on_n``, points more than ``turn_deg`` (45 degrees, one sector
+  away) from the cue's impulse so far for ``on_s`` (25 ms): a second push that overlaps the
+  first. The samples of the turn start the new cue.
+
+Without the split, two pushes less than ``off_s`` apart merge into one impulse whose direction
+nobody gave (east then north: 45 degrees). ``split=False`` is the original detector, bit for bit.
 """
 
 from __future__ import annotations
@@ -41,8 +54,11 @@ class CueDetector:
     when one ends, else None."""
 
     def __init__(self, dt: float, on_n: float = 8.0, on_s: float = 0.025, off_n: float = 4.0,
-                 off_s: float = 0.05):
+                 off_s: float = 0.05, split: bool = False, turn_deg: float = 45.0):
         self.dt, self.on_n, self.on_s, self.off_n, self.off_s = dt, on_n, on_s, off_n, off_s
+        self.split, self.cos_turn = split, float(np.cos(np.deg2rad(turn_deg)))
+        #: cues that ended by a split (re-onset or turn) since :meth:`reset`
+        self.splits = 0
         self.reset()
 
     def reset(self) -> None:
@@ -56,6 +72,9 @@ class CueDetector:
         self._impulse = np.zeros(2)
         self._peak = 0.0
         self._duration = 0.0
+        self._dipped = False
+        self._turn = 0.0
+        self._turn_impulse = np.zeros(2)
 
     def update(self, f_xy: np.ndarray) -> Cue | None:
         """One force sample: on above ``on_n`` for ``on_s``, off below ``off_n`` for ``off_s``;
@@ -75,7 +94,17 @@ class CueDetector:
             else:
                 self._clear()
             return None
-        self._impulse += f_xy * self.dt
+        return self._active(f_xy, mag, True)
+
+    def _active(self, f: np.ndarray, mag: float, accumulate: bool) -> Cue | None:
+        """One sample of an active cue: accumulate (when ``accumulate``), release after
+        ``off_s`` below ``off_n``, or split (module docstring)."""
+        if self.split:
+            new = self._split(f, mag)
+            if new is not None:
+                return new
+        if accumulate:
+            self._impulse += f * self.dt
         self._peak = max(self._peak, mag)
         self._duration += self.dt
         self._below = self._below + self.dt if mag < self.off_n else 0.0
@@ -83,6 +112,38 @@ class CueDetector:
             cue = Cue(self._impulse.copy(), self._peak, self._duration)
             self._clear()
             return cue
+        return None
+
+    def _split(self, f: np.ndarray, mag: float) -> Cue | None:
+        """The split rules (module docstring): the cue that ends, or None. After a re-onset
+        the new push goes through the onset rule; after a turn it is active at once."""
+        if mag < self.off_n:
+            self._dipped = True
+            self._turn, self._turn_impulse = 0.0, np.zeros(2)
+            return None
+        if self._dipped and mag > self.on_n:
+            cue = Cue(self._impulse.copy(), self._peak, self._duration)
+            self._clear()
+            self.splits += 1
+            self._above, self._impulse = self.dt, f * self.dt
+            self._peak, self._duration = mag, self.dt
+            return cue
+        j = self._impulse
+        nj = float(np.hypot(j[0], j[1]))
+        if mag > self.on_n and nj > 0 and float(f @ j) < self.cos_turn * mag * nj:
+            self._turn += self.dt
+            self._turn_impulse = self._turn_impulse + f * self.dt
+            if self._turn >= self.on_s - 1e-12:
+                cue = Cue(self._impulse - self._turn_impulse + f * self.dt, self._peak,
+                          self._duration)
+                started, held = self._turn_impulse.copy(), self._turn
+                self._clear()
+                self.splits += 1
+                self.active, self._impulse = True, started
+                self._peak, self._duration = mag, held
+                return cue
+        else:
+            self._turn, self._turn_impulse = 0.0, np.zeros(2)
         return None
 
 
@@ -102,13 +163,13 @@ class FilteredCueDetector(CueDetector):
 
     def __init__(self, dt: float, tau_s: float = 0.015, on_n: float = 8.0, on_s: float = 0.025,
                  off_n: float = 4.0, off_s: float = 0.05, on_k: float = 6.0, off_k: float = 3.0,
-                 floor_tau_s: float = 2.0):
+                 floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0):
         self.tau_s, self.on_k, self.off_k, self.floor_tau_s = tau_s, on_k, off_k, floor_tau_s
         self.base_on_n, self.base_off_n = on_n, off_n
         self._alpha = dt / (tau_s + dt)
         self._beta = dt / (floor_tau_s + dt)
         self.var = 0.0  # per-axis variance of the filtered force at rest (N^2)
-        super().__init__(dt, on_n, on_s, off_n, off_s)
+        super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg)
 
     def reset(self) -> None:
         """Forget any cue in progress and the filter's state (the noise level stays)."""
@@ -147,13 +208,4 @@ class FilteredCueDetector(CueDetector):
             else:
                 self._clear()
             return None
-        if mag > self.off_n:
-            self._impulse += f * self.dt
-        self._peak = max(self._peak, mag)
-        self._duration += self.dt
-        self._below = self._below + self.dt if mag < self.off_n else 0.0
-        if self._below >= self.off_s - 1e-12:
-            cue = Cue(self._impulse.copy(), self._peak, self._duration)
-            self._clear()
-            return cue
-        return None
+        return self._active(f, mag, mag > self.off_n)

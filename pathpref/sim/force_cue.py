@@ -2,7 +2,9 @@
 
 When an input is due, the human draws a heading from the Boltzmann model (SPEC 4), adds angle
 noise ``N(0, sigma)``, and pushes the handle horizontally with a half-sine force
-``F(t) = F_peak sin(pi t / T)`` for ``0 <= t <= T`` (defaults: 30 N, 0.3 s, sigma 10 degrees).
+``F(t) = F_peak sin(pi t / T)`` for ``0 <= t <= T`` (defaults: 30 N, 0.3 s, sigma 10 degrees),
+or a bell ``F(t) = 16 F_peak s^2 (1 - s)^2``, ``s = t / T`` (the speed profile of a
+minimum-jerk reach, Flash and Hogan 1985: smooth onset and release, peak at the middle).
 ``xfrc_applied`` is not cleared by MuJoCo, so :meth:`HumanPush.apply` writes it every substep.
 """
 
@@ -18,22 +20,29 @@ from ..geometry.grid import ACTION_ANGLES
 
 @dataclass(frozen=True)
 class PushProfile:
-    """Shape of a push: peak force (N), duration (s) and heading noise (degrees, 1 sigma)."""
+    """Shape of a push: peak force (N), duration (s), heading noise (degrees, 1 sigma) and
+    ``shape`` (``half_sine`` or ``bell``)."""
 
     peak_n: float = 30.0
     duration_s: float = 0.3
     noise_deg: float = 10.0
+    shape: str = "half_sine"
 
     def __post_init__(self):
         for name in ("peak_n", "duration_s", "noise_deg"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0 or (name != "noise_deg" and v == 0):
                 raise ConfigError(f"push {name} must be a positive finite number, got {v}")
+        if self.shape not in ("half_sine", "bell"):
+            raise ConfigError(f"push shape must be half_sine or bell, got {self.shape!r}")
 
     def magnitude(self, t: float) -> float:
-        """Half-sine force magnitude at time ``t`` since the push began."""
+        """Force magnitude at time ``t`` since the push began (half-sine or bell)."""
         if t < 0 or t > self.duration_s:
             return 0.0
+        if self.shape == "bell":
+            s = t / self.duration_s
+            return float(16.0 * self.peak_n * s * s * (1.0 - s) * (1.0 - s))
         return float(self.peak_n * np.sin(np.pi * t / self.duration_s))
 
 

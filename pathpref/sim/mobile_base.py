@@ -8,7 +8,15 @@ Two operations make up a decision step:
 * :meth:`MobileBase.move_to`: the tracking controller drives to a cell centre at physics rate
   until the base settles or the time limit passes; collisions are MuJoCo contacts.
 
-Hooks (``on_substep``) see every physics step, e.g. a renderer or a logger.
+Hooks (``on_substep``) see every physics step, e.g. a renderer or a logger; ``pre_substep``
+hooks run before it (the simulated human of :mod:`.pushing_human` starts its pushes there).
+
+**Pushes at any time** (:meth:`MobileBase.enable_pushes_any_time`): pushes in :attr:`pushes`
+act whenever their time comes (driving, braking or standing), the detector splits two pushes
+into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (admittance:
+velocity command ``F_hat / b``), and every cue is recorded in :attr:`felt` with the cell and
+simulated time at which it was first felt; :meth:`move_to` and :meth:`hold` then return at
+once so that the planner replans from the new belief instead of finishing the move.
 
 Sensing: by default the detector reads the raw force sensor (:class:`HandleSensor`, ideal: no
 noise, no bias; the handle's own inertia is in it, as MuJoCo computes it). With a
@@ -22,7 +30,9 @@ compensation from its own joint velocities), and detects with
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -36,6 +46,26 @@ from .scene import Scene
 from .sensing import FaultySensor, HandleSensor, SensorModel
 
 RELEASE_WINDOW_S = 0.4  # how long after a push ends the detector may still release
+#: the admittance's spring (N/m): a yielding base gives way 0.1 m to 30 N
+ADMITTANCE_K = 400.0
+#: share of the drive's force limit above which the base braces instead of yielding
+BRACE = 0.6
+
+
+@dataclass(frozen=True)
+class FeltCue:
+    """A cue with where and when it was felt: ``cell`` and ``t_felt`` (simulated s) of the
+    first force sample above the detector's onset threshold, ``t_cue`` when it was emitted."""
+
+    cue: Cue
+    cell: int
+    t_felt: float
+    t_cue: float
+
+    @property
+    def heading(self) -> int:
+        """The cue's compass sector (0..7)."""
+        return self.cue.heading
 
 
 class MobileBase:
@@ -45,11 +75,14 @@ class MobileBase:
     ``sensor_model`` (default: the ideal raw sensor) with ``rng`` (required when the model has
     faults) and ``estimator`` settings choose how the robot senses (module docstring)."""
 
+    #: the base's actuators, in the order of :meth:`_base_command`'s result
+    ACTUATORS = ("vx", "vy", "wz")
+
     def __init__(self, scene: Scene, controller: TrackingController | None = None,
                  profile: PushProfile | None = None, data: mujoco.MjData | None = None,
                  sensor_model: SensorModel | None = None,
                  rng: np.random.Generator | None = None,
-                 estimator: EstimatorConfig | None = None):
+                 estimator: EstimatorConfig | None = None, detector: dict | None = None):
         self.scene = scene
         self.model = scene.model
         self.data = data if data is not None else mujoco.MjData(self.model)
@@ -59,15 +92,37 @@ class MobileBase:
         self.xy = np.array([m.joint(j).qposadr[0] for j in ("slide_x", "slide_y")])
         self.yaw = int(m.joint("yaw").qposadr[0])
         self.vxy = np.array([m.joint(j).dofadr[0] for j in ("slide_x", "slide_y")])
-        self.actuators = np.array([m.actuator(a).id for a in ("vx", "vy", "wz")])
+        self.actuators = np.array([m.actuator(a).id for a in self.ACTUATORS])
+        #: the planar drive's force limit (N; the first actuator's range)
+        self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
         self.sensor = HandleSensor(self.model)
         #: the body a human pushes and the sensor feels (the handle; the arm's tray)
         self.pushed_body = int(self.model.body("handle").id)
         self.dt = float(self.model.opt.timestep)
-        self.detector = CueDetector(self.dt)
+        self.detector_settings: dict = dict(detector or {})
+        self.detector = CueDetector(self.dt, **self._plain_settings())
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
         #: called with each cue detected while driving (study mode feeds it to the belief)
         self.on_cue: list[Callable[[MobileBase, Cue], None]] = []
+        self.pre_substep: list[Callable[[MobileBase], None]] = []
+        #: pushes that act when their time comes (pushes at any time); expired ones are dropped
+        self.pushes: list[HumanPush] = []
+        #: cues felt with their cell and time (pushes at any time)
+        self.felt: list[FeltCue] = []
+        #: admittance damping (N s/m) while a cue is under way; None: track the target
+        self.admittance_b: float | None = None
+        #: end a move or a hold as soon as a cue is felt (the planner replans)
+        self.stop_on_cue = False
+        #: pushes at any time are on (:meth:`enable_pushes_any_time`)
+        self.any_time = False
+        self._onset: tuple[float, int] | None = None
+        self._anchor: np.ndarray | None = None
+        #: measure the base's acceleration and forces (episodes with physical parameters)
+        self.measure = False
+        self._v_prev, self._t_prev = np.zeros(2), 0.0
+        self.peak_accel = 0.0  # m/s^2, while no push acts (the controller's own)
+        self.peak_accel_pushed = 0.0  # m/s^2, over all steps
+        self.peak_force = 0.0  # N, the largest push estimate
         self.target = np.zeros(2)
         #: cues detected while driving (no simulated push is given then: a person pushing
         #: live in study mode, or a false cue in a simulated episode)
@@ -89,7 +144,21 @@ class MobileBase:
                 raise ConfigError("a sensor model with faults needs the body's numpy "
                                   "Generator (rng=...)")
             self._sensor_rng = rng.spawn(1)[0]
-            self.detector = FilteredCueDetector(self.dt)
+            self.detector = FilteredCueDetector(self.dt, **self.detector_settings)
+
+    def _plain_settings(self) -> dict:
+        """The detector settings the unfiltered :class:`CueDetector` takes."""
+        keep = ("on_n", "on_s", "off_n", "off_s", "split", "turn_deg")
+        return {k: v for k, v in self.detector_settings.items() if k in keep}
+
+    def enable_pushes_any_time(self, admittance_b: float = 80.0) -> None:
+        """Pushes at any time (module docstring): the splitting detector, admittance ``b``
+        (N s/m: a 30 N push moves the yielding base at 0.375 m/s), stop on a cue."""
+        self.detector_settings["split"] = True
+        self.detector.split = True
+        self.admittance_b = float(admittance_b)
+        self.stop_on_cue = True
+        self.any_time = True
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
@@ -99,11 +168,14 @@ class MobileBase:
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
+        self._reset_control()
+        self._v_prev, self._t_prev = np.zeros(2), float(self.data.time)
 
     def _reset_sensing(self) -> None:
         """Reset the detector; with a faulty sensor, (re)build the sensing chain for the
         current sensor and pushed body and zero the sensor at rest (``tare_s`` of readings)."""
         self.detector.reset()
+        self.pushes, self.felt, self._onset = [], [], None
         if self.sensor_model is None:
             return
         if self.faulty is None or self.faulty.sensor is not self.sensor:
@@ -164,8 +236,12 @@ class MobileBase:
     def substep(self, push: HumanPush | None = None) -> Cue | None:
         """One physics step: controller, optional push, sensing and detection."""
         d = self.data
+        for hook in self.pre_substep:
+            hook(self)
         self._control()
-        if push is not None and push.active(float(d.time)):
+        if self.pushes:
+            self._apply_pushes(push)
+        elif push is not None and push.active(float(d.time)):
             push.apply(d, self.pushed_body)
         elif not self.external_forces:
             d.xfrc_applied[self.pushed_body, :] = 0.0
@@ -173,18 +249,120 @@ class MobileBase:
         if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
         if self.sensor_model is None:
-            cue = self.detector.update(self.sensor.force_xy(d))
+            f = self.sensor.force_xy(d)
+            if self.any_time:
+                self.force_estimate = f
+            cue = self.detector.update(f)
         else:
             cue = self.detector.update(self.sense(), at_rest=self.estimator.at_rest)
+        if self.any_time:
+            self._track_onset(cue)
+        if self.measure:
+            self._measure(push)
         for hook in self.on_substep:
             hook(self, push)
         return cue
 
+    def _measure(self, push: HumanPush | None) -> None:
+        """The base's acceleration (finite difference of its planar velocity) and the push
+        estimate's peak; a step with a push acting counts only toward ``peak_accel_pushed``."""
+        d, t = self.data, float(self.data.time)
+        vx, vy = float(d.qvel[self.vxy[0]]), float(d.qvel[self.vxy[1]])
+        # over the time since the last measurement (a caller, e.g. dm_control's environment
+        # step, may step the physics without :meth:`substep`)
+        a = math.hypot(vx - self._v_prev[0], vy - self._v_prev[1]) / \
+            max(t - self._t_prev, self.dt)
+        self._v_prev, self._t_prev = (vx, vy), t
+        if a > self.peak_accel_pushed:
+            self.peak_accel_pushed = a
+        if a > self.peak_accel:
+            pushed = any(p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
+                         for p in [*self.pushes, *([push] if push is not None else [])])
+            if not pushed and not self.yielding():
+                self.peak_accel = a
+        f = self.force_estimate if self.any_time or self.sensor_model is not None else \
+            self.sensor.force_xy(d)
+        self.peak_force = max(self.peak_force, math.hypot(f[0], f[1]))
+
+    def physical_metrics(self) -> dict[str, float]:
+        """The measurements of :meth:`_measure` (empty unless :attr:`measure`)."""
+        if not self.measure:
+            return {}
+        return {"base_peak_accel": self.peak_accel,
+                "base_peak_accel_pushed": self.peak_accel_pushed,
+                "peak_push_estimate_n": self.peak_force}
+
+    def _apply_pushes(self, push: HumanPush | None) -> None:
+        """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
+        dropped."""
+        d, t = self.data, float(self.data.time)
+        self.pushes = [p for p in self.pushes if t <= p.t0 + p.profile.duration_s]
+        total = np.zeros(3)
+        for p in [*self.pushes, *([push] if push is not None else [])]:
+            if p.active(t):
+                total += p.force(t)
+        if not np.isfinite(total).all():
+            raise ConfigError("push force is not finite; check the push parameters")
+        d.xfrc_applied[self.pushed_body, :] = 0.0
+        d.xfrc_applied[self.pushed_body, :3] = total
+
+    def _track_onset(self, cue: Cue | None) -> None:
+        """Note where and when the cue under way was first felt; record an ended cue."""
+        det, t = self.detector, float(self.data.time)
+        under_way = det.active or det._above > 0.0
+        if cue is not None:
+            t0, cell = self._onset if self._onset is not None else (t, self.cell)
+            self.felt.append(FeltCue(cue, cell, t0, t))
+            self._onset = (t, self.cell) if under_way else None
+        elif under_way and self._onset is None:
+            self._onset = (t, self.cell)
+        elif not under_way:
+            self._onset = None
+
+    def yielding(self) -> bool:
+        """Whether the base yields to a push now (admittance on and a cue under way)."""
+        return self.admittance_b is not None and (self.detector.active
+                                                  or self.detector._above > 0.0)
+
     def _control(self) -> None:
         """Actuator commands for this physics step (the base's tracking controller)."""
+        self.data.ctrl[self.actuators] = self._base_command()
+
+    def _base_command(self) -> np.ndarray:
+        """The base's velocity command ``(vx, vy, wz)``: the controller's, or while yielding
+        the admittance ``v = (F_hat - k (p - p_0)) / b`` (``p_0`` where the yield began, the
+        spring ``k = ADMITTANCE_K`` keeps a push the actuators cannot resist from carrying the
+        base away); a profiled controller ramps to it within its acceleration limit."""
         d = self.data
-        d.ctrl[self.actuators] = self.controller.command(d.qpos[self.xy], d.qpos[self.yaw],
-                                                         self.target)
+        pos = d.qpos[self.xy]
+        if not self.yielding():
+            self._anchor = None
+            return self.controller.command(pos, d.qpos[self.yaw], self.target)
+        v = self.admittance_velocity()
+        ramp = getattr(self.controller, "ramp", None)
+        if ramp is not None:
+            v = ramp(v)
+        return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
+
+    def admittance_velocity(self) -> np.ndarray:
+        """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
+        above ``BRACE`` of the drive's force limit is not yielded to: the base brakes back
+        toward ``p_0`` with all its force (``-k_p (p - p_0)``), since a base that has
+        yielded and gathered speed cannot stop while a push beyond its actuators acts on it."""
+        pos = self.data.qpos[self.xy]
+        if self._anchor is None:
+            self._anchor = pos.copy()
+        f = self.force_estimate
+        if float(np.hypot(f[0], f[1])) > BRACE * self.force_limit:
+            return -self.controller.kp * (pos - self._anchor)
+        return (f - ADMITTANCE_K * (pos - self._anchor)) / self.admittance_b
+
+    def _reset_control(self) -> None:
+        """A standing base: no yield under way, the controller's state cleared."""
+        self._anchor = None
+        reset = getattr(self.controller, "reset", None)
+        if reset is not None:
+            reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:
         """Hold the current cell while ``push`` acts; return the detected cue or None."""
@@ -214,7 +392,20 @@ class MobileBase:
                 self.cues_while_driving.append(cue)
                 for hook in self.on_cue:
                     hook(self, cue)
+                if self.stop_on_cue:
+                    break
             if self.data.time - t0 >= min_s and self.controller.settled(
-                    self.position, self.velocity, self.target):
+                    self.position, self.velocity, self.target) and not self.yielding():
+                break
+        return self.cell
+
+    def hold(self, seconds: float) -> int:
+        """Stand at the current cell's centre for ``seconds`` of simulated time (pushes at any
+        time may come meanwhile; with :attr:`stop_on_cue` a cue ends the hold). The cell the
+        base is in at the end."""
+        self.target = self.scene.cell_centre(self.cell)
+        t_end = self.data.time + seconds
+        while self.data.time < t_end:
+            if self.substep() is not None and self.stop_on_cue:
                 break
         return self.cell

@@ -65,8 +65,63 @@ def _is_axis_box(vertices: np.ndarray) -> bool:
     return len(xs) == 2 and len(ys) == 2
 
 
-def build_spec(world: World, cell_size: float = 0.5) -> mujoco.MjSpec:
-    """The scene as an MjSpec (see module docstring)."""
+@dataclass(frozen=True)
+class BaseParams:
+    """A physical base (episodes with physical parameters; None keeps ``navigate.xml``'s
+    12 kg base with 120 N, ``kv`` 120 velocity servos). ``kind`` ``holonomic`` or
+    ``diffdrive``; ``mass_kg`` of the whole base (Clearpath Ridgeback: 135 kg, datasheet
+    figure recalled, not verified here); ``force_limit_n`` per drive axis; ``kv`` the velocity
+    servo's gain (N s/m; 3000 gives the 135 kg base a 45 ms time constant, stiff like a geared
+    wheel drive). ``docs/physics.md`` has the figures."""
+
+    kind: str = "holonomic"
+    mass_kg: float = 135.0
+    force_limit_n: float = 120.0
+    kv: float = 3000.0
+    grip_n: float = 2000.0  # diffdrive: the wheels' lateral grip (N), a velocity servo at 0
+
+
+def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
+    """Make ``navigate.xml``'s base the physical one: its mass, stiff force-limited velocity
+    servos; for ``diffdrive``, the planar servos become a forward drive along the base's
+    heading and a lateral grip (site transmissions on ``drive_site``, so they act in the
+    base's frame as it yaws): the base cannot move sideways but by skidding past the grip."""
+    body = spec.body("base")
+    geom = spec.geom("base_geom")
+    others = 0.2 + 0.01  # the handle and the nose
+    geom.mass = base.mass_kg - others
+    r = float(geom.size[0])
+    spin = 0.5 * base.mass_kg * r * r  # the cylinder's yaw inertia (kg m^2)
+    names = {a.name: a for a in spec.actuators}
+    if base.kind == "diffdrive":
+        body.add_site(name="drive_site", pos=[0.0, 0.0, 0.0])
+        for old in ("vx", "vy"):
+            spec.delete(names[old])
+        for name, gear, limit, ctrl in (("drive", [1, 0, 0, 0, 0, 0], base.force_limit_n, 1.5),
+                                        ("grip", [0, 1, 0, 0, 0, 0], base.grip_n, 0.0)):
+            a = spec.add_actuator(name=name, target="drive_site",
+                                  trntype=mujoco.mjtTrn.mjTRN_SITE)
+            a.set_to_velocity(kv=base.kv)
+            a.gear = gear
+            a.forcerange = [-limit, limit]
+            a.forcelimited = 1
+            if ctrl > 0:  # the grip's control stays 0 (no lateral velocity)
+                a.ctrlrange = [-ctrl, ctrl]
+                a.ctrllimited = 1
+    else:
+        for name in ("vx", "vy"):
+            a = names[name]
+            a.set_to_velocity(kv=base.kv)
+            a.forcerange = [-base.force_limit_n, base.force_limit_n]
+            a.ctrlrange = [-1.5, 1.5]
+    wz = names["wz"]
+    wz.set_to_velocity(kv=spin / 0.02)  # 20 ms yaw servo time constant
+    wz.forcerange = [-spin * 20.0, spin * 20.0]
+
+
+def build_spec(world: World, cell_size: float = 0.5,
+               base: BaseParams | None = None) -> mujoco.MjSpec:
+    """The scene as an MjSpec (see module docstring); ``base`` a physical base."""
     if not (np.isfinite(cell_size) and cell_size > 0):
         raise ConfigError(f"cell size must be a positive number of metres, got {cell_size}")
     try:
@@ -99,6 +154,8 @@ def build_spec(world: World, cell_size: float = 0.5) -> mujoco.MjSpec:
         g = wb.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size, pos=pos)
         g.classname = spec.find_default("static")
         g.material = "wall"
+    if base is not None:
+        apply_base(spec, base)
     # cameras over the map's centre
     side = max(W, H)
     spec.camera("top").pos = [W / 2, H / 2, 1.5 * side]
@@ -106,9 +163,10 @@ def build_spec(world: World, cell_size: float = 0.5) -> mujoco.MjSpec:
     return spec
 
 
-def build_scene(world: World, cell_size: float = 0.5) -> Scene:
+def build_scene(world: World, cell_size: float = 0.5, base: BaseParams | None = None
+                ) -> Scene:
     """Compile the scene of ``world``; a ConfigError names the cause when it cannot be built."""
-    spec = build_spec(world, cell_size)
+    spec = build_spec(world, cell_size, base)
     try:
         model = spec.compile()
     except ValueError as e:

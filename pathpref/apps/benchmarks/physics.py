@@ -133,6 +133,211 @@ def cue_accuracy_realistic(n: int = 200, seed: int = 0) -> dict[str, Any]:
     }
 
 
+def pushes_while_driving(pushes: list[tuple], sensor_model=None, seed: int = 0) -> dict:
+    """Pushes at random moments of motion: for each push of :func:`realistic_pushes` the base
+    (pushes at any time: splitting detector, admittance, stop on a cue) starts driving to the
+    push's cell, and the push begins ``U[0.05, 0.6]`` s into the move (accelerating,
+    cruising or braking). Hits (the felt cue's sector = intended; the first cue felt after
+    the onset), latencies (onset to first felt), and misses."""
+    from ...sim.force_cue import HumanPush
+    from ...sim.mobile_base import MobileBase
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world), sensor_model=sensor_model,
+                      rng=np.random.default_rng(seed + 1))
+    base.enable_pushes_any_time()
+    base.reset(world.cell((3, 3)))
+    base.hold(0.5)
+    rng = np.random.default_rng(seed + 2)
+    hits, onset, speeds = [], [], []
+    for cell, h, angle, profile in pushes:
+        if cell == base.cell:
+            cell = int(world.motion.next_cell[cell, int(np.flatnonzero(
+                ~world.motion.blocked[cell])[0])])
+        t0 = float(base.data.time) + float(rng.uniform(0.05, 0.6))
+        base.pushes.append(HumanPush(angle, t0, profile, h))
+        n0 = len(base.felt)
+        base.target = base.scene.cell_centre(cell)
+        t_end = t0 + profile.duration_s + 1.0
+        while base.data.time < t_end and len(base.felt) == n0:
+            base.substep()
+            if abs(base.data.time - t0) < 0.5 * base.dt:
+                speeds.append(float(np.linalg.norm(base.velocity)))
+        felt = [f for f in base.felt[n0:] if f.t_felt >= t0 - 1e-9]
+        hits.append(bool(felt) and felt[0].heading == h)
+        if felt:
+            onset.append(felt[0].t_felt - t0)
+        base.hold(0.3)  # the push's tail and release
+    return {"hits": hits, "onset_s": onset, "accuracy": float(np.mean(hits)) if hits else 0.0,
+            "speed_at_onset_mps": speeds}
+
+
+def cue_accuracy_while_driving(n: int = 200, seed: int = 0) -> dict[str, Any]:
+    """:func:`pushes_while_driving` with the ideal sensor and with
+    ``SensorModel.realistic()`` on the same pushes: accuracies and their ratio (the
+    ``cue_accuracy_while_driving`` key), median latency, median speed at push onset."""
+    from ...sim.sensing import SensorModel
+
+    pushes = realistic_pushes(n, seed + 7)
+    ideal = pushes_while_driving(pushes, None, seed)
+    real = pushes_while_driving(pushes, SensorModel.realistic(), seed)
+    return {
+        "cue_accuracy_while_driving": real["accuracy"] / max(ideal["accuracy"], 1e-12),
+        "cue_accuracy_while_driving_raw": real["accuracy"],
+        "cue_accuracy_while_driving_ideal_raw": ideal["accuracy"],
+        "cue_latency_while_driving_ms": 1e3 * float(np.median(real["onset_s"]))
+        if real["onset_s"] else float("nan"),
+        "push_onset_speed_mps": float(np.median(real["speed_at_onset_mps"]))
+        if real["speed_at_onset_mps"] else float("nan"),
+        "cue_pushes_while_driving": n,
+    }
+
+
+def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
+    """Two 30 N, 0.3 s pushes, east then north, ``gap_s`` apart, on the driving base with
+    pushes at any time: the felt cues' angles (degrees); two cues near 0 and 90 expected."""
+    from ...sim.force_cue import HumanPush, PushProfile
+    from ...sim.mobile_base import MobileBase
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world))
+    base.enable_pushes_any_time()
+    base.stop_on_cue = False
+    base.reset(world.cell((3, 3)))
+    base.target = base.scene.cell_centre(world.cell((5, 3)))
+    t0, prof = 0.3, PushProfile()
+    base.pushes = [HumanPush(0.0, t0, prof, 2), HumanPush(np.pi / 2, t0 + 0.3 + gap_s, prof, 0)]
+    while base.data.time < t0 + 1.2:
+        base.substep()
+    return {"two_push_cues": len(base.felt),
+            "two_push_angles_deg": [round(float(np.degrees(f.cue.angle)), 1)
+                                    for f in base.felt]}
+
+
+def physical_base(world, task: str = "navigate", sensor: str = "realistic",
+                  kind: str = "holonomic", seed: int = 0):
+    """A base as a physical episode builds it (``Physics()`` defaults, the sensor preset
+    ``sensor``, base ``kind``): the body's own construction, not a copy of it."""
+    import dataclasses
+
+    from ...episode import Physics
+    from ...sim.body import MujocoBody
+
+    ph = Physics(sensor=sensor, base=kind)
+    spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", task=task,
+                              physics=ph.to_json())
+    spec = dataclasses.replace(spec, map=world.name)
+    return MujocoBody(world, spec, np.random.default_rng(seed)).base
+
+
+class SteadyPush:
+    """A constant horizontal force ``f`` (N, world x-y) from ``t0`` for ``duration_s``."""
+
+    def __init__(self, f, t0: float, duration_s: float):
+        from ...sim.force_cue import PushProfile
+
+        self.f, self.t0 = np.array([f[0], f[1], 0.0]), t0
+        self.profile = PushProfile(peak_n=float(np.hypot(*f)), duration_s=duration_s)
+
+    def active(self, t: float) -> bool:
+        """Whether the force acts at ``t``."""
+        return self.t0 <= t <= self.t0 + self.profile.duration_s
+
+    def force(self, t: float) -> np.ndarray:
+        """The force at ``t`` (N, 3)."""
+        return self.f if self.active(t) else np.zeros(3)
+
+
+def runaway(force_n: float = 130.0, seconds: float = 3.0, physical: bool = True,
+            any_time: bool = False, sensor: str = "realistic") -> dict[str, float]:
+    """A push above the drive's 120 N limit (``force_n`` east for ``seconds``) on the standing
+    base in the middle of ``office``'s widest free row: the largest displacement (m) and the
+    distance from the start 3 s after the push ended (the recovery; the base holds its cell)."""
+    from ...sim.body import scene_for as scene
+
+    world = cached_world("simple")
+    if physical:
+        base = physical_base(world, sensor=sensor)
+        if any_time:
+            base.enable_pushes_any_time()
+            base.stop_on_cue = False
+    else:
+        from ...sim.mobile_base import MobileBase
+
+        base = MobileBase(scene(world))
+    base.reset(world.cell((1, 3)))
+    base.hold(0.3)
+    p0 = base.position.copy()
+    base.pushes = [SteadyPush((force_n, 0.0), float(base.data.time), seconds)]
+    worst = 0.0
+    t_end = base.data.time + seconds + 3.0
+    while base.data.time < t_end:
+        base.substep()
+        worst = max(worst, float(np.linalg.norm(base.position - p0)))
+    return {"runaway_m": worst, "runaway_recovered_m": float(np.linalg.norm(base.position - p0))}
+
+
+def carry_drift(force_n: float = 30.0, seconds: float = 3.0, physical: bool = True
+                ) -> dict[str, float]:
+    """A sustained push on the tray, north and then south (``force_n`` for ``seconds``) on the
+    standing ``carry`` robot: the base's largest displacement *against* the push (mm; the
+    ``carry_drift_mm`` key, the worse direction) and along it."""
+    from ...sim.arm import ArmBase
+    from ...sim.body import scene_for as scene
+
+    world = cached_world("simple")
+    against, along = [], []
+    for sign in (1.0, -1.0):
+        base = physical_base(world, task="carry") if physical else \
+            ArmBase(scene(world, 0.5, "carry"))
+        base.reset(world.cell((3, 3)))
+        base.hold(0.2)
+        p0, u = base.position.copy(), np.array([0.0, sign])
+        base.pushes = [SteadyPush(force_n * u, float(base.data.time), seconds)]
+        worst, most = 0.0, 0.0
+        while base.data.time < base.pushes[0].t0 + seconds:
+            base.substep()
+            d = float((base.position - p0) @ u)
+            worst, most = max(worst, -d), max(most, d)
+        against.append(1e3 * worst)
+        along.append(1e3 * most)
+    return {"carry_drift_mm": max(against), "carry_yield_mm": max(along)}
+
+
+def carry_moves(n: int = 30, seed: int = 0, physical: bool = True) -> dict[str, float]:
+    """``n`` random legal one-cell moves of the ``carry`` robot on ``simple``: the overshoot
+    of each (mm past the target along the move, 0 when it never passes it), the deepest
+    arm/obstacle penetration (every physics step in physical mode), peak base acceleration."""
+    from ...sim.arm import ArmBase
+    from ...sim.body import scene_for as scene
+
+    world = cached_world("simple")
+    base = physical_base(world, task="carry") if physical else \
+        ArmBase(scene(world, 0.5, "carry"))
+    base.reset(world.cell((3, 3)))
+    rng, over = np.random.default_rng(seed), []
+    for _ in range(n):
+        s = base.cell
+        moves = np.flatnonzero(~world.motion.blocked[s])
+        tgt = base.scene.cell_centre(int(world.motion.next_cell[s, rng.choice(moves)]))
+        u = tgt - base.position
+        u = u / max(float(np.linalg.norm(u)), 1e-9)
+        worst = 0.0
+
+        def watch(b, _push, tgt=tgt, u=u):
+            nonlocal worst
+            worst = max(worst, float((b.position - tgt) @ u))
+
+        base.on_substep.append(watch)
+        base.move_to(base.scene.cell_at(tgt))
+        base.on_substep.remove(watch)
+        over.append(1e3 * worst)
+    return {"carry_overshoot_mm": float(np.median(over)),
+            "carry_overshoot_max_mm": float(max(over)),
+            "carry_moves_penetration_mm": 1e3 * base.deepest,
+            "carry_base_peak_accel": base.peak_accel}
+
+
 def hard_driving(base, seconds: float, rng: np.random.Generator) -> list:
     """Drive ``base`` hard for ``seconds`` of simulated time: an aggressive controller (gain
     8, 1 m/s: the actuators saturate at 120 N, about 10 m/s^2) whose target jumps every
@@ -177,6 +382,20 @@ def false_cues_realistic(seconds: float = 1000.0, seed: int = 0, sensor_model=No
     t0 = base.data.time
     cues = hard_driving(base, seconds, np.random.default_rng(seed))
     return len(cues), float(base.data.time - t0), peak[0]
+
+
+def false_cues_physical(seconds: float = 1000.0, seed: int = 0) -> tuple[int, float]:
+    """False cues of the physical base with realistic sensing and pushes at any time (the
+    splitting detector, admittance) during :func:`hard_driving` on ``office`` (targets jumping
+    every 0.2-1 s; the 120 N drive saturates, 0.89 m/s^2 on 135 kg): count, simulated s."""
+    world = cached_world("office")
+    base = physical_base(world, seed=seed + 1)
+    base.enable_pushes_any_time()
+    base.stop_on_cue = False
+    base.reset(world.cell((1, 1)))
+    t0 = base.data.time
+    hard_driving(base, seconds, np.random.default_rng(seed))
+    return len(base.felt), float(base.data.time - t0)
 
 
 def render_fps(width: int = 640, height: int = 480, frames: int = 60) -> float:
@@ -243,16 +462,26 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
     """Cue detection (with and without heading noise), false cues, episode time, rendering;
     the same with realistic sensing (``*_realistic``, :func:`cue_accuracy_realistic`,
     :func:`false_cues_realistic`; ``docs/sensing.md``)."""
+    from ...episode import Physics
+
     n_push = 50 if quick else 200
     secs = 100.0 if quick else 1000.0
     n_cues, sim_s = false_cues(secs)
-    times = []
+    legacy_times, times, accel, accel_dd = [], [], [], []
     for i in range(2 if quick else 5):
+        for physics, out in (("", legacy_times), (Physics().to_json(), times)):
+            spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
+                                      sim="mujoco", t_max=30, physics=physics)
+            t = time.perf_counter()
+            res = run_episode(spec)
+            out.append(time.perf_counter() - t)
+            if physics:
+                accel.append(res.metrics["base_peak_accel"])
         spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
-                                  sim="mujoco", t_max=30)
-        t = time.perf_counter()
-        run_episode(spec)
-        times.append(time.perf_counter() - t)
+                                  sim="mujoco", t_max=30,
+                                  physics=Physics(base="diffdrive",
+                                                  timing="interval").to_json())
+        accel_dd.append(run_episode(spec).metrics["base_peak_accel"])
     from ...sim.estimator import EstimatorConfig
     from ...sim.sensing import SensorModel
 
@@ -266,6 +495,8 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
     _, _, comp_peak = false_cues_realistic(30.0, sensor_model=inertia_only)
     return {
         **cue_accuracy_realistic(100 if quick else 400),
+        **cue_accuracy_while_driving(60 if quick else 200),
+        **two_pushes(),
         "false_cues_per_hour_realistic": n_real / real_s * 3600.0,
         "false_cue_drive_realistic_s": real_s,
         "force_estimate_peak_driving_n": real_peak,
@@ -278,8 +509,16 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "cue_pushes": n_push,
         "false_cues_per_hour": n_cues / sim_s * 3600.0,
         "false_cue_drive_s": sim_s,
-        "episode_s": median(times),
+        **runaway(),
+        "false_cues_per_hour_physical": (lambda n_s: n_s[0] / n_s[1] * 3600.0)(
+            false_cues_physical(120.0 if quick else 1000.0)),
+        "runaway_legacy_m": runaway(physical=False)["runaway_m"],
+        "base_peak_accel": max(accel),
+        "base_peak_accel_diffdrive": max(accel_dd),
+        "base_accel_limit": 1.0,  # Clearpath Ridgeback, ridgeback_control/config/control.yaml
+        "episode_s": median(times),  # Physics() defaults: realistic sensing, physical base
         "episode_max_s": max(times),
+        "episode_legacy_s": median(legacy_times),
         "render_fps": render_fps(frames=20 if quick else 60),
         "render_fps_video": render_fps_video(frames=20 if quick else 60),
     }
@@ -305,7 +544,9 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         cue = arm.receive_push(HumanPush.sample(h, 0.0, PushProfile(), rng))
         hits += cue is not None and cue.heading == h
         arm.move_to(arm.cell)
-    tilts, pens, times = [], [], []
+    from ...episode import Physics
+
+    tilts, pens, times, legacy_pens, tips = [], [], [], [], []
     for i in range(2 if quick else 5):
         spec = EpisodeSpec.single("simple", "path_preference", 3, seed=13, instance=i,
                                   sim="mujoco", task="carry")
@@ -313,8 +554,20 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         res = run_episode(spec)
         times.append(time.perf_counter() - t)
         tilts.append(res.metrics["tilt_rms_deg"])
-        pens.append(res.metrics["max_penetration_mm"])
+        legacy_pens.append(res.metrics["max_penetration_mm"])
+        phys = run_episode(EpisodeSpec.single("simple", "path_preference", 3, seed=13,
+                                              instance=i, sim="mujoco", task="carry",
+                                              physics=Physics().to_json()))
+        pens.append(phys.metrics["max_penetration_mm"])  # every physics step
+        tips.append(phys.metrics["tip_margin"])
     return {
+        **carry_drift(),
+        "carry_drift_legacy_mm": carry_drift(physical=False)["carry_drift_mm"],
+        **carry_moves(20 if quick else 60),
+        "carry_overshoot_legacy_mm": carry_moves(20 if quick else 60,
+                                                 physical=False)["carry_overshoot_mm"],
+        "max_penetration_mm_move_ends": max(legacy_pens),
+        "tip_margin_min": min(tips),
         "ik_solves_per_s": ik_rate,
         "cue_sector_accuracy": hits / pushes,
         "cue_pushes": pushes,

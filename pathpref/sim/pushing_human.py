@@ -1,0 +1,116 @@
+"""A simulated human who pushes like a person: strength, duration and shape drawn from
+distributions, timing not locked to the robot's decisions, and an option to intervene when the
+robot heads the wrong way (:class:`~pathpref.episode.physics.Physics` holds the settings,
+``docs/physics.md`` their sources).
+
+* **Strength and duration** (:func:`sample_profile`): log-normal, ``F = F_med s_F^z`` and
+  ``T = T_med s_T^z'`` with ``z, z' ~ N(0, 1)``, clipped to their ranges; the angle noise is
+  ``N(0, sigma)`` as before.
+* **Timing** (:class:`PushingHuman`, a ``pre_substep`` hook on the base, so a push may begin
+  at any physics step, while the base drives, brakes or stands):
+  ``interval``: the next push ``I (1 + j u)`` seconds after the last began, ``u ~ U[-1, 1]``;
+  ``rate``: exponential gaps of mean ``I`` (a Poisson process); in both the first push comes
+  ``reaction_s`` after the start (the paper's protocol also gives an input before the first
+  move; without it the robot drove its first seconds uninformed: success 0.28 against 0.53 at
+  input steps in the study, ``docs/physics.md``);
+  ``corrective``: when the robot starts a move the human finds wrong (its heading has less
+  than half the probability of the human's most likely heading, SPEC 4), a push follows
+  after a reaction time ``~ reaction_s (1 + 0.25 z)`` with probability ``p_correct``; after a
+  right move a needless push with ``p_needless``. Both are scaled by what the human has seen
+  (Wang et al. 2025, arXiv 2501.03515: people withhold corrections from a robot that seems
+  to fail and add needless ones to one that seems to work): with ``r`` the share of right
+  moves among the last 5, ``p_correct r`` and ``p_needless r``.
+  The heading is drawn from the Boltzmann model at the cell where the push begins.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+
+import numpy as np
+
+from ..episode.physics import Physics
+from .force_cue import HumanPush, PushProfile
+
+#: nominal seconds per decision step: ``interval_s = 0`` means ``delta_t`` of them
+STEP_S = 1.0
+
+
+def sample_profile(physics: Physics, rng: np.random.Generator,
+                   confidence: float = 1.0) -> PushProfile:
+    """One push's profile: log-normal strength and duration (module docstring); with
+    ``strength_confidence`` ``c > 0`` the median strength is ``F_med exp(c (q - 1/2))`` for a
+    heading the human gives with confidence ``q`` (its probability over the most likely
+    heading's): a firm push is a confident one."""
+    p = physics
+    median = p.peak_n if p.strength_confidence == 0 else \
+        p.peak_n * float(np.exp(p.strength_confidence * (confidence - 0.5)))
+    peak = median * p.peak_spread ** rng.standard_normal()
+    dur = p.duration_s * p.duration_spread ** rng.standard_normal()
+    return PushProfile(peak_n=float(np.clip(peak, p.peak_min_n, p.peak_max_n)),
+                       duration_s=float(np.clip(dur, 0.1, p.duration_max_s)),
+                       noise_deg=p.noise_deg, shape=p.shape)
+
+
+class PushingHuman:
+    """Starts pushes on a base at times of its own (module docstring).
+
+    ``heading_at(cell)`` draws the human's heading at a cell; ``probs(cell)`` gives the
+    human's heading distribution there (for ``corrective``); ``delta_t`` sets the default
+    interval. Attach with :meth:`attach`; tell it of each move with :meth:`robot_moves`."""
+
+    def __init__(self, physics: Physics, rng: np.random.Generator, delta_t: int,
+                 heading_at: Callable[[int], int],
+                 probs: Callable[[int], np.ndarray] | None = None):
+        self.physics, self.rng = physics, rng
+        self.heading_at, self.probs = heading_at, probs
+        self.interval = physics.interval_s if physics.interval_s > 0 else delta_t * STEP_S
+        self.next_t: float | None = None
+        self.given: list[HumanPush] = []
+        self.recent: deque[bool] = deque(maxlen=5)
+
+    def attach(self, base) -> None:
+        """Push ``base`` from now on (a ``pre_substep`` hook)."""
+        self.base = base
+        base.pre_substep.append(self)
+        t = float(base.data.time)
+        if self.physics.timing in ("interval", "rate"):
+            # the first push when the mission starts (after a reaction time), as the paper's
+            # protocol gives an input before the first move; then at the human's own times
+            self.next_t = t + self.physics.reaction_s
+
+    def _gap(self) -> float:
+        p = self.physics
+        if p.timing == "rate":
+            return float(self.rng.exponential(self.interval))
+        return float(self.interval * (1.0 + p.jitter * self.rng.uniform(-1.0, 1.0)))
+
+    def robot_moves(self, cell: int, heading: int | None) -> None:
+        """The robot starts a move from ``cell`` toward ``heading`` (None: it stays). In
+        ``corrective`` timing the human may react (module docstring)."""
+        p = self.physics
+        if p.timing != "corrective" or heading is None or self.probs is None:
+            return
+        q = self.probs(cell)
+        right = bool(q[heading] >= 0.5 * q.max())
+        seen = float(np.mean(self.recent)) if self.recent else 1.0
+        self.recent.append(right)
+        chance = (p.p_needless if right else p.p_correct) * seen
+        if self.rng.random() < chance and self.next_t is None:
+            delay = max(0.05, p.reaction_s * (1.0 + 0.25 * self.rng.standard_normal()))
+            self.next_t = float(self.base.data.time) + delay
+
+    def __call__(self, base) -> None:
+        """Before a physics step: begin a push when one is due."""
+        t = float(base.data.time)
+        if self.next_t is None or t < self.next_t:
+            return
+        heading = self.heading_at(base.cell)
+        q = 1.0 if self.probs is None else float(self.probs(base.cell)[heading] /
+                                                   self.probs(base.cell).max())
+        push = HumanPush.sample(heading, t, sample_profile(self.physics, self.rng, q),
+                                self.rng)
+        base.pushes.append(push)
+        self.given.append(push)
+        self.next_t = None if self.physics.timing == "corrective" else t + self._gap()

@@ -1,0 +1,164 @@
+"""What physics changes (issue 12 item 7): the same episodes under six conditions.
+
+    MUJOCO_GL=egl .venv/bin/python scripts/physics_study.py --episodes 60 --out study.json
+
+Conditions (every condition runs the same specs: map, method, Delta_T, instance and run seeds):
+
+* ``grid``: the grid body, headings observed exactly (SPEC 3);
+* ``grid+noise``: the control: the human's heading plus N(0, 10 degrees) angle noise, binned
+  into its sector, moves on the grid (what the legacy MuJoCo layer reduced to);
+* ``mujoco-ideal``: the legacy MuJoCo physics (ideal sensor, 12 kg base, a 30 N / 0.3 s push at
+  each input step while the base stands);
+* ``realistic``: ``Physics()``: realistic sensing (2 N noise, 6 N drifting bias, inertia),
+  pushes from the human's distributions (log-normal 25 N / 0.3 s medians), the 135 kg
+  Ridgeback-class base within its limits, still at input steps;
+* ``anytime``: the same with pushes at any time (an interval of Delta_T seconds +-50 %, while
+  the base drives, brakes or stands; the move stops on a cue and the robot replans);
+* ``diffdrive``: ``realistic`` on the differential-drive base.
+
+Per condition: success (goal reached and preference followed) with a Wilson 95 % interval, cue
+accuracy (observed sector = the human's intended one, over the pushes given; missed pushes
+count as wrong) with its interval, pushes per episode, decision steps, how many episodes take
+exactly the grid+noise control's cell sequence (the first condition's without it), the mean final
+P(true goal), and wall time per episode. `--conditions strength-ignored strength-used` asks
+whether push strength helps the observation model (docs/physics.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from dataclasses import replace
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+
+import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
+from pathpref.episode import EpisodeSpec, GridBody, Physics, cached_world, run_episode  # noqa: E402
+from pathpref.episode.body import make_body, simulator_rng  # noqa: E402
+from pathpref.experiments.report import wilson  # noqa: E402
+from pathpref.geometry.grid import ACTION_ANGLES, heading_to_action  # noqa: E402
+
+
+class NoisyGridBody(GridBody):
+    """The control: the grid body whose observed heading is the human's plus
+    N(0, ``noise_deg``) degrees, binned into its sector."""
+
+    def __init__(self, world, spec=None, rng=None, noise_deg: float = 10.0):
+        super().__init__(world, spec, rng)
+        self.rng, self.noise = rng, np.deg2rad(noise_deg)
+
+    def human_input(self, heading: int) -> int | None:
+        """The noisy sector of the human's heading."""
+        return heading_to_action(float(ACTION_ANGLES[heading]) + self.noise *
+                                 self.rng.standard_normal())
+
+
+class Recorder:
+    """Wraps a body's ``human_input`` to count (intended, observed) pairs at input steps."""
+
+    def __init__(self, body):
+        self.body, self.pairs = body, []
+        inner = body.human_input
+
+        def human_input(heading: int):
+            seen = inner(heading)
+            self.pairs.append((heading, seen))
+            return seen
+
+        body.human_input = human_input
+
+
+CONDITIONS = {
+    "grid": ("grid", ""),
+    "grid+noise": ("grid", "noise"),
+    "mujoco-ideal": ("mujoco", ""),
+    "realistic": ("mujoco", Physics().to_json()),
+    "anytime": ("mujoco", Physics(timing="interval").to_json()),
+    "diffdrive": ("mujoco", Physics(base="diffdrive").to_json()),
+    # does push strength help the observation model? a human who pushes harder when surer
+    # (strength_confidence 1), the robot ignoring or using the strength
+    "strength-ignored": ("mujoco", Physics(strength_confidence=1.0).to_json()),
+    "strength-used": ("mujoco", Physics(strength_confidence=1.0, use_strength=True).to_json()),
+}
+STUDY = ["grid", "grid+noise", "mujoco-ideal", "realistic", "anytime", "diffdrive"]
+
+
+def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
+    """Run ``specs`` under condition ``name``; the per-condition figures (module docstring)."""
+    sim, physics = CONDITIONS[name]
+    world = cached_world(specs[0].map)
+    success, hits, pushes, steps, cells, wall, p_goal = [], 0, 0, [], [], [], []
+    for base in specs:
+        spec = replace(base, sim=sim, physics="" if physics == "noise" else physics)
+        body = NoisyGridBody(world, spec, simulator_rng(spec)) if physics == "noise" else \
+            make_body(spec, world)
+        rec = Recorder(body)
+        t = time.perf_counter()
+        res = run_episode(spec, world, body)
+        wall.append(time.perf_counter() - t)
+        success.append(res.success)
+        p_goal.append(res.log[-1].p_true_goal)
+        steps.append(res.steps)
+        cells.append([(s.x, s.y) for s in res.log])
+        if rec.pairs:
+            pushes += len(rec.pairs)
+            hits += sum(h == s for h, s in rec.pairs)
+        else:  # pushes at any time: the body's own record
+            pushes += res.inputs
+            hits += int(res.metrics.get("cue_hits", 0))
+    k, n = int(sum(success)), len(success)
+    return {"success": k / n, "success_ci": wilson(k, n), "n": n,
+            "cue_accuracy": hits / max(pushes, 1), "cue_accuracy_ci": wilson(hits, pushes),
+            "pushes": pushes, "pushes_per_episode": pushes / n,
+            "steps_mean": float(np.mean(steps)), "wall_s_per_episode": float(np.mean(wall)),
+            "p_true_goal_final": float(np.mean(p_goal)),
+            "cells": cells}
+
+
+def main() -> None:
+    """Run the study and print a Markdown table (module docstring)."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--episodes", type=int, default=60)
+    ap.add_argument("--map", default="simple")
+    ap.add_argument("--method", default="path_preference")
+    ap.add_argument("--delta-t", type=int, default=5)
+    ap.add_argument("--seed", type=int, default=12)
+    ap.add_argument("--out", default=None, help="JSON of the figures")
+    ap.add_argument("--conditions", nargs="+", default=STUDY, choices=list(CONDITIONS))
+    args = ap.parse_args()
+    specs = [EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
+                                instance=i, queries=1000)
+             for i in range(args.episodes)]
+    out = {}
+    for name in args.conditions:
+        t = time.perf_counter()
+        out[name] = run_condition(name, specs)
+        print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
+    control = out.get("grid+noise", out[args.conditions[0]])["cells"]
+    for r in out.values():
+        r["same_as_control"] = sum(a == b for a, b in zip(control, r["cells"], strict=True))
+    for r in out.values():
+        r.pop("cells")
+    print(f"\n{args.episodes} episodes per condition ({args.map}, {args.method}, "
+          f"Delta_T {args.delta_t}, 1000 queries, seed {args.seed})\n")
+    print("| condition | success [95% CI] | cue accuracy [95% CI] | pushes/episode | steps | "
+          "final P(true goal) | same path as control | wall s/episode |")
+    print("|---|---|---|---|---|---|---|---|")
+    for name, r in out.items():
+        lo, hi = r["success_ci"]
+        clo, chi = r["cue_accuracy_ci"]
+        print(f"| {name} | {r['success']:.2f} [{lo:.2f}, {hi:.2f}] | {r['cue_accuracy']:.3f} "
+              f"[{clo:.3f}, {chi:.3f}] | {r['pushes_per_episode']:.1f} | {r['steps_mean']:.1f} "
+              f"| {r['p_true_goal_final']:.2f} | {r['same_as_control']}/{r['n']} "
+              f"| {r['wall_s_per_episode']:.2f} |")
+    if args.out:
+        with open(args.out, "w") as f:
+            json.dump({"args": vars(args), "conditions": out}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()
