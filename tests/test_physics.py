@@ -151,12 +151,13 @@ def test_push_longer_than_the_episode():
 
 
 def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
-    """The saved schema-3 sweep upgrades to schema 4: same keys, ``physics`` = "" (legacy)."""
+    """The saved schema-3 sweep upgrades to schema 4 in place: same keys, ``physics`` empty
+    (NULL: the legacy physics, as :func:`row_spec` reads it)."""
     import shutil
     import sqlite3
 
     from pathpref.experiments.migrate import upgrade_database
-    from pathpref.experiments.store import ResultStore
+    from pathpref.experiments.store import ResultStore, row_spec
 
     db = tmp_path / "old.sqlite"
     shutil.copy("tests/data/saved_sweep.sqlite", db)
@@ -165,7 +166,8 @@ def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
     assert (out["from"], out["to"], out["merged"]) == (3, 4, 0)
     with ResultStore(db) as st:
         rows = st.episodes()
-    assert {r["key"] for r in rows} == old_keys and {r["physics"] for r in rows} == {""}
+    assert {r["key"] for r in rows} == old_keys and {r["physics"] for r in rows} == {None}
+    assert all(row_spec(r).physics == "" and row_spec(r).key() == r["key"] for r in rows)
 
 
 def test_carry_sustained_push_moves_with_it_or_holds():

@@ -101,49 +101,28 @@ def test_route_posterior_equals_brute_force(simple, name, seed):
         assert np.allclose(belief.preference_given_goal(v)[:, :deg], cond[v], atol=1e-9), v
 
 
-def test_route_prior_differs_from_independent(simple):
-    """On the ring, a push one way makes the goal on that side likelier than under the
-    independent prior... and the prior forbids a mutual pair: P(p_u = v | p_v = u) = 0."""
+def test_route_prior_forbids_cycles(simple):
+    """Every particle the search draws is a tree toward the goal's polytope: no mutual
+    preference, no cycle, no exit at the root; an untouched 8-ring has exactly 8 trees."""
+    from pathpref.planning.guided import tree_pool
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
     rng = np.random.default_rng(3)
     goals = rng.choice(simple.n_cells, size=4, replace=False)
     model = ObservationModel.build(simple, goals, normalize=True)
     belief = RouteBelief(model)
-    for g in range(len(goals)):
-        for _ in range(50):
-            theta = belief.sample_tree(g, rng)
-            r = belief.goal_polytope[g]
-            assert theta[r] == -1
-            for v, u in enumerate(theta):
-                if u >= 0:
-                    assert theta[u] != v  # no mutual preference
-    # an untouched ring: exactly n trees rooted at r, P(p_v points the short way) > 1/2
     assert np.isclose(np.exp(belief._log_trees[0]), simple.n_polytopes)
-
-
-@pytest.mark.parametrize("name", ["simple", "random11"])
-def test_wilson_samples_match_exact_marginals(simple, name):
-    world = simple if name == "simple" else random_world(11)
-    rng = np.random.default_rng(5)
-    goals = rng.choice(world.n_cells, size=3, replace=False)
-    model = ObservationModel.build(world, goals, normalize=True)
-    belief = RouteBelief(model)
-    for s, h in observations(world, model, rng, 10):
-        belief.update(s, h)
-    n = 4000
-    for g in range(len(goals)):
-        counts = {v: np.zeros(len(world.graph.neighbors[v])) for v in range(world.n_polytopes)}
-        for _ in range(n):
-            theta = belief.sample_tree(g, rng)
-            for v, u in enumerate(theta):
-                if u >= 0:
-                    counts[v][list(world.graph.neighbors[v]).index(u)] += 1
-        for v, c in counts.items():
-            if v == belief.goal_polytope[g]:
-                assert c.sum() == 0
-                continue
-            exact = belief.preference_given_goal(v)[g, : len(c)]
-            # 5 standard errors of a binomial proportion
-            assert np.all(np.abs(c / n - exact) <= 5 * np.sqrt(exact * (1 - exact) / n) + 1e-9)
+    planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
+    g, slots = tree_pool(planner.nbr, planner.preference_cdf(belief),
+                         np.cumsum(belief.goal_marginal()), planner.goal_poly,
+                         components(simple.graph.neighbors), 400, 1)
+    nbrs = simple.graph.neighbors
+    for gi, row in zip(g, slots, strict=True):
+        r = belief.goal_polytope[gi]
+        assert row[r] == -1
+        theta = [0 if v == r else k for v, k in enumerate(row)]
+        assert is_tree(theta, r, nbrs)
 
 
 def test_components_label_islands():

@@ -342,9 +342,9 @@ class ResultStore:
 def row_spec(row: dict[str, Any]) -> EpisodeSpec:
     """The :class:`EpisodeSpec` of a stored row: ``run_episode(row_spec(row))`` replays it."""
     names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
-    spec = {k: row[k] for k in names if k != "prior"}
-    spec["prior"] = row.get("prior") or "independent"  # rows before schema 4
-    spec = {k: row[k] for k in names if k != "physics"}
-    spec["physics"] = row.get("physics") or ""  # rows before schema 4: the legacy physics
+    spec = {k: row.get(k) for k in names}
+    # rows before schema 4: the independent prior and the legacy physics they ran with
+    spec["prior"] = spec["prior"] or "independent"
+    spec["physics"] = spec["physics"] or ""
     spec["normalize"], spec["coupling"] = bool(spec["normalize"]), bool(spec["coupling"])
     return EpisodeSpec(**spec)

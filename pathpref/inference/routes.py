@@ -27,7 +27,8 @@ det ~L_g``. Hence, exactly,
 * ``P(p_v = u | g, o) = W_g(v, u) ([~L_g^-1]_{vv} - [~L_g^-1]_{uv})`` (the derivative of
   ``log det``; the second term is 0 when ``u = r``).
 
-**Wilson's algorithm** draws ``theta`` from ``P(theta | g, o)`` exactly: from each polytope not
+**Wilson's algorithm** (:func:`pathpref.planning.guided.tree_pool`, compiled) draws ``theta``
+from ``P(theta | g, o)`` exactly: from each polytope not
 yet in the tree, a random walk that leaves ``v`` toward ``u`` with probability
 ``W_g(v, u) / sum_u W_g(v, u)`` until it meets the tree, loop-erased, joins the tree. The walk's
 transition rows are the per-polytope tables the independent belief keeps
@@ -159,35 +160,3 @@ class RouteBelief(PreferenceBelief):
             p = np.maximum(w * col, 0.0)
             out[g, :deg] = p / p.sum()
         return out
-
-    def sample_tree(self, g: int, rng: np.random.Generator) -> np.ndarray:
-        """``theta`` drawn from ``P(theta | g, o)`` by Wilson's algorithm: ``(P,)`` preferred
-        neighbour of each polytope, ``-1`` at the goal's polytope (outside its component: an
-        independent draw from the table)."""
-        r = int(self.goal_polytope[g])
-        P = len(self.neighbors)
-        theta = -np.ones(P, dtype=np.int64)
-        in_tree = np.zeros(P, dtype=bool)
-        in_tree[r] = True
-        rows = [self.local_given_goal(v)[g] if len(self.neighbors[v]) else None
-                for v in range(P)]
-        nxt = -np.ones(P, dtype=np.int64)
-        for v0 in range(P):
-            if in_tree[v0] or len(self.neighbors[v0]) == 0:
-                continue
-            if self.component[v0] != self.component[r]:
-                row = rows[v0][: len(self.neighbors[v0])]
-                theta[v0] = self.neighbors[v0][rng.choice(len(row), p=row / row.sum())]
-                in_tree[v0] = True
-                continue
-            v = v0
-            while not in_tree[v]:
-                row = rows[v][: len(self.neighbors[v])]
-                nxt[v] = self.neighbors[v][rng.choice(len(row), p=row / row.sum())]
-                v = nxt[v]
-            v = v0
-            while not in_tree[v]:
-                theta[v] = nxt[v]
-                in_tree[v] = True
-                v = nxt[v]
-        return theta
