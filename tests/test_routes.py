@@ -201,3 +201,18 @@ def test_prior_in_the_episode_key_and_rows(tmp_path):
     assert all(row_spec(r).prior == "independent" and row_spec(r).key() == r["key"]
                for r in rows)
     assert row_spec({**rows[0], "prior": None}).prior == "independent"
+
+
+def test_get_preset_takes_and_checks_the_prior():
+    """``prior`` overrides the preset's (None keeps it); an unknown one is a one-line error."""
+    from pathpref.errors import ConfigError
+    from pathpref.planning.pomdp import get_preset
+
+    assert get_preset("robust").prior == "routes"
+    assert get_preset("paper").prior == "independent"
+    assert get_preset("robust", prior=None).prior == "routes"
+    assert get_preset("paper", prior="routes").prior == "routes"
+    assert get_preset("robust", prior="independent").prior == "independent"
+    with pytest.raises(ConfigError) as e:
+        get_preset("paper", prior="tree")
+    assert str(e.value) == "unknown prior 'tree'; choose independent or routes"
