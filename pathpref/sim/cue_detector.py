@@ -83,18 +83,23 @@ class CueDetector:
         if not np.isfinite(mag):
             return None
         if not self.active:
-            if mag > self.on_n:
-                self._above += self.dt
-                self._impulse += f_xy * self.dt
-                self._peak = max(self._peak, mag)
-                self._duration += self.dt
-                if self._above >= self.on_s - 1e-12:
-                    self.active = True
-                    self._below = 0.0
-            else:
-                self._clear()
+            self._onset(f_xy, mag)
             return None
         return self._active(f_xy, mag, True)
+
+    def _onset(self, f: np.ndarray, mag: float) -> None:
+        """One sample before a cue: accumulate while above ``on_n``, go active after ``on_s``
+        of it, forget a shorter excursion."""
+        if mag > self.on_n:
+            self._above += self.dt
+            self._impulse += f * self.dt
+            self._peak = max(self._peak, mag)
+            self._duration += self.dt
+            if self._above >= self.on_s - 1e-12:
+                self.active = True
+                self._below = 0.0
+        else:
+            self._clear()
 
     def _active(self, f: np.ndarray, mag: float, accumulate: bool) -> Cue | None:
         """One sample of an active cue: accumulate (when ``accumulate``), release after
@@ -197,15 +202,6 @@ class FilteredCueDetector(CueDetector):
             self.on_n = max(self.base_on_n, self.on_k * sigma)
             self.off_n = max(self.base_off_n, self.off_k * sigma)
         if not self.active:
-            if mag > self.on_n:
-                self._above += self.dt
-                self._impulse += f * self.dt
-                self._peak = max(self._peak, mag)
-                self._duration += self.dt
-                if self._above >= self.on_s - 1e-12:
-                    self.active = True
-                    self._below = 0.0
-            else:
-                self._clear()
+            self._onset(f, mag)
             return None
         return self._active(f, mag, mag > self.off_n)
