@@ -61,7 +61,7 @@ import time
 import numba as nb
 import numpy as np
 
-from .tree import best_root_action, new_tree, sample_index, sample_slot
+from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
 EPS_RANDOM = 0.1
 
@@ -258,6 +258,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
                 ch = child[node, a]
                 if ch < 0:  # expand one node per simulation, then roll out
                     child[node, a] = n_nodes
+                    init_node(n_node, n_sa, q_sa, child, n_nodes)
                     n_nodes += 1
                     in_tree = False
                 else:

@@ -30,7 +30,7 @@ from ..inference.costs import CostTables
 from ..inference.routes import components
 from .guided import search_robust, tree_pool
 from .pomdp import Rewards
-from .tree import best_root_action, new_tree, sample_index, sample_slot
+from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
 #: root particles of a route-prior belief per decision (exact draws, :func:`.guided.tree_pool`)
 TREE_POOL = 512
@@ -108,6 +108,7 @@ def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goa
             ch = child[node, a]
             if ch < 0:
                 child[node, a] = n_nodes
+                init_node(n_node, n_sa, q_sa, child, n_nodes)
                 n_nodes += 1
                 # uniform-random rollout for the remaining depth
                 disc = 1.0

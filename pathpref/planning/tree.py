@@ -3,7 +3,9 @@ compiled with numba and inlined into both kernels.
 
 The tree is stored in flat arrays indexed by node: visit counts ``n_node``, per-action counts
 ``n_sa`` and mean returns ``q_sa``, and ``child[node, a]`` (-1 until expanded). One node is
-expanded per simulation, so ``queries + 2`` rows always suffice.
+expanded per simulation, so ``queries + 2`` rows always suffice. Rows are allocated
+uninitialised and set when their node is created (:func:`init_node`), so a large ``queries``
+(an anytime search capped by its time budget) costs no up-front zeroing.
 """
 
 from __future__ import annotations
@@ -14,10 +16,22 @@ import numpy as np
 
 @nb.njit(cache=True, inline="always")
 def new_tree(queries):
-    """``(n_node, n_sa, q_sa, child)`` for a search of ``queries`` simulations."""
+    """``(n_node, n_sa, q_sa, child)`` for a search of ``queries`` simulations, the root
+    (row 0) initialised."""
     M = queries + 2
-    return (np.zeros(M, np.int64), np.zeros((M, 8), np.int64), np.zeros((M, 8)),
-            -np.ones((M, 8), np.int32))
+    tree = (np.empty(M, np.int64), np.empty((M, 8), np.int64), np.empty((M, 8)),
+            np.empty((M, 8), np.int32))
+    init_node(tree[0], tree[1], tree[2], tree[3], 0)
+    return tree
+
+
+@nb.njit(cache=True, inline="always")
+def init_node(n_node, n_sa, q_sa, child, i):
+    """Node ``i`` unvisited, no action tried, no child."""
+    n_node[i] = 0
+    n_sa[i, :] = 0
+    q_sa[i, :] = 0.0
+    child[i, :] = -1
 
 
 @nb.njit(cache=True, inline="always")
