@@ -11,6 +11,7 @@ import pytest
 
 from pathpref.geometry.generate import random_floor_plan
 from pathpref.geometry.world import load_world
+from pathpref.inference import routes
 from pathpref.inference.human import ObservationModel, SimulatedHuman
 from pathpref.inference.routes import RouteBelief, components
 
@@ -82,8 +83,13 @@ def observations(world, model, rng, n, goal=0):
 CASES = [("simple", 0), ("simple", 1), ("random11", 0), ("random30", 1)]
 
 
+@pytest.mark.parametrize("factor", ["dense", "sparse"])
 @pytest.mark.parametrize("name,seed", CASES)
-def test_route_posterior_equals_brute_force(simple, name, seed):
+def test_route_posterior_equals_brute_force(simple, name, seed, factor, monkeypatch):
+    """Both factorisations of the minor (dense LAPACK, SuperLU for big maps) give the brute
+    force's posterior."""
+    if factor == "sparse":
+        monkeypatch.setattr(routes, "DENSE_MAX", 0)
     world = simple if name == "simple" else random_world(int(name[6:]))
     rng = np.random.default_rng(seed)
     goals = rng.choice(world.n_cells, size=4, replace=False)

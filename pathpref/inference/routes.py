@@ -39,10 +39,18 @@ forbids what the paper's coupling heuristic discourages, exactly and with no ord
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
+import scipy.sparse as sp
+from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
 from .human import ObservationModel
+
+#: minors up to this many rows are factorised densely (:meth:`_Minor.factor`)
+DENSE_MAX = 400
 
 
 def components(neighbors: list[np.ndarray]) -> np.ndarray:
@@ -81,57 +89,51 @@ class RouteBelief(PreferenceBelief):
         super().__init__(model, prior=prior, coupling=False)
         self.component = components(self.neighbors)
         self.goal_polytope = model.world.cell_polytope[model.goals].astype(np.int64)
+        P, K = len(self.neighbors), int(self.degree.max())
+        self._slots = np.zeros((P, K), dtype=bool)  # slot k of v holds a neighbour
+        for v, nb in enumerate(self.neighbors):
+            self._slots[v, : len(nb)] = True
+        self._minors = {int(r): _Minor(self.neighbors, self.component, int(r))
+                        for r in np.unique(self.goal_polytope)}
         self._cache: tuple[np.ndarray, list] | None = None
         # log det ~L_g(1): the number of arborescences, the prior's normaliser
-        self._log_trees = np.array([self._solve(g, unweighted=True)[0]
-                                    for g in range(len(self.log_prior))])
+        ones = self._slots.astype(float)
+        self._log_trees = np.array([self._minors[int(r)].factor(ones)[0]
+                                    for r in self.goal_polytope])
 
     def _multiply(self, v: int, factor: np.ndarray) -> None:
         super()._multiply(v, factor)
         self._cache = None
 
-    def _weights(self, g: int, v: int) -> np.ndarray:
-        """``W_g(v, N(v)[k])`` (the table row scaled by a constant, which cancels)."""
-        t = self.tables.get(v)
-        return np.ones(len(self.neighbors[v])) if t is None else t[g, : len(self.neighbors[v])]
-
-    def _solve(self, g: int, unweighted: bool = False):
-        """``(log det ~L_g, ~L_g^-1, index of each polytope in the minor or -1)``."""
-        r = self.goal_polytope[g]
-        members = np.flatnonzero(self.component == self.component[r])
-        members = members[members != r]
-        index = -np.ones(len(self.neighbors), dtype=np.int64)
-        index[members] = np.arange(len(members))
-        lap = np.zeros((len(members), len(members)))
-        for i, v in enumerate(members):
-            w = np.ones(len(self.neighbors[v])) if unweighted else self._weights(g, v)
-            lap[i, i] = w.sum()
-            for u, wu in zip(self.neighbors[v], w, strict=True):
-                if index[u] >= 0:
-                    lap[i, index[u]] -= wu
-        if len(members) == 0:
-            return 0.0, lap, index
-        sign, logdet = np.linalg.slogdet(lap)
-        if sign <= 0:  # every tree has weight 0: the observations rule this goal out
-            return -np.inf, None, index
-        return logdet, np.linalg.inv(lap), index
+    def _weights_all(self) -> np.ndarray:
+        """``(G, P, K)`` weights ``W_g(v, N(v)[k])``: the table rows of observed polytopes
+        (scaled by a constant per polytope, which cancels), 1 elsewhere, 0 in empty slots."""
+        G = len(self.log_prior)
+        W = np.broadcast_to(self._slots.astype(float), (G, *self._slots.shape)).copy()
+        for v, t in self.tables.items():
+            W[:, v, : len(self.neighbors[v])] = t[:, : len(self.neighbors[v])]
+        return W
 
     def _solved(self) -> tuple[np.ndarray, list]:
-        """Per goal: ``log P(o | g)`` up to a constant, and the minor's inverse and index."""
+        """Per goal: ``log P(o | g)`` up to a constant, and the minor's factorisation
+        (:class:`_Minor`), None where every tree has weight 0."""
         if self._cache is None:
+            W = self._weights_all()
             G = len(self.log_prior)
             loglik = np.zeros(G)
-            inv = []
+            lus = []
+            obs = np.fromiter(self.tables, dtype=np.int64, count=len(self.tables))
             for g in range(G):
-                logdet, linv, index = self._solve(g)
-                r = self.goal_polytope[g]
+                minor = self._minors[int(self.goal_polytope[g])]
+                logdet, lu = minor.factor(W[g])
                 ll = logdet - self._log_trees[g]
-                for v, t in self.tables.items():
-                    if v == r or index[v] < 0:  # the root, or outside r's component
-                        ll += np.log(t[g].mean())
+                # the root and polytopes outside its component keep the independent prior
+                free = obs[minor.index[obs] < 0]
+                for v in free.tolist():
+                    ll += np.log(self.tables[v][g].mean())
                 loglik[g] = ll
-                inv.append((linv, index))
-            self._cache = (loglik, inv)
+                lus.append(lu)
+            self._cache = (loglik, lus)
         return self._cache
 
     def goal_log_weights(self) -> np.ndarray:
@@ -142,21 +144,101 @@ class RouteBelief(PreferenceBelief):
     def preference_given_goal(self, v: int) -> np.ndarray:
         """``(G, deg v)`` exact ``P(p_v = N(v)[k] | g, o_1:t)`` under the route prior (uniform
         outside the goal's component; the goal's own polytope has no preferred exit, shown as
-        uniform)."""
-        deg = len(self.neighbors[v])
+        uniform). Column ``i`` of ``~L_g^-1`` is one solve with the cached factorisation."""
+        nb = self.neighbors[v]
+        deg = len(nb)
         out = np.full((len(self.log_prior), self.degree[v]), 1.0 / self.degree[v])
         if deg == 0:
             return out
-        for g, (linv, index) in enumerate(self._solved()[1]):
-            i = index[v]
-            if v == self.goal_polytope[g] or linv is None:
-                continue  # no preferred exit at the goal; no tree for an impossible goal
+        for g, lu in enumerate(self._solved()[1]):
+            minor = self._minors[int(self.goal_polytope[g])]
+            i = minor.index[v]
+            if v == minor.root:
+                continue  # no preferred exit at the goal
             if i < 0:  # outside the goal's component: the independent posterior
                 out[g, :deg] = self.local_given_goal(v)[g, :deg]
                 continue
-            w = self._weights(g, v)
-            col = np.array([linv[i, i] - (linv[index[u], i] if index[u] >= 0 else 0.0)
-                            for u in self.neighbors[v]])
-            p = np.maximum(w * col, 0.0)
+            if lu is None:
+                continue  # no tree for an impossible goal
+            e = np.zeros(minor.n)
+            e[i] = 1.0
+            col = lu.solve(e)  # column i of ~L_g^-1
+            j = minor.index[nb]
+            p = np.maximum(self._weights(g, v) * (col[i] - np.where(j >= 0, col[j], 0.0)), 0.0)
             out[g, :deg] = p / p.sum()
         return out
+
+    def _weights(self, g: int, v: int) -> np.ndarray:
+        """``W_g(v, N(v)[k])`` (the table row scaled by a constant, which cancels)."""
+        t = self.tables.get(v)
+        return np.ones(len(self.neighbors[v])) if t is None else t[g, : len(self.neighbors[v])]
+
+
+class _Minor:
+    """The sparsity pattern of ``~L`` for one root polytope ``r``: the rows and columns of
+    ``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside), and for every
+    slot ``(v, k)`` of a member the diagonal entry it adds to and the off-diagonal entry it
+    subtracts from (none when ``N(v)[k]`` is the root). :meth:`factor` assembles ``~L(W)``
+    and factorises it (a sparse LU, SuperLU, above :data:`DENSE_MAX` rows, so a map of
+    thousands of polytopes costs what its sparse factor costs, not a dense ``n^3``)."""
+
+    def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int):
+        self.root = root
+        members = np.flatnonzero(component == component[root])
+        members = members[members != root]
+        self.n = len(members)
+        self.index = -np.ones(len(neighbors), dtype=np.int64)
+        self.index[members] = np.arange(self.n)
+        vs, ks, us = [], [], []
+        for v in members.tolist():
+            for k, u in enumerate(neighbors[v]):
+                vs.append(v)
+                ks.append(k)
+                us.append(int(u))
+        self.v, self.k = np.array(vs, dtype=np.int64), np.array(ks, dtype=np.int64)
+        row = self.index[self.v]
+        col = self.index[np.array(us, dtype=np.int64)]
+        off = col >= 0
+        self.off = off
+        self.rows = np.concatenate([row, row[off]])
+        self.cols = np.concatenate([row, col[off]])
+
+    def factor(self, W: np.ndarray):
+        """``(log det ~L(W), its LU)`` for weights ``W[v, k]``; ``(-inf, None)`` when the minor
+        is singular (every tree has weight 0: the observations rule the goal out), ``(0, None)``
+        when the root is its component's only polytope. Dense LAPACK up to
+        :data:`DENSE_MAX` rows (scipy's sparse constructors cost more than the factorisation
+        there), SuperLU above."""
+        if self.n == 0:
+            return 0.0, None
+        w = W[self.v, self.k]
+        data = np.concatenate([w, -w[self.off]])
+        if self.n <= DENSE_MAX:
+            lap = np.bincount(self.rows * self.n + self.cols, weights=data,
+                              minlength=self.n * self.n).reshape(self.n, self.n)
+            lu = _DenseLU(lap)
+            d = np.diagonal(lu.lu)
+        else:
+            lap = sp.csc_matrix((data, (self.rows, self.cols)), shape=(self.n, self.n))
+            try:
+                lu = splu(lap)
+            except RuntimeError:  # exactly singular
+                return -np.inf, None
+            d = lu.U.diagonal()
+        if not np.all(np.isfinite(d)) or np.any(d == 0):
+            return -np.inf, None
+        # ~L is a non-singular M-matrix here, so det > 0: the sign of the factors is not needed
+        return float(np.sum(np.log(np.abs(d)))), lu
+
+
+class _DenseLU:
+    """A dense LU factorisation with the ``solve`` of SuperLU's factor object."""
+
+    def __init__(self, a: np.ndarray):
+        with warnings.catch_warnings():  # a singular minor is reported by its zero pivot
+            warnings.simplefilter("ignore", LinAlgWarning)
+            self.lu, self.piv = lu_factor(a, check_finite=False)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``A^-1 b``."""
+        return lu_solve((self.lu, self.piv), b, check_finite=False)
