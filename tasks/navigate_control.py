@@ -87,9 +87,9 @@ class CommandedVelocity(ProfiledController):
         """Hold ``v = (vx, vy)`` (m/s) until the next call."""
         self.u[:2] = v
 
-    def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
-        """The held command (the target plays no part)."""
-        return self.u[:2].copy()
+    def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
+        """The held command (the position and target play no part)."""
+        return float(self.u[0]), float(self.u[1])
 
 
 class HeldCommandBase(MobileBase):
