@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import collections
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
@@ -82,6 +82,8 @@ class CommandedVelocity(ProfiledController):
 
     #: the held command (vx, vy, unused); state, updated in place
     u: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False)
+    #: the agent's velocity, not a target: the diff-drive base turns toward it everywhere
+    tracks_target: ClassVar[bool] = False
 
     def hold(self, v: np.ndarray) -> None:
         """Hold ``v = (vx, vy)`` (m/s) until the next call."""
@@ -268,6 +270,7 @@ class NavigateControl(Navigate):
             a = int(r.policy.act(r.t + 1, r.cell, cue))
             self._plan_from, self._plan_cue = b.cell, cue
             self._plan = r.cell if a == STAY else int(self.world.motion.next_cell[r.cell, a])
-        u = TrackingController().command(b.position, 0.0, self.scene.cell_centre(self._plan))
+        u = TrackingController(v_max=self.v_max).command(b.position, 0.0,
+                                                         self.scene.cell_centre(self._plan))
         return np.clip(u[:2], -self.v_max, self.v_max)
 

@@ -175,3 +175,18 @@ def test_control_rate_physical_base_and_gym_pass_physics():
     assert g.action_space == gym.spaces.Box(-0.5, 0.5, (2,), np.float32)
     assert g.unwrapped._env.task.template.physics == Physics(v_max=0.5).to_json()
     g.close()
+
+
+def test_control_rate_diffdrive_turns_toward_the_command():
+    """At control rate the differential-drive base turns toward the agent's velocity and then
+    drives along it (an agent's command has no target to settle on): 0.6 m/s north for 3 s
+    from a standstill facing east."""
+    env = load("navigate_control", delta_t=5, seed=1, physics={"base": "diffdrive"},
+               time_limit=3.5, **SMALL)
+    env.reset()
+    b = env.task.base
+    p0 = b.position.copy()
+    for _ in range(150):
+        env.step(np.array([0.0, 0.6]))
+    assert float(b.data.qpos[b.yaw]) == pytest.approx(np.pi / 2, abs=0.05)
+    assert b.position[1] - p0[1] > 0.8 and abs(b.position[0] - p0[0]) < 0.05

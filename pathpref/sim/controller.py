@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
@@ -32,6 +33,8 @@ class TrackingController:
     tol_m: float = 0.02
     still_mps: float = 0.05
     time_limit_s: float = 3.0
+    #: the command steers toward ``target`` (a base may treat the last centimetres specially)
+    tracks_target: ClassVar[bool] = True
 
     def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:
         """Actuator controls ``(vx, vy, wz)``."""
