@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import hashlib
 import os
+import unittest
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+from dm_env import test_utils  # noqa: E402
 from pathpref_tasks import load  # noqa: E402
 
 from pathpref.episode import Physics  # noqa: E402
@@ -20,6 +22,22 @@ from pathpref.sim.cue_detector import FilteredCueDetector  # noqa: E402
 from pathpref.sim.diffdrive import DiffDriveBase  # noqa: E402
 
 SMALL = {"map": "simple", "method": "goal_only", "queries": 20}
+
+
+class NavigatePhysicsConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    """dm_env's conformance with pushes at any time on the diff-drive base."""
+
+    def make_object_under_test(self):
+        return load("navigate", delta_t=2, seed=0, t_max=6, **SMALL,
+                    physics={"timing": "interval", "base": "diffdrive"})
+
+
+class NavigateControlPhysicsConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
+    """dm_env's conformance at control rate with realistic sensing and the physical drive."""
+
+    def make_object_under_test(self):
+        return load("navigate_control", delta_t=1, seed=0, time_limit=2.0, **SMALL,
+                    physics={"sensor": "realistic", "timing": "rate"})
 
 
 def _trace(name: str, kwargs: dict, steps: int) -> str:
