@@ -46,11 +46,6 @@ class HandleSensor:
         R = data.site_xmat[self.site].reshape(3, 3)
         return -(R @ f_site)[:2]
 
-    def raw(self, data) -> np.ndarray:
-        """The sensor's own reading (N, site frame, 3 axes): the force on the handle from the
-        base."""
-        return data.sensordata[self.adr:self.adr + 3].copy()
-
     def rotation(self, data) -> np.ndarray:
         """The site's rotation (site frame to world frame, 3x3)."""
         return data.site_xmat[self.site].reshape(3, 3).copy()
@@ -146,13 +141,6 @@ class FaultySensor:
         self._data = None
         self.restart()
 
-    def true_acceleration(self, data) -> np.ndarray:
-        """World-frame linear acceleration of the sensed body's centre of mass, minus gravity
-        (the simulator's truth; the sensor model uses it, the robot's estimator does not)."""
-        mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
-                                     self._acc, 0)
-        return self._acc[3:].copy()
-
     def _bind(self, data) -> None:
         """Views into ``data``'s buffers (they stay put for the life of an ``MjData``): the
         sensor's reading and the site's rotation, read without a copy at every step."""
@@ -172,7 +160,9 @@ class FaultySensor:
         return self._reading + self._inertial(data)
 
     def _inertial(self, data) -> np.ndarray:
-        """What the extra (or removed) mass adds to the reading: ``R^T m a`` (sensor frame)."""
+        """What the extra (or removed) mass adds to the reading: ``R^T m a`` (sensor frame), ``a``
+        the world-frame linear acceleration of the sensed body's centre of mass minus gravity
+        (the simulator's truth: the sensor model uses it, the robot's estimator does not)."""
         mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
                                      self._acc, 0)
         return self._RT @ (self._extra_m * self._acc3)
