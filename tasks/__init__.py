@@ -13,12 +13,19 @@ actions 0..8), ``navigate_control`` (control rate, 20 Hz by default; the agent c
 base's velocity while the simulated human pushes), ``carry`` (a Jaco arm on the base
 carries a tray; pushes on the tray; decision steps) and ``carry_control`` (the arm at control
 rate). ``task_kwargs`` go to the task (map,
-method, delta_t, seed, preset, queries, t_max, n_goals, coupling, force, decision_s;
+method, delta_t, seed, preset, queries, t_max, n_goals, coupling, force, decision_s, physics;
 push_period_s at control rate), ``environment_kwargs`` to ``control.Environment``
 (``control_timestep`` at control rate, ``flat_observation``), ``time_limit`` (s) caps an
 episode. Task arguments may also be given as keywords (``load("navigate", map="office")``).
 Unknown names and bad values are one-line :class:`~pathpref.errors.ConfigError` s (a
 ``ValueError``).
+
+``physics`` sets every physical parameter (:class:`pathpref.episode.Physics`, a dict of its
+fields or its JSON; ``docs/physics.md`` section 7): ``load("navigate", physics={"sensor":
+"realistic", "timing": "interval", "base": "diffdrive"})`` builds the base as ``--sim mujoco``
+does (:func:`pathpref.sim.body.build_base`) and stores the value with every episode's spec.
+Without it (None, ``""``, ``"legacy"``) the tasks run the legacy physics (ideal sensor, a fixed
+30 N / 0.3 s push, the original base and controllers), bit for bit as before the argument.
 """
 
 from __future__ import annotations

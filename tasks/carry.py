@@ -31,10 +31,6 @@ class Carry(Navigate):
     def __init__(self, **kwargs):
         super().__init__(task="carry", **kwargs)
 
-    def make_base(self, data) -> ArmBase:
-        """The base with the arm and tray on the Environment's ``MjData``."""
-        return ArmBase(self.scene, data=data)
-
     def before_step(self, action, physics: Physics) -> None:
         """The navigate step's target; remember where this step's tilt samples start."""
         super().before_step(action, physics)
@@ -70,10 +66,13 @@ class CarryControl(Carry, NavigateControl):
     base's 0.8 m/s limit); rewards and observations as ``navigate_control`` plus the tilt
     penalty and the tray's tilt and position of ``carry``."""
 
-    def make_base(self, data) -> ArmBase:
-        """The arm base; the agent's command is held for the IK target."""
-        self.command = VelocityCommand(self.v_max)
-        return ArmBase(self.scene, data=data)
+    def make_base(self, data, rng: np.random.Generator) -> ArmBase:
+        """The arm base; the agent's command is held for the IK target (with physics the
+        physical arm's base also follows it, :class:`.navigate_control.CommandedVelocity`)."""
+        if self.physics is None:
+            self.command = VelocityCommand(self.v_max)
+            return ArmBase(self.scene, data=data)
+        return NavigateControl.make_base(self, data, rng)
 
     def substep(self) -> None:
         """Lead the IK's base target by the commanded velocity, then the physics step."""

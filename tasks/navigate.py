@@ -4,15 +4,16 @@ decision per environment step.
 A dm_env environment (dm_control's ``control.Environment``) by the suite's contract: the task
 sets controls in ``before_step`` and the Environment advances the physics (see
 :mod:`.stage`). One environment step is one decision step of the paper and lasts exactly
-``decision_s`` seconds of physics (``control_timestep()``, 2.5 s by default):
+``decision_s`` seconds of physics (``control_timestep()``, 2.5 s by default; 4.1 s with
+``physics``, below):
 
-1. *move* (at most ``decision_s - 0.7 s``, and the controller's 3 s): the agent's action
-   (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a move to the grid neighbour of SPEC 3 (the
-   current cell when the grid move is blocked); the base's tracking controller drives there at
-   physics rate until it settles;
-2. *push* (when the human's input is due for the next decision, at most 0.7 s): the simulated
-   human pushes the handle where the base stopped; the robot's detector, fed only by its force
-   sensor, reports the heading and the belief is updated;
+1. *move* (at most ``decision_s`` minus the push window, 0.7 s in the legacy physics, and the
+   controller's 3 s): the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a move
+   to the grid neighbour of SPEC 3 (the current cell when the grid move is blocked); the
+   base's tracking controller drives there at physics rate until it settles;
+2. *push* (when the human's input is due for the next decision, at most the push window): the
+   simulated human pushes the handle where the base stopped; the robot's detector, fed only
+   by its force sensor, reports the heading and the belief is updated;
 3. *hold* the cell for the rest of the step.
 
 The episode's first push happens in ``reset`` (physics time runs there too). Observations:
@@ -27,6 +28,15 @@ after ``T_max`` decisions (discount 1). Seeds: the ``k``-th episode after ``load
 draws its instance from ``seed_for(s, k)`` and its run from ``seed_for(s, k, 0)``, so a task
 is reproducible episode by episode. ``env.task.policy_action()`` is the loaded method's own
 choice (its planner and belief), so the environment runs end to end without an agent.
+
+``physics`` (a :class:`~pathpref.episode.physics.Physics`, a dict of its fields or its JSON;
+None: the legacy physics) builds the base as ``--sim mujoco`` does and goes into every
+episode's spec; its default ``decision_s`` is 4.1 s (the controller's whole 3 s move and the
+longest push with the detector's release). With ``timing`` other than ``decision`` the human
+pushes at any physics step (:class:`~pathpref.sim.pushing_human.PushingHuman`): a cue felt
+while driving ends the move (*move* above; the runner records the step and reads the cue, the
+belief is updated in the next physics step) and the base holds its cell for the rest of the
+step; a cue felt while holding is read at once too; there is no *push* phase then.
 
 ``map`` is a built-in name, a JSON path, a map dictionary or a
 :class:`~pathpref.geometry.maps.MapSpec`; a map whose arrangement may exceed
@@ -47,6 +57,7 @@ from dm_control.suite import base
 from dm_env import specs
 
 from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
+from pathpref.episode.physics import Physics as PhysicalParameters
 from pathpref.episode.spec import check_limit, check_number
 from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.arrangement import check_arrangement_size
@@ -54,9 +65,10 @@ from pathpref.geometry.grid import STAY
 from pathpref.geometry.maps import MapSpec, parse_map
 from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
-from pathpref.sim.body import scene_for
-from pathpref.sim.force_cue import HumanPush
-from pathpref.sim.mobile_base import MobileBase
+from pathpref.sim.body import base_params, build_base, scene_for
+from pathpref.sim.controller import TrackingController
+from pathpref.sim.force_cue import HumanPush, PushProfile
+from pathpref.sim.mobile_base import RELEASE_WINDOW_S, MobileBase
 from pathpref.sim.scene import Scene
 
 from .stage import ForceFilter, Physics, PushPhase, StagedBody
@@ -65,8 +77,12 @@ from .stage import ForceFilter, Physics, PushPhase, StagedBody
 STAY_ACTION = 8
 #: metres per grid unit of the scenes
 CELL_SIZE = 0.5
-#: physics seconds of one decision step (the default ``decision_s``)
+#: physics seconds of one decision step (the default ``decision_s`` of the legacy physics)
 DECISION_S = 2.5
+#: the shortest move a decision step must leave room for (s)
+MIN_MOVE_S = 0.5
+#: the longest move (s): the tracking controller's limit, as ``MobileBase.move_to`` drives
+MOVE_LIMIT_S = TrackingController().time_limit_s
 MOVE, PUSH, HOLD = "move", "push", "hold"
 
 
@@ -119,7 +135,8 @@ class Navigate(base.Task):
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
-                 task: str = "navigate", force: bool = False, decision_s: float = DECISION_S):
+                 task: str = "navigate", force: bool = False, decision_s: float | None = None,
+                 physics: Any = None):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -129,11 +146,25 @@ class Navigate(base.Task):
             map=map_name, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
-            sim="mujoco", task=task)
+            sim="mujoco", task=task, physics=PhysicalParameters.coerce(physics))
         self.template.validate()
-        self.scene: Scene = scene_for(self.world, CELL_SIZE, task)
+        #: the physical parameters (None: the legacy physics)
+        self.physics = ph = PhysicalParameters.from_json(self.template.physics)
+        self.scene: Scene = scene_for(self.world, CELL_SIZE, task,
+                                      None if ph is None else base_params(ph))
         self.dt = float(self.scene.model.opt.timestep)
+        #: the longest a push phase lasts (s): the longest push and the detector's release
+        self.push_window_s = (PushProfile().duration_s if ph is None else
+                              ph.duration_max_s) + RELEASE_WINDOW_S
+        if decision_s is None:
+            decision_s = DECISION_S if ph is None else self.physical_decision_s()
         self.decision_s = check_number("decision_s", decision_s, 1.5, 10.0, integer=False)
+        if self.move_limit_s < MIN_MOVE_S:
+            raise ConfigError(
+                f"decision_s must leave {MIN_MOVE_S:g} s to move after the longest push and its "
+                f"release ({self.push_window_s:g} s: physics duration_max_s + "
+                f"{RELEASE_WINDOW_S:g}), so at least {self.push_window_s + MIN_MOVE_S:.2f}; "
+                f"got {self.decision_s:g}")
         # the environment's reward is the paper's (SPEC 6) whatever preset the planner uses
         self.rewards = get_preset("paper").path_preference
         self.episode = -1
@@ -149,9 +180,21 @@ class Navigate(base.Task):
         """Physics steps of one environment step."""
         return int(round(self.decision_s / self.dt))
 
-    def make_base(self, data) -> MobileBase:
-        """The robot's base on the Environment's ``MjData``."""
-        return MobileBase(self.scene, data=data)
+    @property
+    def move_limit_s(self) -> float:
+        """The longest move of a decision step (s): the controller's limit, within what the
+        step leaves after the push window."""
+        return min(MOVE_LIMIT_S, self.decision_s - self.push_window_s - 2 * self.dt)
+
+    def physical_decision_s(self) -> float:
+        """The default step with physics: a whole move (the controller's limit, as the
+        ``--sim mujoco`` body drives) and the push window, rounded up to 0.1 s."""
+        return math.ceil(10 * (MOVE_LIMIT_S + self.push_window_s + 2 * self.dt) - 1e-9) / 10
+
+    def make_base(self, data, rng: np.random.Generator) -> MobileBase:
+        """The robot's base on the Environment's ``MjData``, built as the ``--sim mujoco``
+        body builds it (:func:`~pathpref.sim.body.build_base`) from the task's physics."""
+        return build_base(self.scene, self.template.task, self.physics, rng, data=data)
 
     def initialize_episode(self, physics: Physics) -> None:
         """Draw the next episode's instance and run (see module docstring for seeds), place
@@ -163,8 +206,9 @@ class Navigate(base.Task):
         spec = EpisodeSpec.single(self.template.map, self.template.method,
                                   self.template.delta_t, seed=self.seed, instance=self.episode,
                                   **fields)
-        self.base = self.make_base(physics.data.ptr)
-        self.body = StagedBody(self.base, simulator_rng(spec), self._start_push)
+        rng = simulator_rng(spec)
+        self.base = self.make_base(physics.data.ptr, rng)
+        self.body = StagedBody(self.world, spec, rng, self.base, self._start_push)
         self.filter = ForceFilter(self.base)
         self.push, self.phase, self._reward = None, HOLD, 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
@@ -198,11 +242,16 @@ class Navigate(base.Task):
             cue = b.substep()
             if cue is not None:
                 b.cues_while_driving.append(cue)
-            if (b.controller.settled(b.position, b.velocity, b.target)
-                    or b.data.time - self._move_t0 >= self._move_limit - 1e-9):
+            if cue is not None and b.stop_on_cue:
+                self._arrive()  # the runner reads the felt cue: the belief updates now
+                b.target = self.scene.cell_centre(b.cell)  # stop here, replan next step
+            elif ((b.controller.settled(b.position, b.velocity, b.target)
+                   and not b.yielding())
+                  or b.data.time - self._move_t0 >= self._move_limit - 1e-9):
                 self._arrive()
-        else:
-            b.substep()
+        elif b.substep() is not None and self.body.human is not None and \
+                not self.runner.done:
+            self.runner.read_felt_inputs()  # a push at any time, felt while holding
         self.filter.update()
 
     def check_action(self, action) -> int:
@@ -217,9 +266,10 @@ class Navigate(base.Task):
         target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])
         b.target = self.scene.cell_centre(target)
         self._move_t0 = float(b.data.time)
-        self._move_limit = min(b.controller.time_limit_s,
-                               self.decision_s - PushPhase.window_s(b) - 2 * self.dt)
+        self._move_limit = self.move_limit_s
         self.phase, self._reward = MOVE, 0.0
+        if self.body.human is not None:  # the corrective human watches the move begin
+            self.body.human.robot_moves(cell, None if target == cell else self._action)
 
     def _arrive(self) -> None:
         """The move is over: the runner records the decision (success rule, goal, log) and

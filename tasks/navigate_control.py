@@ -2,8 +2,9 @@
 themselves (reinforcement learning, a learned controller).
 
 The agent commands the base's planar velocity ``(vx, vy)`` in m/s (world frame, each within
-``+-v_max``, 0.8 m/s) every ``control_timestep`` (0.02 s by default, i.e. 50 Hz; any multiple
-of the 2 ms physics step from 0.02 to 0.1 s through ``environment_kwargs``); the base's
+``+-v_max``, 0.8 m/s in the legacy physics) every ``control_timestep`` (0.02 s by default,
+i.e. 50 Hz; any multiple of the 2 ms physics step from 0.02 to 0.1 s through
+``environment_kwargs``); the base's
 velocity actuators hold the command over the control step (a zero-order hold; the yaw is held
 at zero by ``wz = -3 yaw``). The simulated human pushes the handle every ``push_period_s``
 of simulated time (``delta_t`` decisions of ``decision_s``: the cadence of :mod:`.navigate`),
@@ -18,6 +19,12 @@ of the grid move between the two cells (no move cost when they are not grid neig
 otherwise 0. The episode ends at the goal (discount 0), after ``T_max`` cell changes or at the
 time limit, ``T_max * decision_s`` seconds by default (discount 1).
 
+With ``physics`` (see :mod:`.navigate`) the base is the ``--sim mujoco`` body's and its drive
+follows the agent's velocity within ``a_max`` (:class:`CommandedVelocity`), the action bound
+is ``v_max``; ``timing`` other than ``decision`` pushes on the human's own clock instead of
+every ``push_period_s`` (each cue reaches the belief in the next physics step; the corrective
+human judges each cell change).
+
 ``env.task.policy_action()`` drives toward the cell the loaded method chooses (re-planned at
 every cell change and cue) with the base's tracking law, so the task runs end to end.
 """
@@ -25,7 +32,8 @@ every cell change and cue) with the base's tracking law, so the task runs end to
 from __future__ import annotations
 
 import collections
-from typing import Any
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import mujoco
 import numpy as np
@@ -34,7 +42,8 @@ from dm_env import specs
 from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.grid import STAY
-from pathpref.sim.controller import TrackingController
+from pathpref.sim.body import build_base
+from pathpref.sim.controller import ProfiledController, TrackingController
 from pathpref.sim.mobile_base import MobileBase
 
 from .navigate import PUSH, Navigate
@@ -64,12 +73,34 @@ class VelocityCommand:
         return self.u
 
 
+@dataclass(frozen=True)
+class CommandedVelocity(ProfiledController):
+    """The agent's velocity as the drive of a physical base follows it (the task's physics
+    set): the held command ``u[:2]`` is the goal velocity, reached within ``a_max`` by the
+    profiled controller's ramp (``|dv| <= a_max dt`` per physics step), the yaw regulated to
+    zero; the differential-drive base turns toward it, the physical arm's base follows it."""
+
+    #: the held command (vx, vy, unused); state, updated in place
+    u: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False)
+    #: the agent's velocity, not a target: the diff-drive base turns toward it everywhere
+    tracks_target: ClassVar[bool] = False
+
+    def hold(self, v: np.ndarray) -> None:
+        """Hold ``v = (vx, vy)`` (m/s) until the next call."""
+        self.u[:2] = v
+
+    def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
+        """The held command (the position and target play no part)."""
+        return float(self.u[0]), float(self.u[1])
+
+
 class HeldCommandBase(MobileBase):
-    """The planar base at control rate: the actuator commands are set once per control step
-    (:meth:`hold`, a zero-order hold of the agent's velocity and the yaw regulation) and a
-    physics step is the push, ``mj_step``, the ideal sensor's force and the detector, and the
-    hooks; a non-finite state is checked once per control step (:meth:`check_finite`). With a
-    faulty sensor model every step goes through ``MobileBase.substep`` (its estimator)."""
+    """The planar base of the legacy physics at control rate: the actuator commands are set
+    once per control step (:meth:`hold`, a zero-order hold of the agent's velocity and the yaw
+    regulation) and a physics step is the push, ``mj_step``, the ideal sensor's force and the
+    detector, and the hooks; a non-finite state is checked once per control step
+    (:meth:`check_finite`). With physics the task's base is :func:`~pathpref.sim.body.
+    build_base`'s, driven by :class:`CommandedVelocity`."""
 
     def __init__(self, scene, v_max: float, **kwargs: Any):
         self.command = VelocityCommand(v_max)
@@ -88,8 +119,6 @@ class HeldCommandBase(MobileBase):
 
     def substep(self, push=None):
         """One physics step (class docstring); the detected cue or None."""
-        if self.sensor_model is not None:
-            return super().substep(push)
         d = self.data
         if push is not None and push.active(float(d.time)):
             push.apply(d, self.pushed_body)
@@ -118,7 +147,11 @@ class NavigateControl(Navigate):
 
     def __init__(self, push_period_s: float | None = None, **kwargs: Any):
         super().__init__(**kwargs)
-        self.v_max = TrackingController().v_max
+        ph = self.physics
+        self.v_max = TrackingController().v_max if ph is None else ph.v_max
+        if push_period_s is not None and ph is not None and ph.timing != "decision":
+            raise ConfigError(f"push_period_s sets the pushes of physics timing 'decision'; "
+                              f"with timing {ph.timing!r} set physics interval_s")
         period = self.template.delta_t * self.decision_s if push_period_s is None \
             else push_period_s
         self.push_period_s = check_number("push_period_s", period, 1.0, 1000.0, integer=False)
@@ -128,11 +161,17 @@ class NavigateControl(Navigate):
         """The default time limit: ``T_max`` decisions' worth of physics."""
         return self.template.t_max * self.decision_s
 
-    def make_base(self, data) -> HeldCommandBase:
-        """The base with the agent's command held over each control step."""
-        base = HeldCommandBase(self.scene, self.v_max, data=data)
-        self.command = base.command
-        return base
+    def make_base(self, data, rng: np.random.Generator) -> MobileBase:
+        """The base with the agent's command held over each control step: the legacy
+        :class:`HeldCommandBase`, or with physics the ``--sim mujoco`` body's base
+        (:func:`~pathpref.sim.body.build_base`) driven by :class:`CommandedVelocity`."""
+        if self.physics is None:
+            base = HeldCommandBase(self.scene, self.v_max, data=data)
+            self.command = base.command
+            return base
+        self.command = CommandedVelocity(v_max=self.v_max, a_max=self.physics.a_max)
+        return build_base(self.scene, self.template.task, self.physics, rng, data=data,
+                          controller=self.command)
 
     def initialize_episode(self, physics: Physics) -> None:
         """Draw the episode (as ``navigate``); the first push plays during the first steps,
@@ -157,6 +196,8 @@ class NavigateControl(Navigate):
             cue = b.substep()
             if cue is not None:
                 b.cues_while_driving.append(cue)
+                if self.body.human is not None and not self.runner.done:
+                    self.runner.read_felt_inputs()  # a push at any time: the belief now
         self.filter.update(b.force_estimate if isinstance(b, HeldCommandBase) else None)
 
     def check_action(self, action) -> np.ndarray:
@@ -182,7 +223,7 @@ class NavigateControl(Navigate):
             self.command.hold(a)
         self._reward = 0.0
         if (self.push is None and float(self.base.data.time) >= self._next_push - 1e-9
-                and not self.runner.done):
+                and not self.runner.done and not self.runner.continuous):
             self._next_push += self.push_period_s
             self.runner.give_input()
 
@@ -199,6 +240,8 @@ class NavigateControl(Navigate):
         a = int(hits[0]) if len(hits) and cell != before else STAY
         r.arrive(a, cell, r.pending_heading)
         self.body.cell = cell
+        if self.body.human is not None and a != STAY:  # the corrective human judges the move
+            self.body.human.robot_moves(before, a)
         self._reward = self._step_reward(before, cell, a)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
@@ -227,6 +270,7 @@ class NavigateControl(Navigate):
             a = int(r.policy.act(r.t + 1, r.cell, cue))
             self._plan_from, self._plan_cue = b.cell, cue
             self._plan = r.cell if a == STAY else int(self.world.motion.next_cell[r.cell, a])
-        u = TrackingController().command(b.position, 0.0, self.scene.cell_centre(self._plan))
+        u = TrackingController(v_max=self.v_max).command(b.position, 0.0,
+                                                         self.scene.cell_centre(self._plan))
         return np.clip(u[:2], -self.v_max, self.v_max)
 

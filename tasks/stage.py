@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from dm_control import mujoco as dm_mujoco
 
-from pathpref.episode.body import Body
+from pathpref.sim.body import MujocoBody
 from pathpref.sim.force_cue import HumanPush
 from pathpref.sim.mobile_base import RELEASE_WINDOW_S, MobileBase
 
@@ -46,42 +46,35 @@ class Physics(dm_mujoco.Physics):
         return self.named.data.qpos[["slide_x", "slide_y"]].copy()
 
 
-class StagedBody(Body):
+class StagedBody(MujocoBody):
     """The robot as the :class:`~pathpref.episode.runner.EpisodeRunner` sees it when the
-    Environment steps the physics: :meth:`move` reports the cell the base reached during
-    the physics steps already taken; :meth:`human_input` hands the human's push to the task
-    (``on_input``), which plays it over the coming physics steps and reports the detected
-    cue through ``EpisodeRunner.receive_input``."""
+    Environment steps the physics: the MuJoCo body of ``--sim mujoco`` (its push sampling,
+    pushes at any time, felt cues and metrics) over a ``base`` the task built with
+    :func:`~pathpref.sim.body.build_base` on the Environment's data; only two things differ:
+    :meth:`move` reports the cell the base reached during the physics steps already taken,
+    and :meth:`human_input` hands the human's push to the task (``on_input``), which plays it
+    over the coming physics steps and reports the detected cue through
+    ``EpisodeRunner.receive_input``."""
 
-    tasks = ("navigate", "carry")
-
-    def __init__(self, base: MobileBase, rng: np.random.Generator,
+    def __init__(self, world, spec, rng: np.random.Generator, base: MobileBase,
                  on_input: Callable[[HumanPush], None]):
-        self.base, self.rng, self.on_input = base, rng, on_input
-        self.profile = base.profile
-        self.last_cue = None
+        super().__init__(world, spec, rng, base=base)
+        self.on_input = on_input
+        #: the push :meth:`human_input` started last (None before the first)
+        self.last_push: HumanPush | None = None
         self.cell = -1
 
-    def reset(self, cell: int) -> None:
-        """Reset the physics with the base at the centre of ``cell``."""
-        self.base.reset(cell)
-        self.cell = cell
-
     def human_input(self, heading: int) -> None:
-        """Start a push toward ``heading`` (the profile's angle noise, drawn from the body's
-        stream as :class:`~pathpref.sim.body.MujocoBody` does); nothing is observed yet."""
-        self.on_input(HumanPush.sample(heading, float(self.base.data.time), self.profile,
-                                       self.rng))
+        """Start a push toward ``heading`` (drawn as :meth:`MujocoBody.draw_push` draws it,
+        from the body's stream); nothing is observed yet."""
+        self.last_push = push = self.draw_push(heading)
+        self.on_input(push)
         return None
 
     def move(self, action: int) -> int:
         """The cell the base is in now (the physics has moved it already)."""
         self.cell = self.base.cell
         return self.cell
-
-    def metrics(self) -> dict[str, float]:
-        """Simulated time and the base's own measurements."""
-        return {"sim_time_s": float(self.base.data.time), **self.base.metrics()}
 
 
 class PushPhase:
@@ -94,11 +87,6 @@ class PushPhase:
         self.push = push
         self.end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
         base.last_onset_s = None
-
-    @staticmethod
-    def window_s(base: MobileBase) -> float:
-        """The longest a push phase lasts (s)."""
-        return base.profile.duration_s + RELEASE_WINDOW_S
 
     def substep(self, base: MobileBase):
         """One physics step under the push; ``(over, cue)``."""

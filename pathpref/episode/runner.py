@@ -110,7 +110,7 @@ class EpisodeRunner:
         """Before step t+1: the human gives an input when one is due; the robot updates."""
         self.pending_heading = None
         if self.continuous:
-            self._felt_inputs()
+            self.read_felt_inputs()
             return
         if self.done or self.t % self.spec.delta_t != 0:
             return
@@ -140,9 +140,11 @@ class EpisodeRunner:
             return 1.0
         return float(np.clip(strength / self.physics.peak_n, 0.5, 2.0))
 
-    def _felt_inputs(self) -> None:
-        """Pushes at any time: every cue the body felt updates the belief at the cell where it
-        was felt; the last one is this step's heading."""
+    def read_felt_inputs(self) -> None:
+        """Pushes at any time: every cue the body felt since the last call updates the belief
+        at the cell where it was felt; the last one is this step's heading. Called after
+        every move; a body whose physics runs outside :meth:`step` (the dm_control tasks)
+        calls it the moment a cue is felt."""
         for cell, heading, strength in self.body.felt_inputs():
             self.policy.observe(cell, heading, self._weight(strength))
             self.pending_heading = heading

@@ -31,7 +31,7 @@ from ..episode.physics import Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
-from .controller import ProfiledController
+from .controller import ProfiledController, TrackingController
 from .diffdrive import DiffDriveBase
 from .force_cue import HumanPush, PushProfile
 from .mobile_base import MobileBase
@@ -56,36 +56,26 @@ def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate",
 
 class MujocoBody(Body):
     """The MuJoCo robot: the planar base for ``navigate``, the base with the Jaco arm and tray
-    for ``carry``. ``scene``/``data`` reuse a compiled scene or a caller's ``MjData`` (the
-    dm_control task passes its physics' data)."""
+    for ``carry``. ``scene``/``data`` reuse a compiled scene or a caller's ``MjData``; ``base``
+    a base the caller built with :func:`build_base` (the dm_control tasks build theirs on
+    their physics' data, with their own controller at control rate)."""
 
     tasks = ("navigate", "carry")
 
     def __init__(self, world: World, spec, rng: np.random.Generator,
                  profile: PushProfile | None = None, cell_size: float = 0.5,
-                 scene: Scene | None = None, data=None):
+                 scene: Scene | None = None, data=None, base: MobileBase | None = None):
         self.world = world
         self.rng = rng
-        task = spec.task
         self.physics = physics = Physics.from_json(getattr(spec, "physics", ""))
         self.delta_t = int(spec.delta_t)
-        base = None if physics is None else base_params(physics)
-        self.scene = scene or scene_for(world, cell_size, task, base)
-        kwargs = {} if physics is None else {**sensing_kwargs(physics, rng), "controller":
-                                             ProfiledController(v_max=physics.v_max,
-                                                                a_max=physics.a_max)}
-        if task == "carry":
-            from .arm import ArmBase
-
-            if physics is not None:
-                kwargs["physical"] = True
-            self.base: MobileBase = ArmBase(self.scene, profile=profile, data=data, **kwargs)
-        elif base is not None and base.kind == "diffdrive":
-            self.base = DiffDriveBase(self.scene, profile=profile, data=data, **kwargs)
-        else:
-            self.base = MobileBase(self.scene, profile=profile, data=data, **kwargs)
+        if base is None:
+            params = None if physics is None else base_params(physics)
+            scene = scene or scene_for(world, cell_size, spec.task, params)
+            base = build_base(scene, spec.task, physics, rng, profile=profile, data=data)
+        self.scene = base.scene
+        self.base: MobileBase = base
         self.profile = self.base.profile
-        self.base.measure = physics is not None
         self.last_cue = None
         self.human: PushingHuman | None = None
         self._read = 0
@@ -132,12 +122,18 @@ class MujocoBody(Body):
         """Pushes the simulated human has begun."""
         return 0 if self.human is None else len(self.human.given)
 
-    def human_input(self, heading: int) -> int | None:
-        """Push toward ``heading`` (with the profile's noise); the detected sector or None."""
+    def draw_push(self, heading: int) -> HumanPush:
+        """The human's push toward ``heading``, starting now: the legacy fixed profile, or
+        strength and duration drawn from the physics' human model (:func:`sample_profile`),
+        then the profile's angle noise, all from the body's stream."""
         profile = self.profile if self.physics is None else \
             sample_profile(self.physics, self.rng, self._confidence(heading))
-        push = HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
-        self.last_cue = cue = self.base.receive_push(push)
+        return HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
+
+    def human_input(self, heading: int) -> int | None:
+        """Push toward ``heading`` (:meth:`draw_push`) while the base holds its cell; the
+        detected sector or None."""
+        self.last_cue = cue = self.base.receive_push(self.draw_push(heading))
         self.cell = self.base.cell
         return None if cue is None else cue.heading
 
@@ -174,6 +170,35 @@ class MujocoBody(Body):
         else:
             self.cell = self.base.move_to(target)
         return self.cell
+
+
+def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.Generator,
+               profile: PushProfile | None = None, data=None,
+               controller: TrackingController | None = None) -> MobileBase:
+    """The robot's base for ``task`` in ``scene`` as ``physics`` makes it (None: legacy, the
+    original base and controller, ideal sensor). With physics: the sensor model, its faults
+    and the detector thresholds (:func:`sensing_kwargs`, the faults drawn from a child of
+    ``rng``), ``controller`` or a :class:`~.controller.ProfiledController` within ``v_max``
+    and ``a_max``, the differential-drive base for ``base="diffdrive"``, the physical arm
+    (``ArmBase(physical=True)``) for ``carry``, and the base's measurements on. The one
+    construction :class:`MujocoBody` and the dm_control tasks share; ``scene`` must be built
+    with :func:`base_params` of the same physics (:func:`scene_for`)."""
+    kwargs: dict = {} if controller is None else {"controller": controller}
+    if physics is not None:
+        kwargs = {**sensing_kwargs(physics, rng), "controller": controller or
+                  ProfiledController(v_max=physics.v_max, a_max=physics.a_max)}
+    if task == "carry":
+        from .arm import ArmBase
+
+        if physics is not None:
+            kwargs["physical"] = True
+        base: MobileBase = ArmBase(scene, profile=profile, data=data, **kwargs)
+    elif physics is not None and physics.base == "diffdrive":
+        base = DiffDriveBase(scene, profile=profile, data=data, **kwargs)
+    else:
+        base = MobileBase(scene, profile=profile, data=data, **kwargs)
+    base.measure = physics is not None
+    return base
 
 
 def base_params(physics: Physics) -> BaseParams:

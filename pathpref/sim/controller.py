@@ -9,8 +9,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
+
+
+def norm(v) -> float:
+    """The Euclidean norm of a vector exactly as ``np.linalg.norm`` computes it for a 1-D real
+    array (``sqrt(v . v)``), without its argument handling (called at every physics step)."""
+    v = np.asarray(v, dtype=float)
+    return math.sqrt(v.dot(v))
 
 
 @dataclass(frozen=True)
@@ -25,19 +33,26 @@ class TrackingController:
     tol_m: float = 0.02
     still_mps: float = 0.05
     time_limit_s: float = 3.0
+    #: the command steers toward ``target`` (a base may treat the last centimetres specially)
+    tracks_target: ClassVar[bool] = True
 
     def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:
         """Actuator controls ``(vx, vy, wz)``."""
         v = self.kp * (np.asarray(target) - pos)
-        n = np.linalg.norm(v)
+        n = norm(v)
         if n > self.v_max:
             v *= self.v_max / n
         return np.array([v[0], v[1], -self.k_yaw * yaw])
 
     def settled(self, pos: np.ndarray, vel: np.ndarray, target: np.ndarray) -> bool:
-        """Within ``tol_m`` of ``target`` and slower than ``still_mps``."""
-        return (np.linalg.norm(np.asarray(target) - pos) < self.tol_m
-                and np.linalg.norm(vel) < self.still_mps)
+        """Within ``tol_m`` of ``target`` and slower than ``still_mps`` (:func:`norm`; a base
+        more than ``1.01 tol_m`` away along one axis is answered without it, which changes
+        no answer)."""
+        tol = self.tol_m
+        if abs(float(target[0] - pos[0])) > 1.01 * tol or \
+                abs(float(target[1] - pos[1])) > 1.01 * tol:
+            return False
+        return norm(np.asarray(target) - pos) < tol and norm(vel) < self.still_mps
 
 
 @dataclass(frozen=True)
@@ -60,27 +75,39 @@ class ProfiledController(TrackingController):
         """Forget the last command (the base stands)."""
         self.last[:] = 0.0
 
-    def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
-        """The velocity the profile wants now, before the acceleration limit."""
-        ex, ey = float(target[0] - pos[0]), float(target[1] - pos[1])
+    def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
+        """:meth:`goal_velocity` on floats (subclasses with another goal override this)."""
+        ex, ey = float(tx - px), float(ty - py)
         d = math.hypot(ex, ey)
         if d < 1e-9:
-            return np.zeros(2)
+            return 0.0, 0.0
         speed = min(self.v_max, self.kp * d, math.sqrt(2.0 * self.brake * self.a_max * d))
-        return np.array([ex, ey]) * (speed / d)
+        k = speed / d
+        return ex * k, ey * k
 
-    def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
-        """Move the last command toward ``goal`` by at most ``a_max dt``; the new command."""
-        step = self.a_max * (self.dt if dt is None else dt)
-        dx, dy = float(goal[0] - self.last[0]), float(goal[1] - self.last[1])
+    def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """The velocity the profile wants now, before the acceleration limit."""
+        return np.array(self.goal_xy(pos[0], pos[1], target[0], target[1]))
+
+    def _ramp(self, gx: float, gy: float, dt: float) -> tuple[float, float]:
+        """:meth:`ramp` on floats; the new command."""
+        step = self.a_max * dt
+        last = self.last
+        lx, ly = float(last[0]), float(last[1])
+        dx, dy = gx - lx, gy - ly
         n = math.hypot(dx, dy)
         if n > step:
             dx, dy = dx * step / n, dy * step / n
-        self.last[0] += dx
-        self.last[1] += dy
-        return self.last.copy()
+        lx, ly = lx + dx, ly + dy
+        last[0], last[1] = lx, ly
+        return lx, ly
+
+    def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
+        """Move the last command toward ``goal`` by at most ``a_max dt``; the new command."""
+        return np.array(self._ramp(float(goal[0]), float(goal[1]),
+                                   self.dt if dt is None else dt))
 
     def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:
         """Actuator controls ``(vx, vy, wz)`` within the limits."""
-        v = self.ramp(self.goal_velocity(pos, target))
-        return np.array([v[0], v[1], -self.k_yaw * yaw])
+        vx, vy = self._ramp(*self.goal_xy(pos[0], pos[1], target[0], target[1]), self.dt)
+        return np.array([vx, vy, -self.k_yaw * yaw])

@@ -24,6 +24,7 @@ nobody gave (east then north: 45 degrees). ``split=False`` is the original detec
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,7 +99,7 @@ class CueDetector:
             if self._above >= self.on_s - 1e-12:
                 self.active = True
                 self._below = 0.0
-        else:
+        elif self._above != 0.0:  # idle with nothing accumulated is the cleared state
             self._clear()
 
     def _active(self, f: np.ndarray, mag: float, accumulate: bool) -> Cue | None:
@@ -189,15 +190,18 @@ class FilteredCueDetector(CueDetector):
     def update(self, f_xy: np.ndarray, at_rest: bool = False) -> Cue | None:
         """One force sample (and whether the robot is at rest with no push): low-pass, then
         the hysteresis of :class:`CueDetector` on the filtered force; the cue or None."""
-        f_xy = np.asarray(f_xy, float)
-        if not np.isfinite(f_xy).all():
+        x, y = float(f_xy[0]), float(f_xy[1])
+        if not (math.isfinite(x) and math.isfinite(y)):
             return None
-        self.f = self.f + self._alpha * (f_xy - self.f)
-        f = self.f
-        mag = float(np.hypot(f[0], f[1]))
+        # the low-pass on Python floats, in place: the same IEEE operations as on arrays
+        f, a = self.f, self._alpha
+        fx, fy = float(f[0]), float(f[1])
+        fx, fy = fx + a * (x - fx), fy + a * (y - fy)
+        f[0], f[1] = fx, fy
+        mag = float(np.hypot(fx, fy))
         if not self.active and self._above == 0.0:
             if at_rest:
-                self.var += self._beta * (0.5 * (f[0] ** 2 + f[1] ** 2) - self.var)
+                self.var += self._beta * (0.5 * (fx ** 2 + fy ** 2) - self.var)
             sigma = self.noise_n
             self.on_n = max(self.base_on_n, self.on_k * sigma)
             self.off_n = max(self.base_off_n, self.off_k * sigma)

@@ -9,7 +9,8 @@ forward and reverse (``|e| > 90`` degrees drives backwards with ``e - 180``); tu
 ``|v_fwd| w`` stays within ``a_max``); forward speed ``|v| cos(e)`` when ``|e| < 0.25`` rad
 (14 degrees), else 0 (turn first), ramped by at most ``a_max dt`` per step. Within
 ``near_m`` (5 cm) of the target the base no longer turns (the heading of a tiny error is
-meaningless) and closes the rest along its heading.
+meaningless) and closes the rest along its heading; a controller that does not track a target
+(``tracks_target`` False: an agent's velocity command at control rate) is followed everywhere.
 """
 
 from __future__ import annotations
@@ -56,7 +57,7 @@ class DiffDriveBase(MobileBase):
                 c.command(pos, yaw, self.target)[:2]
         speed = math.hypot(v[0], v[1])
         fwd_goal, w = 0.0, 0.0
-        near = not self.yielding() and \
+        near = c.tracks_target and not self.yielding() and \
             math.hypot(self.target[0] - pos[0], self.target[1] - pos[1]) < self.near_m
         if near and speed > 1e-3:  # the last centimetres: along the heading, no turning
             fwd_goal = float(v[0] * math.cos(yaw) + v[1] * math.sin(yaw))

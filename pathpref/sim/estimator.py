@@ -34,6 +34,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ConfigError
+from .controller import norm
 
 GRAVITY_UP = np.array([0.0, 0.0, 9.81])
 
@@ -122,8 +123,8 @@ class ForceEstimator:
         window = self.dt if window_s is None else window_s
         self.acc = acc = self.acceleration(data, window)
         residual = reading - self.expected(R, acc)
-        speed = float(np.linalg.norm(self._jac @ data.qvel))  # the sensed body's speed
-        still = cue_idle and speed < c.still_mps and float(np.linalg.norm(acc)) < c.still_mps2
+        speed = norm(self._jac @ data.qvel)  # the sensed body's speed
+        still = cue_idle and speed < c.still_mps and norm(acc) < c.still_mps2
         if still:
             self.quiet += window
             self._pending.append(residual)

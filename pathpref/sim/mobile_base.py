@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ConfigError, EpisodeError
-from .controller import TrackingController
+from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue, CueDetector, FilteredCueDetector
 from .estimator import EstimatorConfig, ForceEstimator
 from .force_cue import HumanPush, PushProfile
@@ -92,9 +92,13 @@ class MobileBase:
         self.xy = np.array([m.joint(j).qposadr[0] for j in ("slide_x", "slide_y")])
         self.yaw = int(m.joint("yaw").qposadr[0])
         self.vxy = np.array([m.joint(j).dofadr[0] for j in ("slide_x", "slide_y")])
+        self._vxy_adr = (int(self.vxy[0]), int(self.vxy[1]))
         self.actuators = np.array([m.actuator(a).id for a in self.ACTUATORS])
         #: the planar drive's force limit (N; the first actuator's range)
         self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
+        self._zero_q, self._zero_v = np.zeros(m.nq), np.zeros(m.nv)
+        self._float_for: TrackingController | None = None  # the controller _can_float judged
+        self._float_control = False
         self.sensor = HandleSensor(self.model)
         #: the body a human pushes and the sensor feels (the handle; the arm's tray)
         self.pushed_body = int(self.model.body("handle").id)
@@ -123,6 +127,7 @@ class MobileBase:
         self.peak_accel = 0.0  # m/s^2, while no push acts (the controller's own)
         self.peak_accel_pushed = 0.0  # m/s^2, over all steps
         self.peak_force = 0.0  # N, the largest push estimate
+        self._f_measured: np.ndarray | None = None  # the estimate peak_force last saw
         self.target = np.zeros(2)
         #: cues detected while driving (no simulated push is given then: a person pushing
         #: live in study mode, or a false cue in a simulated episode)
@@ -185,6 +190,8 @@ class MobileBase:
             self.estimator = ForceEstimator(self.model, self.pushed_body, mass,
                                             self.estimator_config)
         self.faulty.restart()
+        # a view of the sensor site's rotation (MjData's buffers stay put): no copy per step
+        self._rotation = self.data.site_xmat[self.sensor.site].reshape(3, 3)
         self.estimator.quiet = 0.0
         self.estimator.mark(self.data)
         n = int(round(self.estimator_config.tare_s / self.faulty.period))
@@ -203,10 +210,19 @@ class MobileBase:
         if self.faulty is None:
             self._reset_sensing()
         idle = not self.detector.active and self.detector._above == 0.0
-        reading = self.faulty.read(d)
-        self.force_estimate = self.estimator.update(
-            reading, self.sensor.rotation(d), d, idle, self.faulty.fresh, self.faulty.window_s)
+        faulty = self.faulty
+        reading = faulty.read(d)
+        self.force_estimate = self.estimator.update(reading, self._rotation, d, idle,
+                                                    faulty.fresh, faulty.window_s)
         return self.force_estimate
+
+    def _planar_views(self) -> tuple[np.ndarray, np.ndarray]:
+        """Views of the planar position and velocity in ``MjData`` (its buffers stay put; the
+        slide joints are adjacent), read without a copy in the stepping loops."""
+        q, v = self.xy, self.vxy
+        if q[1] != q[0] + 1 or v[1] != v[0] + 1:  # pragma: no cover - navigate.xml's order
+            raise ConfigError("the base's joints slide_x and slide_y must be adjacent")
+        return self.data.qpos[q[0]:q[0] + 2], self.data.qvel[v[0]:v[0] + 2]
 
     @property
     def position(self) -> np.ndarray:
@@ -246,7 +262,9 @@ class MobileBase:
         elif not self.external_forces:
             d.xfrc_applied[self.pushed_body, :] = 0.0
         mujoco.mj_step(self.model, d)
-        if not np.isfinite(d.qpos).all() or not np.isfinite(d.qvel).all():
+        # x . 0 is NaN exactly when x holds a NaN or an infinity (one dot product per vector)
+        if not (math.isfinite(d.qpos.dot(self._zero_q)) and
+                math.isfinite(d.qvel.dot(self._zero_v))):
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
         if self.sensor_model is None:
             f = self.sensor.force_xy(d)
@@ -266,8 +284,9 @@ class MobileBase:
     def _measure(self, push: HumanPush | None) -> None:
         """The base's acceleration (finite difference of its planar velocity) and the push
         estimate's peak; a step with a push acting counts only toward ``peak_accel_pushed``."""
-        d, t = self.data, float(self.data.time)
-        vx, vy = float(d.qvel[self.vxy[0]]), float(d.qvel[self.vxy[1]])
+        d = self.data
+        t, qvel, (ivx, ivy) = d.time, d.qvel, self._vxy_adr
+        vx, vy = float(qvel[ivx]), float(qvel[ivy])
         # over the time since the last measurement (a caller, e.g. dm_control's environment
         # step, may step the physics without :meth:`substep`)
         a = math.hypot(vx - self._v_prev[0], vy - self._v_prev[1]) / \
@@ -282,7 +301,9 @@ class MobileBase:
                 self.peak_accel = a
         f = self.force_estimate if self.any_time or self.sensor_model is not None else \
             self.sensor.force_xy(d)
-        self.peak_force = max(self.peak_force, math.hypot(f[0], f[1]))
+        if f is not self._f_measured:  # the estimator holds its estimate between samples
+            self._f_measured = f
+            self.peak_force = max(self.peak_force, math.hypot(f[0], f[1]))
 
     def physical_metrics(self) -> dict[str, float]:
         """The measurements of :meth:`_measure` (empty unless :attr:`measure`)."""
@@ -325,8 +346,34 @@ class MobileBase:
                                                   or self.detector._above > 0.0)
 
     def _control(self) -> None:
-        """Actuator commands for this physics step (the base's tracking controller)."""
-        self.data.ctrl[self.actuators] = self._base_command()
+        """Actuator commands for this physics step (the base's tracking controller). A
+        :class:`~.controller.ProfiledController` on this class's own command law, not
+        yielding, is evaluated on floats and written per actuator: the same numbers as
+        :meth:`_base_command` without its arrays (it runs at every physics step)."""
+        d = self.data
+        if self._float_for is not self.controller:
+            self._float_control = self._can_float()
+        if self._float_control and not self.yielding():
+            self._anchor = None
+            c, q, ctrl, (ix, iy, iyaw), (a0, a1, a2) = \
+                self.controller, d.qpos, d.ctrl, self._float_adr, self._float_act
+            target = self.target
+            vx, vy = c._ramp(*c.goal_xy(q[ix], q[iy], target[0], target[1]), c.dt)
+            ctrl[a0], ctrl[a1], ctrl[a2] = vx, vy, -c.k_yaw * q[iyaw]
+            return
+        d.ctrl[self.actuators] = self._base_command()
+
+    def _can_float(self) -> bool:
+        """Whether :meth:`_control` may take its float path (its docstring): a
+        :class:`~.controller.ProfiledController` whose ``command`` is the profiled law, and
+        this class's own ``_base_command``. Decided again when the controller is replaced."""
+        c = self._float_for = self.controller
+        ok = (isinstance(c, ProfiledController) and type(c).command is ProfiledController.command
+              and type(self)._base_command is MobileBase._base_command)
+        if ok:
+            self._float_adr = (int(self.xy[0]), int(self.xy[1]), self.yaw)
+            self._float_act = tuple(int(a) for a in self.actuators)
+        return ok
 
     def _base_command(self) -> np.ndarray:
         """The base's velocity command ``(vx, vy, wz)``: the controller's, or while yielding
@@ -386,7 +433,8 @@ class MobileBase:
         self.target = self.scene.cell_centre(cell)
         t0 = self.data.time
         t_end = t0 + max(self.controller.time_limit_s, min_s)
-        while self.data.time < t_end:
+        d, settled, (pos, vel) = self.data, self.controller.settled, self._planar_views()
+        while d.time < t_end:
             cue = self.substep()
             if cue is not None:
                 self.cues_while_driving.append(cue)
@@ -394,8 +442,8 @@ class MobileBase:
                     hook(self, cue)
                 if self.stop_on_cue:
                     break
-            if self.data.time - t0 >= min_s and self.controller.settled(
-                    self.position, self.velocity, self.target) and not self.yielding():
+            if d.time - t0 >= min_s and settled(pos, vel, self.target) and \
+                    not self.yielding():
                 break
         return self.cell
 

@@ -46,11 +46,6 @@ class HandleSensor:
         R = data.site_xmat[self.site].reshape(3, 3)
         return -(R @ f_site)[:2]
 
-    def raw(self, data) -> np.ndarray:
-        """The sensor's own reading (N, site frame, 3 axes): the force on the handle from the
-        base."""
-        return data.sensordata[self.adr:self.adr + 3].copy()
-
     def rotation(self, data) -> np.ndarray:
         """The site's rotation (site frame to world frame, 3x3)."""
         return data.site_xmat[self.site].reshape(3, 3).copy()
@@ -139,24 +134,38 @@ class FaultySensor:
         #: the current bias (N, sensor frame); drifts as a random walk
         self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
         self._acc = np.zeros(6)
+        self._acc3 = self._acc[3:]  # the linear part (a view)
+        #: the mass whose inertia and weight the reading adds to MuJoCo's (kg; 0: none)
+        self._extra_m = 0.0 if sensor_model.extra_mass_kg == 0 and sensor_model.inertia else \
+            sensor_model.extra_mass_kg - (0.0 if sensor_model.inertia else self.mass)
+        self._data = None
         self.restart()
 
-    def true_acceleration(self, data) -> np.ndarray:
-        """World-frame linear acceleration of the sensed body's centre of mass, minus gravity
-        (the simulator's truth; the sensor model uses it, the robot's estimator does not)."""
-        mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
-                                     self._acc, 0)
-        return self._acc[3:].copy()
+    def _bind(self, data) -> None:
+        """Views into ``data``'s buffers (they stay put for the life of an ``MjData``): the
+        sensor's reading and the site's rotation, read without a copy at every step."""
+        self._data = data
+        a = self.sensor.adr
+        self._reading = data.sensordata[a:a + 3]
+        self._RT = data.site_xmat[self.sensor.site].reshape(3, 3).T
 
     def _physical(self, data) -> np.ndarray:
         """This physics step's reading before the electronics (N, sensor frame): MuJoCo's, with
-        the extra mass's inertia and weight, or without the model's inertia."""
-        s, sm = self.sensor.raw(data), self.spec
-        if sm.extra_mass_kg > 0 or not sm.inertia:
-            R = self.sensor.rotation(data)
-            m = sm.extra_mass_kg - (0.0 if sm.inertia else self.mass)
-            s = s + R.T @ (m * self.true_acceleration(data))
-        return s
+        the extra mass's inertia and weight, or without the model's inertia. Without either a
+        view of ``data``'s sensor buffer: use it before the next step."""
+        if data is not self._data:
+            self._bind(data)
+        if self._extra_m == 0.0:
+            return self._reading
+        return self._reading + self._inertial(data)
+
+    def _inertial(self, data) -> np.ndarray:
+        """What the extra (or removed) mass adds to the reading: ``R^T m a`` (sensor frame), ``a``
+        the world-frame linear acceleration of the sensed body's centre of mass minus gravity
+        (the simulator's truth: the sensor model uses it, the robot's estimator does not)."""
+        mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
+                                     self._acc, 0)
+        return self._RT @ (self._extra_m * self._acc3)
 
     def _emit(self, mean: np.ndarray) -> np.ndarray:
         sm = self.spec
@@ -172,19 +181,33 @@ class FaultySensor:
         one (the electronics' anti-aliasing average), plus bias and noise; held in between.
         :attr:`fresh` says whether this step gave a new sample, :attr:`window_s` over how
         long it averaged."""
-        t = float(data.time)
-        self._sum += self._physical(data)
+        t = data.time
+        # the window's sum on floats: element by element the same additions as on arrays
+        if data is not self._data:
+            self._bind(data)
+        r, s = self._reading, self._sum
+        if self._extra_m == 0.0:
+            s[0] += r[0]
+            s[1] += r[1]
+            s[2] += r[2]
+        else:
+            x = self._inertial(data)
+            s[0] += r[0] + x[0]
+            s[1] += r[1] + x[1]
+            s[2] += r[2] + x[2]
         self._count += 1
         if self._next_t == -np.inf:
             self._next_t = t
         self.fresh = t >= self._next_t - 1e-9 or self._held is None
         if self.fresh:
-            self.window_s = self._count * self.dt
-            self._held = self._emit(self._sum / self._count)
-            self._sum, self._count = np.zeros(3), 0
+            n = self._count
+            self.window_s = n * self.dt
+            self._held = self._emit(np.array([s[0] / n, s[1] / n, s[2] / n]))
+            s[0] = s[1] = s[2] = 0.0
+            self._count = 0
             while self._next_t <= t + 1e-9:
                 self._next_t += self.period
-        return self._held.copy()
+        return self._held  # a new array at every sample, never changed in place
 
     def read_still(self, data) -> np.ndarray:
         """A fresh output sample of the current (still) state that advances the sensor's
@@ -195,5 +218,6 @@ class FaultySensor:
         """Forget the held sample (after a physics reset); the bias stays (same device)."""
         self._held: np.ndarray | None = None
         self._next_t = -np.inf
-        self._sum, self._count = np.zeros(3), 0
+        self._sum: list[float] = [0.0, 0.0, 0.0]  # the window's sum (floats: see read)
+        self._count = 0
         self.fresh, self.window_s = False, self.dt

@@ -1,0 +1,102 @@
+"""Wall time of the ``episode_s`` episodes (``pathpref bench --json``, key under "physics": simple,
+path preference, Delta_T 5, seed 11, 30 decisions, ``Physics()``: realistic sensing, no
+rendering) for this tree against an older commit, in one run: the two trees take turns in
+fresh processes (so a load that comes and goes hits both alike) and each run's results are
+digested (every step's cell, action, heading, belief, and the metrics), so the script also
+says whether the two trees give the same episodes.
+
+    MUJOCO_GL=egl python scripts/episode_speed.py --before 1b13162 --rounds 3
+    python scripts/episode_speed.py --before HEAD~1 --physics legacy    # the legacy physics
+
+The older tree is ``git archive``-d into a temporary directory and put first on
+``PYTHONPATH`` (the editable install of this tree stays the fallback).
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CONDITIONS = ("realistic", "legacy", "interval", "diffdrive")
+
+
+def child(n: int, which: str) -> None:
+    """Run ``n`` episodes of condition ``which`` after a warm-up; print times and digest."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    import pathpref
+    import pathpref.sim  # noqa: F401 - registers the MuJoCo body
+    from pathpref.episode import EpisodeSpec, Physics
+    from pathpref.episode.runner import run_episode
+
+    physics = {"realistic": Physics(), "legacy": None, "interval": Physics(timing="interval"),
+               "diffdrive": Physics(base="diffdrive")}[which]
+    ph = "" if physics is None else physics.to_json()
+
+    def spec(i: int, t_max: int) -> EpisodeSpec:
+        return EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
+                                  sim="mujoco", t_max=t_max, physics=ph)
+
+    run_episode(spec(0, 3))  # compile the scene and the planner first
+    times, h = [], hashlib.sha256()
+    for i in range(n):
+        t = time.perf_counter()
+        res = run_episode(spec(i, 30))
+        times.append(time.perf_counter() - t)
+        h.update(repr([(s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
+                       for s in res.log]).encode())
+        h.update(repr(sorted(res.metrics.items())).encode())
+    print(json.dumps({"file": pathpref.__file__, "times": times,
+                      "digest": h.hexdigest()[:16]}))
+
+
+def main() -> None:
+    """Parse arguments; alternate the two trees; print medians, ratios and the digests."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--before", required=True, help="git revision to compare against")
+    ap.add_argument("--rounds", type=int, default=2)
+    ap.add_argument("--episodes", type=int, default=5)
+    ap.add_argument("--physics", choices=CONDITIONS, default="realistic")
+    ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child:
+        child(a.episodes, a.physics)
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.before, "pathpref",
+                                  "tasks", "mjcf"], capture_output=True, check=True).stdout
+        subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
+        runs: dict[str, list[list[float]]] = {"before": [], "after": []}
+        digests: dict[str, set[str]] = {"before": set(), "after": set()}
+        for _ in range(a.rounds):
+            for name in ("before", "after"):
+                env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
+                if name == "before":
+                    env["PYTHONPATH"] = tmp
+                out = subprocess.run([sys.executable, __file__, "--before", a.before,
+                                      "--episodes", str(a.episodes), "--physics", a.physics,
+                                      "--child"], env=env, cwd=tmp, capture_output=True,
+                                     text=True, check=True).stdout.strip().splitlines()[-1]
+                d = json.loads(out)
+                runs[name].append(d["times"])
+                digests[name].add(d["digest"])
+                print(f"{name:6s} {' '.join(f'{t:5.2f}' for t in d['times'])}  "
+                      f"({d['file']}, digest {d['digest']})", flush=True)
+    med = {k: statistics.median(t for r in v for t in r) for k, v in runs.items()}
+    total = {k: sum(map(sum, v)) for k, v in runs.items()}
+    same = digests["before"] == digests["after"] and len(digests["after"]) == 1
+    print(f"{a.physics}: median episode {med['before']:.2f} s before, {med['after']:.2f} s "
+          f"after: {med['before'] / med['after']:.2f}x (totals "
+          f"{total['before'] / total['after']:.2f}x); same episodes: {same}")
+
+
+if __name__ == "__main__":
+    main()
