@@ -58,13 +58,16 @@ def _trace(name: str, kwargs: dict, steps: int) -> str:
 
 @pytest.mark.parametrize("name,kwargs,steps,digest", [
     ("navigate", {"method": "path_preference", "delta_t": 2, "seed": 5, "queries": 50,
-                  "t_max": 6}, 7, "407358d03321b8aa"),
+                  "t_max": 6}, 7, "eaf623823bef4d86"),
     ("navigate_control", {"method": "path_preference", "delta_t": 1, "seed": 1,
-                          "queries": 20}, 60, "98287b062e550c65"),
+                          "queries": 20}, 60, "638d29f990ff67bf"),
 ])
 def test_legacy_default_is_unchanged(name, kwargs, steps, digest):
     """Without ``physics`` the tasks run the legacy physics bit for bit: the digests were
-    taken on the code before ``physics`` existed (observations and rewards of every step)."""
+    taken on the code before ``physics`` existed (observations and rewards of every step),
+    and re-taken once when the route prior's posterior moved to an LU solve (its last-digit
+    differences change the robust planner's particle draws; with the previous
+    ``routes.py`` the first digests were reproduced on the new task code)."""
     env = load(name, map="simple", **kwargs)
     assert env.task.template.physics == "" and env.task.physics is None
     assert env.task.base is None or env.task.base.sensor_model is None
