@@ -65,10 +65,11 @@ def test_known_preference_beats_the_shortest_exit(simple):
 
 def test_the_episode_history_counts_toward_success(simple):
     """Sure that the human prefers to leave ``v`` northward, the robot has crossed east into
-    ``w``. Told of that crossing, every simulation has already violated the preference, so no
-    action is worth more than ``rho`` (the goal after a violation); told nothing, going back
-    through ``v`` and out northward still succeeds (``w`` is unknown, its exits all allowed), so
-    some action is worth more than ``rho``."""
+    ``w``. Told of that crossing, every simulation has already violated the preference once, so
+    no action is worth more than ``rho`` (the goal after a violation), and going back through
+    ``v`` and out northward (``w`` is unknown, its exits all allowed) is worth more than
+    ``rho^2``; told nothing, that route succeeds, worth more than ``rho``. Told of two such
+    crossings, the bounds are ``rho^2`` and ``rho^3``."""
     goal = simple.cell((1, 8))
     model = ObservationModel.build(simple, np.array([goal]))
     poly = simple.cell_polytope
@@ -83,8 +84,11 @@ def test_the_episode_history_counts_toward_success(simple):
     rho = rewards.goal_after_violation
     planner = POMCP(simple, np.array([goal]), rewards, queries=3000, tables=model.tables)
     told = planner.search(s, b, 29, 0, [(v, w)])
-    assert told.values.max() <= rho + 1e-12
+    assert rho**2 < told.values.max() <= rho + 1e-12
     assert planner.search(s, b, 29, 0, []).values.max() > 2 * rho
+    # each violation costs its own factor: v -> w, back (w unknown: allowed), v -> w again
+    twice = planner.search(s, b, 29, 0, [(v, w), (w, v), (v, w)])
+    assert rho**3 < twice.values.max() <= rho**2 + 1e-12
 
 
 def test_time_budget_stops_the_search(simple):
