@@ -16,6 +16,7 @@ from pathpref.geometry.grid import ACTION_NAMES
 from pathpref.geometry.world import load_world
 from pathpref.inference.belief import GoalBelief, PreferenceBelief
 from pathpref.inference.human import ObservationModel
+from pathpref.planning.guided import _root_choice as _choice
 from pathpref.planning.pomcp import POMCP
 from pathpref.planning.pomdp import get_preset
 
@@ -61,6 +62,36 @@ def test_known_preference_beats_the_shortest_exit(simple):
     assert share_east("E", ROBUST.path_preference) >= 0.75
     assert share_east("N", ROBUST.path_preference) == 0.0
     assert share_east("E", ROBUST.goal_only) <= 0.25
+
+
+def _root_choice(planner, s, n, q, sq, z):
+    """The robust root choice on ``planner``'s arrays, no particles (goal marginal one-hot)."""
+    return _choice(s, np.asarray(n, np.int64), np.asarray(q, float), np.asarray(sq, float),
+                   planner.next_cell, planner.cost, planner.blocked, planner.cross_slot,
+                   planner.cell_poly, planner.nbr, np.ones(1), planner.ctg, planner.dist,
+                   np.zeros(0, np.int64), np.zeros((0, len(planner.nbr)), np.int64), z)
+
+
+def test_root_choice_breaks_only_statistical_ties(simple):
+    """From (2, 7) toward a goal at (5, 10) over open floor, NE is the one shortest move.
+    Root moves with equal means and wide spreads are a tie the heuristic breaks: NE.
+    A mean better by many standard errors wins whatever the heuristic says, and ``z = 0``
+    is the plain best mean."""
+    goal = simple.cell((5, 10))
+    model = ObservationModel.build(simple, np.array([goal]))
+    planner = POMCP(simple, np.array([goal]), ROBUST.goal_only.for_mission(30),
+                    tables=model.tables)
+    s = simple.cell((2, 7))
+    ne, south = ACTION_NAMES.index("NE"), ACTION_NAMES.index("S")
+    n = np.full(8, 400)
+    q = np.full(8, 0.5)
+    q[south] = 0.51  # best mean, within one standard error (0.025) of the rest
+    sq = n * 0.5  # returns 0 or 1: variance 0.25
+    assert _root_choice(planner, s, n, q, sq, 1.0) == ne
+    assert _root_choice(planner, s, n, q, sq, 0.0) == south
+    q[south] = 0.7  # eight standard errors of the difference above
+    sq[south] = n[south] * 0.7
+    assert _root_choice(planner, s, n, q, sq, 1.0) == south
 
 
 def test_the_episode_history_counts_toward_success(simple):

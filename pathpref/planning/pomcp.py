@@ -37,6 +37,9 @@ from .tree import best_root_action, init_node, new_tree, sample_index, sample_sl
 #: polytope to the goal's on a map of long loops), and success did not change within the
 #: intervals (README, "The robust preset")
 TREE_POOL = 128
+#: robust search: root moves within this many standard errors of the best mean return count
+#: as tied, and the rollout heuristic picks among them (:func:`.guided._root_choice`)
+TIE_Z = 1.0
 
 
 @nb.njit(cache=True, inline="always")
@@ -226,7 +229,8 @@ class POMCP:
                 self.dist, *self._history(history), int(cell), int(max(depth, 1)),
                 self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
                 r.use_preference, int(seed) % (2**32), self.budget_s,
-                *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1))
+                *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1),
+                TIE_Z)
             return SearchResult(int(a), visits, values, int(nodes), int(done))
         a, visits, values, nodes = _search(
             self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,

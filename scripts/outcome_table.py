@@ -1,0 +1,75 @@
+"""The README's outcome tables: per method and ΔT, success / goal reached / back-crossings per
+episode (and the oracle's share), from one or more results databases of ``pathpref evaluate``.
+
+    .venv/bin/python scripts/outcome_table.py results/office_paper_consistent.sqlite \\
+        results/office_robust_consistent.sqlite
+
+One column block per database (labelled by its preset), one row per method; episodes whose
+status is not ``ok`` are left out and counted below the table. ``--ci`` adds the 95 % Wilson
+interval of each success rate.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sqlite3
+import sys
+from pathlib import Path
+
+from pathpref.experiments.report import wilson
+
+ORDER = ("compliant", "goal_only", "path_preference", "blended", "goal_known", "oracle")
+LABEL = {"goal_only": "goal only", "path_preference": "path preference",
+         "blended": "path preference + blend"}
+
+
+def cells(db: Path) -> tuple[str, dict[tuple[str, int], tuple[int, int, int, int]], int]:
+    """``(preset, {(method, ΔT): (n, successes, goals reached, back-crossings)}, not ok)``."""
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    try:
+        rows = con.execute(
+            "SELECT preset, method, delta_t, count(*), sum(success), sum(goal_reached), "
+            "sum(back_crossings) FROM episodes WHERE status = 'ok' "
+            "GROUP BY preset, method, delta_t").fetchall()
+        bad = con.execute("SELECT count(*) FROM episodes WHERE status != 'ok'").fetchone()[0]
+    finally:
+        con.close()
+    presets = {r[0] for r in rows}
+    if len(presets) != 1:
+        raise SystemExit(f"{db}: expected one preset, found {sorted(presets)}")
+    return presets.pop(), {(m, dt): (n, s, g, b) for _, m, dt, n, s, g, b in rows}, bad
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("dbs", nargs="+", type=Path)
+    ap.add_argument("--ci", action="store_true", help="add the success rate's 95%% interval")
+    args = ap.parse_args(argv)
+    blocks = [cells(db) for db in args.dbs]
+    cols = [(preset, dt) for preset, c, _ in blocks for dt in sorted({dt for _, dt in c})]
+    print("| method | " + " | ".join(f"{p} ΔT={dt}" for p, dt in cols) + " |")
+    print("|---" * (len(cols) + 1) + "|")
+    methods = [m for m in ORDER if any(k[0] == m for _, c, _ in blocks for k in c)]
+    for m in methods:
+        out = []
+        for _, c, _ in blocks:
+            for dt in sorted({d for _, d in c}):
+                if (m, dt) not in c:
+                    out.append("-")
+                    continue
+                n, s, g, b = c[(m, dt)]
+                cell = f"{s / n:.2f} / {g / n:.2f} / {b / n:.2f}"
+                if args.ci:
+                    lo, hi = wilson(s, n)
+                    cell += f" [{lo:.2f}, {hi:.2f}]"
+                out.append(cell)
+        print(f"| {LABEL.get(m, m)} | " + " | ".join(out) + " |")
+    sizes = sorted({c[k][0] for _, c, _ in blocks for k in c})
+    bad = sum(b for _, _, b in blocks)
+    print(f"\nsuccess / goal reached / back-crossings per episode; n = {sizes} per cell"
+          + (f"; {bad} episodes not ok, left out" if bad else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
