@@ -55,7 +55,8 @@ def main(argv: list[str] | None = None) -> int:
             self.planner.queries = q
             res = self.planner.search(cell, self.belief, depth, 123, self.history,
                                       self.expected_pushes(t))
-            print(f"  {q} queries:")
+            print(f"  {q} queries: chooses {MOVES[res.action]} (ties within one standard "
+                  "error broken by the rollout heuristic)")
             for b in range(8):
                 to = int(world.motion.next_cell[cell, b])
                 print(f"    {MOVES[b]:>2} -> polytope {int(world.cell_polytope[to]):3d}: "
