@@ -127,11 +127,13 @@ def main() -> None:
     ap.add_argument("--method", default="path_preference")
     ap.add_argument("--delta-t", type=int, default=5)
     ap.add_argument("--seed", type=int, default=12)
+    ap.add_argument("--preset", default="robust", help="the planner's preset (robust: the "
+                    "default of applications and tasks, with its route prior)")
     ap.add_argument("--out", default=None, help="JSON of the figures")
     ap.add_argument("--conditions", nargs="+", default=STUDY, choices=list(CONDITIONS))
     args = ap.parse_args()
     specs = [EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
-                                instance=i, queries=1000)
+                                instance=i, queries=1000, preset=args.preset)
              for i in range(args.episodes)]
     out = {}
     for name in args.conditions:
@@ -144,7 +146,7 @@ def main() -> None:
     for r in out.values():
         r.pop("cells")
     print(f"\n{args.episodes} episodes per condition ({args.map}, {args.method}, "
-          f"Delta_T {args.delta_t}, 1000 queries, seed {args.seed})\n")
+          f"preset {args.preset}, Delta_T {args.delta_t}, 1000 queries, seed {args.seed})\n")
     print("| condition | success [95% CI] | cue accuracy [95% CI] | pushes/episode | steps | "
           "final P(true goal) | same path as control | wall s/episode |")
     print("|---|---|---|---|---|---|---|---|")

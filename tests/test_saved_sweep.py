@@ -6,6 +6,11 @@ three instances; office: the four methods at Delta_T 5, two instances; 1000 quer
 ``--preset robust`` episodes, and three MuJoCo episodes (``navigate`` and ``carry``). Every
 stored outcome, count, physical metric and per-step log (cells, actions, headings, P(true goal)
 and goal entropy, as floats) must come out identical from today's code.
+
+The robust search has changed on purpose since the save (each violation costs its own factor
+``rho``; the root breaks statistical ties by the rollout heuristic), so its four episodes are
+replayed for what does not depend on the planner: the key, the instance (start, goals, true
+goal) and the status. Every other row must match in full.
 """
 
 from __future__ import annotations
@@ -37,6 +42,9 @@ def _rows(tmp_path):
     return eps, steps
 
 
+PLANNER_FREE = ("true_goal", "start", "goals", "status")
+
+
 def _replay(row, steps):
     if row["sim"] == "mujoco":
         pytest.importorskip("mujoco")
@@ -49,6 +57,9 @@ def _replay(row, steps):
            "true_goal": res.instance.true_goal, "status": res.status,
            "start": json.dumps(res.instance_cells["start"]),
            "goals": json.dumps(res.instance_cells["goals"])}
+    if row["preset"] == "robust":  # changed on purpose (module docstring)
+        assert {k: got[k] for k in PLANNER_FREE} == {k: row[k] for k in PLANNER_FREE}
+        return
     assert got == {k: row[k] for k in OUTCOME}, row["key"]
     assert res.metrics == json.loads(row["metrics"]), row["key"]
     log = [(s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)

@@ -157,8 +157,10 @@ def test_browser_drag_end_to_end(tmp_path):
                 page.wait_for_timeout(400)
                 t0 = time.perf_counter()
                 page.mouse.up()  # the cue is complete when the push ends
-                page.wait_for_function(f"window.study.state.cues > {cues}", timeout=5000,
-                                       polling="raf")
+                # state is null until the first state message: under load it may come late
+                page.wait_for_function(
+                    f"window.study.state !== null && window.study.state.cues > {cues}",
+                    timeout=5000, polling="raf")
                 latency.append(time.perf_counter() - t0)
                 page.wait_for_timeout(1000)
             fps = page.evaluate("window.study.fps")
