@@ -155,6 +155,19 @@ def _step(s, a, gi, q, next_cell, cross_slot, cell_poly, nbr, goal_cells, pref_c
 
 
 @nb.njit(cache=True, inline="always")
+def _heuristic(s2, k, kv, gi, ctg, dist):
+    """``h(s')`` of the rollout move (module docstring, 2) for a move that crosses slot ``k``
+    (-1: none) into ``s2``, ``kv`` the particle's preferred slot of the polytope left (-1: none
+    or already made): ``d(s', g)`` across the preferred face or without a preference,
+    ``D_{v, p_v}(s', g)`` inside ``v``, ``d(s', g) + 1e6`` across another face."""
+    if kv < 0 or k == kv:
+        return dist[gi, s2]
+    if k < 0:
+        return ctg[s2, kv, gi]
+    return dist[gi, s2] + 1e6
+
+
+@nb.njit(cache=True, inline="always")
 def _guided_action(s, gi, q, next_cell, cost, blocked, cross_slot, cell_poly, nbr, pref_cdf,
                    theta, stamp, made_q, known, ctg, dist, use_pref, tree):
     """The rollout move (module docstring, 2)."""
@@ -175,14 +188,7 @@ def _guided_action(s, gi, q, next_cell, cost, blocked, cross_slot, cell_poly, nb
         a = (off + j) % 8
         if blocked[s, a]:
             continue
-        s2 = next_cell[s, a]
-        if kv < 0 or cross_slot[s, a] == kv:
-            h = dist[gi, s2]
-        elif cross_slot[s, a] < 0:
-            h = ctg[s2, kv, gi]
-        else:
-            h = dist[gi, s2] + 1e6
-        val = cost[s, a] + h
+        val = cost[s, a] + _heuristic(next_cell[s, a], cross_slot[s, a], kv, gi, ctg, dist)
         if val < best:
             best = val
             best_a = a
@@ -331,14 +337,7 @@ def _root_choice(s, n, q, sq, next_cell, cost, blocked, cross_slot, cell_poly, n
         h = 0.0
         if m > 0:  # the particles' guided cost-to-go (module docstring, 2)
             for j in range(m):
-                gi = pool_g[j]
-                kv = pool_theta[j, v]
-                if kv < 0 or k == kv:
-                    h += dist[gi, s2]
-                elif k < 0:
-                    h += ctg[s2, kv, gi]
-                else:
-                    h += dist[gi, s2] + 1e6
+                h += _heuristic(s2, k, pool_theta[j, v], pool_g[j], ctg, dist)
             h /= m
         else:  # the goal marginal's distance
             prev = 0.0
