@@ -4,10 +4,11 @@ counts: are the moves told apart, or is the choice noise?
     .venv/bin/python scripts/root_values.py --map classroom --instance 1 --run 0 \\
         --delta-t 5 --step 23 --queries 5000 50000 300000
 
-Runs the episode (robust preset, consistent human, the spec of ``pathpref evaluate --seed 0``)
-up to decision ``--step``, then searches again from that decision's state (the same belief,
-history and expected pushes) with each query count, and prints per root move its visits, its
-mean return and the polytope it leads to. The episode's own decision is printed first.
+Runs the episode (robust preset, consistent human unless ``--human map``, the spec of
+``pathpref evaluate --seed 0``) up to decision ``--step``, then searches again from that
+decision's state (the same belief, history and expected pushes) with each query count, and
+prints per root move its visits, its mean return and the polytope it leads to. The
+episode's own decision is printed first.
 """
 
 from __future__ import annotations
@@ -38,6 +39,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--delta-t", type=int, default=5)
     ap.add_argument("--step", type=int, default=23)
     ap.add_argument("--method", default="path_preference")
+    ap.add_argument("--human", default="consistent", choices=["map", "consistent"])
     ap.add_argument("--queries", type=int, nargs="+", default=[5000, 50000, 300000])
     args = ap.parse_args(argv)
     world = cached_world(args.map)
@@ -66,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
     policies.PlannerPolicy.act = traced
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=0,
                               instance=args.instance, run=args.run, preset="robust",
-                              human="consistent", t_max=world.spec.t_max)
+                              human=args.human, t_max=world.spec.t_max)
     try:
         run_episode(spec)
     except _Stop:

@@ -33,3 +33,17 @@ def test_report_figure_of_all_success_and_all_failure_cells(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "1.00 [0.61, 1.00]" in out and "0.00 [0.00, 0.39]" in out
     assert fig.stat().st_size > 1000
+
+
+def test_table_rows_come_in_a_fixed_order_whatever_order_the_episodes_were_stored(tmp_path,
+                                                                               capsys):
+    """The paper's four, then the reference rows (goal_known before oracle), then registered
+    methods by name: a sweep whose oracle finished first printed the oracle row first."""
+    cells = {("oracle", 1): (6, 6), ("zz_custom", 1): (1, 6), ("goal_known", 1): (3, 6),
+             ("aa_custom", 1): (2, 6), ("path_preference", 1): (4, 6), ("compliant", 1): (1, 6)}
+    db = synthetic_db(tmp_path / "r.sqlite", cells)
+    assert main(["report", str(db)]) == 0, capsys.readouterr().err
+    rows = [line.split("|")[1].strip() for line in capsys.readouterr().out.splitlines()
+            if line.startswith("| ") and "method" not in line]
+    assert rows[:6] == ["compliant", "path preference", "goal_known", "oracle", "aa_custom",
+                        "zz_custom"], rows

@@ -18,7 +18,9 @@ from ..errors import ConfigError
 from .paper import TABLE_I
 from .store import ResultStore
 
-METHOD_ORDER = ["compliant", "goal_only", "path_preference", "blended"]
+#: row order of the tables: the paper's four, then the reference rows (the ceiling), then any
+#: registered method by name
+METHOD_ORDER = ["compliant", "goal_only", "path_preference", "blended", "goal_known", "oracle"]
 METHOD_LABEL = {
     "compliant": "compliant",
     "goal_only": "goal only",
@@ -80,8 +82,8 @@ def success_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
     return out
 
 
-def _order(method: str) -> int:
-    return METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER)
+def _order(method: str) -> tuple[int, str]:
+    return (METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER), method)
 
 
 def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> str:
