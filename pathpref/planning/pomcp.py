@@ -28,7 +28,7 @@ from ..geometry.world import World
 from ..inference.belief import Belief
 from ..inference.costs import CostTables
 from ..inference.routes import components
-from .guided import search_robust, tree_pool
+from .guided import rollout_moves, search_robust, tree_pool
 from .pomdp import Rewards
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
@@ -199,6 +199,8 @@ class POMCP:
             self.ctg = np.ascontiguousarray(tables.constrained, dtype=np.float64)
             self.dist = np.ascontiguousarray(tables.dist, dtype=np.float64)
             self.component = components(world.graph.neighbors)
+            self.moves = rollout_moves(self.next_cell, self.cost, self.blocked, self.cross_slot,
+                                       self.ctg, self.dist)
 
     def preference_cdf(self, belief: Belief) -> np.ndarray:
         """``(G, P, K)`` cumulative per-polytope rows ``T_v(g, k)`` normalised (uniform where
@@ -230,7 +232,7 @@ class POMCP:
                 self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
                 r.use_preference, int(seed) % (2**32), self.budget_s,
                 *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1),
-                TIE_Z)
+                TIE_Z, self.moves)
             return SearchResult(int(a), visits, values, int(nodes), int(done))
         a, visits, values, nodes = _search(
             self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,
