@@ -243,6 +243,19 @@ def load_world_checked(source: str, force: bool = False, progress: bool = True):
             timer.cancel()
 
 
+def check_goal_count(source: str, n_goals: int) -> None:
+    """``--goals`` against the map's free cells (every candidate is a free cell other than the
+    start), before the map is built: one error line, no progress note first."""
+    from ..episode import cached_map
+    from ..episode.instances import too_few_candidates
+    from ..geometry.maps import free_cell_mask
+
+    spec = cached_map(source)
+    free = int(free_cell_mask(spec).sum())
+    if int(n_goals) > free - 1:
+        raise too_few_candidates(spec.name, int(n_goals), free)
+
+
 def check_model_size(world, n_goals: int) -> int:
     """Bytes the human model's likelihood tables need for ``n_goals`` candidates on ``world``
     (the formula of :meth:`pathpref.inference.human.ObservationModel.build`); a ConfigError

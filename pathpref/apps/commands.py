@@ -16,6 +16,7 @@ from .checks import (
     atomic_output,
     check_database,
     check_episode_count,
+    check_goal_count,
     check_model_size,
     check_output_folder,
     check_writable,
@@ -174,6 +175,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     check_episode_count([args.instances, args.runs, len(args.delta_t),
                          len(resolve_methods(args.methods))], "the sweep")
     load_simulator(args.sim)
+    check_goal_count(args.map, args.goals)
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,

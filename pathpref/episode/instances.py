@@ -85,9 +85,14 @@ def sample_instance(world: World, seed: int, n_goals: int = 10,
         raise ConfigError(
             f"map '{world.name}': in 1000 draws no start had a goal candidate that its "
             "preference leads to; check the map's preference or use the map's human")
-    raise ConfigError(
-        f"map '{world.name}' has too few candidate cells for {n_goals} goal candidates "
-        f"(at most {world.n_cells - 1} free cells, fewer in the goal band); lower --goals"
+    raise too_few_candidates(world.name, n_goals, world.n_cells)
+
+
+def too_few_candidates(name: str, n_goals: int, free_cells: int) -> ConfigError:
+    """The error of a map with fewer than ``n_goals`` cells besides the start."""
+    return ConfigError(
+        f"map '{name}' has too few candidate cells for {n_goals} goal candidates "
+        f"(at most {free_cells - 1} free cells, fewer in the goal band); lower --goals"
     )
 
 
