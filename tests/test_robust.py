@@ -16,6 +16,7 @@ from pathpref.geometry.grid import ACTION_NAMES
 from pathpref.geometry.world import load_world
 from pathpref.inference.belief import GoalBelief, PreferenceBelief
 from pathpref.inference.human import ObservationModel
+from pathpref.inference.routes import RouteBelief
 from pathpref.planning.guided import _pick_target, rollout_moves
 from pathpref.planning.guided import _root_choice as _choice
 from pathpref.planning.pomcp import POMCP
@@ -147,14 +148,33 @@ def test_uncertain_goal_no_longer_holds_the_robot_between_candidates():
     """``simple`` at ΔT = 30 (one push): with rollouts that knew the simulation's goal the robot
     stood between the candidates (instance 1, run 1: 15 of its 30 steps in one polytope) and
     reached the goal in 0.69 of 120 paired episodes; heading for one candidate at a time it
-    reaches it in 0.93. Here 30 of those episodes: the old search reached the goal in 24, this
-    one in 30; at least 28 must."""
+    reaches it in 0.91. Here 30 of those episodes: the old search reached the goal in 24, this
+    one in 28; at least 27 must."""
     reached = 0
     for i in range(30):
         spec = EpisodeSpec.single("simple", "path_preference", 30, seed=0, instance=i // 3,
                                   run=i % 3, preset="robust", human="map", t_max=30)
         reached += run_episode(spec).goal_reached
-    assert reached >= 28, reached
+    assert reached >= 27, reached
+
+
+def test_exploration_constant_reaches_the_search(simple):
+    """``--ucb-c`` spreads the root's visits: the most visited move's share falls as ``c``
+    grows (measured: 0.84 at c = 0.3, 0.54 at 1, 0.22 at 30 at this decision). A loop
+    variable once shadowed ``c`` inside the search, and every ``c`` gave the same visits."""
+    rng = np.random.default_rng(3)
+    goals = rng.choice(simple.n_cells, 10, replace=False)
+    model = ObservationModel.build(simple, goals)
+    belief = RouteBelief(model)
+    s = int([c for c in range(simple.n_cells) if c not in goals][5])
+    belief.update(s, 2)
+    share = []
+    for c in (0.3, 1.0, 30.0):
+        planner = POMCP(simple, goals, ROBUST.path_preference.for_mission(30), queries=5000,
+                        c=c, tables=model.tables)
+        visits = planner.search(s, belief, 30, 7).visits
+        share.append(visits.max() / visits.sum())
+    assert share[0] > share[1] + 0.1 and share[1] > share[2] + 0.1, share
 
 
 def test_the_episode_history_counts_toward_success(simple):

@@ -275,10 +275,10 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     p_goal = np.zeros(G)
     visited_q = -np.ones(G, np.int64)
     prev = 0.0
-    for c in range(G):
-        cand[goal_cells[c]] = c
-        p_goal[c] = goal_cdf[c] - prev
-        prev = goal_cdf[c]
+    for k in range(G):  # (not ``c``: that is the exploration constant)
+        cand[goal_cells[k]] = k
+        p_goal[k] = goal_cdf[k] - prev
+        prev = goal_cdf[k]
     path_node = np.zeros(depth + 1, np.int64)
     path_a = np.zeros(depth + 1, np.int64)
     ret_lo, ret_hi = 1e300, -1e300
