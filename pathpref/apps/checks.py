@@ -218,10 +218,15 @@ def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
 
 
 # --- maps and tables ------------------------------------------------------------------------
+#: maps whose arrangement may have this many polytopes get a note when their build is slow
+NOTE_POLYTOPES = 200
+
 def load_world_checked(source: str, force: bool = False, progress: bool = True):
     """The cached world of ``source``, refused before building when its arrangement may be too
     large (:func:`~pathpref.geometry.arrangement.check_arrangement_size`, unless ``force``); a
-    line on stderr when building takes more than a second."""
+    line on stderr when building takes more than a second and the map may have
+    :data:`NOTE_POLYTOPES` polytopes or more (a small map that is slow to build is a busy
+    machine, and a note there would be a second line before a bad-input error)."""
     from ..episode import cached_map, cached_world
     from ..geometry.arrangement import check_arrangement_size
 
@@ -232,7 +237,7 @@ def load_world_checked(source: str, force: bool = False, progress: bool = True):
         print(f"pathpref: building map '{spec.name}' ({lines} lines, {cells:,} free cells, up "
               f"to {bound:,} polytopes) ...", file=sys.stderr, flush=True)
 
-    timer = threading.Timer(1.0, note) if progress else None
+    timer = threading.Timer(1.0, note) if progress and bound >= NOTE_POLYTOPES else None
     if timer is not None:
         timer.daemon = True
         timer.start()

@@ -56,8 +56,8 @@ its root states come from and how it searches differ.
    the goal uncertain the robot drifted inside one polytope for up to 15 of its 30 steps on
    ``simple`` at ΔT = 30 and reached the goal in 0.69 of episodes, against 0.91 this way
    (paired, n = 120). Not knowing the preference either (the shortest way in polytopes not
-   yet observed or told) did as well on ``simple`` and worse on ``classroom`` at ΔT = 5 (0.39
-   against 0.48, n = 240), so the particle's exits stay. Each move is a look-up in a table
+   yet observed or told) did as well on ``simple`` and worse on ``classroom`` at ΔT = 5 (0.36
+   against 0.43, n = 120), so the particle's exits stay. Each move is a look-up in a table
    built once per planner (:func:`rollout_moves`), and a rollout stops as soon as the
    simulation's goal is out of reach (``L + d(s, g) > depth``: its return is 0 whatever
    follows).
