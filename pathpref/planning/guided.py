@@ -382,24 +382,23 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
             q_sa[nd, b] += (back - q_sa[nd, b]) / n_sa[nd, b]
             back /= discount
     a = _root_choice(s0, n_sa[0], q_sa[0], root_sq, next_cell, cost, blocked, cross_slot,
-                     cell_poly, goal_cdf, ctg, dist, pool_theta, tie_z, discount)
+                     cell_poly, p_goal, ctg, dist, pool_theta, tie_z, discount)
     return a, n_sa[0].copy(), q_sa[0].copy(), n_nodes, done_q
 
 
 @nb.njit(cache=True)
-def _root_choice(s, n, q, sq, next_cell, cost, blocked, cross_slot, cell_poly, goal_cdf, ctg,
+def _root_choice(s, n, q, sq, next_cell, cost, blocked, cross_slot, cell_poly, p_goal, ctg,
                  dist, pool_theta, z, discount):
     """The root move (module docstring, 6) from the root's visits ``n``, mean returns ``q`` and
     sums of squared returns ``sq``: the best mean, unless other moves are within ``z``
     standard errors of it; among those, the one with the least ``c(s, a) + h(s')`` toward the
-    rollouts' first target (:func:`_pick_target`), ``h`` averaged over the root particles'
-    preferred exits ``pool_theta`` (``d(s', target)`` without particles)."""
+    rollouts' first target (:func:`_pick_target` on the goal marginal ``p_goal``), ``h``
+    averaged over the root particles' preferred exits ``pool_theta`` (``d(s', target)``
+    without particles)."""
     best = best_root_action(n.reshape(1, 8), q.reshape(1, 8))
     if z <= 0 or n[best] < 2:
         return best
-    G = goal_cdf.shape[0]
-    p_goal = np.diff(np.concatenate((np.zeros(1), goal_cdf)))
-    tgt = _pick_target(s, 0, -np.ones(G, np.int64), p_goal, dist, discount)
+    tgt = _pick_target(s, 0, -np.ones(p_goal.shape[0], np.int64), p_goal, dist, discount)
     if tgt < 0:
         return best
     se_b = np.sqrt(max(sq[best] / n[best] - q[best] ** 2, 0.0) / n[best])
