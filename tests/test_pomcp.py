@@ -93,6 +93,7 @@ def test_preference_changes_the_plan(simple):
     assert share_east("N") <= 0.1
 
 
+@pytest.mark.cross_cpu
 def test_paper_searches_are_pinned():
     """Paper-preset decisions (action, root visits, tree size) of 24 searches on the three maps
     equal those pinned before the robust planner was added (scripts/paper_pomcp_golden.py)."""

@@ -122,7 +122,7 @@ def test_route_prior_forbids_cycles(simple):
     planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
     g, slots = tree_pool(planner.nbr, planner.preference_cdf(belief),
                          np.cumsum(belief.goal_marginal()), planner.goal_poly,
-                         components(simple.graph.neighbors), 400, 1)
+                         components(simple.graph.neighbors), 400, 1, 10**9)[:2]
     nbrs = simple.graph.neighbors
     for gi, row in zip(g, slots, strict=True):
         r = belief.goal_polytope[gi]
@@ -156,7 +156,7 @@ def test_search_particles_match_exact_posterior(simple):
     cdf = planner.preference_cdf(belief)
     n = 20000
     g, slots = tree_pool(planner.nbr, cdf, np.cumsum(belief.goal_marginal()), planner.goal_poly,
-                         components(world.graph.neighbors), n, 7)
+                         components(world.graph.neighbors), n, 7, 10**9)[:2]
     pg = belief.goal_marginal()
     assert np.all(np.abs(np.bincount(g, minlength=len(goals)) / n - pg)
                   <= 5 * np.sqrt(pg * (1 - pg) / n) + 1e-9)
@@ -222,3 +222,193 @@ def test_get_preset_takes_and_checks_the_prior():
     with pytest.raises(ConfigError) as e:
         get_preset("paper", prior="tree")
     assert str(e.value) == "unknown prior 'tree'; choose independent or routes"
+
+
+def _draw_all_observed_first(planner, belief, n, seed):
+    """``n`` trees all drawn by the fallback (observed exits first, then Wilson): budget 0."""
+    from pathpref.planning.guided import tree_pool
+
+    cdf = planner.preference_cdf(belief)
+    g, slots, over = tree_pool(planner.nbr, cdf, np.cumsum(belief.goal_marginal()),
+                               planner.goal_poly, planner.component, n, seed, 0)
+    assert over.all()  # budget 0: every tree goes to the fallback
+    slots[over] = planner._observed_first(belief, g[over], cdf, seed, 10**6)
+    return g, slots
+
+
+def _assert_draws_match(world, belief, g, slots, min_draws=1000):
+    n = len(g)
+    pg = belief.goal_marginal()
+    assert np.all(np.abs(np.bincount(g, minlength=len(pg)) / n - pg)
+                  <= 5 * np.sqrt(pg * (1 - pg) / n) + 1e-9)
+    tested = 0
+    for gi in range(len(pg)):
+        rows = slots[g == gi]
+        if len(rows) < min_draws:
+            continue
+        tested += 1
+        nbrs = world.graph.neighbors
+        r = belief.goal_polytope[gi]
+        for row in rows[:200]:  # every draw is a tree toward r
+            assert row[r] == -1 and is_tree([0 if v == r else k for v, k in enumerate(row)],
+                                            r, nbrs)
+        for v in range(world.n_polytopes):
+            if v == r:
+                continue
+            deg = len(nbrs[v])
+            freq = np.bincount(rows[:, v], minlength=deg) / len(rows)
+            exact = belief.preference_given_goal(v)[gi, :deg]
+            se = np.sqrt(exact * (1 - exact) / len(rows))
+            assert np.all(np.abs(freq - exact) <= 5 * se + 1e-9), (gi, v)
+    return tested
+
+
+def test_observed_first_trees_match_exact_posterior():
+    """The fallback sampler (the observed polytopes' exits drawn jointly from their exact
+    conditionals, then Wilson's walk over the rest) draws from the exact route posterior, on a
+    random floor plan with many observed polytopes (every tree forced through it)."""
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    world = random_world(11)
+    rng = np.random.default_rng(5)
+    goals = rng.choice(world.n_cells, size=3, replace=False)
+    model = ObservationModel.build(world, goals, normalize=True)
+    belief = RouteBelief(model)
+    for s, h in observations(world, model, rng, 12):
+        belief.update(s, h)
+    assert len(belief.observed_polytopes()) >= 4
+    planner = POMCP(world, goals, get_preset("robust").path_preference, tables=model.tables)
+    g, slots = _draw_all_observed_first(planner, belief, 20000, 3)
+    assert _assert_draws_match(world, belief, g, slots) >= 1
+
+
+def _mutual(world, goals, n_rounds, ratio=0.05):
+    """A route belief holding ``n_rounds`` rounds of evidence that polytopes ``a = 0`` and its
+    first neighbour ``b`` point at each other (each round multiplies every other exit's weight
+    by ``ratio``), with the factors it applied."""
+    nbrs = world.graph.neighbors
+    a, b = 0, int(nbrs[0][0])
+    model = ObservationModel.build(world, goals, normalize=True)
+    belief = RouteBelief(model)
+    G = len(goals)
+    step, log_factors = {}, {}
+    for v, u in ((a, b), (b, a)):
+        f = np.full((G, len(nbrs[v])), ratio)
+        f[:, int(np.flatnonzero(nbrs[v] == u)[0])] = 1.0
+        step[v] = f
+        log_factors[v] = n_rounds * np.log(f)
+    for _ in range(n_rounds):
+        for v in (a, b):
+            belief._multiply(v, step[v])
+    return model, belief, log_factors, (a, b)
+
+
+def _brute_tables(world, goals, log_factors):
+    """``(P(g | o), {v: P(p_v | g, o)})`` by enumeration from per-polytope log weight tables
+    (the evidence is far below the smallest double)."""
+    nbrs = world.graph.neighbors
+    thetas = np.array(list(itertools.product(*[range(len(n)) for n in nbrs])))
+    roots = world.cell_polytope[goals]
+    G = len(goals)
+    logw = np.zeros((G, len(thetas)))
+    for v, lf in log_factors.items():
+        logw += lf[:, thetas[:, v]]
+    goal = np.full(G, -np.inf)
+    cond = {}
+    for g in range(G):
+        keep = np.array([t[roots[g]] == 0 and is_tree(t, roots[g], nbrs) for t in thetas])
+        lw = np.where(keep, logw[g], -np.inf)
+        goal[g] = np.logaddexp.reduce(lw) - np.log(keep.sum())
+        w = np.exp(lw - lw.max())
+        for v in range(len(nbrs)):
+            c = np.array([w[thetas[:, v] == k].sum() for k in range(len(nbrs[v]))])
+            if v == roots[g]:  # no exit at the goal: shown as uniform
+                c[:] = 1.0
+            cond.setdefault(v, np.zeros((G, len(nbrs[v]))))[g] = c / c.sum()
+    return np.exp(goal - np.logaddexp.reduce(goal)), cond
+
+
+@pytest.mark.parametrize("rounds", [1, 8, 40, 400])
+def test_mutual_evidence_stays_exact(simple, rounds):
+    """Two neighbouring polytopes pointing at each other, up to ``0.05^400`` (far below the
+    smallest double): the goal marginal and every preference marginal equal a log-space
+    brute force (the LU of the minor returned 0/0 there), and stay finite."""
+    a, b = 0, int(simple.graph.neighbors[0][0])
+    free = np.flatnonzero(~np.isin(simple.cell_polytope, [a, b]))
+    goals = np.random.default_rng(1).choice(free, size=4, replace=False)
+    _, belief, factors, _ = _mutual(simple, goals, rounds)
+    goal, cond = _brute_tables(simple, goals, factors)
+    assert np.allclose(belief.goal_marginal(), goal, atol=1e-9)
+    for v in range(simple.n_polytopes):
+        deg = len(simple.graph.neighbors[v])
+        got = belief.preference_given_goal(v)[:, :deg]
+        assert np.isfinite(got).all() and np.allclose(got, cond[v], atol=1e-9), v
+        assert np.isfinite(belief.joint_entropy(v))
+
+
+def test_mutual_evidence_decision_is_bounded(simple):
+    """The state that made Wilson's walk run for 1e14+ steps: a decision of the robust search
+    finishes (every tree's walk passes its budget and is drawn observed exits first), in a
+    CPU time far below the 30 minutes it took (generous bound: compilation included), and its
+    particles still follow the exact posterior."""
+    import time
+
+    from pathpref.planning.guided import tree_pool
+    from pathpref.planning.pomcp import POMCP, WALK_STEPS_MIN, WALK_STEPS_PER_POLYTOPE
+    from pathpref.planning.pomdp import get_preset
+
+    a, b = 0, int(simple.graph.neighbors[0][0])
+    free = np.flatnonzero(~np.isin(simple.cell_polytope, [a, b]))
+    goals = np.random.default_rng(2).choice(free, size=9, replace=False)
+    model, belief, _, _ = _mutual(simple, goals, 60)
+    planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
+    cdf = planner.preference_cdf(belief)
+    budget = WALK_STEPS_PER_POLYTOPE * simple.n_polytopes + WALK_STEPS_MIN
+    _, _, over = tree_pool(planner.nbr, cdf, np.cumsum(belief.goal_marginal()),
+                           planner.goal_poly, planner.component, 64, 1, budget)
+    assert over.all()  # the trap is real: no walk escapes within its budget
+    t0 = time.process_time()
+    cell = int(np.flatnonzero(simple.cell_polytope == a)[0])
+    for seed in range(3):
+        res = planner.search(cell, belief, 30, seed)
+        assert 0 <= res.action < 8
+    assert time.process_time() - t0 < 60.0
+    g, slots = _draw_all_observed_first(planner, belief, 8000, 4)
+    assert _assert_draws_match(simple, belief, g, slots, min_draws=600) >= 2
+
+
+def test_ping_pong_pushes_keep_decisions_bounded(simple):
+    """Pushes back and forth across one face (8 each way, as a person correcting a robot that
+    keeps crossing), through the human model's own likelihoods: the marginals stay finite and
+    normalised, and each decision's pool and search finish."""
+    import time
+
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    nbrs = simple.graph.neighbors
+    a, b = 0, int(nbrs[0][0])
+    free = np.flatnonzero(~np.isin(simple.cell_polytope, [a, b]))
+    goals = np.random.default_rng(3).choice(free, size=9, replace=False)
+    model = ObservationModel.build(simple, goals, normalize=True)
+    belief = RouteBelief(model)
+    planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
+    moves = simple.motion.next_cell
+    # a cell of a with a move into b (and back): the headings that cross the face
+    pairs = [(s, h) for s in np.flatnonzero(simple.cell_polytope == a) for h in range(8)
+             if simple.cell_polytope[moves[s, h]] == b]
+    s_a, h_ab = pairs[0]
+    s_b = int(moves[s_a, h_ab])
+    h_ba = next(h for h in range(8) if moves[s_b, h] == s_a)
+    t0 = time.process_time()
+    for i in range(8):
+        belief.update(int(s_a), int(h_ab))
+        belief.update(s_b, h_ba)
+        pg = belief.goal_marginal()
+        assert np.isfinite(pg).all() and np.isclose(pg.sum(), 1.0)
+        for v in (a, b):
+            p = belief.preference_given_goal(v)
+            assert np.isfinite(p).all() and np.allclose(p.sum(axis=1), 1.0)
+        planner.search(s_b, belief, 30, i)
+    assert time.process_time() - t0 < 60.0

@@ -1,11 +1,13 @@
-"""A results database saved before the house was rebuilt (issue 11) replays bit for bit.
+"""A results database saved before the house was rebuilt (issue 11) replays exactly.
 
 ``tests/data/saved_sweep.sqlite`` holds 39 episodes written by the code of commit 7410427:
 a Table I style sweep under ``--preset paper`` (simple: the four methods at Delta_T 1 and 5,
 three instances; office: the four methods at Delta_T 5, two instances; 1000 queries), two
 ``--preset robust`` episodes, and three MuJoCo episodes (``navigate`` and ``carry``). Every
 stored outcome, count, physical metric and per-step log (cells, actions, headings, P(true goal)
-and goal entropy, as floats) must come out identical from today's code.
+and goal entropy) must come out the same from today's code: discrete values exactly, floats to
+``tests/close.py``'s tolerance (they differ in the last bits between CPU classes; README,
+"Replays exactly").
 
 The robust search has changed on purpose since the save (each violation costs its own factor
 ``rho``; the root breaks statistical ties by the rollout heuristic), so its four episodes are
@@ -23,6 +25,7 @@ import pytest
 
 from pathpref.episode import run_episode
 from pathpref.experiments.store import row_spec
+from tests.close import REL, REL_PHYSICS, assert_same
 
 SAVED = "tests/data/saved_sweep.sqlite"
 OUTCOME = ("goal_reached", "pref_followed", "success", "steps", "inputs", "violations",
@@ -61,13 +64,16 @@ def _replay(row, steps):
         assert {k: got[k] for k in PLANNER_FREE} == {k: row[k] for k in PLANNER_FREE}
         return
     assert got == {k: row[k] for k in OUTCOME}, row["key"]
-    assert res.metrics == json.loads(row["metrics"]), row["key"]
+    assert_same(res.metrics, json.loads(row["metrics"]), row["key"],
+                rel=REL_PHYSICS if row["sim"] == "mujoco" else REL)
     log = [(s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
            for s in res.log]
-    assert log == steps[row["key"]], row["key"]
+    assert [r[:5] for r in log] == [r[:5] for r in steps[row["key"]]], row["key"]
+    assert_same(log, steps[row["key"]], row["key"])
 
 
-def test_saved_grid_sweep_replays_bit_for_bit(tmp_path):
+@pytest.mark.cross_cpu
+def test_saved_grid_sweep_replays_exactly(tmp_path):
     eps, steps = _rows(tmp_path)
     grid = [r for r in eps if r["sim"] == "grid"]
     assert len(grid) == 36 and {r["preset"] for r in grid} == {"paper", "robust"}
@@ -76,7 +82,8 @@ def test_saved_grid_sweep_replays_bit_for_bit(tmp_path):
         _replay(row, steps)
 
 
-def test_saved_physics_episodes_replay_bit_for_bit(tmp_path):
+@pytest.mark.cross_cpu
+def test_saved_physics_episodes_replay_exactly(tmp_path):
     eps, steps = _rows(tmp_path)
     phys = [r for r in eps if r["sim"] == "mujoco"]
     assert sorted(r["task"] for r in phys) == ["carry", "navigate", "navigate"]

@@ -8,9 +8,9 @@ independent of every other ``p_u`` (paper Fig. 3). With a uniform, independent p
 
 where ``L_v(g, k)`` is the product of the likelihoods of the observations made while in ``v``.
 :class:`PreferenceBelief` keeps one ``|Omega_g| x deg(v)`` table ``T_v`` per visited polytope
-(scaled by a per-table constant, which cancels) and the per-goal sum ``lw(g) = sum_v log r_v(g)``
-of log row means ``r_v(g) = mean_k T_v(g, k)``. The goal marginal is
-``P(g) ~ P0(g) exp(lw(g))``; an update touches one table and one entry of ``lw`` per goal, so it
+(each row scaled to a largest entry of 1, its scale kept in ``log_scale``) and the per-goal
+sum ``lw(g) = sum_v log r_v(g)`` of log row means ``r_v(g) = mean_k T_v(g, k)``. The goal
+marginal is ``P(g) ~ P0(g) exp(lw(g))``; an update touches one table and one entry of ``lw`` per goal, so it
 costs ``O(|Omega_g| deg(v))`` whatever the number of polytopes.
 
 :class:`GoalBelief` is the goal-only baseline (Best and Fitch): a vector over goals updated with
@@ -26,6 +26,10 @@ import numpy as np
 from .human import ObservationModel
 
 COUPLING_FLOOR = 1e-6
+#: the smallest weight of an exit relative to the likeliest exit of its polytope (see
+#: :meth:`PreferenceBelief._multiply`): far below any probability an episode can resolve,
+#: far above the smallest double, so products of a few such weights stay representable
+ROW_FLOOR = 1e-280
 
 
 def entropy(p: np.ndarray) -> float:
@@ -130,6 +134,7 @@ class PreferenceBelief(Belief):
         with np.errstate(divide="ignore"):  # a zero prior is log 0 = -inf: ruled out
             self.log_prior = np.log(p0)
         self.tables: dict[int, np.ndarray] = {}
+        self.log_scale: dict[int, np.ndarray] = {}  # per table row, see _multiply
         self.log_rowmean = np.zeros(G)  # sum over visited v of log r_v(g)
         self.ruled_out = np.zeros(G, dtype=bool)
         self.coupling = coupling
@@ -140,15 +145,28 @@ class PreferenceBelief(Belief):
         t = self.tables.get(v)
         if t is None:
             t = self.tables[v] = np.ones((len(self.log_prior), self.degree[v]))
+            self.log_scale[v] = np.zeros(len(self.log_prior))
         return t
 
     def _multiply(self, v: int, factor: np.ndarray) -> None:
-        """``T_v *= factor`` (broadcast to ``(G, deg)``), keeping ``log_rowmean`` in step."""
+        """``T_v *= factor`` (broadcast to ``(G, deg)``), keeping ``log_rowmean`` in step.
+
+        Each row is kept with its largest entry 1 and its scale in ``log_scale[v]``
+        (``T_v(g, .) = t[g, .] exp(log_scale[v][g])``), so no row underflows to all zeros
+        (a 0/0 in the normalised tables) however many observations it holds; an entry is
+        floored at :data:`ROW_FLOOR` of its row's largest (the posterior is exact while no exit
+        is that much less likely than another given one goal; beyond, those exits keep that
+        relative weight instead of underflowing to an impossible 0)."""
         t = self._table(v)
         old = np.log(t.mean(axis=1))
         t *= factor
-        t /= t.max()
-        self.log_rowmean += np.log(t.mean(axis=1)) - old
+        with np.errstate(divide="ignore"):
+            self.log_rowmean += np.log(t.mean(axis=1)) - old
+            top = t.max(axis=1)
+            self.log_scale[v] += np.log(top)  # -inf: an impossible observation for that goal
+        t /= np.where(top > 0, top, 1.0)[:, None]
+        t[top <= 0] = 1.0  # its shape no longer matters: the goal's weight is 0
+        np.maximum(t, ROW_FLOOR, out=t)
 
     def update(self, cell: int, heading: int, weight: float = 1.0) -> None:
         """Condition on the heading ``heading`` (0..7) given at free cell ``cell``

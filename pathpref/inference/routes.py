@@ -35,6 +35,24 @@ transition rows are the per-polytope tables the independent belief keeps
 (:meth:`PreferenceBelief.local_given_goal`), so the planners sample trees with no extra
 state (:mod:`pathpref.planning.guided`). A mutual preference is a 2-cycle, so this prior also
 forbids what the paper's coupling heuristic discourages, exactly and with no order dependence.
+
+**Stable arithmetic.** Evidence in two neighbouring polytopes pointing at each other makes
+``~L_g`` nearly singular, and its LU then returns noise (a ``det`` near the rounding error, and
+marginals by cancellation, 0/0). Only observed polytopes have non-uniform weights, so ``r``'s
+component is split into the observed set ``S`` and the rest ``U``::
+
+    det ~L_g = det L_UU * det(L_UU's Schur complement on S),
+
+``L_UU`` the uniform-weight block (well conditioned; an LU, cached per ``(r, S)`` since the
+evidence does not enter it) and the Schur complement the Laplacian of the walk watched on
+``S`` (weights ``W(x, y)`` to ``S`` and ``r`` plus ``W(x, u) H(u, .)`` through unobserved
+``u``, ``H = L_UU^-1 B`` the first-entry distribution), whose determinant and absorption
+probabilities the GTH elimination of :mod:`.chains` computes with no subtraction. The
+marginal is ``P(p_v = u | g, o) = W(v, u) q_u / sum_w W(v, w) q_w`` with ``q_u = P_u(reach r
+before v)`` (the same quantity as ``[~L^-1]_vv - [~L^-1]_uv`` up to a factor, without the
+cancellation); an unobserved ``v`` joins ``S`` for the query. Every row of ``T_v`` is kept
+with its largest entry 1 and its scale apart (:meth:`.PreferenceBelief._multiply`), so no
+weight underflows.
 """
 
 from __future__ import annotations
@@ -47,9 +65,10 @@ from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
 from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
+from .chains import chain_rows, exit_probabilities, gth_logdet
 from .human import ObservationModel
 
-#: minors up to this many rows are factorised densely (:meth:`_Minor.factor`)
+#: unobserved blocks up to this many rows are factorised densely (:func:`_factor`)
 DENSE_MAX = 400
 
 
@@ -75,8 +94,13 @@ class RouteBelief(PreferenceBelief):
     """Exact posterior over ``(g, theta)`` under the route prior (module docstring).
 
     Keeps the independent belief's per-polytope likelihood tables ``T_v`` (its updates are
-    inherited unchanged) and computes the goal marginal and the preference marginals from them
-    with one ``|A| x |A|`` determinant and inverse per goal, cached until the next update.
+    inherited unchanged) and computes the goal marginal and the preference marginals from them,
+    per goal ``g`` with polytope ``r``, by splitting ``r``'s component (without ``r``) into the
+    observed polytopes ``S`` and the unobserved ones ``U`` (module docstring, "Stable
+    arithmetic"): ``det ~L_g = det L_UU * det(L_S^chain)``, the first from an LU of the
+    uniform-weight block ``L_UU`` (cached per ``(r, S)``: it changes only when a new polytope
+    is observed), the second and every marginal of an observed polytope by the GTH
+    elimination of :mod:`.chains` on ``S``. Cached until the next update.
 
     Args:
         model: likelihood tables for the world and goal set.
@@ -89,98 +113,170 @@ class RouteBelief(PreferenceBelief):
         super().__init__(model, prior=prior, coupling=False)
         self.component = components(self.neighbors)
         self.goal_polytope = model.world.cell_polytope[model.goals].astype(np.int64)
-        P, K = len(self.neighbors), int(self.degree.max())
-        self._slots = np.zeros((P, K), dtype=bool)  # slot k of v holds a neighbour
-        for v, nb in enumerate(self.neighbors):
-            self._slots[v, : len(nb)] = True
         self._minors = {int(r): _Minor(self.neighbors, self.component, int(r))
                         for r in np.unique(self.goal_polytope)}
-        self._cache: tuple[np.ndarray, list] | None = None
+        self._splits: dict[tuple, _Split] = {}
+        self._cache: list | None = None
         # log det ~L_g(1): the number of arborescences, the prior's normaliser
-        ones = self._slots.astype(float)
-        self._log_trees = np.array([self._minors[int(r)].factor(ones)[0]
+        self._log_trees = np.array([self._split(int(r), ()).logdet_u
                                     for r in self.goal_polytope])
 
     def _multiply(self, v: int, factor: np.ndarray) -> None:
         super()._multiply(v, factor)
         self._cache = None
 
-    def _weights_all(self) -> np.ndarray:
-        """``(G, P, K)`` weights ``W_g(v, N(v)[k])``: the table rows of observed polytopes
-        (scaled by a constant per polytope, which cancels), 1 elsewhere, 0 in empty slots."""
-        G = len(self.log_prior)
-        W = np.broadcast_to(self._slots.astype(float), (G, *self._slots.shape)).copy()
-        for v, t in self.tables.items():
-            W[:, v, : len(self.neighbors[v])] = t[:, : len(self.neighbors[v])]
-        return W
+    def _split(self, r: int, S: tuple) -> _Split:
+        """The unobserved block of ``r``'s minor for observed set ``S`` (cached; the oldest of
+        more than 64 is dropped)."""
+        key = (r, S)
+        sp_ = self._splits.get(key)
+        if sp_ is None:
+            if len(self._splits) >= 64:
+                self._splits.pop(next(iter(self._splits)))
+            sp_ = self._splits[key] = _Split(self._minors[r], self.neighbors, S)
+        return sp_
 
-    def _solved(self) -> tuple[np.ndarray, list]:
-        """Per goal: ``log P(o | g)`` up to a constant, and the minor's factorisation
-        (:class:`_Minor`), None where every tree has weight 0."""
+    def observed_chain(self, g: int, extra: int = -1) -> _Chain:
+        """Goal ``g``'s chain on its observed polytopes (plus ``extra``, unobserved, with
+        uniform weights, when given): the states, their slot weights and heads."""
+        r = int(self.goal_polytope[g])
+        minor = self._minors[r]
+        obs = [v for v in self.tables if minor.index[v] >= 0]
+        if extra >= 0:
+            obs.append(int(extra))
+        S = tuple(sorted(obs))
+        split = self._split(r, S)
+        k = len(S)
+        K = int(self.degree.max())
+        slot_w = np.zeros((k, K))
+        for i, v in enumerate(S):
+            deg = len(self.neighbors[v])
+            t = self.tables.get(v)
+            slot_w[i, :deg] = 1.0 if t is None else t[g, :deg]
+        return _Chain(S, split, slot_w)
+
+    def _solved(self) -> list:
+        """Per goal: ``(log P(o | g)`` up to a constant, its :class:`_Chain`)."""
         if self._cache is None:
-            W = self._weights_all()
             G = len(self.log_prior)
-            loglik = np.zeros(G)
-            lus = []
-            obs = np.fromiter(self.tables, dtype=np.int64, count=len(self.tables))
+            out = []
             for g in range(G):
                 minor = self._minors[int(self.goal_polytope[g])]
-                logdet, lu = minor.factor(W[g])
-                ll = logdet - self._log_trees[g]
-                # the root and polytopes outside its component keep the independent prior
-                free = obs[minor.index[obs] < 0]
-                for v in free.tolist():
-                    ll += np.log(self.tables[v][g].mean())
-                loglik[g] = ll
-                lus.append(lu)
-            self._cache = (loglik, lus)
+                chain = self.observed_chain(g)
+                ll = chain.split.logdet_u + gth_logdet(chain.rows()) - self._log_trees[g]
+                for v, t in self.tables.items():
+                    ls = self.log_scale[v][g]  # each row's scale (PreferenceBelief._multiply)
+                    # the root and polytopes outside its component keep the independent prior
+                    ll += ls if minor.index[v] >= 0 else ls + np.log(t[g].mean())
+                out.append((ll, chain))
+            self._cache = out
         return self._cache
 
     def goal_log_weights(self) -> np.ndarray:
         """``log P0(g) + log P(o | g)`` (unnormalised), ``-inf`` for ruled-out candidates."""
-        w = self.log_prior + self._solved()[0]
-        return np.where(self.ruled_out, -np.inf, w)
+        w = self.log_prior + np.array([ll for ll, _ in self._solved()])
+        return np.where(self.ruled_out | np.isnan(w), -np.inf, w)
 
     def preference_given_goal(self, v: int) -> np.ndarray:
         """``(G, deg v)`` exact ``P(p_v = N(v)[k] | g, o_1:t)`` under the route prior (uniform
         outside the goal's component; the goal's own polytope has no preferred exit, shown as
-        uniform). Column ``i`` of ``~L_g^-1`` is one solve with the cached factorisation."""
+        uniform): ``W(v, u) q_u`` normalised, ``q_u = P_u(reach r before v)`` computed without
+        cancellation (:func:`.chains.exit_probabilities`)."""
         nb = self.neighbors[v]
         deg = len(nb)
         out = np.full((len(self.log_prior), self.degree[v]), 1.0 / self.degree[v])
         if deg == 0:
             return out
-        for g, lu in enumerate(self._solved()[1]):
+        for g, (ll, chain) in enumerate(self._solved()):
             minor = self._minors[int(self.goal_polytope[g])]
-            i = minor.index[v]
-            if v == minor.root:
-                continue  # no preferred exit at the goal
-            if i < 0:  # outside the goal's component: the independent posterior
+            if v == minor.root or not np.isfinite(ll):
+                continue  # no preferred exit at the goal; no tree for an impossible goal
+            if minor.index[v] < 0:  # outside the goal's component: the independent posterior
                 out[g, :deg] = self.local_given_goal(v)[g, :deg]
                 continue
-            if lu is None:
-                continue  # no tree for an impossible goal
-            e = np.zeros(minor.n)
-            e[i] = 1.0
-            col = lu.solve(e)  # column i of ~L_g^-1
-            j = minor.index[nb]
-            p = np.maximum(self._weights(g, v) * (col[i] - np.where(j >= 0, col[j], 0.0)), 0.0)
-            out[g, :deg] = p / p.sum()
+            if v not in self.tables:
+                chain = self.observed_chain(g, extra=v)
+            i = chain.states.index(v)
+            out[g, :deg] = exit_probabilities(chain.rows(), i, chain.slot_w[i],
+                                              chain.heads[i], deg)[:deg]
         return out
 
-    def _weights(self, g: int, v: int) -> np.ndarray:
-        """``W_g(v, N(v)[k])`` (the table row scaled by a constant, which cancels)."""
-        t = self.tables.get(v)
-        return np.ones(len(self.neighbors[v])) if t is None else t[g, : len(self.neighbors[v])]
+
+class _Chain:
+    """One goal's absorbing chain on its observed polytopes (:mod:`.chains`): ``states`` (the
+    polytopes, sorted), ``slot_w[i, s]`` the weight of state ``i``'s slot ``s``, and
+    ``heads[i, s]`` where the walk first enters ``states`` or ``r`` after taking that slot."""
+
+    def __init__(self, states: tuple, split: _Split, slot_w: np.ndarray):
+        self.states = list(states)
+        self.split = split
+        self.slot_w = slot_w
+        self.heads = split.heads
+        self.n_slots = split.n_slots
+        self._rows = None
+
+    def rows(self) -> np.ndarray:
+        """``(k, k + 1)`` the chain's weights (:func:`.chains.chain_rows`)."""
+        if self._rows is None:
+            self._rows = chain_rows(self.slot_w, self.heads, self.n_slots)
+        return self._rows
+
+
+class _Split:
+    """``r``'s minor split into observed polytopes ``S`` and the rest ``U``: the uniform-weight
+    block ``L_UU`` (every unobserved polytope weighs each neighbour 1), its ``log det`` and the
+    first-entry distributions (harmonic measure) ``H = L_UU^-1 B`` of the walk from each
+    unobserved polytope into ``S`` (columns ``0..k-1``) or ``r`` (column ``k``); ``heads[i,
+    s]``: that distribution for the head of slot ``s`` of ``S[i]`` (a unit vector when the
+    head is in ``S`` or is ``r``)."""
+
+    def __init__(self, minor: _Minor, neighbors: list[np.ndarray], S: tuple):
+        k = len(S)
+        pos = {v: i for i, v in enumerate(S)}
+        members = np.flatnonzero(minor.index >= 0)
+        U = members[~np.isin(members, np.array(S, dtype=np.int64))]
+        n = len(U)
+        u_index = -np.ones(len(neighbors), dtype=np.int64)
+        u_index[U] = np.arange(n)
+        H = np.zeros((n, k + 1))
+        self.logdet_u = 0.0
+        if n:
+            rows, cols, data = [], [], []
+            B = np.zeros((n, k + 1))
+            for a, u in enumerate(U.tolist()):
+                nb = neighbors[u]
+                rows.append(a)
+                cols.append(a)
+                data.append(float(len(nb)))
+                for w in nb.tolist():
+                    if u_index[w] >= 0:
+                        rows.append(a)
+                        cols.append(int(u_index[w]))
+                        data.append(-1.0)
+                    elif w == minor.root:
+                        B[a, k] += 1.0
+                    else:
+                        B[a, pos[w]] += 1.0
+            self.logdet_u, lu = _factor(n, np.array(rows), np.array(cols), np.array(data))
+            if lu is not None and k + 1 > 0:
+                H = np.maximum(lu.solve(B), 0.0)
+        K = max((len(nb) for nb in neighbors), default=1)
+        self.heads = np.zeros((k, max(K, 1), k + 1))
+        self.n_slots = np.zeros(k, dtype=np.int64)
+        for i, v in enumerate(S):
+            nb = neighbors[v]
+            self.n_slots[i] = len(nb)
+            for s, w in enumerate(nb.tolist()):
+                if w == minor.root:
+                    self.heads[i, s, k] = 1.0
+                elif w in pos:
+                    self.heads[i, s, pos[w]] = 1.0
+                else:
+                    self.heads[i, s] = H[u_index[w]]
 
 
 class _Minor:
-    """The sparsity pattern of ``~L`` for one root polytope ``r``: the rows and columns of
-    ``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside), and for every
-    slot ``(v, k)`` of a member the diagonal entry it adds to and the off-diagonal entry it
-    subtracts from (none when ``N(v)[k]`` is the root). :meth:`factor` assembles ``~L(W)``
-    and factorises it (a sparse LU, SuperLU, above :data:`DENSE_MAX` rows, so a map of
-    thousands of polytopes costs what its sparse factor costs, not a dense ``n^3``)."""
+    """``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside)."""
 
     def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int):
         self.root = root
@@ -189,46 +285,27 @@ class _Minor:
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
-        vs, ks, us = [], [], []
-        for v in members.tolist():
-            for k, u in enumerate(neighbors[v]):
-                vs.append(v)
-                ks.append(k)
-                us.append(int(u))
-        self.v, self.k = np.array(vs, dtype=np.int64), np.array(ks, dtype=np.int64)
-        row = self.index[self.v]
-        col = self.index[np.array(us, dtype=np.int64)]
-        off = col >= 0
-        self.off = off
-        self.rows = np.concatenate([row, row[off]])
-        self.cols = np.concatenate([row, col[off]])
 
-    def factor(self, W: np.ndarray):
-        """``(log det ~L(W), its LU)`` for weights ``W[v, k]``; ``(-inf, None)`` when the minor
-        is singular (every tree has weight 0: the observations rule the goal out), ``(0, None)``
-        when the root is its component's only polytope. Dense LAPACK up to
-        :data:`DENSE_MAX` rows (scipy's sparse constructors cost more than the factorisation
-        there), SuperLU above."""
-        if self.n == 0:
-            return 0.0, None
-        w = W[self.v, self.k]
-        data = np.concatenate([w, -w[self.off]])
-        if self.n <= DENSE_MAX:
-            lap = np.bincount(self.rows * self.n + self.cols, weights=data,
-                              minlength=self.n * self.n).reshape(self.n, self.n)
-            lu = _DenseLU(lap)
-            d = np.diagonal(lu.lu)
-        else:
-            lap = sp.csc_matrix((data, (self.rows, self.cols)), shape=(self.n, self.n))
-            try:
-                lu = splu(lap)
-            except RuntimeError:  # exactly singular
-                return -np.inf, None
-            d = lu.U.diagonal()
-        if not np.all(np.isfinite(d)) or np.any(d == 0):
+
+def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
+    """``(log det A, its LU)`` of the ``n x n`` M-matrix ``A`` given by triplets;
+    ``(-inf, None)`` when singular. Dense LAPACK up to :data:`DENSE_MAX` rows (scipy's sparse
+    constructors cost more than the factorisation there), SuperLU above."""
+    if n <= DENSE_MAX:
+        a = np.bincount(rows * n + cols, weights=data, minlength=n * n).reshape(n, n)
+        lu = _DenseLU(a)
+        d = np.diagonal(lu.lu)
+    else:
+        a = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
+        try:
+            lu = splu(a)
+        except RuntimeError:  # exactly singular
             return -np.inf, None
-        # ~L is a non-singular M-matrix here, so det > 0: the sign of the factors is not needed
-        return float(np.sum(np.log(np.abs(d)))), lu
+        d = lu.U.diagonal()
+    if not np.all(np.isfinite(d)) or np.any(d == 0):
+        return -np.inf, None
+    # an M-matrix has det > 0: the sign of the factors is not needed
+    return float(np.sum(np.log(np.abs(d)))), lu
 
 
 class _DenseLU:

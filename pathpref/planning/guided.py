@@ -86,6 +86,7 @@ import time
 import numba as nb
 import numpy as np
 
+from ..inference.chains import draw_observed_exits
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
 EPS_RANDOM = 0.1
@@ -110,7 +111,41 @@ def _theta(v, gi, q, nbr, pref_cdf, theta, stamp):
 
 
 @nb.njit(cache=True)
-def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed):
+def _wilson(nbr, pref_cdf, gi, r, comp, fixed, row, in_tree, walk, budget):
+    """One tree for goal ``gi`` (polytope ``r``) into ``row`` by Wilson's algorithm (see
+    :func:`tree_pool`): the polytopes with ``fixed[v] >= 0`` move by that slot, the others by
+    their rows of ``pref_cdf``. False when the walks took more than ``budget`` steps (``row``
+    is then incomplete)."""
+    P = nbr.shape[0]
+    in_tree[:] = False
+    in_tree[r] = True
+    row[r] = -1
+    steps = 0
+    for v0 in range(P):
+        if in_tree[v0]:
+            continue
+        if comp[v0] != comp[r] or nbr[v0, 0] < 0:
+            row[v0] = sample_slot(v0, gi, nbr, pref_cdf)
+            in_tree[v0] = True
+            continue
+        u = v0
+        while not in_tree[u]:
+            k = fixed[u] if fixed[u] >= 0 else sample_slot(u, gi, nbr, pref_cdf)
+            walk[u] = k
+            u = nbr[u, k]
+            steps += 1
+            if steps > budget:
+                return False
+        u = v0
+        while not in_tree[u]:
+            in_tree[u] = True
+            row[u] = walk[u]
+            u = nbr[u, walk[u]]
+    return True
+
+
+@nb.njit(cache=True)
+def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed, budget):
     """``m`` exact draws of ``(g, theta)`` from the route-prior posterior
     (:mod:`pathpref.inference.routes`): ``g`` from ``goal_cdf``, then ``theta`` by Wilson's
     algorithm, ``pref_cdf[g]`` holding the walk's rows: from each polytope not yet in the tree,
@@ -118,38 +153,65 @@ def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed):
     ``root[g]`` first, with no exit, slot -1). Polytopes outside the goal's component (and
     without neighbours) are drawn independently from their rows.
 
-    Returns ``(goal index (m,), slot of p_v (m, P))``."""
+    **Bounded.** A walk's expected length is the trace of the walk's Green function, which
+    evidence can make astronomical (two polytopes pointing at each other: ``~1/eps`` round
+    trips). A tree whose walks pass ``budget`` steps is abandoned and flagged in ``over``;
+    the caller draws it again by :func:`observed_first_trees`. This keeps the draw exact:
+    the number of steps Wilson's algorithm takes is the total length of the cycles it pops
+    plus one step per polytope, and the popped cycles are independent of the tree it returns
+    (Propp and Wilson 1998, cycle popping), so the tree is independent of the event
+    ``steps > budget``.
+
+    Returns ``(goal index (m,), slot of p_v (m, P), over (m,))``."""
     np.random.seed(seed)
     P = nbr.shape[0]
     goals = np.zeros(m, np.int64)
     slots = np.zeros((m, P), np.int64)
+    over = np.zeros(m, np.bool_)
     in_tree = np.zeros(P, np.bool_)
     walk = np.zeros(P, np.int64)
+    free = -np.ones(P, np.int64)
     for j in range(m):
         gi = sample_index(goal_cdf)
         goals[j] = gi
-        r = root[gi]
-        in_tree[:] = False
-        in_tree[r] = True
-        slots[j, r] = -1
-        for v0 in range(P):
-            if in_tree[v0]:
-                continue
-            if comp[v0] != comp[r] or nbr[v0, 0] < 0:
-                slots[j, v0] = sample_slot(v0, gi, nbr, pref_cdf)
-                in_tree[v0] = True
-                continue
-            u = v0
-            while not in_tree[u]:
-                k = sample_slot(u, gi, nbr, pref_cdf)
-                walk[u] = k
-                u = nbr[u, k]
-            u = v0
-            while not in_tree[u]:
-                in_tree[u] = True
-                slots[j, u] = walk[u]
-                u = nbr[u, walk[u]]
-    return goals, slots
+        over[j] = not _wilson(nbr, pref_cdf, gi, root[gi], comp, free, slots[j], in_tree, walk,
+                              budget)
+    return goals, slots, over
+
+
+@nb.njit(cache=True)
+def observed_first_trees(nbr, pref_cdf, goals, root, comp, states, n_states, slot_w, heads,
+                         n_slots, seed, budget, tries):
+    """One exact tree per entry of ``goals`` whatever the evidence: the observed polytopes'
+    exits first, jointly, from their exact conditionals
+    (:func:`pathpref.inference.chains.draw_observed_exits` on goal ``g``'s chain: ``states[g,
+    :n_states[g]]``, ``slot_w[g]``, ``heads[g]``, ``n_slots[g]``), then Wilson's walk over the
+    unobserved polytopes, whose rows are uniform, with the observed ones moving by their drawn
+    exits. A walk stage that passes ``budget`` steps is drawn again (exact given the observed
+    exits, by the argument of :func:`tree_pool`), at most ``tries`` times.
+
+    Returns ``(slots (n, P), ok (n,))``."""
+    np.random.seed(seed)
+    P = nbr.shape[0]
+    n = goals.shape[0]
+    slots = np.zeros((n, P), np.int64)
+    ok = np.zeros(n, np.bool_)
+    in_tree = np.zeros(P, np.bool_)
+    walk = np.zeros(P, np.int64)
+    fixed = -np.ones(P, np.int64)
+    for j in range(n):
+        g = goals[j]
+        k = n_states[g]
+        fixed[:] = -1
+        exits = draw_observed_exits(slot_w[g, :k], heads[g, :k, :, : k + 1], n_slots[g, :k])
+        for i in range(k):
+            fixed[states[g, i]] = exits[i]
+        for _ in range(tries):
+            if _wilson(nbr, pref_cdf, g, root[g], comp, fixed, slots[j], in_tree, walk,
+                       budget):
+                ok[j] = True
+                break
+    return slots, ok
 
 
 @nb.njit(cache=True, inline="always")

@@ -23,12 +23,12 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, EpisodeError
 from ..geometry.world import World
 from ..inference.belief import Belief
 from ..inference.costs import CostTables
 from ..inference.routes import components
-from .guided import rollout_moves, search_robust, tree_pool
+from .guided import observed_first_trees, rollout_moves, search_robust, tree_pool
 from .pomdp import Rewards
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
@@ -37,6 +37,13 @@ from .tree import best_root_action, init_node, new_tree, sample_index, sample_sl
 #: polytope to the goal's on a map of long loops), and success did not change within the
 #: intervals (README, "The robust preset")
 TREE_POOL = 128
+#: a tree's Wilson walks may take ``WALK_STEPS_PER_POLYTOPE * P + WALK_STEPS_MIN`` steps before
+#: it is drawn observed exits first instead (:func:`.guided.tree_pool`; the walk with no
+#: evidence takes about ``2 P`` steps on ``classroom``)
+WALK_STEPS_PER_POLYTOPE = 64
+WALK_STEPS_MIN = 4096
+#: walk stages over the unobserved polytopes (uniform rows) tried per tree before giving up
+WALK_TRIES = 16
 #: robust search: root moves within this many standard errors of the best mean return count
 #: as tied, and the rollout heuristic picks among them (:func:`.guided._root_choice`)
 TIE_Z = 1.0
@@ -248,8 +255,42 @@ class POMCP:
         then draws ``g`` and each ``p_v`` lazily, independently)."""
         if not (self.rewards.use_preference and getattr(belief, "route_prior", False)):
             return np.zeros(0, np.int64), np.zeros((0, len(self.nbr)), np.int64)
-        return tree_pool(self.nbr, cdf, goal_cdf, self.goal_poly, self.component,
-                         min(TREE_POOL, self.queries), (int(seed) + 1) % (2**32))
+        budget = WALK_STEPS_PER_POLYTOPE * len(self.nbr) + WALK_STEPS_MIN
+        goals, slots, over = tree_pool(self.nbr, cdf, goal_cdf, self.goal_poly, self.component,
+                                       min(TREE_POOL, self.queries), (int(seed) + 1) % (2**32),
+                                       budget)
+        if over.any():
+            slots[over] = self._observed_first(belief, goals[over], cdf, seed, budget)
+        return goals, slots
+
+    def _observed_first(self, belief, goals: np.ndarray, cdf: np.ndarray, seed: int,
+                        budget: int) -> np.ndarray:
+        """Trees for ``goals`` drawn observed exits first (:func:`~.guided.observed_first_trees`),
+        for the draws whose walks passed their budget in :func:`~.guided.tree_pool`."""
+        chains = {int(g): belief.observed_chain(int(g)) for g in np.unique(goals)}
+        G, P = len(self.goal_cells), len(self.nbr)
+        kmax = max(1, max(len(c.states) for c in chains.values()))
+        K = self.nbr.shape[1]
+        states = np.zeros((G, kmax), np.int64)
+        n_states = np.zeros(G, np.int64)
+        slot_w = np.zeros((G, kmax, K))
+        heads = np.zeros((G, kmax, K, kmax + 1))
+        n_slots = np.zeros((G, kmax), np.int64)
+        for g, c in chains.items():
+            k = len(c.states)
+            n_states[g] = k
+            states[g, :k] = c.states
+            slot_w[g, :k, : c.slot_w.shape[1]] = c.slot_w
+            heads[g, :k, : c.heads.shape[1], : k + 1] = c.heads
+            n_slots[g, :k] = c.n_slots
+        slots, ok = observed_first_trees(self.nbr, cdf, goals, self.goal_poly, self.component,
+                                         states, n_states, slot_w, heads, n_slots,
+                                         (int(seed) + 2) % (2**32), budget, WALK_TRIES)
+        if not ok.all():
+            raise EpisodeError(
+                f"the route sampler's walk over the unobserved polytopes passed {budget} steps "
+                f"{WALK_TRIES} times for {int((~ok).sum())} of {len(ok)} trees (P = {P})")
+        return slots
 
     def _known(self, belief: Belief) -> np.ndarray:
         """``(P,)`` True for the polytopes with at least one observation in ``belief``."""
