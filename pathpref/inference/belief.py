@@ -10,8 +10,8 @@ where ``L_v(g, k)`` is the product of the likelihoods of the observations made w
 :class:`PreferenceBelief` keeps one ``|Omega_g| x deg(v)`` table ``T_v`` per visited polytope
 (each row scaled to a largest entry of 1, its scale kept in ``log_scale``) and the per-goal
 sum ``lw(g) = sum_v log r_v(g)`` of log row means ``r_v(g) = mean_k T_v(g, k)``. The goal
-marginal is ``P(g) ~ P0(g) exp(lw(g))``; an update touches one table and one entry of ``lw`` per goal, so it
-costs ``O(|Omega_g| deg(v))`` whatever the number of polytopes.
+marginal is ``P(g) ~ P0(g) exp(lw(g))``; an update touches one table and one entry of ``lw`` per
+goal, so it costs ``O(|Omega_g| deg(v))`` whatever the number of polytopes.
 
 :class:`GoalBelief` is the goal-only baseline (Best and Fitch): a vector over goals updated with
 the unconstrained likelihood.
