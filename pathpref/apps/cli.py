@@ -99,7 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "query count only)")
         sp.add_argument("--human", choices=["map", "consistent"], default="map",
                         help="the human's preference: the map's (the paper's protocol, "
-                        "default) or consistent with its goal (goals the preference leads to)")
+                        "default) or consistent with its goal (goals the preference leads "
+                        "to; every polytope's preference then leads to the goal)")
         sp.add_argument("--queries", action=RangeAction, limits="queries", default=None,
                         help="POMCP queries per decision (default: the preset's, 5000)")
         sp.add_argument("--t-max", action=RangeAction, limits="t_max", default=None,

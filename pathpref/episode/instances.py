@@ -5,10 +5,25 @@ from the free cells other than the start that the start can reach, restricted to
 ``goal_band`` when it has one (office: x in 2..10, y in 8..9). True goal: uniform among the
 candidates (the paper's protocol, ``human="map"``).
 
-With ``human="consistent"`` the true goal is drawn uniformly among the candidates that the
-map's preference leads to: those reachable from the start within ``t_max`` by a path that
-leaves every polytope ``v`` only toward ``p_v``
-(:func:`~pathpref.geometry.following.preference_following_distance`).
+With ``human="consistent"`` the human's preference depends on the goal: the map's preference
+completed into an in-arborescence rooted at the goal's polytope ``r``
+(:func:`~pathpref.geometry.following.consistent_preference`): ``q = p`` wherever following the
+map's preference reaches ``r``; ``q_r = -1``; every other polytope of ``r``'s component (a
+route's end, polytopes past the goal or on loops that miss it) takes the first move of the path
+to ``r`` with the fewest departures from the map's preference, then the fewest polytope changes
+(ties: the map's exit, then the lowest index). Following ``q`` from anywhere in the component
+reaches ``r`` with no cycle: ``q`` lies in the support of the robust preset's route prior, and
+the human, the ``oracle`` and the success rule all use this one ``q``. (The map's preference
+with the goal-only push in a route's end sent the human out of the end into polytopes pointing
+back along the route: back-and-forth pushes, mutual evidence in the belief.)
+
+The true goal is drawn uniformly among the candidates ``g`` that the map's preference leads to
+from the start and that ``q`` reaches in time::
+
+    departures_g(v(start)) = 0   and   F_q(start, g) <= t_max
+
+with ``F_q`` the length of the shortest path that leaves each polytope ``v`` only toward ``q_v``
+(:func:`~pathpref.geometry.following.preference_following_distance`; the oracle's path).
 A human never prefers a route that cannot reach where they want to go; under the paper's draw
 such instances exist (on ``classroom`` the clockwise loop misses the goal's polytope in about
 40% of instances) and no method can succeed on them. When no candidate qualifies, the start and
@@ -23,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError, MapError
-from ..geometry.following import preference_following_distance
+from ..geometry.following import consistent_preference, preference_following_distance
 from ..geometry.world import World
 
 #: how the human's preference relates to its goal (see module docstring)
@@ -78,7 +93,7 @@ def sample_instance(world: World, seed: int, n_goals: int = 10,
             goals = tuple(int(g) for g in rng.choice(pool, size=n_goals, replace=False))
             if not consistent:
                 return Instance(start, goals, int(rng.integers(n_goals)))
-            ok = np.flatnonzero([_following(world, g)[start] <= t_max for g in goals])
+            ok = np.flatnonzero([consistent_reach(world, g, start) <= t_max for g in goals])
             if len(ok):
                 return Instance(start, goals, int(ok[rng.integers(len(ok))]))
     if consistent:
@@ -96,8 +111,14 @@ def too_few_candidates(name: str, n_goals: int, free_cells: int) -> ConfigError:
     )
 
 
-def _following(world: World, goal: int) -> np.ndarray:
-    return preference_following_distance(world, world.require_preference(), goal)
+def consistent_reach(world: World, goal: int, start: int) -> float:
+    """The consistent human's route length from ``start`` to ``goal`` (the oracle's path, see
+    module docstring); inf when the map's preference does not lead there from the start."""
+    q, departures = consistent_preference(world, world.require_preference(),
+                                          int(world.cell_polytope[goal]))
+    if departures[world.cell_polytope[start]] != 0:
+        return float("inf")
+    return float(preference_following_distance(world, q, goal)[start])
 
 
 def fixed_instance(world: World, start: tuple[int, int], goals: list[tuple[int, int]],
@@ -129,9 +150,16 @@ def episode_instance(world: World, fixed: str, instance_seed: int, n_goals: int,
                            t_max=t_max), False
 
 
-def human_preference(world: World, inst: Instance, free_goal_polytope: bool) -> np.ndarray:
-    """The simulated human's preference per polytope: the map's, with none (-1) in the goal's
-    polytope when ``free_goal_polytope``."""
+def human_preference(world: World, inst: Instance, free_goal_polytope: bool,
+                     human: str = "map") -> np.ndarray:
+    """The simulated human's preference per polytope. ``human="map"`` (the paper's protocol):
+    the map's, with none (-1) in the goal's polytope when ``free_goal_polytope``.
+    ``human="consistent"``: the map's completed into an in-arborescence rooted at the goal's
+    polytope (module docstring; the goal's polytope has none, so ``free_goal_polytope`` holds
+    already)."""
+    if human == "consistent":
+        return consistent_preference(world, world.require_preference(),
+                                     int(world.cell_polytope[inst.goal_cell]))[0]
     pref = world.require_preference().copy()
     if free_goal_polytope:
         pref[world.cell_polytope[inst.goal_cell]] = -1

@@ -80,8 +80,10 @@ class EpisodeRunner:
         self._log(STAY, -1)
 
     def _preference(self, free_goal: bool) -> np.ndarray:
-        """The human's preference per polytope (the map's; see ``human_preference``)."""
-        return human_preference(self.world, self.instance, free_goal)
+        """The human's preference per polytope (the map's, or the consistent human's completion
+        of it for this goal; see ``human_preference``). The human pushes along it, the oracle
+        follows it and the success rule judges against it."""
+        return human_preference(self.world, self.instance, free_goal, self.spec.human)
 
     def begin(self) -> None:
         """The human's input before step 1 (when due); :meth:`step` calls it if needed."""

@@ -109,7 +109,8 @@ class EpisodeSpec:
     #: robust search's wall-time budget per decision (0: the query count only)
     time_budget_ms: float = 0.0
     #: the human's preference: "map" (the map's, the paper's protocol) or "consistent" (the
-    #: true goal is drawn among candidates the map's preference leads to; see instances.py)
+    #: true goal is drawn among candidates the map's preference leads to, and the human's
+    #: preference is the map's completed into routes that all lead to the goal; instances.py)
     human: str = "map"
     #: the physical parameters of a MuJoCo episode: canonical JSON of :class:`.physics.Physics`,
     #: or "" for the legacy physics of rows written before the field (left out of the key then,

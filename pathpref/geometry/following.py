@@ -1,8 +1,10 @@
 """Paths that follow a preference: the shortest route to a goal that leaves each polytope ``v``
-only toward its preferred neighbour ``p_v`` (any way out of a polytope without one).
+only toward its preferred neighbour ``p_v`` (any way out of a polytope without one), and the
+consistent human's preference for a goal (the map's, completed into a tree of routes that all
+lead to the goal's polytope: :func:`consistent_preference`).
 
 Used by the ``oracle`` reference method (it follows this path) and by the ``consistent`` human
-of the instance sampler (a goal the preference can lead to).
+of the instance sampler (a goal the preference can lead to, and the preference it pushes along).
 """
 
 from __future__ import annotations
@@ -26,3 +28,70 @@ def preference_following_distance(world: World, pref: np.ndarray, goal: int) -> 
     # reversed graph: an edge t -> s for every allowed move s -> t, so one search from the goal
     rev = csr_matrix((m.cost.ravel()[ok], (dst[ok], src[ok])), shape=(n, n))
     return dijkstra(rev, directed=True, indices=goal)
+
+
+def consistent_preference(world: World, pref: np.ndarray, goal_polytope: int
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """The consistent human's preference for a goal in polytope ``r = goal_polytope``: the
+    map's preference ``p`` completed into an in-arborescence rooted at ``r``, and the number of
+    departures from ``p`` each polytope needs to reach ``r``.
+
+    Returns ``(q, departures)``: ``q`` per polytope (a neighbour, or -1), ``departures`` per
+    polytope (``inf`` outside ``r``'s component ``A`` of the polytope graph).
+
+    The rule. A move ``v -> u`` between neighbours ``u in N(v)`` departs from the map's
+    preference when ``p_v >= 0`` and ``u != p_v`` (a polytope without a preference, ``p_v = -1``,
+    such as the end of an open route, accepts every exit). Each polytope gets the lexicographic
+    cost of its best polytope path ``v = x_0, x_1, ..., x_m = r``::
+
+        kappa(v) = min_path ( sum_i [x_i -> x_{i+1} departs],  m )   (departures, then hops)
+
+    (one Dijkstra from ``r`` over the polytope graph, with integer weights
+    ``P * [departs] + 1`` so the order is exact), and then::
+
+        q_r = -1
+        q_v = p_v                                          if kappa(p_v) + c(v, p_v) = kappa(v)
+        q_v = min { u in N(v) : kappa(u) + c(v, u) = kappa(v) }      otherwise, for v in A \\ {r}
+        q_v = p_v                                          for v outside A
+
+    with ``c(v, u) = ([v -> u departs], 1)``: every polytope takes the first move of a best path,
+    the map's exit whenever it is one, else the lowest-numbered neighbour that is.
+
+    Why. The hop count strictly decreases along ``q``, so following ``q`` from any polytope of
+    ``A`` reaches ``r`` with no cycle, and ``r`` has no exit: ``q`` lies in the support of the
+    route prior (:mod:`pathpref.inference.routes`), so it holds no mutual pair and the human
+    never pushes the robot back along its own route. Where the map's preference leads to
+    ``r`` (its walk ``v, p_v, p_{p_v}, ...`` reaches ``r``) that walk is the only path with no
+    departure, so ``q = p`` there: the human keeps the map's route. A route's end (``p = -1``),
+    the polytopes past the goal and those on loops that miss it get one exit each, the one that
+    leaves the map's route least (then by the fewest polytope changes), instead of the
+    goal-only push that led out of the route's end into polytopes pointing back along it.
+    ``departures[v] = 0`` exactly when some path from ``v`` to ``r`` leaves every polytope
+    toward ``p_v`` or anywhere where ``p_v = -1``: the map's preference leads from ``v`` to the
+    goal, and ``q`` then takes such a path. Integers only: the same ``q`` on every machine.
+    """
+    P = world.n_polytopes
+    r = int(goal_polytope)
+    pref = np.asarray(pref, dtype=np.int64)
+    nbr = world.graph.neighbors
+    deg = np.array([len(nb) for nb in nbr], dtype=np.int64)
+    src = np.repeat(np.arange(P, dtype=np.int64), deg)
+    dst = (np.concatenate([np.asarray(nb, dtype=np.int64) for nb in nbr]) if deg.sum()
+           else np.zeros(0, dtype=np.int64))
+    departs = (pref[src] >= 0) & (pref[src] != dst)
+    w = np.where(departs, float(P), 0.0) + 1.0  # hops < P: departures first, then hops
+    # reversed graph (an edge u -> v for each move v -> u), one search from r
+    rev = csr_matrix((w, (dst, src)), shape=(P, P))
+    key = dijkstra(rev, directed=True, indices=r)
+    tight = np.isfinite(key[src]) & (src != r) & (key[dst] + w == key[src])
+    rank = np.where(dst == pref[src], -1, dst)  # the map's exit first, then the lowest index
+    best = np.full(P, P, dtype=np.int64)
+    np.minimum.at(best, src[tight], rank[tight])
+    q = pref.copy()
+    chosen = best < P
+    q[chosen] = np.where(best[chosen] < 0, pref[chosen], best[chosen])
+    q[r] = -1
+    departures = np.full(P, np.inf)
+    reach = np.isfinite(key)
+    departures[reach] = key[reach].astype(np.int64) // P
+    return q, departures
