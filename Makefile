@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install test demo lint bench mutation clean
+.PHONY: install test test-cross-cpu demo lint bench mutation clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -23,6 +23,15 @@ install: $(STAMP)
 test: $(STAMP)
 	MUJOCO_GL=egl $(BIN)/python -m pytest
 
+# The replays and pinned decisions (marker cross_cpu) once more under another CPU feature set:
+# NumPy at its x86-64-v2 baseline (no AVX2/AVX-512 kernels), OpenBLAS's Sandy Bridge kernels
+# (AVX, no FMA), numba compiled for a generic x86-64 with its own cache. On any x86-64 machine
+# with AVX2 this differs from the first run's kernels (README, "Replays exactly").
+CROSS_CPU_ENV = NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL AVX512_SPR" \
+	OPENBLAS_CORETYPE=Sandybridge NUMBA_CPU_NAME=generic NUMBA_CACHE_DIR=$(CURDIR)/.numba-generic
+test-cross-cpu: $(STAMP)
+	$(CROSS_CPU_ENV) MUJOCO_GL=egl $(BIN)/python -m pytest -m cross_cpu -p no:cacheprovider
+
 lint: $(STAMP)
 	$(BIN)/ruff check pathpref tasks tests scripts
 
@@ -38,4 +47,4 @@ bench: $(STAMP)
 	$(BIN)/python scripts/bench.py
 
 clean:
-	rm -rf $(VENV) out build *.egg-info mutants
+	rm -rf $(VENV) out build *.egg-info mutants .numba-generic

@@ -3,8 +3,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from scipy.sparse.csgraph import shortest_path
@@ -211,10 +209,10 @@ def test_time_budget_stops_the_search(simple):
     planner = POMCP(simple, np.array([goal]), ROBUST.goal_only.for_mission(30),
                     queries=2_000_000, tables=model.tables, budget_ms=5.0)
     planner.search(simple.cell((1, 1)), GoalBelief(model), 30, 0)  # compile
-    t0 = time.perf_counter()
     res = planner.search(simple.cell((1, 1)), GoalBelief(model), 30, 1)
-    assert time.perf_counter() - t0 < 0.5
-    assert 32 <= res.queries < 2_000_000
+    # 2 million queries take seconds; 5 ms of wall time allows a few thousand, fewer when the
+    # machine is loaded (the count, not a wall time, is what is asserted)
+    assert 32 <= res.queries < 200_000
 
 
 @pytest.mark.parametrize("map_name", ["simple", "office", "classroom"])
