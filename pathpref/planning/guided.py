@@ -155,12 +155,14 @@ def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed, budget):
 
     **Bounded.** A walk's expected length is the trace of the walk's Green function, which
     evidence can make astronomical (two polytopes pointing at each other: ``~1/eps`` round
-    trips). A tree whose walks pass ``budget`` steps is abandoned and flagged in ``over``;
-    the caller draws it again by :func:`observed_first_trees`. This keeps the draw exact:
+    trips). A tree whose walks pass ``budget`` steps is abandoned and flagged in ``over``,
+    and so is every later tree of the same goal without a walk; the caller draws them by
+    :func:`observed_first_trees`. This keeps every draw exact and the draws independent:
     the number of steps Wilson's algorithm takes is the total length of the cycles it pops
     plus one step per polytope, and the popped cycles are independent of the tree it returns
-    (Propp and Wilson 1998, cycle popping), so the tree is independent of the event
-    ``steps > budget``.
+    (Propp and Wilson 1998, cycle popping), so a tree is independent of the event
+    ``steps > budget``; and which sampler draws a tree depends only on earlier, independent
+    draws. At most one budget per goal is spent in vain.
 
     Returns ``(goal index (m,), slot of p_v (m, P), over (m,))``."""
     np.random.seed(seed)
@@ -171,11 +173,16 @@ def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed, budget):
     in_tree = np.zeros(P, np.bool_)
     walk = np.zeros(P, np.int64)
     free = -np.ones(P, np.int64)
+    trapped = np.zeros(goal_cdf.shape[0], np.bool_)
     for j in range(m):
         gi = sample_index(goal_cdf)
         goals[j] = gi
+        if trapped[gi]:  # a walk for this goal has already passed its budget
+            over[j] = True
+            continue
         over[j] = not _wilson(nbr, pref_cdf, gi, root[gi], comp, free, slots[j], in_tree, walk,
                               budget)
+        trapped[gi] = over[j]
     return goals, slots, over
 
 

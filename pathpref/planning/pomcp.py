@@ -39,7 +39,8 @@ from .tree import best_root_action, init_node, new_tree, sample_index, sample_sl
 TREE_POOL = 128
 #: a tree's Wilson walks may take ``WALK_STEPS_PER_POLYTOPE * P + WALK_STEPS_MIN`` steps before
 #: it is drawn observed exits first instead (:func:`.guided.tree_pool`; the walk with no
-#: evidence takes about ``2 P`` steps on ``classroom``)
+#: evidence takes 5-13 ``P`` steps in expectation on the paper's maps and examples/maps, median
+#: 9 ``P`` on ``classroom``)
 WALK_STEPS_PER_POLYTOPE = 64
 WALK_STEPS_MIN = 4096
 #: walk stages over the unobserved polytopes (uniform rows) tried per tree before giving up
