@@ -179,6 +179,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("db", help="results database (.sqlite)")
     rp.add_argument("--csv", default=None, help="CSV path (default: DB name with .csv)")
     rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png, .pdf, .svg)")
+    rp.add_argument("--exclude-failed", action="store_true",
+                    help="leave failed episodes (an error, a timeout) out of the rates; by "
+                    "default each counts as a failure. Every table says how many failed")
     rp.set_defaults(func=c.cmd_report)
 
     tm = sub.add_parser("timing", help="Table II: solve and update time at the first decision")

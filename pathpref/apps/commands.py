@@ -216,7 +216,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     check_writable(csv_path, "--csv", (".csv",))
     if args.figure:
         check_writable(args.figure, "--figure", FIGURE_SUFFIXES)
-    recs = load_records(args.db)
+    recs = load_records(args.db, exclude_failed=args.exclude_failed)
     trials = load_trials(args.db)
     if trials:
         print(study_tables(trials) + ("\n" if recs else ""))
