@@ -110,3 +110,35 @@ def test_the_stored_row_of_an_episode_is_exact():
     assert row == want
     assert [res.log[0].x, res.log[0].y] == json.loads(row["start"])
     assert len(json.loads(row["goals"])) == 10 and row["inputs"] > 0
+
+
+def test_readers_never_change_a_rollback_journal_database(tmp_path, capsys):
+    """`report` and `replay` read a rollback-journal file as it is: same bytes, same journal
+    mode, no side file (they used to switch it to WAL)."""
+    from pathpref.apps.cli import main
+    from pathpref.experiments.report import load_records
+
+    from .store_helpers import snapshot, synthetic_db
+
+    (tmp_path / "d").mkdir()
+    db = synthetic_db(tmp_path / "d" / "r.sqlite", {("compliant", 1): (2, 4)})
+    c = sqlite3.connect(db)
+    assert c.execute("PRAGMA journal_mode=DELETE").fetchone() == ("delete",)
+    c.close()
+    out = tmp_path / "out"
+    out.mkdir()
+    before = snapshot(db.parent)
+    raw = db.read_bytes()
+    assert raw[18:20] == b"\x01\x01"  # the header's read/write versions: rollback journal
+    assert main(["report", str(db), "--csv", str(out / "r.csv")]) == 0
+    assert main(["replay", str(db), "--participant", "p1", "--trial", "1", "--out",
+                 str(out / "v.mp4")]) == 2
+    assert "no trial 1 of participant" in capsys.readouterr().err
+    assert load_records(db)[0]["n"] == 4
+    assert db.read_bytes() == raw and snapshot(db.parent) == before
+    with ResultStore(db, create=False) as st:
+        with pytest.raises(sqlite3.OperationalError, match="readonly"):
+            st.conn.execute("DELETE FROM episodes")
+    with pytest.raises(ConfigError, match="holds no episodes yet"):
+        (tmp_path / "empty.sqlite").write_bytes(b"")
+        ResultStore(tmp_path / "empty.sqlite", create=False)

@@ -230,7 +230,11 @@ def check_results_file(path: str | Path, create: bool = True) -> bool:
 
 
 class ResultStore:
-    """Open (or create) a results database at ``path``, after :func:`check_results_file`."""
+    """Open (or create) a results database at ``path``, after :func:`check_results_file`.
+
+    ``create=False`` opens it for reading only (``report``, ``replay``, the curves): through
+    :func:`open_readonly`, so the file, its journal mode (a rollback-journal file stays one) and
+    its folder are left exactly as they were; a write through such a store is refused."""
 
     def __init__(self, path: str | Path, create: bool = True):
         self.path = Path(path)
@@ -239,10 +243,15 @@ class ResultStore:
             if not parent.is_dir():
                 raise ConfigError(f"cannot create {self.path}: folder {parent} does not exist")
         existing = check_results_file(self.path, create)  # a refused file is never modified
+        if not create and not existing:
+            raise ConfigError(f"{self.path} holds no episodes yet (an empty results database)")
         try:
-            self.conn = sqlite3.connect(self.path, timeout=30)
+            self.conn = (sqlite3.connect(self.path, timeout=30) if create
+                         else open_readonly(self.path))
         except sqlite3.Error as e:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
+        if not create:
+            return
         with self._errors("open"):
             self.conn.execute("PRAGMA journal_mode=WAL")
             self.conn.execute("PRAGMA synchronous=NORMAL")
