@@ -496,3 +496,55 @@ def test_full_disk_anywhere_is_one_line(capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["pathpref: error: cannot write somewhere.bin: no space left on device; free "
                    "some space and run again (no partial file was kept)"]
+
+
+# --- 10. tampered episode rows --------------------------------------------------------------
+TAMPERED = [("success = 'x'", "has success = 'x', not 0 or 1"),
+            ("success = 5", "has success = 5, not 0 or 1"),
+            ("ucb_c = NULL", "has ucb_c = NULL, not a finite number"),
+            ("delta_t = 'x'", "has delta_t = 'x', not an integer >= 1"),
+            ("map = NULL", "has map = NULL, not a string"),
+            ("success = 1, goal_reached = 0", "has success = 1 but goal_reached = 0")]
+
+
+def tampered_db(path: Path, change: str) -> Path:
+    import sqlite3
+
+    from .store_helpers import synthetic_db
+
+    synthetic_db(path, {("goal_only", 5): (1, 3)})
+    c = sqlite3.connect(path)
+    c.execute("PRAGMA journal_mode=DELETE")
+    c.execute(f"UPDATE episodes SET {change} WHERE rowid = 2")
+    c.commit()
+    c.close()
+    return path
+
+
+@pytest.mark.parametrize("change, msg", TAMPERED)
+def test_report_on_tampered_rows_is_one_line(tmp_path, capsys, change, msg):
+    tampered_db(tmp_path / "r.sqlite", change)
+    line = refuse(tmp_path, capsys, ["report", "r.sqlite"], msg)
+    assert "changed outside pathpref" in line and "DELETE FROM episodes WHERE key" in line
+    from pathpref.experiments.report import load_records
+
+    with pytest.raises(ConfigError, match=msg.replace("(", r"\(")):
+        load_records(tmp_path / "r.sqlite")
+
+
+@pytest.mark.parametrize("change, msg", TAMPERED[:3])
+def test_evaluate_resume_into_tampered_rows_refuses_before_running(tmp_path, capsys,
+                                                                   monkeypatch, change, msg):
+    """It used to run its episodes, then crash in the report: now nothing runs, and the file
+    (rollback journal) is not even switched to WAL."""
+    from pathpref.experiments import sweep
+
+    tampered_db(tmp_path / "r.sqlite", change)
+
+    def never(*a, **k):
+        raise AssertionError("an episode ran")
+
+    monkeypatch.setattr(sweep, "iter_results", never)
+    refuse(tmp_path, capsys, ["evaluate", "--db", "r.sqlite", "--runs", "1", "--instances",
+                              "1", "--methods", "goal_only", "--delta-t", "5", "--workers", "1",
+                              "--no-progress"], msg)

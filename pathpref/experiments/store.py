@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import math
 import os
+import re
 import sqlite3
 import stat
 from collections.abc import Iterable, Iterator
@@ -229,14 +231,76 @@ def check_results_file(path: str | Path, create: bool = True) -> bool:
     return True
 
 
+#: the episode columns reports and resumes read, and what pathpref writes in each: ``text`` a
+#: string, ``count`` an integer >= 1, ``seed`` an integer >= 0, ``number`` a finite number,
+#: ``flag`` 0 or 1
+ROW_RULES = {
+    "key": "text", "map": "text", "map_hash": "text", "sim": "text", "task": "text",
+    "method": "text", "preset": "text", "status": "text",
+    "delta_t": "count", "queries": "count", "t_max": "count", "instance_seed": "seed",
+    "ucb_c": "number",
+    "normalize": "flag", "coupling": "flag", "success": "flag", "goal_reached": "flag",
+    "pref_followed": "flag",
+}
+_RULE_TEXT = {"text": "a string", "count": "an integer >= 1", "seed": "an integer >= 0",
+              "number": "a finite number", "flag": "0 or 1"}
+
+
+def _breaks_rule(value: Any, rule: str) -> bool:
+    if rule == "text":
+        return not isinstance(value, str)
+    if rule == "number":
+        return not (isinstance(value, int | float) and math.isfinite(value))
+    if not isinstance(value, int):
+        return True
+    return {"count": value < 1, "seed": value < 0, "flag": value not in (0, 1)}[rule]
+
+
+def check_episode_rows(rows: Iterable[dict[str, Any]], path: str | Path) -> None:
+    """Refuse (one ConfigError line naming the row, the column and the fix) an episode row that
+    pathpref cannot have written: a column of :data:`ROW_RULES` holding another type or value
+    (``success = 'x'``, ``success = 5``, ``ucb_c = NULL``, ``delta_t = 'x'``, ``map = NULL``),
+    or a ``success`` that contradicts the row's own outcome (an ``ok`` row succeeds exactly when
+    it reached the goal and followed the preference)."""
+    for i, row in enumerate(rows):
+        key = row.get("key")
+        plain = isinstance(key, str) and re.fullmatch(r"[\w.-]{1,80}", key, re.ASCII)
+        where = f"episode {key}" if plain else f"episode row {i + 1}"
+        fix = (f"the file was changed outside pathpref: delete that row (DELETE FROM episodes "
+               f"WHERE key = '{key}') and run the sweep again to recompute it"
+               if plain else "the file was changed outside pathpref: use another --db")
+        for col, rule in ROW_RULES.items():
+            if col in row and _breaks_rule(row[col], rule):
+                shown = "NULL" if row[col] is None else repr(row[col])
+                shown = shown if len(shown) <= 40 else shown[:37] + "..."
+                raise ConfigError(f"{path}: {where} has {col} = {shown}, not "
+                                  f"{_RULE_TEXT[rule]}; {fix}")
+        if row.get("status") == "ok" and "success" in row and "goal_reached" in row and \
+                row["success"] != (row["goal_reached"] and row.get("pref_followed", 1)):
+            raise ConfigError(f"{path}: {where} has success = {row['success']} but "
+                              f"goal_reached = {row['goal_reached']} and pref_followed = "
+                              f"{row.get('pref_followed')}; {fix}")
+
+
+def check_stored_rows(conn: sqlite3.Connection, path: str | Path) -> None:
+    """:func:`check_episode_rows` on the :data:`ROW_RULES` columns of every episode of
+    ``conn``."""
+    have = [r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")]
+    cols = [c for c in ROW_RULES if c in have]
+    cur = conn.execute(f"SELECT {', '.join(cols)} FROM episodes")
+    check_episode_rows((dict(zip(cols, r, strict=True)) for r in cur), path)
+
+
 class ResultStore:
     """Open (or create) a results database at ``path``, after :func:`check_results_file`.
 
     ``create=False`` opens it for reading only (``report``, ``replay``, the curves): through
     :func:`open_readonly`, so the file, its journal mode (a rollback-journal file stays one) and
-    its folder are left exactly as they were; a write through such a store is refused."""
+    its folder are left exactly as they were; a write through such a store is refused.
+    ``check_rows``: :meth:`check_rows` on that read-only connection first, so that a file with
+    a row pathpref cannot have written is refused before it is opened for writing."""
 
-    def __init__(self, path: str | Path, create: bool = True):
+    def __init__(self, path: str | Path, create: bool = True, check_rows: bool = False):
         self.path = Path(path)
         if create and not self.path.exists():
             parent = self.path.parent
@@ -245,6 +309,15 @@ class ResultStore:
         existing = check_results_file(self.path, create)  # a refused file is never modified
         if not create and not existing:
             raise ConfigError(f"{self.path} holds no episodes yet (an empty results database)")
+        if check_rows and existing:  # before the file is opened for writing (WAL set)
+            try:
+                reader = open_readonly(self.path)
+                try:
+                    check_stored_rows(reader, self.path)
+                finally:
+                    reader.close()
+            except sqlite3.DatabaseError as e:
+                raise damaged(self.path, e) from None
         try:
             self.conn = (sqlite3.connect(self.path, timeout=30) if create
                          else open_readonly(self.path))
@@ -324,8 +397,16 @@ class ResultStore:
             )
 
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
-        """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``."""
-        return self._rows(f"SELECT * FROM episodes {where}", params)
+        """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``;
+        a row pathpref cannot have written is refused (:func:`check_episode_rows`)."""
+        rows = self._rows(f"SELECT * FROM episodes {where}", params)
+        check_episode_rows(rows, self.path)
+        return rows
+
+    def check_rows(self) -> None:
+        """:func:`check_episode_rows` on every stored episode."""
+        with self._errors("read"):
+            check_stored_rows(self.conn, self.path)
 
     def steps(self, key: str) -> list[dict[str, Any]]:
         """The per-step rows of episode ``key``, in step order."""

@@ -119,7 +119,8 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
     if backend not in BACKENDS:
         raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
     check_specs(specs)
-    with _sigterm_exits(), ResultStore(db) as store:
+    # a tampered row is refused before the file is opened for writing or any episode runs
+    with _sigterm_exits(), ResultStore(db, check_rows=True) as store:
         done = store.done_keys(include_failed=not retry_failed)
         todo = [s for s in specs if s.key() not in done]
         counts = {"total": len(specs), "skipped": len(specs) - len(todo), "ran": 0, "failed": 0}
