@@ -548,3 +548,112 @@ def test_evaluate_resume_into_tampered_rows_refuses_before_running(tmp_path, cap
     refuse(tmp_path, capsys, ["evaluate", "--db", "r.sqlite", "--runs", "1", "--instances",
                               "1", "--methods", "goal_only", "--delta-t", "5", "--workers", "1",
                               "--no-progress"], msg)
+
+
+# --- 11. one line for a damaged database and a map too large --------------------------------
+def test_sqlite_integrity_report_is_one_line(tmp_path, capsys):
+    """SQLite's quick_check text spans lines (`*** in database main ***`, then one per
+    problem): the refusal is still one line."""
+    import random
+    import sqlite3
+
+    from .store_helpers import synthetic_db
+
+    base = synthetic_db(tmp_path / "base.sqlite", {("compliant", 1): (1, 300)})
+    c = sqlite3.connect(base)
+    c.execute("PRAGMA journal_mode=DELETE")
+    c.close()
+    raw, rng = base.read_bytes(), random.Random(1)
+    base.unlink()
+    db = tmp_path / "r.sqlite"
+    for _ in range(3000):  # flip one byte until the damage is one SQLite reports in lines
+        b = bytearray(raw)
+        b[rng.randrange(4096, len(b))] = rng.randrange(256)
+        db.write_bytes(bytes(b))
+        try:
+            with sqlite3.connect(f"file:{db}?mode=ro&immutable=1", uri=True) as c:
+                problems = [r[0] for r in c.execute("PRAGMA quick_check(3)")]
+            c.close()
+        except sqlite3.DatabaseError:
+            continue
+        if any("\n" in p for p in problems):
+            break
+    else:
+        pytest.skip("no multi-line integrity report found")
+    line = refuse(tmp_path, capsys, ["report", "r.sqlite"], "r.sqlite is damaged (")
+    assert "***" not in line
+    refuse(tmp_path, capsys, ["evaluate", "--db", "r.sqlite", "--runs", "1", "--instances",
+                              "1", "--methods", "goal_only", "--delta-t", "5"], "is damaged (")
+
+
+class _Terminal:
+    """A stderr that says it is a terminal, keeping what is written."""
+
+    def __init__(self):
+        self.text = ""
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return True
+
+
+@pytest.mark.parametrize("tty", [False, True])
+def test_map_too_large_for_the_tables_is_one_line(tmp_path, capsys, monkeypatch, tty):
+    """The build's note came first, a line of its own, then the refusal: now a note is shown
+    only on a terminal and erased when the build ends."""
+    import sys
+    import time
+
+    import pathpref.episode as episode
+    from pathpref.inference import human
+
+    # simple: 96 cells x 10 goals; 368,640 bytes with one neighbour slot, 552,960 with its 2
+    monkeypatch.setattr(human, "MAX_TABLE_BYTES", 500_000)
+    monkeypatch.setattr(checks, "NOTE_POLYTOPES", 1)
+    monkeypatch.setattr(checks, "NOTE_AFTER_S", 0.0)
+    term = _Terminal()
+    real = episode.cached_world
+
+    def slow_build(source):  # the build ends once the note is out (on a terminal)
+        for _ in range(3000):
+            if not tty or "building map" in term.text:
+                break
+            time.sleep(0.01)
+        return real(source)
+
+    monkeypatch.setattr(episode, "cached_world", slow_build)
+    if tty:
+        monkeypatch.setattr(sys, "stderr", term)
+    argv = ["evaluate", "--map", "simple", "--db", "r.sqlite", "--runs", "1", "--instances",
+            "1", "--methods", "goal_only", "--delta-t", "5"]
+    if not tty:
+        refuse(tmp_path, capsys, argv, "likelihood tables for 96 cells x 10 goals x 2")
+        return
+    os.chdir(tmp_path)
+    try:
+        assert main(argv) == 2
+    finally:
+        os.chdir(ROOT)
+    assert term.text.count("\n") == 1 and "building map" in term.text
+    shown = term.text.split("\r\033[K")[-1]  # what the terminal shows after the erase
+    assert shown.startswith("pathpref: error: ") and "likelihood tables" in shown
+    assert os.listdir(tmp_path) == []
+
+
+def test_map_too_large_is_refused_before_building(tmp_path, capsys, monkeypatch):
+    import pathpref.episode as episode
+    from pathpref.inference import human
+
+    monkeypatch.setattr(human, "MAX_TABLE_BYTES", 300_000)  # below even one slot per cell
+
+    def never(source):
+        raise AssertionError("the map was built")
+
+    monkeypatch.setattr(episode, "cached_world", never)
+    refuse(tmp_path, capsys, ["evaluate", "--map", "simple", "--db", "r.sqlite", "--runs", "1",
+                              "--instances", "1"], "likelihood tables for 96 cells x 10 goals x 1")

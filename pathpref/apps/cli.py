@@ -308,8 +308,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except PathprefError as e:
-        print(f"pathpref: error: {e}", file=sys.stderr)
+    except PathprefError as e:  # one line, whatever text a library put in the message
+        text = " ".join(" ".join(part.split()) for part in str(e).splitlines() if part.strip())
+        print(f"pathpref: error: {text}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("pathpref: interrupted", file=sys.stderr)

@@ -18,6 +18,7 @@ from .checks import (
     check_episode_count,
     check_goal_count,
     check_model_size,
+    check_model_size_early,
     check_output_folder,
     check_writable,
     is_disk_full,
@@ -176,6 +177,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                          len(resolve_methods(args.methods))], "the sweep")
     load_simulator(args.sim)
     check_goal_count(args.map, args.goals)
+    check_model_size_early(args.map, args.goals)
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,

@@ -69,10 +69,18 @@ def episodes_sql(columns: Iterable[str] = EPISODE_COLUMNS) -> str:
     return f"CREATE TABLE episodes ({', '.join(f'{c} {EPISODE_COLUMNS[c]}' for c in columns)})"
 
 
+def one_line(text: object, limit: int = 300) -> str:
+    """``text`` on one line: SQLite's integrity reports span lines (``*** in database main
+    ***`` then one line per problem); these are joined with ``; ``, cut at ``limit``."""
+    parts = [" ".join(p.split()) for p in str(text).splitlines()]
+    flat = "; ".join(p for p in parts if p and p != "*** in database main ***")
+    return flat if len(flat) <= limit else flat[:limit - 3] + "..."
+
+
 def damaged(path: str | Path, err: BaseException | str) -> ConfigError:
     """The one-line error of a database that cannot be read (names the repair commands)."""
     return ConfigError(
-        f"{path} is damaged ({err}); 'pathpref db check {path}' lists the damage and "
+        f"{path} is damaged ({one_line(err)}); 'pathpref db check {path}' lists the damage and "
         f"'pathpref db salvage {path} NEW.sqlite' copies the intact episodes")
 
 
