@@ -317,6 +317,24 @@ def _require_reachable(address: str) -> None:
                           f"is `ray start --head` running there?") from None
 
 
+def check_backend(backend: str, address: str | None = None) -> None:
+    """Refuse (ConfigError) a backend that cannot run, before a sweep creates or opens its
+    database: an unknown name, a Ray ``address`` that does not accept a connection
+    (:func:`_require_reachable`), or Ray not installed."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+    if backend != "ray":
+        return
+    if address is not None:
+        _require_reachable(address)
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ConfigError(
+            "--backend ray needs Ray: pip install 'pathpref[ray]' (or pip install ray)"
+        ) from None
+
+
 def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int | None = None,
              max_retries: int = 3) -> Iterator[EpisodeResult]:
     """Results from Ray tasks, as they finish (see module docstring)."""

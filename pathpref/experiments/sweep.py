@@ -28,7 +28,7 @@ from ..episode import EpisodeSpec, body_class, cached_world
 from ..episode.instances import episode_instance
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
-from .backends import BACKENDS, iter_results, max_workers
+from .backends import check_backend, iter_results, max_workers
 from .store import ResultStore
 
 
@@ -116,8 +116,7 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
     if workers > max_workers() and (backend == "local" or address is None):
         raise ConfigError(f"--workers {workers} is too many for {os.cpu_count()} CPUs (at most "
                           f"{max_workers()}; one per CPU is fastest)")
-    if backend not in BACKENDS:
-        raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+    check_backend(backend, address)  # before the database is created or opened
     check_specs(specs)
     # a tampered row is refused before the file is opened for writing or any episode runs
     with _sigterm_exits(), ResultStore(db, check_rows=True) as store:
