@@ -193,8 +193,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             raise
         cleanup()
         raise write_error(args.db, e) from None
+    elsewhere = counts.get("elsewhere", 0)
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
-          f"in {args.db}, {counts['seconds']} s")
+          f"in {args.db}" + (f" ({elsewhere} of them run by another sweep)" if elsewhere else "")
+          + f", {counts['seconds']} s")
     from ..episode import cached_map
 
     recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]
@@ -284,6 +286,9 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
             raise
         cleanup()
         raise write_error(db, e) from None
+    if counts.get("busy"):
+        raise ConfigError(f"{counts['busy']} of {len(specs)} episodes are being run by "
+                          f"another sweep on {db}; run again when it has finished")
     if counts["failed"]:
         raise ConfigError(f"{counts['failed']} of {len(specs)} episodes failed (see 'pathpref "
                           f"report {db}'); the curves need complete episodes: raise "

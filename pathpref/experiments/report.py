@@ -20,7 +20,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from .paper import TABLE_I
-from .store import ResultStore
+from .store import RUNNING, ResultStore
 
 #: row order of the tables: the paper's four, then the reference rows (the ceiling), then any
 #: registered method by name
@@ -71,6 +71,8 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
     groups: dict[tuple, list[dict]] = defaultdict(list)
     label: dict[str, str] = {}  # a map is its content: rows of one hash share the first path
     for r in rows:
+        if r["status"] == RUNNING:  # claimed by a sweep, not finished: not a result
+            continue
         m = label.setdefault(r["map_hash"], r["map"])
         groups[(m, r["sim"], variant(r), r["method"], r["delta_t"])].append(r)
     out = []

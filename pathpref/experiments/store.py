@@ -5,6 +5,15 @@ together), so a sweep killed at any moment leaves only whole episodes; WAL journ
 file consistent. The primary key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips
 what is done.
 
+Two sweeps may share one database: each claims an episode just before running it
+(:meth:`ResultStore.claim`), in one write transaction, by writing its row with ``status =
+'running'`` and the claim's owner (host, process id and the process's start time) in
+``reason``; a row another live sweep has claimed is left to it. A claim whose owner is gone (on
+this host: no such process, or the process id reused; from another host: older than four
+times the episode's wall-time limit) is stale, and the next sweep takes it over, so a crashed
+sweep's claims are run on resume. A sweep removes its unfinished claims when it ends (Ctrl-C,
+SIGTERM, an error); readers leave ``running`` rows out (they are not results).
+
 An existing file is checked before it is opened for writing (:func:`check_results_file`), on a
 read-only connection that leaves no side file: it must be a regular file holding exactly
 pathpref's tables (no views, triggers or other objects, which could falsify what a report reads),
@@ -16,11 +25,14 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import math
 import os
 import re
+import socket
 import sqlite3
 import stat
+import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -299,6 +311,48 @@ def check_stored_rows(conn: sqlite3.Connection, path: str | Path) -> None:
     check_episode_rows((dict(zip(cols, r, strict=True)) for r in cur), path)
 
 
+#: ``status`` of an episode row that a sweep has claimed and not finished
+RUNNING = "running"
+
+
+def process_start(pid: int) -> str | None:
+    """The start time of process ``pid`` (clock ticks after boot, ``/proc/PID/stat`` field 22),
+    which tells a process from a later one given the same id; None where there is no /proc or
+    no such process."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat_line = f.read().decode(errors="replace")
+    except OSError:
+        return None
+    return stat_line.rsplit(")", 1)[-1].split()[19]
+
+
+def this_owner() -> dict[str, Any]:
+    """The claim owner of this process: host, process id and the process's start time."""
+    pid = os.getpid()
+    return {"host": socket.gethostname(), "pid": pid, "start": process_start(pid)}
+
+
+def claim_is_live(claim: dict[str, Any], max_age_s: float, now: float | None = None) -> bool:
+    """Whether the sweep that made ``claim`` (:func:`this_owner` plus ``at``, the time of the
+    claim) may still be running its episode (module docstring: the stale-claim rule)."""
+    try:
+        host, pid, start, at = claim["host"], int(claim["pid"]), claim.get("start"), \
+            float(claim["at"])
+    except (KeyError, TypeError, ValueError):
+        return False  # not a claim this version wrote: take it
+    if host != socket.gethostname():
+        return (time.time() if now is None else now) - at <= max_age_s
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: alive
+        pass
+    now_start = process_start(pid)
+    return start is None or now_start is None or now_start == start
+
+
 class ResultStore:
     """Open (or create) a results database at ``path``, after :func:`check_results_file`.
 
@@ -354,7 +408,14 @@ class ResultStore:
             raise damaged(self.path, e) from None
 
     def _create_schema(self) -> None:
+        """pathpref's tables in a new file; in one write transaction that first looks whether
+        another sweep, started at the same moment on the same new file, made them already."""
         c = self.conn
+        c.execute("BEGIN IMMEDIATE")
+        if c.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]:
+            c.rollback()
+            check_results_file(self.path)  # the other sweep's tables must be pathpref's
+            return
         with c:
             c.execute(META_SQL)
             c.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
@@ -379,30 +440,98 @@ class ResultStore:
                       (str(SCHEMA_VERSION),))
 
     def done_keys(self, include_failed: bool = True) -> set[str]:
-        """Keys of the stored episodes (only successful runs when ``include_failed`` is False)."""
-        q = "SELECT key FROM episodes" + ("" if include_failed else " WHERE status = 'ok'")
+        """Keys of the stored episodes (only successful runs when ``include_failed`` is False);
+        a claimed, unfinished episode (``running``) is not done."""
+        q = "SELECT key FROM episodes WHERE " + (f"status != '{RUNNING}'" if include_failed
+                                                 else "status = 'ok'")
         with self._errors("read"):
             return {r[0] for r in self.conn.execute(q)}
 
+    def claim(self, placeholder: EpisodeResult, retry_failed: bool = False,
+              max_age_s: float = float("inf"), owner: dict[str, Any] | None = None) -> str:
+        """Claim the episode of ``placeholder`` (its spec; the row written while it runs) for
+        this process, atomically (``BEGIN IMMEDIATE``). Returns ``"done"`` when its row is
+        there, finished (``ok``, or failed unless ``retry_failed``), ``"busy"`` when a live
+        sweep has claimed it (:func:`claim_is_live` with ``max_age_s``), ``"claimed"`` when it
+        is now this process's (a claim it holds already included)."""
+        owner = owner or this_owner()
+        key = placeholder.spec.key()
+        c = self.conn
+        with self._errors("write to"):
+            c.execute("BEGIN IMMEDIATE")
+            try:
+                row = c.execute("SELECT status, reason FROM episodes WHERE key = ?",
+                                (key,)).fetchone()
+                if row is not None:
+                    status, reason = row
+                    if status == RUNNING:
+                        try:
+                            held = json.loads(reason)
+                        except (TypeError, ValueError):
+                            held = {}
+                        if not isinstance(held, dict):
+                            held = {}
+                        mine = all(held.get(k) == v for k, v in owner.items())
+                        if not mine and claim_is_live(held, max_age_s):
+                            c.rollback()
+                            return "busy"
+                        if mine:
+                            c.rollback()
+                            return "claimed"
+                    elif status == "ok" or not retry_failed:
+                        c.rollback()
+                        return "done"
+                claim = dataclasses.replace(placeholder, status=RUNNING, reason=json.dumps(
+                    {**owner, "at": time.time()}, sort_keys=True))
+                self._write(claim)
+                c.commit()
+            except BaseException:
+                c.rollback()
+                raise
+        return "claimed"
+
+    def release_claims(self, owner: dict[str, Any] | None = None) -> int:
+        """Remove this process's unfinished claims (a sweep ending early); their number."""
+        owner = owner or this_owner()
+        with self._errors("write to"), self.conn:
+            rows = self.conn.execute("SELECT key, reason FROM episodes WHERE status = ?",
+                                     (RUNNING,)).fetchall()
+            mine = []
+            for key, reason in rows:
+                try:
+                    held = json.loads(reason)
+                except (TypeError, ValueError):
+                    continue
+                if isinstance(held, dict) and all(held.get(k) == v for k, v in owner.items()):
+                    mine.append((key,))
+            self.conn.executemany(f"DELETE FROM episodes WHERE key = ? AND status = "
+                                  f"'{RUNNING}'", mine)
+        return len(mine)
+
     def add(self, res: EpisodeResult) -> None:
-        """Write one episode and its steps in one transaction (replacing a failed attempt)."""
+        """Write one episode and its steps in one transaction (replacing a failed attempt or
+        the episode's claim)."""
+        with self._errors("write to"), self.conn:
+            self._write(res)
+
+    def _write(self, res: EpisodeResult) -> None:
+        """The statements of :meth:`add`, inside the caller's transaction."""
         row = result_row(res)
         cols = list(EPISODE_COLUMNS)
         vals = [row.get(k) for k in cols]
         vals = [int(v) if isinstance(v, bool) else v for v in vals]
         key = row["key"]
-        with self._errors("write to"), self.conn:
-            self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
-            self.conn.execute(
-                f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
-                f"VALUES ({', '.join('?' for _ in cols)})",
-                vals,
-            )
-            self.conn.executemany(
-                "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
-                 for s in res.log],
-            )
+        self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
+        self.conn.execute(
+            f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
+            f"VALUES ({', '.join('?' for _ in cols)})",
+            vals,
+        )
+        self.conn.executemany(
+            "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
+             for s in res.log],
+        )
 
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
         """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``;
