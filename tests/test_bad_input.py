@@ -432,6 +432,70 @@ def test_task_dict_map_and_actions(tasks, tmp_path):
     assert tasks.navigate.parse_action(np.int32(7)) == 7
 
 
+DEEP = "[" * 100_000 + "]" * 100_000
+
+
+def _deep_dict(levels: int) -> dict:
+    d: dict = {}
+    x = d
+    for _ in range(levels):
+        x["a"] = {}
+        x = x["a"]
+    return d
+
+
+@pytest.mark.parametrize("kwargs, msg", [
+    ({"physics": DEEP}, "physics nests lists/objects too deeply to read"),
+    ({"physics": _deep_dict(100_000)}, "physics nests lists/objects too deeply to read"),
+    ({"physics": '{"peak_n": ' + "9" * 400 + "}"},
+     "physics peak_n (--peak-n) must be a number in 1..300, got 99999"),
+    ({"physics": '{"peak_n": 1e400}'}, "physics peak_n (--peak-n) must be a number"),
+    ({"physics": '{"peak_n": [1]}'}, "physics peak_n must be a number, a string or true/false"),
+    ({"environment_kwargs": [1]}, "environment_kwargs must be a dict of argument names"),
+    ({"task_kwargs": [1]}, "task_kwargs must be a dict of argument names"),
+    ({"task_kwargs": {1: 2}}, "task_kwargs must have argument names (strings) as keys"),
+])
+def test_task_arguments_hostile(tasks, kwargs, msg):
+    """RecursionError, OverflowError and TypeError used to escape: one ConfigError line."""
+    with pytest.raises(ConfigError) as e:
+        tasks.load("navigate", **{"map": "simple", **kwargs})
+    assert msg in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("size, msg", [
+    ({"width": 5000}, "width must be at most"),
+    ({"height": 5000}, "height must be at most"),
+    ({"width": 0}, "width must be an integer in 1.."),
+    ({"height": -3}, "height must be an integer in 1.."),
+    ({"width": 2.5}, "width must be an integer"),
+])
+def test_gymnasium_render_size_refused(tasks, size, msg):
+    """Width 5000 was dm_control's multi-line error at render(), width 0 an empty image."""
+    with pytest.raises(ConfigError) as e:
+        tasks.gym.PathprefEnv(task="navigate", render_mode="rgb_array", map="simple",
+                              queries=20, **size)
+    assert msg in str(e.value) and "\n" not in str(e.value)
+
+
+def test_complex_actions_refused(tasks):
+    """A complex action was accepted and its imaginary part dropped."""
+    env = tasks.load("navigate_control", map="simple", queries=20)
+    env.reset()
+    for bad in (np.array([0.1 + 1j, 0.0]), [0.1 + 1j, 0.0], np.array([0.1, 0.0], complex)):
+        with pytest.raises(ConfigError, match="real numbers, got .*a complex number"):
+            env.step(bad)
+    env.step(np.array([0.1, 0.0]))
+    g = tasks.gym.PathprefEnv(task="navigate_control", map="simple", queries=20)
+    g.reset(seed=0)
+    with pytest.raises(ConfigError, match="a complex number"):
+        g.step(np.array([0.1 + 1j, 0.0], complex))
+    g.step(np.array([0.1, 0.0], np.float32))
+    nav = tasks.gym.PathprefEnv(task="navigate", map="simple", queries=20)
+    nav.reset(seed=0)
+    with pytest.raises(ConfigError, match="action must be 0..8"):
+        nav.step(3 + 1j)
+
+
 # --- 9. a full disk -------------------------------------------------------------------------
 def test_full_disk_while_writing_a_figure(tmp_path, capsys, monkeypatch):
     from pathpref.viz import mapdraw
