@@ -721,3 +721,33 @@ def test_map_too_large_is_refused_before_building(tmp_path, capsys, monkeypatch)
     monkeypatch.setattr(episode, "cached_world", never)
     refuse(tmp_path, capsys, ["evaluate", "--map", "simple", "--db", "r.sqlite", "--runs", "1",
                               "--instances", "1"], "likelihood tables for 96 cells x 10 goals x 1")
+
+
+# --- 12. numerical trouble inside an episode --------------------------------------------------
+def test_a_belief_that_breaks_is_one_line_not_a_warning_per_step(capfd, monkeypatch):
+    """A belief table that underflows (as on a 500 x 500 map) made NumPy print its warnings at
+    every step (1196 lines; the route prior's `catch_warnings` resets the registry each
+    decision): now nothing is printed and the episode fails with one line."""
+    from pathpref.episode import run_episode
+    from pathpref.errors import EpisodeError
+    from pathpref.experiments.backends import safe_run
+    from pathpref.inference.belief import PreferenceBelief
+
+    real = PreferenceBelief._multiply
+
+    def underflow(self, v, factor):  # every entry of the table to 0 (a full underflow)
+        real(self, v, factor * 0.0)
+
+    monkeypatch.setattr(PreferenceBelief, "_multiply", underflow)
+    spec = EpisodeSpec.single("simple", "path_preference", 1, seed=0, preset="paper",
+                              queries=20)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # the worst case: every warning shown
+        with pytest.raises(EpisodeError) as e:
+            run_episode(spec)
+        res = safe_run(spec)
+    assert str(e.value).startswith("belief became non-finite at step ")
+    assert "floating-point errors, the first: " in str(e.value) and "\n" not in str(e.value)
+    assert res.status == "failed" and res.reason.startswith("EpisodeError: belief became")
+    out = capfd.readouterr()
+    assert out.err == "" and out.out == ""
