@@ -4,9 +4,10 @@ episode (and the oracle's share), from one or more results databases of ``pathpr
     .venv/bin/python scripts/outcome_table.py results/office_paper_consistent.sqlite \\
         results/office_robust_consistent.sqlite
 
-One column block per database (labelled by its preset), one row per method; episodes whose
-status is not ``ok`` are left out and counted below the table. ``--ci`` adds the 95 % Wilson
-interval of each success rate.
+One column block per database (labelled by its preset), one row per method; an episode whose
+status is not ``ok`` (it failed to run) counts as a failure (no success, no goal) and the
+number of them is given below the table; ``--exclude-failed`` leaves them out of the rates
+instead. ``--ci`` adds the 95 % Wilson interval of each success rate.
 """
 
 from __future__ import annotations
@@ -23,14 +24,18 @@ LABEL = {"goal_only": "goal only", "path_preference": "path preference",
          "blended": "path preference + blend"}
 
 
-def cells(db: Path) -> tuple[str, dict[tuple[str, int], tuple[int, int, int, int]], int]:
-    """``(preset, {(method, ΔT): (n, successes, goals reached, back-crossings)}, not ok)``."""
+def cells(db: Path, exclude_failed: bool = False
+          ) -> tuple[str, dict[tuple[str, int], tuple[int, int, int, int]], int]:
+    """``(preset, {(method, ΔT): (n, successes, goals reached, back-crossings)}, not ok)``;
+    ``n`` counts the rows that are not ok too (as failures) unless ``exclude_failed``."""
     con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    ok = "status = 'ok'"
     try:
         rows = con.execute(
-            "SELECT preset, method, delta_t, count(*), sum(success), sum(goal_reached), "
-            "sum(back_crossings) FROM episodes WHERE status = 'ok' "
-            "GROUP BY preset, method, delta_t").fetchall()
+            f"SELECT preset, method, delta_t, count(*), sum(success * ({ok})), "
+            f"sum(goal_reached * ({ok})), sum(back_crossings * ({ok})) FROM episodes "
+            + (f"WHERE {ok} " if exclude_failed else "")
+            + "GROUP BY preset, method, delta_t").fetchall()
         bad = con.execute("SELECT count(*) FROM episodes WHERE status != 'ok'").fetchone()[0]
     finally:
         con.close()
@@ -44,8 +49,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("dbs", nargs="+", type=Path)
     ap.add_argument("--ci", action="store_true", help="add the success rate's 95%% interval")
+    ap.add_argument("--exclude-failed", action="store_true",
+                    help="leave episodes that failed to run out of the rates (by default each "
+                    "counts as a failure)")
     args = ap.parse_args(argv)
-    blocks = [cells(db) for db in args.dbs]
+    blocks = [cells(db, args.exclude_failed) for db in args.dbs]
     cols = [(preset, dt) for preset, c, _ in blocks for dt in sorted({dt for _, dt in c})]
     print("| method | " + " | ".join(f"{p} ΔT={dt}" for p, dt in cols) + " |")
     print("|---" * (len(cols) + 1) + "|")
@@ -67,7 +75,8 @@ def main(argv: list[str] | None = None) -> int:
     sizes = sorted({c[k][0] for _, c, _ in blocks for k in c})
     bad = sum(b for _, _, b in blocks)
     print(f"\nsuccess / goal reached / back-crossings per episode; n = {sizes} per cell"
-          + (f"; {bad} episodes not ok, left out" if bad else ""))
+          + f"; {bad} failed episodes, "
+          + ("left out" if args.exclude_failed else "counted as failures"))
     return 0
 
 

@@ -33,6 +33,7 @@ from __future__ import annotations
 import inspect
 import math
 import os
+from collections.abc import Mapping
 from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -82,6 +83,13 @@ def load(name: str, task_kwargs: dict | None = None, environment_kwargs: dict | 
     if name not in TASKS:
         raise ConfigError(f"unknown task {name!r}; choose one of {', '.join(TASKS)}")
     cls = TASKS[name]
+    for what, given in (("task_kwargs", task_kwargs), ("environment_kwargs",
+                                                        environment_kwargs)):
+        if given is not None and not isinstance(given, Mapping):
+            raise ConfigError(f"{what} must be a dict of argument names to values (or None), "
+                              f"got {type(given).__name__}")
+        if given is not None and not all(isinstance(k, str) for k in given):
+            raise ConfigError(f"{what} must have argument names (strings) as keys")
     args = {**(task_kwargs or {}), **kwargs}
     allowed = _task_args(cls)
     for k in args:

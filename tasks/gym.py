@@ -32,7 +32,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
+
+#: the largest render size asked for at all (the scene's offscreen buffer may allow less)
+MAX_RENDER = 8192
 
 #: gymnasium id -> dm_control task name
 IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/NavigateControl-v0": "navigate_control",
@@ -60,7 +64,9 @@ class PathprefEnv(gym.Env):
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         self.task_name, self.task_kwargs = task, dict(task_kwargs)
-        self.render_mode, self.width, self.height = render_mode, int(width), int(height)
+        self.render_mode = render_mode
+        self.width = check_number("width", width, 1, MAX_RENDER, integer=True)
+        self.height = check_number("height", height, 1, MAX_RENDER, integer=True)
         self._load = lambda seed: load(task, task_kwargs={**self.task_kwargs, "seed": seed},
                                        environment_kwargs=environment_kwargs,
                                        time_limit=time_limit)
@@ -74,6 +80,13 @@ class PathprefEnv(gym.Env):
             k: box(v) for k, v in self._env.observation_spec().items()})
         self.metadata = {**self.metadata,
                          "render_fps": max(1, round(1.0 / self._env.control_timestep()))}
+        vis = self._env.physics.model.vis.global_
+        for name, value, most in (("width", self.width, int(vis.offwidth)),
+                                  ("height", self.height, int(vis.offheight))):
+            if render_mode is not None and value > most:
+                self._env.close()
+                raise ConfigError(f"{name} must be at most {most} pixels (the scene's "
+                                  f"offscreen buffer, 1..{most}), got {value}")
 
     def _obs(self, ts) -> dict[str, np.ndarray]:
         out = {}
@@ -99,7 +112,7 @@ class PathprefEnv(gym.Env):
         if self._over:
             raise ConfigError("the episode is over (terminated or truncated); call reset()")
         if isinstance(self.action_space, spaces.Box):
-            action = np.asarray(action, dtype=np.float64)
+            action = self._env.task.check_action(action)  # complex, shape, range: one line
         ts = self._env.step(action)
         self._over = ts.last()
         terminated = bool(ts.last() and ts.discount == 0.0)

@@ -202,6 +202,10 @@ class NavigateControl(Navigate):
 
     def check_action(self, action) -> np.ndarray:
         """``action`` as ``(vx, vy)``; a one-line ConfigError naming the shape or the range."""
+        if np.iscomplexobj(action) or any(isinstance(v, complex) for v in np.ravel(
+                np.asarray(action, dtype=object))):
+            raise ConfigError(f"action must be (vx, vy) in m/s, real numbers, got "
+                              f"{repr(action)[:40]} (a complex number)")
         try:
             a = None if isinstance(action, str) else np.asarray(action, dtype=float)
         except (TypeError, ValueError):

@@ -281,3 +281,34 @@ def test_a_swallowed_sigterm_still_ends_the_sweep():
             pass  # swallowed
     assert e.value.code == 143
     assert signal.getsignal(signal.SIGTERM) == before
+
+
+@pytest.mark.parametrize("created", [False, True])
+def test_dead_ray_address_leaves_no_database(tmp_path, capsys, created):
+    """`--backend ray --address` at a dead port (or without Ray) is refused before the database
+    is created: no empty file is left behind, an existing one is not touched."""
+    import socket
+
+    from pathpref.apps.cli import main
+
+    from .store_helpers import snapshot
+
+    with socket.socket() as sock:  # a port nobody listens on
+        sock.bind(("127.0.0.1", 0))
+        port = sock.getsockname()[1]
+    db = tmp_path / "r.sqlite"
+    if created:
+        run_sweep(specs()[:1], str(db), workers=1, progress=False)
+    before = snapshot(tmp_path)
+    argv = ["evaluate", "--db", str(db), "--runs", "1", "--instances", "1", "--methods",
+            "goal_only", "--delta-t", "5", "--backend", "ray", "--no-progress"]
+    assert main([*argv, "--address", f"127.0.0.1:{port}"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "cannot reach Ray" in err[0]
+    assert snapshot(tmp_path) == before
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        assert main(argv) == 2
+        assert "needs Ray" in capsys.readouterr().err
+        assert snapshot(tmp_path) == before

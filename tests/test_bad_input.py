@@ -432,6 +432,70 @@ def test_task_dict_map_and_actions(tasks, tmp_path):
     assert tasks.navigate.parse_action(np.int32(7)) == 7
 
 
+DEEP = "[" * 100_000 + "]" * 100_000
+
+
+def _deep_dict(levels: int) -> dict:
+    d: dict = {}
+    x = d
+    for _ in range(levels):
+        x["a"] = {}
+        x = x["a"]
+    return d
+
+
+@pytest.mark.parametrize("kwargs, msg", [
+    ({"physics": DEEP}, "physics nests lists/objects too deeply to read"),
+    ({"physics": _deep_dict(100_000)}, "physics nests lists/objects too deeply to read"),
+    ({"physics": '{"peak_n": ' + "9" * 400 + "}"},
+     "physics peak_n (--peak-n) must be a number in 1..300, got 99999"),
+    ({"physics": '{"peak_n": 1e400}'}, "physics peak_n (--peak-n) must be a number"),
+    ({"physics": '{"peak_n": [1]}'}, "physics peak_n must be a number, a string or true/false"),
+    ({"environment_kwargs": [1]}, "environment_kwargs must be a dict of argument names"),
+    ({"task_kwargs": [1]}, "task_kwargs must be a dict of argument names"),
+    ({"task_kwargs": {1: 2}}, "task_kwargs must have argument names (strings) as keys"),
+])
+def test_task_arguments_hostile(tasks, kwargs, msg):
+    """RecursionError, OverflowError and TypeError used to escape: one ConfigError line."""
+    with pytest.raises(ConfigError) as e:
+        tasks.load("navigate", **{"map": "simple", **kwargs})
+    assert msg in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("size, msg", [
+    ({"width": 5000}, "width must be at most"),
+    ({"height": 5000}, "height must be at most"),
+    ({"width": 0}, "width must be an integer in 1.."),
+    ({"height": -3}, "height must be an integer in 1.."),
+    ({"width": 2.5}, "width must be an integer"),
+])
+def test_gymnasium_render_size_refused(tasks, size, msg):
+    """Width 5000 was dm_control's multi-line error at render(), width 0 an empty image."""
+    with pytest.raises(ConfigError) as e:
+        tasks.gym.PathprefEnv(task="navigate", render_mode="rgb_array", map="simple",
+                              queries=20, **size)
+    assert msg in str(e.value) and "\n" not in str(e.value)
+
+
+def test_complex_actions_refused(tasks):
+    """A complex action was accepted and its imaginary part dropped."""
+    env = tasks.load("navigate_control", map="simple", queries=20)
+    env.reset()
+    for bad in (np.array([0.1 + 1j, 0.0]), [0.1 + 1j, 0.0], np.array([0.1, 0.0], complex)):
+        with pytest.raises(ConfigError, match="real numbers, got .*a complex number"):
+            env.step(bad)
+    env.step(np.array([0.1, 0.0]))
+    g = tasks.gym.PathprefEnv(task="navigate_control", map="simple", queries=20)
+    g.reset(seed=0)
+    with pytest.raises(ConfigError, match="a complex number"):
+        g.step(np.array([0.1 + 1j, 0.0], complex))
+    g.step(np.array([0.1, 0.0], np.float32))
+    nav = tasks.gym.PathprefEnv(task="navigate", map="simple", queries=20)
+    nav.reset(seed=0)
+    with pytest.raises(ConfigError, match="action must be 0..8"):
+        nav.step(3 + 1j)
+
+
 # --- 9. a full disk -------------------------------------------------------------------------
 def test_full_disk_while_writing_a_figure(tmp_path, capsys, monkeypatch):
     from pathpref.viz import mapdraw
@@ -496,3 +560,194 @@ def test_full_disk_anywhere_is_one_line(capsys, monkeypatch):
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["pathpref: error: cannot write somewhere.bin: no space left on device; free "
                    "some space and run again (no partial file was kept)"]
+
+
+# --- 10. tampered episode rows --------------------------------------------------------------
+TAMPERED = [("success = 'x'", "has success = 'x', not 0 or 1"),
+            ("success = 5", "has success = 5, not 0 or 1"),
+            ("ucb_c = NULL", "has ucb_c = NULL, not a finite number"),
+            ("delta_t = 'x'", "has delta_t = 'x', not an integer >= 1"),
+            ("map = NULL", "has map = NULL, not a string"),
+            ("success = 1, goal_reached = 0", "has success = 1 but goal_reached = 0")]
+
+
+def tampered_db(path: Path, change: str) -> Path:
+    import sqlite3
+
+    from .store_helpers import synthetic_db
+
+    synthetic_db(path, {("goal_only", 5): (1, 3)})
+    c = sqlite3.connect(path)
+    c.execute("PRAGMA journal_mode=DELETE")
+    c.execute(f"UPDATE episodes SET {change} WHERE rowid = 2")
+    c.commit()
+    c.close()
+    return path
+
+
+@pytest.mark.parametrize("change, msg", TAMPERED)
+def test_report_on_tampered_rows_is_one_line(tmp_path, capsys, change, msg):
+    tampered_db(tmp_path / "r.sqlite", change)
+    line = refuse(tmp_path, capsys, ["report", "r.sqlite"], msg)
+    assert "changed outside pathpref" in line and "DELETE FROM episodes WHERE key" in line
+    from pathpref.experiments.report import load_records
+
+    with pytest.raises(ConfigError, match=msg.replace("(", r"\(")):
+        load_records(tmp_path / "r.sqlite")
+
+
+@pytest.mark.parametrize("change, msg", TAMPERED[:3])
+def test_evaluate_resume_into_tampered_rows_refuses_before_running(tmp_path, capsys,
+                                                                   monkeypatch, change, msg):
+    """It used to run its episodes, then crash in the report: now nothing runs, and the file
+    (rollback journal) is not even switched to WAL."""
+    from pathpref.experiments import sweep
+
+    tampered_db(tmp_path / "r.sqlite", change)
+
+    def never(*a, **k):
+        raise AssertionError("an episode ran")
+
+    monkeypatch.setattr(sweep, "iter_results", never)
+    refuse(tmp_path, capsys, ["evaluate", "--db", "r.sqlite", "--runs", "1", "--instances",
+                              "1", "--methods", "goal_only", "--delta-t", "5", "--workers", "1",
+                              "--no-progress"], msg)
+
+
+# --- 11. one line for a damaged database and a map too large --------------------------------
+def test_sqlite_integrity_report_is_one_line(tmp_path, capsys):
+    """SQLite's quick_check text spans lines (`*** in database main ***`, then one per
+    problem): the refusal is still one line."""
+    import random
+    import sqlite3
+
+    from .store_helpers import synthetic_db
+
+    base = synthetic_db(tmp_path / "base.sqlite", {("compliant", 1): (1, 300)})
+    c = sqlite3.connect(base)
+    c.execute("PRAGMA journal_mode=DELETE")
+    c.close()
+    raw, rng = base.read_bytes(), random.Random(1)
+    base.unlink()
+    db = tmp_path / "r.sqlite"
+    for _ in range(3000):  # flip one byte until the damage is one SQLite reports in lines
+        b = bytearray(raw)
+        b[rng.randrange(4096, len(b))] = rng.randrange(256)
+        db.write_bytes(bytes(b))
+        try:
+            with sqlite3.connect(f"file:{db}?mode=ro&immutable=1", uri=True) as c:
+                problems = [r[0] for r in c.execute("PRAGMA quick_check(3)")]
+            c.close()
+        except sqlite3.DatabaseError:
+            continue
+        if any("\n" in p for p in problems):
+            break
+    else:
+        pytest.skip("no multi-line integrity report found")
+    line = refuse(tmp_path, capsys, ["report", "r.sqlite"], "r.sqlite is damaged (")
+    assert "***" not in line
+    refuse(tmp_path, capsys, ["evaluate", "--db", "r.sqlite", "--runs", "1", "--instances",
+                              "1", "--methods", "goal_only", "--delta-t", "5"], "is damaged (")
+
+
+class _Terminal:
+    """A stderr that says it is a terminal, keeping what is written."""
+
+    def __init__(self):
+        self.text = ""
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+    def isatty(self):
+        return True
+
+
+@pytest.mark.parametrize("tty", [False, True])
+def test_map_too_large_for_the_tables_is_one_line(tmp_path, capsys, monkeypatch, tty):
+    """The build's note came first, a line of its own, then the refusal: now a note is shown
+    only on a terminal and erased when the build ends."""
+    import sys
+    import time
+
+    import pathpref.episode as episode
+    from pathpref.inference import human
+
+    # simple: 96 cells x 10 goals; 368,640 bytes with one neighbour slot, 552,960 with its 2
+    monkeypatch.setattr(human, "MAX_TABLE_BYTES", 500_000)
+    monkeypatch.setattr(checks, "NOTE_POLYTOPES", 1)
+    monkeypatch.setattr(checks, "NOTE_AFTER_S", 0.0)
+    term = _Terminal()
+    real = episode.cached_world
+
+    def slow_build(source):  # the build ends once the note is out (on a terminal)
+        for _ in range(3000):
+            if not tty or "building map" in term.text:
+                break
+            time.sleep(0.01)
+        return real(source)
+
+    monkeypatch.setattr(episode, "cached_world", slow_build)
+    if tty:
+        monkeypatch.setattr(sys, "stderr", term)
+    argv = ["evaluate", "--map", "simple", "--db", "r.sqlite", "--runs", "1", "--instances",
+            "1", "--methods", "goal_only", "--delta-t", "5"]
+    if not tty:
+        refuse(tmp_path, capsys, argv, "likelihood tables for 96 cells x 10 goals x 2")
+        return
+    os.chdir(tmp_path)
+    try:
+        assert main(argv) == 2
+    finally:
+        os.chdir(ROOT)
+    assert term.text.count("\n") == 1 and "building map" in term.text
+    shown = term.text.split("\r\033[K")[-1]  # what the terminal shows after the erase
+    assert shown.startswith("pathpref: error: ") and "likelihood tables" in shown
+    assert os.listdir(tmp_path) == []
+
+
+def test_map_too_large_is_refused_before_building(tmp_path, capsys, monkeypatch):
+    import pathpref.episode as episode
+    from pathpref.inference import human
+
+    monkeypatch.setattr(human, "MAX_TABLE_BYTES", 300_000)  # below even one slot per cell
+
+    def never(source):
+        raise AssertionError("the map was built")
+
+    monkeypatch.setattr(episode, "cached_world", never)
+    refuse(tmp_path, capsys, ["evaluate", "--map", "simple", "--db", "r.sqlite", "--runs", "1",
+                              "--instances", "1"], "likelihood tables for 96 cells x 10 goals x 1")
+
+
+# --- 12. numerical trouble inside an episode --------------------------------------------------
+def test_a_belief_that_breaks_is_one_line_not_a_warning_per_step(capfd, monkeypatch):
+    """A belief table that underflows (as on a 500 x 500 map) made NumPy print its warnings at
+    every step (1196 lines; the route prior's `catch_warnings` resets the registry each
+    decision): now nothing is printed and the episode fails with one line."""
+    from pathpref.episode import run_episode
+    from pathpref.errors import EpisodeError
+    from pathpref.experiments.backends import safe_run
+    from pathpref.inference.belief import PreferenceBelief
+
+    real = PreferenceBelief._multiply
+
+    def underflow(self, v, factor):  # every entry of the table to 0 (a full underflow)
+        real(self, v, factor * 0.0)
+
+    monkeypatch.setattr(PreferenceBelief, "_multiply", underflow)
+    spec = EpisodeSpec.single("simple", "path_preference", 1, seed=0, preset="paper",
+                              queries=20)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")  # the worst case: every warning shown
+        with pytest.raises(EpisodeError) as e:
+            run_episode(spec)
+        res = safe_run(spec)
+    assert str(e.value).startswith("belief became non-finite at step ")
+    assert "floating-point errors, the first: " in str(e.value) and "\n" not in str(e.value)
+    assert res.status == "failed" and res.reason.startswith("EpisodeError: belief became")
+    out = capfd.readouterr()
+    assert out.err == "" and out.out == ""

@@ -184,3 +184,68 @@ def test_push_arrow_is_one_metre_per_30_newtons(worlds):
     px_per_m = (b - a) / (4.5 + 0.3)  # centres 4.5 m apart, discs 0.3 m across
     lo, hi = red_x(arrow, 180)
     assert (hi - lo) / px_per_m == pytest.approx(1.0, abs=0.12)
+
+
+# --- a full disk while encoding -------------------------------------------------------------
+def fake_ffmpeg(folder: Path, read_all: bool) -> str:
+    """An ``ffmpeg`` for imageio (``IMAGEIO_FFMPEG_EXE``) that fails as on a full disk: it
+    writes the start of the file, then (``read_all``) takes every frame and fails on the
+    trailer, exit status 1 (what imageio never checked), or dies at once (the pipe breaks)."""
+    exe = folder / "ffmpeg"
+    exe.write_text("#!/bin/sh\nfor a; do out=$a; done\nprintf '\\000\\000\\000\\040ftypisom' "
+                   '> "$out"\n' + ("cat > /dev/null\n" if read_all else "") + "exit 1\n")
+    exe.chmod(0o755)
+    return str(exe)
+
+
+@pytest.mark.parametrize("read_all", [True, False])
+def test_a_video_the_encoder_could_not_finish_is_removed(tmp_path, monkeypatch, read_all):
+    import errno
+
+    from pathpref.sim import render
+
+    monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", fake_ffmpeg(tmp_path, read_all))
+    frames = [np.random.default_rng(k).integers(0, 255, (48, 64, 3), np.uint8)
+              for k in range(200)]
+    out = tmp_path / "v.mp4"
+    monkeypatch.setattr(render, "free_bytes", lambda folder: 4096)  # the disk is full
+    with pytest.raises(OSError) as e:
+        write_video(frames, out)
+    assert e.value.errno == errno.ENOSPC and not out.exists()
+    monkeypatch.setattr(render, "free_bytes", lambda folder: 2**40)  # it is not
+    with pytest.raises(OSError, match="the video encoder") as e:
+        write_video(frames, out)
+    assert e.value.errno == errno.EIO and "\n" not in str(e.value) and not out.exists()
+
+
+def test_render_on_a_full_disk_exits_2_and_keeps_no_file(tmp_path, capsys, monkeypatch):
+    """`render --out` used to exit 0 and print "wrote" over an unplayable MP4."""
+    from pathpref.apps.cli import main
+    from pathpref.sim import render
+
+    monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", fake_ffmpeg(tmp_path, read_all=True))
+    monkeypatch.setattr(render, "free_bytes", lambda folder: 0)
+    (tmp_path / "out").mkdir()
+    out = tmp_path / "out" / "v.mp4"
+    rc = main(["render", "--map", "simple", "--method", "compliant", "--delta-t", "2",
+               "--t-max", "3", "--width", "64", "--height", "48", "--no-progress",
+               "--out", str(out)])
+    cap = capsys.readouterr()
+    assert rc == 2 and "wrote" not in cap.out
+    assert cap.err.splitlines() == [f"pathpref: error: cannot write {out}: no space left on "
+                                    "device; free some space and run again (no partial file "
+                                    "was kept)"]
+    assert os.listdir(tmp_path / "out") == []
+
+    def full(self, frame):  # a writer that raises ENOSPC itself
+        import errno
+
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.delenv("IMAGEIO_FFMPEG_EXE")
+    monkeypatch.setattr(render.VideoWriter, "append", full)
+    assert main(["render", "--map", "simple", "--method", "compliant", "--delta-t", "2",
+                 "--t-max", "3", "--width", "64", "--height", "48", "--no-progress",
+                 "--out", str(out)]) == 2
+    assert len(capsys.readouterr().err.splitlines()) == 1
+    assert os.listdir(tmp_path / "out") == []

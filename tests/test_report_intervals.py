@@ -47,3 +47,58 @@ def test_table_rows_come_in_a_fixed_order_whatever_order_the_episodes_were_store
             if line.startswith("| ") and "method" not in line]
     assert rows[:6] == ["compliant", "path preference", "goal_known", "oracle", "aa_custom",
                         "zz_custom"], rows
+
+
+def _fail_rows(db, method: str, count: int) -> None:
+    """Mark ``count`` of ``method``'s unsuccessful rows as failed episodes (as a sweep writes
+    them: status 'failed', every flag 0 but pref_followed, no step rows)."""
+    import sqlite3
+
+    with sqlite3.connect(db) as c:
+        keys = [r[0] for r in c.execute("SELECT key FROM episodes WHERE method = ? AND "
+                                        "success = 0 ORDER BY key LIMIT ?", (method, count))]
+        for k in keys:
+            c.execute("UPDATE episodes SET status = 'failed', reason = 'EpisodeError: x', "
+                      "goal_reached = 0, success = 0, pref_followed = 1 WHERE key = ?", (k,))
+            c.execute("DELETE FROM steps WHERE key = ?", (k,))
+    c.close()
+
+
+def test_failed_episodes_count_as_failures_by_default(tmp_path, capsys):
+    """9 successes in 24 rows of which 3 failed: 0.38 (9/24), never 0.43 (9/21); every table
+    says how many rows failed; --exclude-failed is the explicit alternative."""
+    import csv
+
+    from pathpref.experiments.report import load_records
+
+    db = synthetic_db(tmp_path / "r.sqlite", {("compliant", 1): (9, 24),
+                                              ("goal_only", 1): (4, 24)})
+    _fail_rows(db, "compliant", 3)
+    rec = {r["method"]: r for r in load_records(db)}
+    assert (rec["compliant"]["n"], rec["compliant"]["failed"]) == (24, 3)
+    assert rec["compliant"]["success_rate"] == 9 / 24 and rec["compliant"]["goal_rate"] == 9 / 24
+    assert rec["compliant"]["pref_rate"] == 21 / 24  # a failed row followed nothing
+    assert (rec["goal_only"]["n"], rec["goal_only"]["failed"]) == (24, 0)
+    assert main(["report", str(db)]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "0.38 [" in out and "0.43" not in out and "(3 failed)" in out
+    assert "3 failed rows, counted as failures" in out
+    rows = list(csv.DictReader(open(tmp_path / "r.csv")))
+    keys = {"map", "map_hash", "sim", "variant", "method", "delta_t", "n", "failed",
+            "success_rate", "ci_low", "ci_high", "goal_rate", "pref_rate", "instances"}
+    assert keys <= set(rows[0]) and rows[0]["failed_excluded"] == "False"
+    # the explicit opt-out: failed rows left out of the rates, still counted
+    assert main(["report", str(db), "--exclude-failed"]) == 0
+    out = capsys.readouterr().out
+    assert "0.43 [" in out and "3 failed rows, left out of the rates" in out
+    ex = {r["method"]: r for r in load_records(db, exclude_failed=True)}
+    assert (ex["compliant"]["n"], ex["compliant"]["failed"]) == (21, 3)
+
+
+def test_a_cell_of_failed_rows_only_shows_them(tmp_path, capsys):
+    db = synthetic_db(tmp_path / "r.sqlite", {("compliant", 1): (0, 2), ("compliant", 5): (1, 2)})
+    _fail_rows(db, "compliant", 2)  # both of ΔT=1 (keys sort by ΔT first)
+    assert main(["report", str(db), "--exclude-failed"]) == 0
+    assert "– (2 failed)" in capsys.readouterr().out
+    assert main(["report", str(db)]) == 0
+    assert "0.00 [0.00, 0.66] (2 failed)" in capsys.readouterr().out

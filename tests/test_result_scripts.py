@@ -47,3 +47,18 @@ def test_outcome_table_and_back_crossings_match_the_database(tmp_path, capsys):
     cells = [c.strip() for c in line.strip("|").split("|")]
     assert int(cells[3]) == total
     assert int(cells[4]) + int(cells[5]) + int(cells[6]) == total
+
+
+def test_outcome_table_counts_failed_episodes_as_failures(tmp_path, capsys):
+    from .store_helpers import synthetic_db
+    from .test_report_intervals import _fail_rows
+
+    db = synthetic_db(tmp_path / "r.sqlite", {("compliant", 1): (9, 24)})
+    _fail_rows(db, "compliant", 3)
+    assert outcome_table.main([str(db)]) == 0
+    out = capsys.readouterr().out
+    assert "| compliant | 0.38 / 0.38 / 0.00 |" in out and "n = [24]" in out
+    assert "3 failed episodes, counted as failures" in out
+    assert outcome_table.main([str(db), "--exclude-failed"]) == 0
+    out = capsys.readouterr().out
+    assert "| compliant | 0.43 / 0.43 / 0.00 |" in out and "3 failed episodes, left out" in out

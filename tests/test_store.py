@@ -110,3 +110,158 @@ def test_the_stored_row_of_an_episode_is_exact():
     assert row == want
     assert [res.log[0].x, res.log[0].y] == json.loads(row["start"])
     assert len(json.loads(row["goals"])) == 10 and row["inputs"] > 0
+
+
+def test_readers_never_change_a_rollback_journal_database(tmp_path, capsys):
+    """`report` and `replay` read a rollback-journal file as it is: same bytes, same journal
+    mode, no side file (they used to switch it to WAL)."""
+    from pathpref.apps.cli import main
+    from pathpref.experiments.report import load_records
+
+    from .store_helpers import snapshot, synthetic_db
+
+    (tmp_path / "d").mkdir()
+    db = synthetic_db(tmp_path / "d" / "r.sqlite", {("compliant", 1): (2, 4)})
+    c = sqlite3.connect(db)
+    assert c.execute("PRAGMA journal_mode=DELETE").fetchone() == ("delete",)
+    c.close()
+    out = tmp_path / "out"
+    out.mkdir()
+    before = snapshot(db.parent)
+    raw = db.read_bytes()
+    assert raw[18:20] == b"\x01\x01"  # the header's read/write versions: rollback journal
+    assert main(["report", str(db), "--csv", str(out / "r.csv")]) == 0
+    assert main(["replay", str(db), "--participant", "p1", "--trial", "1", "--out",
+                 str(out / "v.mp4")]) == 2
+    assert "no trial 1 of participant" in capsys.readouterr().err
+    assert load_records(db)[0]["n"] == 4
+    assert db.read_bytes() == raw and snapshot(db.parent) == before
+    with ResultStore(db, create=False) as st:
+        with pytest.raises(sqlite3.OperationalError, match="readonly"):
+            st.conn.execute("DELETE FROM episodes")
+    with pytest.raises(ConfigError, match="holds no episodes yet"):
+        (tmp_path / "empty.sqlite").write_bytes(b"")
+        ResultStore(tmp_path / "empty.sqlite", create=False)
+
+
+TWO_SWEEPS = """
+import json, os, sys, time
+from pathpref.experiments import backends
+from pathpref.experiments.sweep import run_sweep, sweep_specs
+
+folder, tag, other = sys.argv[1], sys.argv[2], sys.argv[3]
+real = backends.safe_run
+ran = []
+
+def run(spec):  # the first episode waits until the other sweep runs one too: they overlap
+    open(os.path.join(folder, "started-" + tag), "w").close()
+    for _ in range(6000):
+        if os.path.exists(os.path.join(folder, "started-" + other)):
+            break
+        time.sleep(0.01)
+    ran.append(spec.key())
+    return real(spec)
+
+backends.safe_run = run
+specs = sweep_specs("simple", ["compliant", "goal_only"], [1, 10], instances=3, runs=2,
+                    queries=50)
+counts = run_sweep(specs, os.path.join(folder, "r.sqlite"), workers=int(sys.argv[4]),
+                   progress=False)
+print(json.dumps({"ran": ran, "counts": counts}))
+"""
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_two_sweeps_on_one_database_never_run_an_episode_twice(tmp_path, workers):
+    """Two sweeps of the same 24 episodes started together on one database: every episode is
+    run exactly once (each claims an episode before running it); they used to compute most of
+    them twice."""
+    import json
+    import os
+    import subprocess
+    import sys
+
+    script = tmp_path / "sweep.py"
+    script.write_text(TWO_SWEEPS)
+    env = dict(os.environ, MUJOCO_GL="egl")
+    procs = [subprocess.Popen([sys.executable, str(script), str(tmp_path), a, b,
+                               str(workers)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True, env=env) for a, b in (("a", "b"), ("b", "a"))]
+    outs = []
+    for p in procs:
+        out, err = p.communicate(timeout=600)
+        assert p.returncode == 0, err
+        outs.append(json.loads(out.strip().splitlines()[-1]))
+    a, b = outs
+    if workers == 1:  # in-process: the keys each sweep ran
+        assert not set(a["ran"]) & set(b["ran"])
+        assert len(a["ran"]) + len(b["ran"]) == 24
+    assert a["counts"]["ran"] + b["counts"]["ran"] == 24
+    assert a["counts"]["ran"] > 0 and b["counts"]["ran"] > 0
+    with ResultStore(tmp_path / "r.sqlite") as st:
+        rows = st.episodes()
+    assert len(rows) == 24 and {r["status"] for r in rows} == {"ok"}
+
+
+def test_stale_claims_are_taken_over_and_live_ones_left(tmp_path):
+    """A claim of a process that is gone (a crashed sweep) is run on resume; a claim of a
+    live sweep is left to it; a finished sweep leaves no claim behind; reports skip claims."""
+    import json
+    import subprocess
+    import sys
+
+    from pathpref.experiments.backends import failed
+    from pathpref.experiments.report import load_records
+    from pathpref.experiments.store import RUNNING, claim_is_live, this_owner
+
+    db = tmp_path / "r.sqlite"
+    specs = small_specs(methods=["compliant"], delta_ts=[1], instances=1, runs=3)
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(600)"])
+    try:
+        me = this_owner()
+        gone = {**me, "pid": dead.pid, "start": "1"}
+        alive = {**me, "pid": live.pid, "start": None}
+        assert not claim_is_live({**gone, "at": 0}, 1e9) and claim_is_live({**alive, "at": 0},
+                                                                          1e9)
+        assert not claim_is_live({**me, "host": "elsewhere", "at": 0.0}, 60.0)
+        with ResultStore(db) as st:
+            assert st.claim(failed(specs[0], ""), owner=gone) == "claimed"
+            assert st.claim(failed(specs[1], ""), owner=alive) == "claimed"
+            assert st.claim(failed(specs[1], ""), owner=me) == "busy"
+        assert load_records(db) == []  # claims are not results
+        counts = run_sweep(specs, str(db), workers=1, progress=False)
+        assert counts["ran"] == 2 and counts["busy"] == 1  # the dead one's claim retaken
+        with ResultStore(db) as st:
+            rows = {r["key"]: r for r in st.episodes()}
+        assert rows[specs[0].key()]["status"] == "ok"
+        assert rows[specs[1].key()]["status"] == RUNNING
+        assert json.loads(rows[specs[1].key()]["reason"])["pid"] == live.pid
+    finally:
+        live.kill()
+        live.wait()
+    counts = run_sweep(specs, str(db), workers=2, progress=False)  # the live one died
+    assert counts["ran"] == 1
+    with ResultStore(db) as st:
+        assert {r["status"] for r in st.episodes()} == {"ok"}
+
+
+def test_an_interrupted_sweep_releases_its_claims(tmp_path, monkeypatch):
+    from pathpref.experiments import sweep
+
+    db = tmp_path / "r.sqlite"
+    specs = small_specs(methods=["compliant"], delta_ts=[1], instances=1, runs=3)
+    real = sweep.iter_results
+
+    def interrupted(todo, *a, **k):
+        for i, res in enumerate(real(todo, *a, **k)):
+            if i == 1:
+                raise KeyboardInterrupt
+            yield res
+
+    monkeypatch.setattr(sweep, "iter_results", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(specs, str(db), workers=1, progress=False)
+    with ResultStore(db) as st:
+        assert [r["status"] for r in st.episodes()] == ["ok"]

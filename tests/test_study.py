@@ -240,6 +240,29 @@ def test_replay_runs_the_recorded_forces_again(demo_db, tmp_path, capsys):
     assert not (tmp_path / "q.mp4").exists()
 
 
+def test_replay_on_a_full_disk_exits_2_and_keeps_no_file(demo_db, tmp_path, capsys,
+                                                         monkeypatch):
+    """`replay --out` used to exit 0 and print "wrote" over an unplayable MP4; the database
+    is not changed either (a reader never writes)."""
+    from pathpref.sim import render
+
+    from .test_render import fake_ffmpeg
+
+    monkeypatch.setenv("IMAGEIO_FFMPEG_EXE", fake_ffmpeg(tmp_path, read_all=True))
+    monkeypatch.setattr(render, "free_bytes", lambda folder: 0)
+    (tmp_path / "out").mkdir()
+    out = tmp_path / "out" / "t1.mp4"
+    raw = demo_db.read_bytes()
+    rc = main(["replay", str(demo_db), "--participant", "demo", "--trial", "1", "--out",
+               str(out), "--width", "32", "--height", "24"])
+    cap = capsys.readouterr()
+    assert rc == 2 and "wrote" not in cap.out
+    assert cap.err.splitlines() == [f"pathpref: error: cannot write {out}: no space left on "
+                                    "device; free some space and run again (no partial file "
+                                    "was kept)"]
+    assert list((tmp_path / "out").iterdir()) == [] and demo_db.read_bytes() == raw
+
+
 def test_report_has_study_tables(demo_db, capsys):
     assert main(["report", str(demo_db)]) == 0
     out = capsys.readouterr().out

@@ -220,24 +220,37 @@ def atomic_output(out: str | Path, write: Callable[[Path], object]) -> Path:
 # --- maps and tables ------------------------------------------------------------------------
 #: maps whose arrangement may have this many polytopes get a note when their build is slow
 NOTE_POLYTOPES = 200
+#: seconds a build runs before its note
+NOTE_AFTER_S = 1.0
+
 
 def load_world_checked(source: str, force: bool = False, progress: bool = True):
     """The cached world of ``source``, refused before building when its arrangement may be too
-    large (:func:`~pathpref.geometry.arrangement.check_arrangement_size`, unless ``force``); a
-    line on stderr when building takes more than a second and the map may have
-    :data:`NOTE_POLYTOPES` polytopes or more (a small map that is slow to build is a busy
-    machine, and a note there would be a second line before a bad-input error)."""
+    large (:func:`~pathpref.geometry.arrangement.check_arrangement_size`, unless ``force``).
+
+    A build that takes more than :data:`NOTE_AFTER_S` on a map that may have
+    :data:`NOTE_POLYTOPES` polytopes or more says so on a terminal (stderr a TTY), on a line
+    that is erased when the build ends: never a line of its own before an error that follows
+    (a refusal is one line), nor in a log."""
     from ..episode import cached_map, cached_world
     from ..geometry.arrangement import check_arrangement_size
 
     spec = cached_map(source)
     lines, cells, bound = check_arrangement_size(spec, force)
+    shown: list[bool] = []
+    lock = threading.Lock()
 
     def note() -> None:
-        print(f"pathpref: building map '{spec.name}' ({lines} lines, {cells:,} free cells, up "
-              f"to {bound:,} polytopes) ...", file=sys.stderr, flush=True)
+        with lock:
+            if shown:
+                return
+            shown.append(True)
+            print(f"pathpref: building map '{spec.name}' ({lines} lines, {cells:,} free cells, "
+                  f"up to {bound:,} polytopes) ...", end="\r", file=sys.stderr, flush=True)
 
-    timer = threading.Timer(1.0, note) if progress and bound >= NOTE_POLYTOPES else None
+    tty = getattr(sys.stderr, "isatty", lambda: False)()
+    timer = threading.Timer(NOTE_AFTER_S, note) if progress and tty and \
+        bound >= NOTE_POLYTOPES else None
     if timer is not None:
         timer.daemon = True
         timer.start()
@@ -246,6 +259,10 @@ def load_world_checked(source: str, force: bool = False, progress: bool = True):
     finally:
         if timer is not None:
             timer.cancel()
+            with lock:
+                if shown:
+                    print("\r\033[K", end="", file=sys.stderr, flush=True)
+                shown.append(False)  # a late timer prints nothing
 
 
 def check_goal_count(source: str, n_goals: int) -> None:
@@ -259,6 +276,24 @@ def check_goal_count(source: str, n_goals: int) -> None:
     free = int(free_cell_mask(spec).sum())
     if int(n_goals) > free - 1:
         raise too_few_candidates(spec.name, int(n_goals), free)
+
+
+def check_model_size_early(source: str, n_goals: int) -> None:
+    """:func:`check_model_size` before the map is built, with its free cells and the fewest
+    neighbour slots (1): a map too large for the tables is one line and no build."""
+    from ..episode import cached_map
+    from ..geometry.maps import free_cell_mask
+
+    spec = cached_map(source)
+
+    class _World:
+        name = spec.name
+        n_cells = int(free_cell_mask(spec).sum())
+
+        class graph:  # noqa: N801 - the attribute World has
+            max_degree = 1
+
+    check_model_size(_World(), n_goals)
 
 
 def check_model_size(world, n_goals: int) -> int:

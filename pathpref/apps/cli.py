@@ -180,6 +180,9 @@ def build_parser() -> argparse.ArgumentParser:
     rp.add_argument("db", help="results database (.sqlite)")
     rp.add_argument("--csv", default=None, help="CSV path (default: DB name with .csv)")
     rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png, .pdf, .svg)")
+    rp.add_argument("--exclude-failed", action="store_true",
+                    help="leave failed episodes (an error, a timeout) out of the rates; by "
+                    "default each counts as a failure. Every table says how many failed")
     rp.set_defaults(func=c.cmd_report)
 
     tm = sub.add_parser("timing", help="Table II: solve and update time at the first decision")
@@ -306,8 +309,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except PathprefError as e:
-        print(f"pathpref: error: {e}", file=sys.stderr)
+    except PathprefError as e:  # one line, whatever text a library put in the message
+        text = " ".join(" ".join(part.split()) for part in str(e).splitlines() if part.strip())
+        print(f"pathpref: error: {text}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("pathpref: interrupted", file=sys.stderr)

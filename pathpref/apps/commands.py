@@ -18,6 +18,7 @@ from .checks import (
     check_episode_count,
     check_goal_count,
     check_model_size,
+    check_model_size_early,
     check_output_folder,
     check_writable,
     is_disk_full,
@@ -176,6 +177,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                          len(resolve_methods(args.methods))], "the sweep")
     load_simulator(args.sim)
     check_goal_count(args.map, args.goals)
+    check_model_size_early(args.map, args.goals)
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
@@ -191,8 +193,10 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             raise
         cleanup()
         raise write_error(args.db, e) from None
+    elsewhere = counts.get("elsewhere", 0)
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
-          f"in {args.db}, {counts['seconds']} s")
+          f"in {args.db}" + (f" ({elsewhere} of them run by another sweep)" if elsewhere else "")
+          + f", {counts['seconds']} s")
     from ..episode import cached_map
 
     recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]
@@ -216,7 +220,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     check_writable(csv_path, "--csv", (".csv",))
     if args.figure:
         check_writable(args.figure, "--figure", FIGURE_SUFFIXES)
-    recs = load_records(args.db)
+    recs = load_records(args.db, exclude_failed=args.exclude_failed)
     trials = load_trials(args.db)
     if trials:
         print(study_tables(trials) + ("\n" if recs else ""))
@@ -282,6 +286,9 @@ def cmd_belief_curves(args: argparse.Namespace) -> int:
             raise
         cleanup()
         raise write_error(db, e) from None
+    if counts.get("busy"):
+        raise ConfigError(f"{counts['busy']} of {len(specs)} episodes are being run by "
+                          f"another sweep on {db}; run again when it has finished")
     if counts["failed"]:
         raise ConfigError(f"{counts['failed']} of {len(specs)} episodes failed (see 'pathpref "
                           f"report {db}'); the curves need complete episodes: raise "

@@ -68,6 +68,11 @@ CHOICES: dict[str, tuple[str, ...]] = {"sensor": SENSORS, "timing": TIMINGS, "sh
                                        "base": BASES}
 
 
+#: the error of a physics value nested too deeply to read (its fields are flat)
+TOO_DEEP = ("physics nests lists/objects too deeply to read; it is one flat object of the "
+            "physical parameters, e.g. {\"sensor\": \"ideal\"}")
+
+
 def flag(name: str) -> str:
     """The command-line flag of a field (``sensor_noise_n`` -> ``--sensor-noise-n``)."""
     return "--" + name.replace("_", "-")
@@ -128,14 +133,18 @@ class Physics:
                                       f"false, got {v!r}")
             else:
                 lo, hi = RANGES[f.name]
-                ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and \
-                    math.isfinite(v) and (lo <= v <= hi or
-                                          (f.name in PRESET_DEFAULT and v == -1.0))
+                try:  # an integer of hundreds of digits does not convert to a float
+                    ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and \
+                        math.isfinite(v) and (lo <= v <= hi or
+                                              (f.name in PRESET_DEFAULT and v == -1.0))
+                except OverflowError:
+                    ok = False
                 if not ok:
                     extra = " (or -1: the preset's)" if f.name in PRESET_DEFAULT else ""
+                    shown = repr(v) if len(repr(v)) <= 40 else repr(v)[:37] + "..."
                     raise ConfigError(f"physics {f.name} ({flag(f.name)}) must be a number in "
                                       f"{lo:g}..{hi:g}"
-                                      f"{extra}, got {v!r}")
+                                      f"{extra}, got {shown}")
         if self.off_n >= self.on_n:
             raise ConfigError(f"physics off_n must be below on_n ({self.on_n:g} N), got "
                               f"{self.off_n:g}")
@@ -161,6 +170,8 @@ class Physics:
             raw = json.loads(text)
         except (TypeError, ValueError) as e:
             raise ConfigError(f"physics must be JSON of the physical parameters: {e}") from None
+        except RecursionError:
+            raise ConfigError(TOO_DEEP) from None
         if not isinstance(raw, dict):
             raise ConfigError("physics must be a JSON object of the physical parameters")
         known = {f.name for f in fields(cls)}
@@ -168,6 +179,10 @@ class Physics:
         if unknown:
             raise ConfigError(f"physics has unknown field '{unknown[0]}'; known: "
                               f"{', '.join(sorted(known))}")
+        for k, v in raw.items():  # the fields are flat: a list or object is refused here
+            if isinstance(v, dict | list):
+                raise ConfigError(f"physics {k} must be a number, a string or true/false, "
+                                  f"got a JSON {'object' if isinstance(v, dict) else 'list'}")
         return cls(**raw)
 
     @classmethod
@@ -179,7 +194,14 @@ class Physics:
         if isinstance(value, Physics):
             return value.to_json()
         if isinstance(value, dict):
-            return cls.from_json(json.dumps(value)).to_json()
+            try:
+                text = json.dumps(value)
+            except RecursionError:
+                raise ConfigError(TOO_DEEP) from None
+            except (TypeError, ValueError) as e:
+                raise ConfigError(f"physics must be a dict of the physical parameters' "
+                                  f"values: {e}") from None
+            return cls.from_json(text).to_json()
         if isinstance(value, str):
             return cls.from_json(value).to_json()
         raise ConfigError(f"physics must be a Physics, a dict of its fields, JSON or None, "

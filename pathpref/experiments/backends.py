@@ -260,13 +260,24 @@ class _Pool:
             self._remove(w)
 
 
+Claim = Callable[[EpisodeSpec], bool]
+
+
+def _claimed(spec: EpisodeSpec, claim: Claim | None) -> bool:
+    return claim is None or claim(spec)
+
+
 def iter_local(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
-               limit: Callable[[EpisodeSpec], float] = wall_limit) -> Iterator[EpisodeResult]:
+               limit: Callable[[EpisodeSpec], float] = wall_limit,
+               claim: Claim | None = None) -> Iterator[EpisodeResult]:
     """Results from a pool of worker processes (in-process when ``workers == 1``), in completion
-    order; ``limit`` gives an episode's wall-time limit in seconds. Rules: module docstring."""
+    order; ``limit`` gives an episode's wall-time limit in seconds; ``claim(spec)`` is asked
+    just before an episode starts, and an episode it refuses is dropped (another sweep has it).
+    Rules: module docstring."""
     if workers <= 1:
         for s in specs:
-            yield safe_run(s)
+            if _claimed(s, claim):
+                yield safe_run(s)
         return
     queue = deque(specs)
     deaths: Counter[str] = Counter()
@@ -274,7 +285,9 @@ def iter_local(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
     try:
         while queue or pool.busy():
             while queue and (w := pool.idle()) is not None:
-                if pool.start(w, queue[0]):
+                if not _claimed(queue[0], claim):
+                    queue.popleft()
+                elif pool.start(w, queue[0]):
                     queue.popleft()
             for end in pool.collect():
                 if end.result is not None:
@@ -317,9 +330,28 @@ def _require_reachable(address: str) -> None:
                           f"is `ray start --head` running there?") from None
 
 
+def check_backend(backend: str, address: str | None = None) -> None:
+    """Refuse (ConfigError) a backend that cannot run, before a sweep creates or opens its
+    database: an unknown name, a Ray ``address`` that does not accept a connection
+    (:func:`_require_reachable`), or Ray not installed."""
+    if backend not in BACKENDS:
+        raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+    if backend != "ray":
+        return
+    if address is not None:
+        _require_reachable(address)
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        raise ConfigError(
+            "--backend ray needs Ray: pip install 'pathpref[ray]' (or pip install ray)"
+        ) from None
+
+
 def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int | None = None,
-             max_retries: int = 3) -> Iterator[EpisodeResult]:
-    """Results from Ray tasks, as they finish (see module docstring)."""
+             max_retries: int = 3, claim: Claim | None = None) -> Iterator[EpisodeResult]:
+    """Results from Ray tasks, as they finish (see module docstring); ``claim`` as for
+    :func:`iter_local`, asked just before a task is submitted."""
     try:
         import ray
     except ImportError:
@@ -347,7 +379,8 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
         while todo or pending:
             while todo and len(pending) < window:
                 s = todo.popleft()
-                pending[remote.remote(s)] = s
+                if _claimed(s, claim):
+                    pending[remote.remote(s)] = s
             # a bounded wait, so that a signal's Python handler (SIGTERM: exit) gets to run
             done, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
             for ref in done:
@@ -362,12 +395,15 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
 
 
 def iter_results(specs: list[EpisodeSpec], backend: str, workers: int,
-                 address: str | None = None) -> Iterator[EpisodeResult]:
+                 address: str | None = None, claim: Claim | None = None
+                 ) -> Iterator[EpisodeResult]:
     """Results of ``specs`` from ``backend``, with at most ``workers`` worker processes (local)
-    or CPUs (a local Ray instance), and never more than there are episodes."""
+    or CPUs (a local Ray instance), and never more than there are episodes; ``claim(spec)``
+    is asked just before each episode starts (:func:`iter_local`)."""
     workers = max(1, min(workers, len(specs)))
     if backend == "local":
-        return iter_local(specs, workers)
+        return iter_local(specs, workers, claim=claim)
     if backend == "ray":
-        return iter_ray(specs, address=address, num_cpus=workers if address is None else None)
+        return iter_ray(specs, address=address, num_cpus=workers if address is None else None,
+                        claim=claim)
     raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")

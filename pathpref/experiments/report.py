@@ -1,8 +1,12 @@
 """Tables from a results store: success rates (Table I) with 95% confidence intervals.
 
 The interval of a success rate is the Wilson score interval (95%), which stays inside [0, 1]
-and behaves at rates near 0 or 1, unlike the normal approximation. Failed episodes (an error, not
-a mission failure) are left out of the rates and counted separately.
+and behaves at rates near 0 or 1, unlike the normal approximation. A failed episode (status not
+``ok``: an error, a timeout, a crashed worker) counts as a failure of the mission by default: it
+is in ``n`` and counts against the success, goal and preference rates, so 9 successes in 24
+rows of which 3 failed read 0.38, never 9/21 = 0.43. Every record and every table says how many
+rows failed. ``exclude_failed=True`` (``pathpref report --exclude-failed``) leaves them out of
+the rates instead, still counted.
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from .paper import TABLE_I
-from .store import ResultStore
+from .store import RUNNING, ResultStore
 
 #: row order of the tables: the paper's four, then the reference rows (the ceiling), then any
 #: registered method by name
@@ -56,30 +60,50 @@ def variant(r: dict[str, Any]) -> str:
     return ", ".join(parts)
 
 
-def success_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One record per (map, sim, variant, method, delta_t) with n, rate, CI and flag rates."""
+def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
+                  ) -> list[dict[str, Any]]:
+    """One record per (map, sim, variant, method, delta_t) with n, rate, CI and flag rates.
+
+    ``n`` counts every row and a failed one (status not ``ok``) is a failure of the mission,
+    unless ``exclude_failed``: then ``n`` counts the ``ok`` rows only. ``failed`` is the number
+    of failed rows either way, ``failed_excluded`` says which rule the rates follow.
+    """
     groups: dict[tuple, list[dict]] = defaultdict(list)
     label: dict[str, str] = {}  # a map is its content: rows of one hash share the first path
     for r in rows:
+        if r["status"] == RUNNING:  # claimed by a sweep, not finished: not a result
+            continue
         m = label.setdefault(r["map_hash"], r["map"])
         groups[(m, r["sim"], variant(r), r["method"], r["delta_t"])].append(r)
     out = []
     for (m, sim, var, method, dt), rs in sorted(groups.items(), key=lambda kv: (
             kv[0][0], kv[0][1], kv[0][2], _order(kv[0][3]), kv[0][4])):
         ok = [r for r in rs if r["status"] == "ok"]
-        n = len(ok)
+        counted = ok if exclude_failed else rs
+        n = len(counted)
         k = sum(r["success"] for r in ok)
         lo, hi = wilson(k, n)
         out.append({
             "map": m, "map_hash": rs[0]["map_hash"], "sim": sim, "variant": var,
             "method": method, "delta_t": dt,
-            "n": n, "failed": len(rs) - n, "success_rate": k / n if n else float("nan"),
+            "n": n, "failed": len(rs) - len(ok), "success_rate": k / n if n else float("nan"),
             "ci_low": lo, "ci_high": hi,
             "goal_rate": sum(r["goal_reached"] for r in ok) / n if n else float("nan"),
             "pref_rate": sum(r["pref_followed"] for r in ok) / n if n else float("nan"),
-            "instances": len({r["instance_seed"] for r in ok}),
+            "instances": len({r["instance_seed"] for r in counted}),
+            "failed_excluded": bool(exclude_failed),
         })
     return out
+
+
+def failed_note(records: list[dict[str, Any]]) -> str:
+    """How many rows of ``records`` failed and what the rates did with them, e.g. ``3 failed
+    rows, counted as failures`` (the title of every table)."""
+    failed = sum(r["failed"] for r in records)
+    rows = "row" if failed == 1 else "rows"
+    if any(r.get("failed_excluded") for r in records):
+        return f"{failed} failed {rows}, left out of the rates (--exclude-failed)"
+    return f"{failed} failed {rows}, counted as failures"
 
 
 def _order(method: str) -> tuple[int, str]:
@@ -95,7 +119,8 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
         dts = sorted({r["delta_t"] for r in recs})
         methods = sorted({r["method"] for r in recs}, key=_order)
         ns = sorted({r["n"] for r in recs})
-        title = f"**{m}** ({sim}; {var}; n = {'/'.join(map(str, ns))} per cell)"
+        title = (f"**{m}** ({sim}; {var}; n = {'/'.join(map(str, ns))} per cell; "
+                 f"{failed_note(recs)})")
         lines = [title, "", "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
                  "|---|" + "---|" * len(dts)]
         for meth in methods:
@@ -103,9 +128,11 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
             for d in dts:
                 r = next((x for x in recs if x["method"] == meth and x["delta_t"] == d), None)
                 if r is None or r["n"] == 0:
-                    cells.append("–")
+                    cells.append("–" if r is None or not r["failed"] else
+                                 f"– ({r['failed']} failed)")
                 else:
-                    cells.append(f"{r['success_rate']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]")
+                    cells.append(f"{r['success_rate']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]"
+                                 + (f" ({r['failed']} failed)" if r["failed"] else ""))
             lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
         if with_paper and m == "simple" and sim == "grid":
             lines += ["", "Paper (Table I, Map 1):", "",
@@ -131,7 +158,7 @@ def side_by_side(records: list[dict[str, Any]]) -> str:
             continue
         dts = sorted({r["delta_t"] for r in recs})
         methods = sorted({r["method"] for r in recs}, key=_order)
-        lines = [f"**{m}**: {' / '.join(sims)} side by side ({var})", "",
+        lines = [f"**{m}**: {' / '.join(sims)} side by side ({var}; {failed_note(recs)})", "",
                  "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
                  "|---|" + "---|" * len(dts)]
         for meth in methods:
@@ -159,12 +186,12 @@ def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:
         w.writerows(records)
 
 
-def load_records(db: str | Path) -> list[dict[str, Any]]:
-    """Every episode row of the results database ``db`` (damage found while reading: one
-    ConfigError line)."""
+def load_records(db: str | Path, exclude_failed: bool = False) -> list[dict[str, Any]]:
+    """The records of :func:`success_table` over every episode row of the results database
+    ``db`` (damage found while reading: one ConfigError line)."""
     with ResultStore(db, create=False) as store:
         try:
-            return success_table(store.episodes())
+            return success_table(store.episodes(), exclude_failed)
         except sqlite3.DatabaseError as e:
             raise ConfigError(f"cannot read results from {db}: {e} (the file is damaged)"
                               ) from None

@@ -5,6 +5,15 @@ together), so a sweep killed at any moment leaves only whole episodes; WAL journ
 file consistent. The primary key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips
 what is done.
 
+Two sweeps may share one database: each claims an episode just before running it
+(:meth:`ResultStore.claim`), in one write transaction, by writing its row with ``status =
+'running'`` and the claim's owner (host, process id and the process's start time) in
+``reason``; a row another live sweep has claimed is left to it. A claim whose owner is gone (on
+this host: no such process, or the process id reused; from another host: older than four
+times the episode's wall-time limit) is stale, and the next sweep takes it over, so a crashed
+sweep's claims are run on resume. A sweep removes its unfinished claims when it ends (Ctrl-C,
+SIGTERM, an error); readers leave ``running`` rows out (they are not results).
+
 An existing file is checked before it is opened for writing (:func:`check_results_file`), on a
 read-only connection that leaves no side file: it must be a regular file holding exactly
 pathpref's tables (no views, triggers or other objects, which could falsify what a report reads),
@@ -16,9 +25,14 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
+import math
 import os
+import re
+import socket
 import sqlite3
 import stat
+import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -67,10 +81,18 @@ def episodes_sql(columns: Iterable[str] = EPISODE_COLUMNS) -> str:
     return f"CREATE TABLE episodes ({', '.join(f'{c} {EPISODE_COLUMNS[c]}' for c in columns)})"
 
 
+def one_line(text: object, limit: int = 300) -> str:
+    """``text`` on one line: SQLite's integrity reports span lines (``*** in database main
+    ***`` then one line per problem); these are joined with ``; ``, cut at ``limit``."""
+    parts = [" ".join(p.split()) for p in str(text).splitlines()]
+    flat = "; ".join(p for p in parts if p and p != "*** in database main ***")
+    return flat if len(flat) <= limit else flat[:limit - 3] + "..."
+
+
 def damaged(path: str | Path, err: BaseException | str) -> ConfigError:
     """The one-line error of a database that cannot be read (names the repair commands)."""
     return ConfigError(
-        f"{path} is damaged ({err}); 'pathpref db check {path}' lists the damage and "
+        f"{path} is damaged ({one_line(err)}); 'pathpref db check {path}' lists the damage and "
         f"'pathpref db salvage {path} NEW.sqlite' copies the intact episodes")
 
 
@@ -229,20 +251,142 @@ def check_results_file(path: str | Path, create: bool = True) -> bool:
     return True
 
 
-class ResultStore:
-    """Open (or create) a results database at ``path``, after :func:`check_results_file`."""
+#: the episode columns reports and resumes read, and what pathpref writes in each: ``text`` a
+#: string, ``count`` an integer >= 1, ``seed`` an integer >= 0, ``number`` a finite number,
+#: ``flag`` 0 or 1
+ROW_RULES = {
+    "key": "text", "map": "text", "map_hash": "text", "sim": "text", "task": "text",
+    "method": "text", "preset": "text", "status": "text",
+    "delta_t": "count", "queries": "count", "t_max": "count", "instance_seed": "seed",
+    "ucb_c": "number",
+    "normalize": "flag", "coupling": "flag", "success": "flag", "goal_reached": "flag",
+    "pref_followed": "flag",
+}
+_RULE_TEXT = {"text": "a string", "count": "an integer >= 1", "seed": "an integer >= 0",
+              "number": "a finite number", "flag": "0 or 1"}
 
-    def __init__(self, path: str | Path, create: bool = True):
+
+def _breaks_rule(value: Any, rule: str) -> bool:
+    if rule == "text":
+        return not isinstance(value, str)
+    if rule == "number":
+        return not (isinstance(value, int | float) and math.isfinite(value))
+    if not isinstance(value, int):
+        return True
+    return {"count": value < 1, "seed": value < 0, "flag": value not in (0, 1)}[rule]
+
+
+def check_episode_rows(rows: Iterable[dict[str, Any]], path: str | Path) -> None:
+    """Refuse (one ConfigError line naming the row, the column and the fix) an episode row that
+    pathpref cannot have written: a column of :data:`ROW_RULES` holding another type or value
+    (``success = 'x'``, ``success = 5``, ``ucb_c = NULL``, ``delta_t = 'x'``, ``map = NULL``),
+    or a ``success`` that contradicts the row's own outcome (an ``ok`` row succeeds exactly when
+    it reached the goal and followed the preference)."""
+    for i, row in enumerate(rows):
+        key = row.get("key")
+        plain = isinstance(key, str) and re.fullmatch(r"[\w.-]{1,80}", key, re.ASCII)
+        where = f"episode {key}" if plain else f"episode row {i + 1}"
+        fix = (f"the file was changed outside pathpref: delete that row (DELETE FROM episodes "
+               f"WHERE key = '{key}') and run the sweep again to recompute it"
+               if plain else "the file was changed outside pathpref: use another --db")
+        for col, rule in ROW_RULES.items():
+            if col in row and _breaks_rule(row[col], rule):
+                shown = "NULL" if row[col] is None else repr(row[col])
+                shown = shown if len(shown) <= 40 else shown[:37] + "..."
+                raise ConfigError(f"{path}: {where} has {col} = {shown}, not "
+                                  f"{_RULE_TEXT[rule]}; {fix}")
+        if row.get("status") == "ok" and "success" in row and "goal_reached" in row and \
+                row["success"] != (row["goal_reached"] and row.get("pref_followed", 1)):
+            raise ConfigError(f"{path}: {where} has success = {row['success']} but "
+                              f"goal_reached = {row['goal_reached']} and pref_followed = "
+                              f"{row.get('pref_followed')}; {fix}")
+
+
+def check_stored_rows(conn: sqlite3.Connection, path: str | Path) -> None:
+    """:func:`check_episode_rows` on the :data:`ROW_RULES` columns of every episode of
+    ``conn``."""
+    have = [r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")]
+    cols = [c for c in ROW_RULES if c in have]
+    cur = conn.execute(f"SELECT {', '.join(cols)} FROM episodes")
+    check_episode_rows((dict(zip(cols, r, strict=True)) for r in cur), path)
+
+
+#: ``status`` of an episode row that a sweep has claimed and not finished
+RUNNING = "running"
+
+
+def process_start(pid: int) -> str | None:
+    """The start time of process ``pid`` (clock ticks after boot, ``/proc/PID/stat`` field 22),
+    which tells a process from a later one given the same id; None where there is no /proc or
+    no such process."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            stat_line = f.read().decode(errors="replace")
+    except OSError:
+        return None
+    return stat_line.rsplit(")", 1)[-1].split()[19]
+
+
+def this_owner() -> dict[str, Any]:
+    """The claim owner of this process: host, process id and the process's start time."""
+    pid = os.getpid()
+    return {"host": socket.gethostname(), "pid": pid, "start": process_start(pid)}
+
+
+def claim_is_live(claim: dict[str, Any], max_age_s: float, now: float | None = None) -> bool:
+    """Whether the sweep that made ``claim`` (:func:`this_owner` plus ``at``, the time of the
+    claim) may still be running its episode (module docstring: the stale-claim rule)."""
+    try:
+        host, pid, start, at = claim["host"], int(claim["pid"]), claim.get("start"), \
+            float(claim["at"])
+    except (KeyError, TypeError, ValueError):
+        return False  # not a claim this version wrote: take it
+    if host != socket.gethostname():
+        return (time.time() if now is None else now) - at <= max_age_s
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process: alive
+        pass
+    now_start = process_start(pid)
+    return start is None or now_start is None or now_start == start
+
+
+class ResultStore:
+    """Open (or create) a results database at ``path``, after :func:`check_results_file`.
+
+    ``create=False`` opens it for reading only (``report``, ``replay``, the curves): through
+    :func:`open_readonly`, so the file, its journal mode (a rollback-journal file stays one) and
+    its folder are left exactly as they were; a write through such a store is refused.
+    ``check_rows``: :meth:`check_rows` on that read-only connection first, so that a file with
+    a row pathpref cannot have written is refused before it is opened for writing."""
+
+    def __init__(self, path: str | Path, create: bool = True, check_rows: bool = False):
         self.path = Path(path)
         if create and not self.path.exists():
             parent = self.path.parent
             if not parent.is_dir():
                 raise ConfigError(f"cannot create {self.path}: folder {parent} does not exist")
         existing = check_results_file(self.path, create)  # a refused file is never modified
+        if not create and not existing:
+            raise ConfigError(f"{self.path} holds no episodes yet (an empty results database)")
+        if check_rows and existing:  # before the file is opened for writing (WAL set)
+            try:
+                reader = open_readonly(self.path)
+                try:
+                    check_stored_rows(reader, self.path)
+                finally:
+                    reader.close()
+            except sqlite3.DatabaseError as e:
+                raise damaged(self.path, e) from None
         try:
-            self.conn = sqlite3.connect(self.path, timeout=30)
+            self.conn = (sqlite3.connect(self.path, timeout=30) if create
+                         else open_readonly(self.path))
         except sqlite3.Error as e:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
+        if not create:
+            return
         with self._errors("open"):
             self.conn.execute("PRAGMA journal_mode=WAL")
             self.conn.execute("PRAGMA synchronous=NORMAL")
@@ -264,7 +408,14 @@ class ResultStore:
             raise damaged(self.path, e) from None
 
     def _create_schema(self) -> None:
+        """pathpref's tables in a new file; in one write transaction that first looks whether
+        another sweep, started at the same moment on the same new file, made them already."""
         c = self.conn
+        c.execute("BEGIN IMMEDIATE")
+        if c.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]:
+            c.rollback()
+            check_results_file(self.path)  # the other sweep's tables must be pathpref's
+            return
         with c:
             c.execute(META_SQL)
             c.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
@@ -289,34 +440,110 @@ class ResultStore:
                       (str(SCHEMA_VERSION),))
 
     def done_keys(self, include_failed: bool = True) -> set[str]:
-        """Keys of the stored episodes (only successful runs when ``include_failed`` is False)."""
-        q = "SELECT key FROM episodes" + ("" if include_failed else " WHERE status = 'ok'")
+        """Keys of the stored episodes (only successful runs when ``include_failed`` is False);
+        a claimed, unfinished episode (``running``) is not done."""
+        q = "SELECT key FROM episodes WHERE " + (f"status != '{RUNNING}'" if include_failed
+                                                 else "status = 'ok'")
         with self._errors("read"):
             return {r[0] for r in self.conn.execute(q)}
 
+    def claim(self, placeholder: EpisodeResult, retry_failed: bool = False,
+              max_age_s: float = float("inf"), owner: dict[str, Any] | None = None) -> str:
+        """Claim the episode of ``placeholder`` (its spec; the row written while it runs) for
+        this process, atomically (``BEGIN IMMEDIATE``). Returns ``"done"`` when its row is
+        there, finished (``ok``, or failed unless ``retry_failed``), ``"busy"`` when a live
+        sweep has claimed it (:func:`claim_is_live` with ``max_age_s``), ``"claimed"`` when it
+        is now this process's (a claim it holds already included)."""
+        owner = owner or this_owner()
+        key = placeholder.spec.key()
+        c = self.conn
+        with self._errors("write to"):
+            c.execute("BEGIN IMMEDIATE")
+            try:
+                row = c.execute("SELECT status, reason FROM episodes WHERE key = ?",
+                                (key,)).fetchone()
+                if row is not None:
+                    status, reason = row
+                    if status == RUNNING:
+                        try:
+                            held = json.loads(reason)
+                        except (TypeError, ValueError):
+                            held = {}
+                        if not isinstance(held, dict):
+                            held = {}
+                        mine = all(held.get(k) == v for k, v in owner.items())
+                        if not mine and claim_is_live(held, max_age_s):
+                            c.rollback()
+                            return "busy"
+                        if mine:
+                            c.rollback()
+                            return "claimed"
+                    elif status == "ok" or not retry_failed:
+                        c.rollback()
+                        return "done"
+                claim = dataclasses.replace(placeholder, status=RUNNING, reason=json.dumps(
+                    {**owner, "at": time.time()}, sort_keys=True))
+                self._write(claim)
+                c.commit()
+            except BaseException:
+                c.rollback()
+                raise
+        return "claimed"
+
+    def release_claims(self, owner: dict[str, Any] | None = None) -> int:
+        """Remove this process's unfinished claims (a sweep ending early); their number."""
+        owner = owner or this_owner()
+        with self._errors("write to"), self.conn:
+            rows = self.conn.execute("SELECT key, reason FROM episodes WHERE status = ?",
+                                     (RUNNING,)).fetchall()
+            mine = []
+            for key, reason in rows:
+                try:
+                    held = json.loads(reason)
+                except (TypeError, ValueError):
+                    continue
+                if isinstance(held, dict) and all(held.get(k) == v for k, v in owner.items()):
+                    mine.append((key,))
+            self.conn.executemany(f"DELETE FROM episodes WHERE key = ? AND status = "
+                                  f"'{RUNNING}'", mine)
+        return len(mine)
+
     def add(self, res: EpisodeResult) -> None:
-        """Write one episode and its steps in one transaction (replacing a failed attempt)."""
+        """Write one episode and its steps in one transaction (replacing a failed attempt or
+        the episode's claim)."""
+        with self._errors("write to"), self.conn:
+            self._write(res)
+
+    def _write(self, res: EpisodeResult) -> None:
+        """The statements of :meth:`add`, inside the caller's transaction."""
         row = result_row(res)
         cols = list(EPISODE_COLUMNS)
         vals = [row.get(k) for k in cols]
         vals = [int(v) if isinstance(v, bool) else v for v in vals]
         key = row["key"]
-        with self._errors("write to"), self.conn:
-            self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
-            self.conn.execute(
-                f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
-                f"VALUES ({', '.join('?' for _ in cols)})",
-                vals,
-            )
-            self.conn.executemany(
-                "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
-                 for s in res.log],
-            )
+        self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
+        self.conn.execute(
+            f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
+            f"VALUES ({', '.join('?' for _ in cols)})",
+            vals,
+        )
+        self.conn.executemany(
+            "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+            [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
+             for s in res.log],
+        )
 
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
-        """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``."""
-        return self._rows(f"SELECT * FROM episodes {where}", params)
+        """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``;
+        a row pathpref cannot have written is refused (:func:`check_episode_rows`)."""
+        rows = self._rows(f"SELECT * FROM episodes {where}", params)
+        check_episode_rows(rows, self.path)
+        return rows
+
+    def check_rows(self) -> None:
+        """:func:`check_episode_rows` on every stored episode."""
+        with self._errors("read"):
+            check_stored_rows(self.conn, self.path)
 
     def steps(self, key: str) -> list[dict[str, Any]]:
         """The per-step rows of episode ``key``, in step order."""

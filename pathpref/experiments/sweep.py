@@ -3,7 +3,10 @@
 Seeds follow common random numbers: instance ``i`` is drawn from ``seed_for(seed, i)`` and run
 ``r`` of it uses ``seed_for(seed, i, r)``, the same for every method and Delta_T, so methods are
 compared on identical instances and human random streams. The coordinator alone writes the
-store, as results arrive; a rerun with the same database runs only the missing episodes.
+store, as results arrive; a rerun with the same database runs only the missing episodes. Two
+sweeps may run on one database at once: each claims an episode just before it runs
+(:meth:`.store.ResultStore.claim`), so none is computed twice; the episodes the other sweep
+finished or is running count as skipped (``counts["elsewhere"]``).
 
 A sweep may be killed at any moment. Each finished episode is committed on arrival; SIGTERM
 (like Ctrl-C) makes :func:`run_sweep` unwind, killing its worker processes (exit status 143
@@ -28,8 +31,11 @@ from ..episode import EpisodeSpec, body_class, cached_world
 from ..episode.instances import episode_instance
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
-from .backends import BACKENDS, iter_results, max_workers
-from .store import ResultStore
+from .backends import check_backend, failed, iter_results, max_workers, wall_limit
+from .store import ResultStore, this_owner
+
+#: a claim made on another host is stale after this many times its episode's wall-time limit
+CLAIM_AGE = 4.0
 
 
 def sweep_specs(map_name: str, methods: list[str], delta_ts: list[int], instances: int,
@@ -116,22 +122,43 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
     if workers > max_workers() and (backend == "local" or address is None):
         raise ConfigError(f"--workers {workers} is too many for {os.cpu_count()} CPUs (at most "
                           f"{max_workers()}; one per CPU is fastest)")
-    if backend not in BACKENDS:
-        raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")
+    check_backend(backend, address)  # before the database is created or opened
     check_specs(specs)
-    with _sigterm_exits(), ResultStore(db) as store:
+    # a tampered row is refused before the file is opened for writing or any episode runs
+    with _sigterm_exits(), ResultStore(db, check_rows=True) as store:
         done = store.done_keys(include_failed=not retry_failed)
         todo = [s for s in specs if s.key() not in done]
-        counts = {"total": len(specs), "skipped": len(specs) - len(todo), "ran": 0, "failed": 0}
+        counts = {"total": len(specs), "skipped": len(specs) - len(todo), "ran": 0, "failed": 0,
+                  "elsewhere": 0, "busy": 0}
         bar = tqdm(total=len(todo), disable=not progress, unit="ep", dynamic_ncols=True,
                    desc="episodes", file=sys.stderr)
+        owner = this_owner()
+
+        def claim(spec: EpisodeSpec) -> bool:
+            """Claim ``spec`` before it runs; False (counted as skipped, and in
+            ``elsewhere``; in ``busy`` too while unfinished) when another sweep has finished
+            it since this one started, or is running it."""
+            got = store.claim(failed(spec, ""), retry_failed, CLAIM_AGE * wall_limit(spec),
+                              owner)
+            if got == "claimed":
+                return True
+            counts["skipped"] += 1
+            counts["elsewhere"] += 1
+            counts["busy"] += got == "busy"
+            bar.update(1)
+            return False
+
         t0 = time.perf_counter()
-        with closing(iter_results(todo, backend, workers, address)) as results, bar:
-            for res in results:
-                store.add(res)
-                counts["ran"] += 1
-                counts["failed"] += res.status != "ok"
-                bar.update(1)
+        try:
+            with closing(iter_results(todo, backend, workers, address, claim)) as results, \
+                    bar:
+                for res in results:
+                    store.add(res)
+                    counts["ran"] += 1
+                    counts["failed"] += res.status != "ok"
+                    bar.update(1)
+        finally:  # claims of episodes that did not finish (an error, Ctrl-C, SIGTERM)
+            store.release_claims(owner)
         counts["seconds"] = round(time.perf_counter() - t0, 1)
     return counts
 

@@ -12,6 +12,8 @@ views with the text and chart panel of :mod:`pathpref.viz.video`.
 
 from __future__ import annotations
 
+import errno
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -201,35 +203,115 @@ class RolloutRenderer:
                 r.close()
 
 
+#: a video whose folder has less free space than this when its encoder failed was stopped by a
+#: full disk (ffmpeg's own error is not visible through imageio)
+FULL_DISK_BYTES = 8 * 2**20
+
+
+def free_bytes(folder: str | Path) -> int:
+    """Bytes an unprivileged writer may still use in ``folder`` (``statvfs``)."""
+    st = os.statvfs(folder)
+    return st.f_bavail * st.f_frsize
+
+
+def mp4_complete(path: str | Path) -> bool:
+    """True when ``path`` is a whole MP4 file: its top-level boxes start with ``ftyp``, tile the
+    file exactly and include ``moov`` (the index ffmpeg writes last; a file cut short by a full
+    disk lacks it or ends inside a box)."""
+    try:
+        size = os.path.getsize(path)
+        seen, pos = [], 0
+        with open(path, "rb") as f:
+            while pos < size:
+                f.seek(pos)
+                head = f.read(16)
+                if len(head) < 8:
+                    return False
+                n, kind = int.from_bytes(head[:4], "big"), head[4:8]
+                if n == 1:
+                    if len(head) < 16:
+                        return False
+                    n = int.from_bytes(head[8:16], "big")
+                elif n == 0:
+                    n = size - pos
+                if n < 8:
+                    return False
+                seen.append(kind)
+                pos += n
+    except OSError:
+        return False
+    return pos == size and bool(seen) and seen[0] == b"ftyp" and b"moov" in seen
+
+
 class VideoWriter:
     """H.264 MP4 (imageio-ffmpeg) written frame by frame, so a long video never sits in
     memory; :meth:`close` refuses a blank video (every sampled frame flat: the GL backend
-    drew nothing) and removes the file."""
+    drew nothing) and removes the file.
+
+    A failed write (a full disk, the encoder dying) removes the file and raises one
+    ``OSError`` line: ``ENOSPC`` when the folder is full, else ``EIO``. ffmpeg runs quietly (its
+    multi-line messages would precede that line) and, as imageio does not report ffmpeg's exit
+    status, the finished file is checked whole (:func:`mp4_complete`)."""
 
     def __init__(self, out: str | Path, fps: int = 25, sample_every: int = 10):
         import imageio.v2 as imageio
 
         self.out = Path(out)
         self.frames, self.sample_every, self.drawn = 0, sample_every, False
-        self._w = imageio.get_writer(str(out), fps=fps, codec="libx264", quality=7,
-                                     macro_block_size=2, format="FFMPEG")
+        try:
+            self._w = imageio.get_writer(str(out), fps=fps, codec="libx264", quality=7,
+                                         macro_block_size=2, format="FFMPEG",
+                                         ffmpeg_log_level="quiet")
+        except OSError as e:
+            raise self._failed(e) from None
+
+    def _failed(self, e: BaseException | None) -> OSError:
+        """Remove the partial file; the one-line OSError of the failure."""
+        self.out.unlink(missing_ok=True)
+        if isinstance(e, OSError) and e.errno is not None and e.strerror:
+            return OSError(e.errno, e.strerror, str(self.out))
+        try:
+            full = free_bytes(self.out.parent if str(self.out.parent) else ".") \
+                < FULL_DISK_BYTES
+        except OSError:
+            full = False
+        if full:
+            return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.out))
+        return OSError(errno.EIO, "the video encoder (ffmpeg) stopped before the file was "
+                       "whole", str(self.out))
 
     def append(self, frame: np.ndarray) -> None:
         """Encode one ``H x W x 3`` uint8 frame."""
         if not self.drawn and self.frames % self.sample_every == 0:
             self.drawn = float(np.asarray(frame).std()) >= 1.0
-        self._w.append_data(np.ascontiguousarray(frame))
+        try:
+            self._w.append_data(np.ascontiguousarray(frame))
+        except OSError as e:  # ffmpeg died (its pipe broke) or the disk is full
+            self._abandon()
+            raise self._failed(None if e.strerror is None else e) from None
         self.frames += 1
 
+    def _abandon(self) -> None:
+        try:
+            self._w.close()
+        except Exception:  # noqa: BLE001 - the writer is broken already; its error is ours
+            pass
+
     def close(self) -> Path:
-        """Finish the file; a ConfigError (and no file) when nothing was drawn."""
-        self._w.close()
+        """Finish the file; a ConfigError (and no file) when nothing was drawn, a one-line
+        OSError (and no file) when the file could not be written whole."""
+        try:
+            self._w.close()
+        except OSError as e:
+            raise self._failed(None if e.strerror is None else e) from None
         if not self.frames or not self.drawn:
             self.out.unlink(missing_ok=True)
             if not self.frames:
                 raise ConfigError("no frames were rendered")
             raise ConfigError("rendered frames are blank: the GL backend produced no image; "
                               + GL_HELP.format(gl="egl"))
+        if not mp4_complete(self.out):
+            raise self._failed(None)
         return self.out
 
 
