@@ -112,7 +112,10 @@ def test_coupling_lowers_going_back(simple):
             b.update(s, 2)  # east, repeatedly
         b.enter(v, east)
     back = simple.graph.neighbor_index(east, v)
-    assert on.preference_marginal(east)[back] < off.preference_marginal(east)[back] == 0.5
+    # without coupling the unobserved polytope stays uniform: 0.5 up to rounding (a matrix
+    # product whose last bit depends on the CPU's kernels, README "Replays exactly")
+    assert off.preference_marginal(east)[back] == pytest.approx(0.5, rel=1e-12)
+    assert on.preference_marginal(east)[back] < 0.5 - 1e-3
 
 
 def test_entropy_of_nothing_is_zero_and_of_uniform_is_log_n():
