@@ -227,6 +227,10 @@ class Navigate(base.Task):
     def _end_push(self, cue) -> None:
         """The push is over: the detected heading (or None) goes to the robot's belief."""
         self.base.detector.reset()
+        push = self.push.push
+        self.body.readings.append((push.intended_heading, -1 if cue is None else cue.heading,
+                                   float("nan") if cue is None else
+                                   float(self.base.data.time) - push.t0))
         self.body.last_cue, self.body.cell = cue, self.base.cell
         self.push, self.phase = None, HOLD
         self.runner.receive_input(None if cue is None else cue.heading)

@@ -102,3 +102,88 @@ def test_a_cell_of_failed_rows_only_shows_them(tmp_path, capsys):
     assert "– (2 failed)" in capsys.readouterr().out
     assert main(["report", str(db)]) == 0
     assert "0.00 [0.00, 0.66] (2 failed)" in capsys.readouterr().out
+
+
+def _row(**kw):
+    from .store_helpers import BASE
+
+    return {**BASE, "key": kw.pop("key"), "instance_seed": 0, "run_seed": 0, "instance": 0,
+            "delta_t": 5, "method": "path_preference", "success": 1, "goal_reached": 1,
+            "steps": 5, **kw}
+
+
+def test_cells_never_mix_physics_human_or_prior():
+    """Rows that differ only in their physics, their human or their prior land in separate
+    cells (two sensor noises, 2/6 and 5/6 successes, were printed as 0.50); the physical
+    cells sum how the pushes were read."""
+    import json
+
+    from pathpref.episode import Physics
+    from pathpref.experiments.report import physical_tables, success_table
+
+    noisy = Physics(sensor_noise_n=50.0).to_json()
+    rows = []
+    for i in range(6):
+        for phys, wins, missed in ((Physics().to_json(), 5, 0), (noisy, 2, 3)):
+            rows.append(_row(key=f"m{i}{wins}", sim="mujoco", physics=phys,
+                             success=int(i < wins), goal_reached=int(i < wins),
+                             metrics=json.dumps({"pushes": 3.0, "pushes_missed": float(missed),
+                                                 "pushes_misread": 0.0, "collisions": 1.0,
+                                                 "cue_latency_ms": 300.0 + 10 * i})))
+    rows += [_row(key=f"h{i}", human=h, success=int(h == "map")) for i in range(4)
+             for h in ("map", "consistent")]
+    rows += [_row(key=f"p{i}{p}", prior=p, map="office", map_hash="h1") for i in range(3)
+             for p in ("independent", "routes")]
+    recs = success_table(rows)
+    phys = [r for r in recs if r["sim"] == "mujoco"]
+    assert sorted((r["n"], r["success_rate"]) for r in phys) == [(6, 2 / 6), (6, 5 / 6)]
+    noisy_rec = next(r for r in phys if r["success_rate"] == 2 / 6)
+    assert "sensor_noise_n=50" in noisy_rec["variant"]
+    assert "default physics" in next(r for r in phys if r is not noisy_rec)["variant"]
+    assert (noisy_rec["pushes"], noisy_rec["pushes_missed"], noisy_rec["collisions"]) == \
+        (18, 18, 6)
+    assert noisy_rec["cue_latency_ms"] == 325.0  # the mean of 300 .. 350
+    grid = [r for r in recs if r["sim"] == "grid"]
+    humans = {r["variant"]: r["success_rate"] for r in grid if r["n"] == 4}
+    assert sorted(humans.values()) == [0.0, 1.0] and any("consistent human" in v
+                                                         for v in humans)
+    priors = [r for r in grid if r["map"] == "office"]
+    assert [r["n"] for r in priors] == [3, 3]
+    assert sum("routes prior" in r["variant"] for r in priors) == 1
+    table = physical_tables(recs)
+    assert "missed 18 / misread 0 of 18, latency 325 ms, 6 collisions" in table
+
+
+def test_physical_episodes_count_missed_pushes_and_collisions():
+    """Measured on MuJoCo episodes: a 50 N-noise sensor misses every push that the default
+    sensor reads; a base driven into a wall counts one collision per contact begun."""
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    import numpy as np
+
+    import pathpref.sim  # noqa: F401 - registers the MuJoCo body
+    from pathpref.episode import EpisodeSpec, Physics, run_episode
+    from pathpref.geometry.world import load_world
+    from pathpref.sim.mobile_base import MobileBase
+    from pathpref.sim.scene import build_scene
+
+    out = {}
+    for name, phys in (("default", Physics()), ("noisy", Physics(sensor_noise_n=50.0))):
+        spec = EpisodeSpec.single("simple", "compliant", 1, sim="mujoco", queries=50,
+                                  t_max=6, physics=phys.to_json(), seed=3)
+        out[name] = run_episode(spec).metrics
+    assert out["noisy"]["pushes"] >= 2
+    assert out["noisy"]["pushes_missed"] == out["noisy"]["pushes"]
+    assert "cue_latency_ms" not in out["noisy"]  # no cue, no latency (no NaN stored)
+    assert out["default"]["pushes"] >= 1 and out["default"]["pushes_missed"] == 0
+    assert 100 < out["default"]["cue_latency_ms"] < 2000
+    world = load_world("simple")
+    base = MobileBase(build_scene(world))
+    base.measure = True
+    base.reset(world.cell((1, 1)))
+    for target in ((-1.0, 0.5), (0.5, 0.5), (-1.0, 0.5)):  # into the west wall, away, again
+        base.target = np.array(target)
+        for _ in range(1500):
+            base.substep()
+    assert base.physical_metrics()["collisions"] == 2

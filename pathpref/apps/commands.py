@@ -210,6 +210,7 @@ def cmd_report(args: argparse.Namespace) -> int:
         load_records,
         load_trials,
         markdown_tables,
+        physical_tables,
         side_by_side,
         study_tables,
         write_csv,
@@ -232,6 +233,9 @@ def cmd_report(args: argparse.Namespace) -> int:
     both = side_by_side(recs)
     if both:
         print("\n" + both)
+    reading = physical_tables(recs)
+    if reading:
+        print("\n" + reading)
     atomic_output(csv_path, lambda p: write_csv(recs, p))
     print(f"\nwrote {csv_path}")
     if args.figure:

@@ -48,8 +48,34 @@ def wilson(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
     return (max(0.0, min(p, centre - half)), min(1.0, max(p, centre + half)))
 
 
-def variant(r: dict[str, Any]) -> str:
-    """The settings that make two sweeps of the same map not comparable cell by cell."""
+def physics_label(text: str | None) -> str:
+    """A row's physical parameters in words: ``legacy physics`` (an empty ``physics``),
+    ``default physics``, or ``physics`` with every field that differs from
+    :class:`~pathpref.episode.physics.Physics`'s defaults (``physics sensor_noise_n=50``)."""
+    import json
+
+    from ..episode.physics import Physics
+
+    if not text:
+        return "legacy physics"
+    try:
+        given = json.loads(text)
+    except ValueError:
+        return f"physics {text}"
+    default = json.loads(Physics().to_json())
+    diff = [f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}"
+            for k, v in sorted(given.items()) if default.get(k, object()) != v]
+    return "physics " + ", ".join(diff) if diff else "default physics"
+
+
+def variant(r: dict[str, Any], physics: bool = True) -> str:
+    """The settings that make two sweeps of the same map not comparable cell by cell: the
+    planner's (preset, queries, c, T_max, likelihood, coupling, prior where it is not the
+    preset's, time budget), the instances' (goal candidates, the human) and, for a physical
+    body, every physical parameter (:func:`physics_label`; left out with ``physics=False``).
+    A cell never mixes two of them."""
+    from ..planning.pomdp import PRESETS
+
     parts = [f"preset {r['preset']}", f"{r['queries']} queries", f"c={r['ucb_c']:g}",
              f"T_max={r['t_max']}"]
     if r.get("task", "navigate") != "navigate":
@@ -57,6 +83,18 @@ def variant(r: dict[str, Any]) -> str:
     if not r["normalize"]:
         parts.append("un-normalised likelihood")
     parts.append("coupling" if r["coupling"] else "no coupling")
+    preset = PRESETS.get(r["preset"])
+    prior = r.get("prior") or "independent"
+    if preset is None or prior != preset.prior:
+        parts.append(f"{prior} prior")
+    if r.get("time_budget_ms"):
+        parts.append(f"{r['time_budget_ms']:g} ms budget")
+    if r.get("n_goals", 10) != 10:
+        parts.append(f"{r['n_goals']} goals")
+    if (r.get("human") or "map") != "map":
+        parts.append(f"{r['human']} human")
+    if physics and r.get("sim", "grid") != "grid":
+        parts.append(physics_label(r.get("physics")))
     return ", ".join(parts)
 
 
@@ -83,8 +121,11 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
         n = len(counted)
         k = sum(r["success"] for r in ok)
         lo, hi = wilson(k, n)
+        r0 = rs[0]
         out.append({
-            "map": m, "map_hash": rs[0]["map_hash"], "sim": sim, "variant": var,
+            "map": m, "map_hash": r0["map_hash"], "sim": sim, "variant": var,
+            "settings": variant(r0, physics=False),
+            "physics": physics_label(r0.get("physics")) if sim != "grid" else "",
             "method": method, "delta_t": dt,
             "n": n, "failed": len(rs) - len(ok), "success_rate": k / n if n else float("nan"),
             "ci_low": lo, "ci_high": hi,
@@ -92,8 +133,71 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
             "pref_rate": sum(r["pref_followed"] for r in ok) / n if n else float("nan"),
             "instances": len({r["instance_seed"] for r in counted}),
             "failed_excluded": bool(exclude_failed),
+            **physical_summary(ok),
         })
     return out
+
+
+#: per-episode metrics of a physical body that a cell sums (:func:`physical_summary`)
+PUSH_COUNTS = ("pushes", "pushes_missed", "pushes_misread", "collisions")
+
+
+def physical_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """What a cell's physical episodes measured (rows whose ``metrics`` hold them: episodes
+    with physical parameters): the pushes made, missed and misread, the collisions (contacts
+    with an obstacle or a wall begun), summed over the episodes, and the mean cue latency (ms,
+    over the episodes with a cue). ``None`` for each when no row measured it."""
+    import json
+
+    out: dict[str, Any] = {k: None for k in (*PUSH_COUNTS, "cue_latency_ms")}
+    lat = []
+    for r in rows:
+        try:
+            m = json.loads(r.get("metrics") or "{}")
+        except ValueError:
+            continue
+        if not isinstance(m, dict):
+            continue
+        for k in PUSH_COUNTS:
+            if isinstance(m.get(k), int | float):
+                out[k] = (out[k] or 0) + int(m[k])
+        if isinstance(m.get("cue_latency_ms"), int | float) and math.isfinite(
+                m["cue_latency_ms"]):
+            lat.append(float(m["cue_latency_ms"]))
+    if lat:
+        out["cue_latency_ms"] = sum(lat) / len(lat)
+    return out
+
+
+def physical_tables(records: list[dict[str, Any]]) -> str:
+    """Markdown: for every (map, sim, variant) whose episodes measured how the robot read the
+    pushes, methods x Delta_T cells ``missed m / misread r of n pushes, latency L ms, c
+    collisions`` (sums over the cell's episodes; latency: the mean over episodes)."""
+    blocks = []
+    keys = sorted({(r["map"], r["sim"], r["variant"]) for r in records
+                   if r.get("pushes") is not None})
+    for m, sim, var in keys:
+        recs = [r for r in records if (r["map"], r["sim"], r["variant"]) == (m, sim, var)]
+        dts = sorted({r["delta_t"] for r in recs})
+        methods = sorted({r["method"] for r in recs}, key=_order)
+        lines = [f"**{m}**, how the pushes were read ({sim}; {var})", "",
+                 "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
+                 "|---|" + "---|" * len(dts)]
+        for meth in methods:
+            cells = []
+            for d in dts:
+                r = next((x for x in recs if x["method"] == meth and x["delta_t"] == d), None)
+                if r is None or r.get("pushes") is None:
+                    cells.append("–")
+                    continue
+                lat = r.get("cue_latency_ms")
+                cells.append(f"missed {r['pushes_missed']} / misread {r['pushes_misread']} of "
+                             f"{r['pushes']}, " + ("no cue" if lat is None else
+                                                   f"latency {lat:.0f} ms")
+                             + f", {r['collisions']} collisions")
+            lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
+        blocks.append("\n".join(lines))
+    return "\n\n".join(blocks)
 
 
 def failed_note(records: list[dict[str, Any]]) -> str:
@@ -151,11 +255,18 @@ def side_by_side(records: list[dict[str, Any]]) -> str:
     """For every (map, variant) run in more than one simulator: one table, each cell
     ``sim1 rate / sim2 rate`` (e.g. grid / mujoco), so the two are read together."""
     blocks = []
-    for m, var in sorted({(r["map"], r["variant"]) for r in records}):
-        recs = [r for r in records if (r["map"], r["variant"]) == (m, var)]
-        sims = sorted({r["sim"] for r in recs})
-        if len(sims) < 2:
+    for m, var in sorted({(r["map"], r.get("settings", r["variant"])) for r in records}):
+        recs = [r for r in records if (r["map"], r.get("settings", r["variant"])) == (m, var)]
+        bodies = sorted({_body(r) for r in recs})
+        if len(bodies) < 2:
             continue
+        # one column per simulator, named by the simulator alone when each has one physics
+        plain = len(bodies) == len({r["sim"] for r in recs})
+        col = (lambda r: r["sim"]) if plain else _body
+        sims = sorted({col(r) for r in recs})
+        phys = sorted({r["physics"] for r in recs if r.get("physics")})
+        if plain and phys:
+            var = f"{var}; {'; '.join(phys)}"
         dts = sorted({r["delta_t"] for r in recs})
         methods = sorted({r["method"] for r in recs}, key=_order)
         lines = [f"**{m}**: {' / '.join(sims)} side by side ({var}; {failed_note(recs)})", "",
@@ -166,13 +277,19 @@ def side_by_side(records: list[dict[str, Any]]) -> str:
             for d in dts:
                 vals = []
                 for sim in sims:
-                    r = next((x for x in recs if (x["method"], x["delta_t"], x["sim"]) ==
+                    r = next((x for x in recs if (x["method"], x["delta_t"], col(x)) ==
                               (meth, d, sim)), None)
                     vals.append("–" if r is None or not r["n"] else f"{r['success_rate']:.2f}")
                 cells.append(" / ".join(vals))
             lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)
+
+
+def _body(r: dict[str, Any]) -> str:
+    """A record's simulator with its physics when it has one (``mujoco, default physics``):
+    one column of :func:`side_by_side` each."""
+    return f"{r['sim']}, {r['physics']}" if r.get("physics") else r["sim"]
 
 
 def write_csv(records: list[dict[str, Any]], path: str | Path) -> None:

@@ -34,7 +34,7 @@ from ..geometry.world import World
 from .controller import ProfiledController, TrackingController
 from .diffdrive import DiffDriveBase
 from .force_cue import HumanPush, PushProfile
-from .mobile_base import MobileBase
+from .mobile_base import RELEASE_WINDOW_S, MobileBase
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, Scene, build_scene
 
@@ -79,6 +79,8 @@ class MujocoBody(Body):
         self.last_cue = None
         self.human: PushingHuman | None = None
         self._read = 0
+        #: decision-timing pushes: (intended heading, detected heading or -1, latency s)
+        self.readings: list[tuple[int, int, float]] = []
 
     def reset(self, cell: int) -> None:
         """Reset the physics with the base at the centre of ``cell``."""
@@ -133,8 +135,12 @@ class MujocoBody(Body):
     def human_input(self, heading: int) -> int | None:
         """Push toward ``heading`` (:meth:`draw_push`) while the base holds its cell; the
         detected sector or None."""
-        self.last_cue = cue = self.base.receive_push(self.draw_push(heading))
+        push = self.draw_push(heading)
+        self.last_cue = cue = self.base.receive_push(push)
         self.cell = self.base.cell
+        self.readings.append((heading, -1 if cue is None else cue.heading,
+                              float("nan") if cue is None else
+                              float(self.base.data.time) - push.t0))
         return None if cue is None else cue.heading
 
     def metrics(self) -> dict[str, float]:
@@ -146,15 +152,42 @@ class MujocoBody(Body):
         return out
 
     def cue_metrics(self) -> dict[str, float]:
-        """Pushes at any time: cues felt, and how many of them have the heading of the push
-        that was acting (or last began) when the cue was first felt."""
+        """How the robot read the human's pushes (episodes with physical parameters):
+
+        * ``pushes``: pushes the human made;
+        * ``pushes_missed``: pushes that gave no cue (decision timing: the detector stayed
+          silent; pushes at any time: no cue was first felt while the push acted or within
+          the detector's release window after it);
+        * ``pushes_misread``: cues whose heading is not the heading the human meant (with
+          pushes at any time: of the push that was acting, or last began, when the cue was
+          first felt; a false cue with no push before it counts too);
+        * ``cue_latency_ms``: mean time from a push's start to its cue (absent without a cue:
+          the stored JSON holds no NaN);
+        * with pushes at any time also ``cues_felt`` and ``cue_hits`` (cues read right)."""
         if self.human is None:
-            return {}
-        hits = 0
-        for f in self.base.felt:
-            began = [p for p in self.human.given if p.t0 <= f.t_felt + 1e-9]
-            hits += bool(began) and began[-1].intended_heading == f.heading
-        return {"cues_felt": float(len(self.base.felt)), "cue_hits": float(hits)}
+            pushes = len(self.readings)
+            missed = sum(d < 0 for _, d, _ in self.readings)
+            misread = sum(d >= 0 and d != h for h, d, _ in self.readings)
+            lat = [t for _, d, t in self.readings if d >= 0]
+            out = {"pushes": float(pushes), "pushes_missed": float(missed),
+                   "pushes_misread": float(misread)}
+        else:
+            given, felt = self.human.given, self.base.felt
+            hits, lat = 0, []
+            for f in felt:
+                began = [p for p in given if p.t0 <= f.t_felt + 1e-9]
+                hits += bool(began) and began[-1].intended_heading == f.heading
+                if began:
+                    lat.append(f.t_cue - began[-1].t0)
+            window = RELEASE_WINDOW_S
+            missed = sum(not any(p.t0 - 1e-9 <= f.t_felt <= p.t0 + p.profile.duration_s + window
+                                 for f in felt) for p in given)
+            out = {"cues_felt": float(len(felt)), "cue_hits": float(hits),
+                   "pushes": float(len(given)), "pushes_missed": float(missed),
+                   "pushes_misread": float(len(felt) - hits)}
+        if lat:
+            out["cue_latency_ms"] = 1e3 * float(np.mean(lat))
+        return out
 
     def move(self, action: int) -> int:
         """Drive to the grid neighbour of SPEC 3; the cell the base ends in."""

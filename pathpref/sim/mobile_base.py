@@ -128,6 +128,11 @@ class MobileBase:
         self.peak_accel_pushed = 0.0  # m/s^2, over all steps
         self.peak_force = 0.0  # N, the largest push estimate
         self._f_measured: np.ndarray | None = None  # the estimate peak_force last saw
+        #: contacts with an obstacle or a wall begun (a step with one after a step without)
+        self.collisions = 0
+        self._touching = False
+        self._static = np.array([self.model.geom(i).name.startswith(("obstacle_", "wall_"))
+                                 for i in range(self.model.ngeom)], dtype=bool)
         self.target = np.zeros(2)
         #: cues detected while driving (no simulated push is given then: a person pushing
         #: live in study mode, or a false cue in a simulated episode)
@@ -304,6 +309,11 @@ class MobileBase:
         if f is not self._f_measured:  # the estimator holds its estimate between samples
             self._f_measured = f
             self.peak_force = max(self.peak_force, math.hypot(f[0], f[1]))
+        n = d.ncon
+        touching = n > 0 and bool(self._static[d.contact.geom[:n]].any())
+        if touching and not self._touching:
+            self.collisions += 1
+        self._touching = touching
 
     def physical_metrics(self) -> dict[str, float]:
         """The measurements of :meth:`_measure` (empty unless :attr:`measure`)."""
@@ -311,7 +321,8 @@ class MobileBase:
             return {}
         return {"base_peak_accel": self.peak_accel,
                 "base_peak_accel_pushed": self.peak_accel_pushed,
-                "peak_push_estimate_n": self.peak_force}
+                "peak_push_estimate_n": self.peak_force,
+                "collisions": float(self.collisions)}
 
     def _apply_pushes(self, push: HumanPush | None) -> None:
         """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
