@@ -38,7 +38,7 @@ import numpy as np  # noqa: E402
 
 import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
 from pathpref.episode import EpisodeSpec, GridBody, Physics, cached_world, run_episode  # noqa: E402
-from pathpref.episode.body import make_body, simulator_rng  # noqa: E402
+from pathpref.episode.body import Felt, make_body, simulator_rng  # noqa: E402
 from pathpref.experiments.report import wilson  # noqa: E402
 from pathpref.geometry.grid import ACTION_ANGLES, heading_to_action  # noqa: E402
 
@@ -51,25 +51,35 @@ class NoisyGridBody(GridBody):
         super().__init__(world, spec, rng)
         self.rng, self.noise = rng, np.deg2rad(noise_deg)
 
-    def human_input(self, heading: int) -> int | None:
-        """The noisy sector of the human's heading."""
-        return heading_to_action(float(ACTION_ANGLES[heading]) + self.noise *
-                                 self.rng.standard_normal())
+    def push(self, heading: int) -> None:
+        """The noisy sector of the human's heading, observed at the body's cell."""
+        self.observe(Felt(self.cell, heading_to_action(
+            float(ACTION_ANGLES[heading]) + self.noise * self.rng.standard_normal())))
 
 
 class Recorder:
-    """Wraps a body's ``human_input`` to count (intended, observed) pairs at input steps."""
+    """Counts (intended, observed) pairs at input steps: wraps the body's ``push`` and the
+    door the runner connects (what is observed during a push is that push's reading)."""
 
     def __init__(self, body):
-        self.body, self.pairs = body, []
-        inner = body.human_input
+        self.pairs: list[tuple[int, int | None]] = []
+        self._seen: list[int] | None = None
+        inner_push, inner_connect = body.push, body.connect
 
-        def human_input(heading: int):
-            seen = inner(heading)
-            self.pairs.append((heading, seen))
-            return seen
+        def connect(observe) -> None:
+            def door(felt) -> None:
+                if self._seen is not None:
+                    self._seen.append(felt.heading)
+                observe(felt)
+            inner_connect(door)
 
-        body.human_input = human_input
+        def push(heading: int) -> None:
+            self._seen = []
+            inner_push(heading)
+            self.pairs.append((heading, self._seen[-1] if self._seen else None))
+            self._seen = None
+
+        body.push, body.connect = push, connect
 
 
 CONDITIONS = {

@@ -67,11 +67,12 @@ from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
 from pathpref.sim.body import base_params, build_base, scene_for
 from pathpref.sim.controller import TrackingController
+from pathpref.sim.decision import HOLD, MOVE, PUSH, RELEASE_WINDOW_S
 from pathpref.sim.force_cue import HumanPush, PushProfile
-from pathpref.sim.mobile_base import RELEASE_WINDOW_S, MobileBase
+from pathpref.sim.mobile_base import MobileBase
 from pathpref.sim.scene import Scene
 
-from .stage import ForceFilter, Physics, PushPhase, StagedBody
+from .stage import ForceFilter, Physics, StagedBody
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
@@ -83,7 +84,6 @@ DECISION_S = 2.5
 MIN_MOVE_S = 0.5
 #: the longest move (s): the tracking controller's limit, as ``MobileBase.move_to`` drives
 MOVE_LIMIT_S = TrackingController().time_limit_s
-MOVE, PUSH, HOLD = "move", "push", "hold"
 
 
 def task_world(map: Any, force: bool = False) -> tuple[World, str]:
@@ -170,8 +170,6 @@ class Navigate(base.Task):
         self.episode = -1
         self.runner: EpisodeRunner | None = None
         self.base: MobileBase | None = None
-        self.push: PushPhase | None = None
-        self.phase = HOLD
         self._reward = 0.0
 
     # --- the physics of a step -----------------------------------------------------------
@@ -210,52 +208,40 @@ class Navigate(base.Task):
         self.base = self.make_base(physics.data.ptr, rng)
         self.body = StagedBody(self.world, spec, rng, self.base, self._start_push)
         self.filter = ForceFilter(self.base)
-        self.push, self.phase, self._reward = None, HOLD, 0.0
+        self._reward = 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
+        self.base.decision.hold(until_cue=False)
         physics.substep = self.substep
         if self.decides:
             self.runner.begin()
-            while self.push is not None:  # the first push, before the first decision
+            while self.base.decision.phase == PUSH:  # the first push, before the first move
                 self.substep()
 
     def _start_push(self, push: HumanPush) -> None:
-        """The human pushes now: hold the cell while the push plays (phase ``push``)."""
-        b = self.base
-        b.target = self.scene.cell_centre(b.cell)
-        self.push, self.phase = PushPhase(push, b), PUSH
+        """The human pushes now: the push phase of the base's decision step, the cell held."""
+        self.base.decision.push(push)
 
-    def _end_push(self, cue) -> None:
-        """The push is over: the detected heading (or None) goes to the robot's belief."""
-        self.base.detector.reset()
-        push = self.push.push
-        self.body.readings.append((push.intended_heading, -1 if cue is None else cue.heading,
-                                   float("nan") if cue is None else
+    def _push_over(self) -> None:
+        """The push phase ended (its cue, if any, reached the runner's door when it was
+        read): note how it was read, then hold the cell for the rest of the step."""
+        d, push = self.base.decision, self.body.last_push
+        self.body.readings.append((push.intended_heading, -1 if d.cue is None else
+                                   d.cue.heading, float("nan") if d.cue is None else
                                    float(self.base.data.time) - push.t0))
-        self.body.last_cue, self.body.cell = cue, self.base.cell
-        self.push, self.phase = None, HOLD
-        self.runner.receive_input(None if cue is None else cue.heading)
+        self.body.cell = self.base.cell
+        d.hold(until_cue=False)
 
     def substep(self) -> None:
-        """One physics step of the current phase (module docstring)."""
-        b = self.base
-        if self.phase == PUSH:
-            over, cue = self.push.substep(b)
-            if over:
-                self._end_push(cue)
-        elif self.phase == MOVE:
-            cue = b.substep()
-            if cue is not None:
-                b.cues_while_driving.append(cue)
-            if cue is not None and b.stop_on_cue:
-                self._arrive()  # the runner reads the felt cue: the belief updates now
-                b.target = self.scene.cell_centre(b.cell)  # stop here, replan next step
-            elif ((b.controller.settled(b.position, b.velocity, b.target)
-                   and not b.yielding())
-                  or b.data.time - self._move_t0 >= self._move_limit - 1e-9):
+        """One physics step of the base's decision step (module docstring): when its push
+        ends the cell is held; when its move ends the runner records the decision (and may
+        start the next push)."""
+        d = self.base.decision
+        phase = d.phase
+        if d.advance():
+            if phase == PUSH:
+                self._push_over()
+            elif phase == MOVE:
                 self._arrive()
-        elif b.substep() is not None and self.body.human is not None and \
-                not self.runner.done:
-            self.runner.read_felt_inputs()  # a push at any time, felt while holding
         self.filter.update()
 
     def check_action(self, action) -> int:
@@ -265,29 +251,28 @@ class Navigate(base.Task):
     def before_step(self, action, physics: Physics) -> None:
         """Set the base's target: the grid neighbour the action names (module docstring)."""
         a = self.check_action(action)
-        self._action = STAY if a == STAY_ACTION else a
-        b, cell = self.base, self.body.cell
+        self._action, self._heading = self.runner.start_step(STAY if a == STAY_ACTION else a)
+        cell = self.body.cell
         target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])
-        b.target = self.scene.cell_centre(target)
-        self._move_t0 = float(b.data.time)
-        self._move_limit = self.move_limit_s
-        self.phase, self._reward = MOVE, 0.0
+        self.base.decision.move(target, self.move_limit_s)
+        self._reward = 0.0
         if self.body.human is not None:  # the corrective human watches the move begin
             self.body.human.robot_moves(cell, None if target == cell else self._action)
 
     def _arrive(self) -> None:
         """The move is over: the runner records the decision (success rule, goal, log) and
         gives the human's next input when due (which starts a push)."""
-        r = self.runner
+        r, d = self.runner, self.base.decision
         before = r.cell
-        self.phase = HOLD
-        r.step(self._action)
+        d.hold(until_cue=False)
+        r.finish_step(self._action, self.body.move(self._action), self._heading)
         self._reward = self._step_reward(before, r.cell, self._action)
 
     def after_step(self, physics: Physics) -> None:
         """Every phase of the decision fits in ``decision_s`` by construction."""
-        if self.phase != HOLD:  # pragma: no cover - a broken invariant, not bad input
-            raise EpisodeError(f"decision step ended in phase {self.phase}")
+        phase = self.base.decision.phase
+        if phase != HOLD:  # pragma: no cover - a broken invariant, not bad input
+            raise EpisodeError(f"decision step ended in phase {phase}")
 
     def _step_reward(self, before: int, after: int, a: int) -> float:
         """The paper's reward (SPEC 6) of the move, with the human's true preference."""

@@ -35,19 +35,19 @@ import collections
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-import mujoco
 import numpy as np
 from dm_env import specs
 
 from pathpref.episode.spec import check_number
-from pathpref.errors import ConfigError, EpisodeError
+from pathpref.errors import ConfigError
 from pathpref.geometry.grid import STAY
 from pathpref.sim.body import build_base
 from pathpref.sim.controller import ProfiledController, TrackingController
+from pathpref.sim.decision import PUSH
 from pathpref.sim.mobile_base import MobileBase
 
-from .navigate import PUSH, Navigate
-from .stage import Physics, PushPhase
+from .navigate import Navigate
+from .stage import Physics
 
 #: control steps the task accepts (s): 10 to 50 Hz
 CONTROL_TIMESTEPS = (0.02, 0.1)
@@ -55,21 +55,22 @@ CONTROL_TIMESTEP = 0.02
 
 
 class VelocityCommand:
-    """The base's onboard loop at control rate: the agent's ``(vx, vy)`` held, the yaw
-    regulated to zero (``wz = -k_yaw yaw``). It stands in for the tracking controller of
+    """The legacy base's onboard loop at control rate: a zero-order hold of the whole command
+    over a control step, the agent's ``(vx, vy)`` and the yaw regulation ``wz = -k_yaw yaw``
+    with the yaw at the step's start. The controller of the task's
     :class:`~pathpref.sim.mobile_base.MobileBase` (the same ``command`` signature)."""
 
     def __init__(self, v_max: float, k_yaw: float = 3.0):
         self.v_max, self.k_yaw = v_max, k_yaw
         self.u = np.zeros(3)
 
-    def hold(self, v: np.ndarray) -> None:
-        """Hold ``v = (vx, vy)`` (m/s) until the next call."""
+    def hold(self, v: np.ndarray, yaw: float = 0.0) -> None:
+        """Hold ``v = (vx, vy)`` (m/s) and ``wz = -k_yaw yaw`` until the next call."""
         self.u[:2] = v
+        self.u[2] = -self.k_yaw * yaw
 
     def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:
-        """Actuator controls ``(vx, vy, wz)`` of this physics step."""
-        self.u[2] = -self.k_yaw * yaw
+        """Actuator controls ``(vx, vy, wz)`` of this physics step: the held ones."""
         return self.u
 
 
@@ -85,59 +86,14 @@ class CommandedVelocity(ProfiledController):
     #: the agent's velocity, not a target: the diff-drive base turns toward it everywhere
     tracks_target: ClassVar[bool] = False
 
-    def hold(self, v: np.ndarray) -> None:
-        """Hold ``v = (vx, vy)`` (m/s) until the next call."""
+    def hold(self, v: np.ndarray, yaw: float = 0.0) -> None:
+        """Hold ``v = (vx, vy)`` (m/s) until the next call (the yaw is regulated at every
+        physics step by the profiled law)."""
         self.u[:2] = v
 
     def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
         """The held command (the position and target play no part)."""
         return float(self.u[0]), float(self.u[1])
-
-
-class HeldCommandBase(MobileBase):
-    """The planar base of the legacy physics at control rate: the actuator commands are set
-    once per control step (:meth:`hold`, a zero-order hold of the agent's velocity and the yaw
-    regulation) and a physics step is the push, ``mj_step``, the ideal sensor's force and the
-    detector, and the hooks; a non-finite state is checked once per control step
-    (:meth:`check_finite`). With physics the task's base is :func:`~pathpref.sim.body.
-    build_base`'s, driven by :class:`CommandedVelocity`."""
-
-    def __init__(self, scene, v_max: float, **kwargs: Any):
-        self.command = VelocityCommand(v_max)
-        super().__init__(scene, controller=self.command, **kwargs)
-        d = self.data
-        # views into MjData (its buffers stay put): the sensor's rotation and reading
-        self._R = d.site_xmat[self.sensor.site].reshape(3, 3)[:2]
-        self._reading = d.sensordata[self.sensor.adr:self.sensor.adr + 3]
-        self._pushed = False
-
-    def hold(self, v: np.ndarray) -> None:
-        """Command ``v = (vx, vy)`` (m/s) and ``wz = -k_yaw yaw`` until the next call."""
-        self.command.hold(v)
-        self.data.ctrl[self.actuators] = self.command.command(None, float(
-            self.data.qpos[self.yaw]), None)
-
-    def substep(self, push=None):
-        """One physics step (class docstring); the detected cue or None."""
-        d = self.data
-        if push is not None and push.active(float(d.time)):
-            push.apply(d, self.pushed_body)
-            self._pushed = True
-        elif self._pushed and not self.external_forces:
-            d.xfrc_applied[self.pushed_body, :] = 0.0
-            self._pushed = False
-        mujoco.mj_step(self.model, d)
-        self.force_estimate = -(self._R @ self._reading)
-        cue = self.detector.update(self.force_estimate)
-        for hook in self.on_substep:
-            hook(self, push)
-        return cue
-
-    def check_finite(self) -> None:
-        """An EpisodeError when the simulation diverged (as ``MobileBase.substep`` checks)."""
-        d = self.data
-        if not (np.isfinite(d.qpos).all() and np.isfinite(d.qvel).all()):
-            raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
 
 
 class NavigateControl(Navigate):
@@ -166,9 +122,8 @@ class NavigateControl(Navigate):
         :class:`HeldCommandBase`, or with physics the ``--sim mujoco`` body's base
         (:func:`~pathpref.sim.body.build_base`) driven by :class:`CommandedVelocity`."""
         if self.physics is None:
-            base = HeldCommandBase(self.scene, self.v_max, data=data)
-            self.command = base.command
-            return base
+            self.command = VelocityCommand(self.v_max)
+            return MobileBase(self.scene, controller=self.command, data=data)
         self.command = CommandedVelocity(v_max=self.v_max, a_max=self.physics.a_max)
         return build_base(self.scene, self.template.task, self.physics, rng, data=data,
                           controller=self.command)
@@ -182,23 +137,27 @@ class NavigateControl(Navigate):
         super().initialize_episode(physics)
 
     def _start_push(self, push) -> None:
-        """The push plays while the agent keeps driving (no hold)."""
-        self.push, self.phase = PushPhase(push, self.base), PUSH
+        """The push phase of the base's decision step, while the agent keeps driving (the
+        cell is not held)."""
+        self.base.decision.push(push, hold=False)
 
     def substep(self) -> None:
-        """One physics step: under the push when one plays, else driving."""
-        b = self.base
-        if self.push is not None:
-            over, cue = self.push.substep(b)
-            if over:
-                self._end_push(cue)
+        """One physics step: of the push phase while one plays, else of the agent's drive
+        (every cue reaches the runner's door as it is read)."""
+        d = self.base.decision
+        if d.phase == PUSH:
+            if d.advance():
+                self._push_over()
         else:
-            cue = b.substep()
-            if cue is not None:
-                b.cues_while_driving.append(cue)
-                if self.body.human is not None and not self.runner.done:
-                    self.runner.read_felt_inputs()  # a push at any time: the belief now
-        self.filter.update(b.force_estimate if isinstance(b, HeldCommandBase) else None)
+            self.base.substep()
+        self.filter.update()
+
+    def _push_over(self) -> None:
+        """The push phase ended: note how it was read (no hold: the agent drives)."""
+        d, push = self.base.decision, self.body.last_push
+        self.body.readings.append((push.intended_heading, -1 if d.cue is None else
+                                   d.cue.heading, float("nan") if d.cue is None else
+                                   float(self.base.data.time) - push.t0))
 
     def check_action(self, action) -> np.ndarray:
         """``action`` as ``(vx, vy)``; a one-line ConfigError naming the shape or the range."""
@@ -221,12 +180,11 @@ class NavigateControl(Navigate):
     def before_step(self, action, physics: Physics) -> None:
         """Hold the commanded velocity; start the human's push when one is due."""
         a = self.check_action(action)
-        if isinstance(self.base, HeldCommandBase):
-            self.base.hold(a)
-        else:  # the arm (carry_control) reads the command for its IK target
-            self.command.hold(a)
+        # the base's controller (the arm's IK target in carry_control)
+        self.command.hold(a, float(self.base.data.qpos[self.base.yaw]))
         self._reward = 0.0
-        if (self.push is None and float(self.base.data.time) >= self._next_push - 1e-9
+        if (self.base.decision.phase != PUSH
+                and float(self.base.data.time) >= self._next_push - 1e-9
                 and not self.runner.done and not self.runner.continuous):
             self._next_push += self.push_period_s
             self.runner.give_input()
@@ -234,8 +192,6 @@ class NavigateControl(Navigate):
     def after_step(self, physics: Physics) -> None:
         """A cell change is a step of the runner (success rule, goal, log) and earns the
         reward of its grid move."""
-        if isinstance(self.base, HeldCommandBase):
-            self.base.check_finite()
         r, cell = self.runner, self.base.cell
         if cell == r.cell:
             return

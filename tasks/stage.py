@@ -1,6 +1,6 @@
 """The machinery the dm_control tasks share: a Physics the Environment steps one physics step
 at a time, the body the episode runner sees while the Environment owns the physics, and the
-human's push as a phase of substeps.
+human's push started as a phase of the base's decision step.
 
 dm_control's contract: ``Environment.step`` calls ``task.before_step(action, physics)`` (the
 task sets controls), ``physics.step(n_sub_steps)`` (the Environment advances the physics) and
@@ -20,7 +20,7 @@ from dm_control import mujoco as dm_mujoco
 
 from pathpref.sim.body import MujocoBody
 from pathpref.sim.force_cue import HumanPush
-from pathpref.sim.mobile_base import RELEASE_WINDOW_S, MobileBase
+from pathpref.sim.mobile_base import MobileBase
 
 #: time constant (s) of the low-pass force the observations carry
 FORCE_TAU_S = 0.05
@@ -49,51 +49,31 @@ class Physics(dm_mujoco.Physics):
 class StagedBody(MujocoBody):
     """The robot as the :class:`~pathpref.episode.runner.EpisodeRunner` sees it when the
     Environment steps the physics: the MuJoCo body of ``--sim mujoco`` (its push sampling,
-    pushes at any time, felt cues and metrics) over a ``base`` the task built with
-    :func:`~pathpref.sim.body.build_base` on the Environment's data; only two things differ:
-    :meth:`move` reports the cell the base reached during the physics steps already taken,
-    and :meth:`human_input` hands the human's push to the task (``on_input``), which plays it
-    over the coming physics steps and reports the detected cue through
-    ``EpisodeRunner.receive_input``."""
+    pushes at any time, its cue stream into the runner's door, metrics) over a ``base`` the task
+    built with :func:`~pathpref.sim.body.build_base` on the Environment's data; only two things
+    differ: :meth:`move` reports the cell the base reached during the physics steps already
+    taken, and :meth:`push` only starts the push phase of the base's decision step
+    (:mod:`pathpref.sim.decision`), which the task advances over the coming physics steps
+    (``on_push``: the task is told, e.g. to hold the cell)."""
 
     def __init__(self, world, spec, rng: np.random.Generator, base: MobileBase,
-                 on_input: Callable[[HumanPush], None]):
+                 on_push: Callable[[HumanPush], None]):
         super().__init__(world, spec, rng, base=base)
-        self.on_input = on_input
-        #: the push :meth:`human_input` started last (None before the first)
+        self.on_push = on_push
+        #: the push :meth:`push` started last (None before the first)
         self.last_push: HumanPush | None = None
         self.cell = -1
 
-    def human_input(self, heading: int) -> None:
+    def push(self, heading: int) -> None:
         """Start a push toward ``heading`` (drawn as :meth:`MujocoBody.draw_push` draws it,
-        from the body's stream); nothing is observed yet."""
+        from the body's stream); its cue, if any, is felt later."""
         self.last_push = push = self.draw_push(heading)
-        self.on_input(push)
-        return None
+        self.on_push(push)
 
     def move(self, action: int) -> int:
         """The cell the base is in now (the physics has moved it already)."""
         self.cell = self.base.cell
         return self.cell
-
-
-class PushPhase:
-    """A push in progress: it acts for its profile's duration and the detector may release
-    up to ``RELEASE_WINDOW_S`` after it (as in ``MobileBase.receive_push``); it ends at the
-    first detected cue or then."""
-
-    def __init__(self, push: HumanPush, base: MobileBase):
-        push.t0 = float(base.data.time)
-        self.push = push
-        self.end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
-        base.last_onset_s = None
-
-    def substep(self, base: MobileBase):
-        """One physics step under the push; ``(over, cue)``."""
-        cue = base.substep(self.push)
-        if base.last_onset_s is None and base.detector.active:
-            base.last_onset_s = float(base.data.time) - self.push.t0
-        return cue is not None or base.data.time >= self.end, cue
 
 
 class ForceFilter:

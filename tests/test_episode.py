@@ -188,8 +188,8 @@ def test_the_runner_uses_the_world_and_body_it_is_given(simple):
     assert [x.p_true_goal for x in lo.log] != [x.p_true_goal for x in mine.log]
 
     class Deaf(GridBody):
-        def human_input(self, heading):
-            return None
+        def push(self, heading):
+            pass  # feels nothing: nothing reaches the runner's door
 
     deaf = run_episode(s, body=Deaf(simple))
     assert deaf.inputs > 0 and all(x.heading == -1 for x in deaf.log)

@@ -73,7 +73,7 @@ def test_two_pushes_while_driving_are_two_cues(simple, model):
     base.pushes = [HumanPush(0.0, 0.3, prof, 2), HumanPush(np.pi / 2, 0.62, prof, 0)]
     while base.data.time < 1.5:
         base.substep()
-    angles = [np.degrees(f.cue.angle) for f in base.felt]
+    angles = [np.degrees(f.angle) for f in base.felt]
     assert len(angles) == 2 and abs(angles[0]) < 8 and abs(angles[1] - 90) < 8, angles
     assert [f.heading for f in base.felt] == [2, 0]  # E, N
     # felt within 80 ms of the onset (30 N half-sine: 8 N after 26 ms; 100 Hz filtered sensor)

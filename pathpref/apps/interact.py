@@ -23,18 +23,24 @@ from ..sim.mobile_base import MobileBase
 
 
 class ViewerBody(MujocoBody):
-    """The MuJoCo body whose human input is the person's pushes (felt while it drove or
-    stood), not the simulated human's: the last cue detected since the previous decision."""
+    """The MuJoCo body pushed by the person at the viewer, not by the simulated human: every
+    cue it reads reaches the runner's door as it is read (the one cue stream)."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.base.external_forces = True
 
-    def human_input(self, heading: int) -> int | None:
-        """The person's latest cue (``heading``, the simulated human's draw, is ignored)."""
-        cues, self.base.cues_while_driving = self.base.cues_while_driving, []
-        self.last_cue = cues[-1] if cues else None
-        return None if self.last_cue is None else self.last_cue.heading
+    def attach_human(self, heading_at, probs) -> bool:
+        """The person at the viewer gives every input: the runner gives none at decision
+        steps."""
+        return True
+
+    def inputs_given(self) -> int:
+        """The cues read from the person's pushes."""
+        return len(self.base.felt)
+
+    def push(self, heading: int) -> None:
+        """Not used: the person pushes."""
 
 
 class InteractiveSession:

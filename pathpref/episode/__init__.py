@@ -3,7 +3,7 @@ robot's :class:`Body` (a plug-in registry; the grid body lives here), the runner
 result. Above the method (``planning``), below sweeps (``experiments``) and simulators
 (``sim``), which register their bodies here."""
 
-from .body import BODIES, Body, GridBody, body_class, make_body, register_body, simulator_rng
+from .body import BODIES, Body, Felt, GridBody, body_class, make_body, register_body, simulator_rng
 from .cache import cached_map, cached_model, cached_world
 from .instances import FIG4, HUMANS, Instance, fixed_instance, sample_instance, seed_for
 from .physics import Physics
@@ -12,6 +12,6 @@ from .runner import EpisodeRunner, run_episode
 from .spec import EpisodeSpec
 
 __all__ = ["BODIES", "FIG4", "HUMANS", "Body", "EpisodeResult", "EpisodeRunner", "EpisodeSpec",
-           "GridBody", "Instance", "Physics", "StepLog", "body_class", "cached_map", "cached_model",
-           "cached_world", "fixed_instance", "make_body", "register_body",
+           "Felt", "GridBody", "Instance", "Physics", "StepLog", "body_class", "cached_map",
+           "cached_model", "cached_world", "fixed_instance", "make_body", "register_body",
            "result_row", "run_episode", "sample_instance", "seed_for", "simulator_rng"]

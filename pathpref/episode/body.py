@@ -6,8 +6,10 @@ simulator.
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -20,6 +22,28 @@ if TYPE_CHECKING:
     from .spec import EpisodeSpec
 
 
+@dataclass(frozen=True)
+class Felt:
+    """One cue the robot felt, the record every body gives the episode runner's one door
+    (:meth:`~pathpref.episode.runner.EpisodeRunner.observe`): the ``cell`` it was felt in, its
+    ``heading`` (0..7), when it was first felt and when it was read (``t_felt``, ``t_cue``:
+    simulated s) and its force profile (``peak_n`` in N, ``impulse`` in N s, world x-y,
+    ``duration_s``); a grid body's cue has no force (None)."""
+
+    cell: int
+    heading: int
+    t_felt: float = 0.0
+    t_cue: float = 0.0
+    peak_n: float | None = None
+    impulse: tuple[float, float] | None = None
+    duration_s: float | None = None
+
+    @property
+    def angle(self) -> float | None:
+        """The impulse's direction (radians, counter-clockwise from +x); None without one."""
+        return None if self.impulse is None else math.atan2(self.impulse[1], self.impulse[0])
+
+
 class Body(ABC):
     """An embodiment of the robot. Built per episode with ``(world, spec, rng)``, where
     ``rng`` is the episode's simulator stream (:func:`simulator_rng`).
@@ -29,15 +53,23 @@ class Body(ABC):
     """
 
     tasks: tuple[str, ...] = ("navigate",)
+    #: the episode runner's door (:meth:`connect`): every cue the robot feels goes there
+    observe: Callable[[Felt], None] = staticmethod(lambda felt: None)
+
+    def connect(self, observe: Callable[[Felt], None]) -> None:
+        """Give every cue the robot feels from now on to ``observe`` (the runner's door), at
+        the moment it is felt."""
+        self.observe = observe
 
     @abstractmethod
     def reset(self, cell: int) -> None:
         """Place the robot at the centre of ``cell``."""
 
     @abstractmethod
-    def human_input(self, heading: int) -> int | None:
-        """The human means ``heading`` (0..7) now: return the heading the robot observes, or
-        None when it detected nothing."""
+    def push(self, heading: int) -> None:
+        """The human pushes toward ``heading`` (0..7) now; what the robot feels reaches
+        :attr:`observe` (nothing when it detected nothing). A body whose physics is advanced
+        by someone else (the dm_control tasks) only starts the push here."""
 
     @abstractmethod
     def move(self, action: int) -> int:
@@ -53,19 +85,8 @@ class Body(ABC):
         """Offer to give the human's inputs at times of the body's own (pushes at any time):
         ``heading_at(cell)`` draws the human's heading at a cell, ``probs(cell)`` is its
         distribution. True when the body took them over; then the runner gives no inputs at
-        decision steps and reads :meth:`felt_inputs` after every move. False by default."""
+        decision steps. False by default."""
         return False
-
-    def felt_inputs(self) -> list[tuple[int, int, float]]:
-        """The ``(cell, heading, strength_n)`` of every input the robot observed since the
-        last call, in order (bodies that took the human over; strength: the cue's peak
-        force)."""
-        return []
-
-    def input_strength(self) -> float | None:
-        """The strength (N, peak force) of the input :meth:`human_input` last observed; None
-        when the body does not measure one."""
-        return None
 
     def inputs_given(self) -> int:
         """How many inputs the human has given (bodies that took the human over)."""
@@ -83,9 +104,9 @@ class GridBody(Body):
         """Place the robot in ``cell``."""
         self.cell = cell
 
-    def human_input(self, heading: int) -> int | None:
-        """The heading itself: the grid robot observes it exactly."""
-        return heading
+    def push(self, heading: int) -> None:
+        """The grid robot observes the heading exactly, at its cell."""
+        self.observe(Felt(self.cell, int(heading)))
 
     def move(self, action: int) -> int:
         """``next_cell[s, a]`` (the same cell for STAY or a blocked move)."""

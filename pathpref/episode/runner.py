@@ -23,7 +23,7 @@ from ..geometry.grid import STAY
 from ..geometry.world import World
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.policies import PolicyContext, make_policy
-from .body import Body, make_body
+from .body import Body, Felt, make_body
 from .cache import cached_model, cached_world
 from .instances import episode_instance, human_preference
 from .physics import Physics
@@ -48,10 +48,14 @@ class EpisodeRunner:
     """One episode, advanced one decision step at a time (see module docstring).
 
     :meth:`begin` gives the human's first input (hooks on the body may be attached between
-    construction and ``begin``). ``pending_heading`` is the heading the robot observed for the
-    coming step (None when no input was due or none was detected); :meth:`step` takes the
-    policy's action unless one is given (the dm_env task passes the agent's action).
-    ``world`` and ``body`` default to the spec's (cached world, registered body).
+    construction and ``begin``). Everything the robot feels enters through one door,
+    :meth:`observe` (the body is connected to it); ``pending_heading`` is the heading of the
+    last cue since the last decision (None: none), which the coming step is chosen with.
+    :meth:`step` is one decision step (:meth:`start_step`, the body's move,
+    :meth:`finish_step`), the policy's action unless one is given; a task whose physics is
+    advanced by its Environment calls the two halves itself, and a control-rate task calls
+    :meth:`arrive` at every cell change and :meth:`give_input` on its own clock. ``world``
+    and ``body`` default to the spec's (cached world, registered body).
     """
 
     #: the first NumPy floating-point error of the episode and their number
@@ -87,6 +91,8 @@ class EpisodeRunner:
             ObservationModel(world, model.tables, physics.gamma_h, model.normalize)
         self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
         self.body = body if body is not None else make_body(spec, world)
+        self.continuous = False
+        self.body.connect(self.observe)  # the one door of what the robot feels
         #: the body gives the human's inputs at times of its own (pushes at any time)
         self.continuous = self.body.attach_human(
             lambda cell: self.human.sample(cell, self.human_rng), self.human.probs)
@@ -136,10 +142,10 @@ class EpisodeRunner:
                                        float(self.policy.belief.goal_entropy())))
 
     def _human_phase(self) -> None:
-        """Before step t+1: the human gives an input when one is due; the robot updates."""
-        self.pending_heading = None
+        """Before step t+1: the human gives an input when one is due (a body that took the
+        human over gives its own, and they reach :meth:`observe` as they are felt)."""
         if self.continuous:
-            self.read_felt_inputs()
+            self.result.inputs = self.body.inputs_given()
             return
         if self.done or self.t % self.spec.delta_t != 0:
             return
@@ -147,21 +153,28 @@ class EpisodeRunner:
 
     @_quiet_numerics
     def give_input(self) -> None:
-        """The human gives an input now, at the robot's cell: a heading drawn from the human
-        model goes to the body, and the robot updates with what the body observed. A body
-        that senses over time (the dm_control tasks) returns None here and reports the cue
-        later through :meth:`receive_input`."""
+        """The human pushes now, at the robot's cell: a heading drawn from the human model
+        goes to the body (:meth:`~.body.Body.push`); what the robot feels comes back through
+        :meth:`observe` (a body whose physics is advanced by someone else, the dm_control
+        tasks, reports it when its push phase ends). The coming step's heading is that cue's,
+        or None when the push was missed."""
         intended = self.human.sample(self.cell, self.human_rng)
         self.result.inputs += 1
-        self.receive_input(self.body.human_input(intended))
+        self.pending_heading = None
+        self.body.push(intended)
 
     @_quiet_numerics
-    def receive_input(self, observed: int | None) -> None:
-        """The robot observed ``observed`` (a heading 0..7, None: nothing detected) for the
-        human's last input: the belief update, and the heading of the coming step."""
-        if observed is not None:
-            self.policy.observe(self.cell, observed, self._weight(self.body.input_strength()))
-        self.pending_heading = observed
+    def observe(self, felt: Felt) -> None:
+        """The one door of the robot's observations: a cue the body felt updates the belief at
+        the cell where it was felt (weighted by its strength with ``use_strength``), and its
+        heading is the coming step's (the last one felt wins). Ignored once the episode is
+        over (a task's physics runs on to the end of its step)."""
+        if self.done:
+            return
+        self.policy.observe(felt.cell, felt.heading, self._weight(felt.peak_n))
+        self.pending_heading = felt.heading
+        if self.continuous:
+            self.result.inputs = self.body.inputs_given()
 
     def _weight(self, strength: float | None) -> float:
         """How confident an observation is: with ``use_strength``, its push's peak force over
@@ -172,26 +185,17 @@ class EpisodeRunner:
         return float(np.clip(strength / self.physics.peak_n, 0.5, 2.0))
 
     @_quiet_numerics
-    def read_felt_inputs(self) -> None:
-        """Pushes at any time: every cue the body felt since the last call updates the belief
-        at the cell where it was felt; the last one is this step's heading. Called after
-        every move; a body whose physics runs outside :meth:`step` (the dm_control tasks)
-        calls it the moment a cue is felt."""
-        for cell, heading, strength in self.body.felt_inputs():
-            self.policy.observe(cell, heading, self._weight(strength))
-            self.pending_heading = heading
-        self.result.inputs = self.body.inputs_given()
-
-    @_quiet_numerics
-    def step(self, action: int | None = None) -> StepLog:
-        """Advance one decision step; returns its log entry."""
+    def start_step(self, action: int | None = None) -> tuple[int, int | None]:
+        """The action of step t+1 (the policy's unless one is given, checked) and the heading
+        it was chosen with, which the step consumes (cues felt from now on are the next
+        step's). A staged body (the dm_control tasks) calls this when the move begins and
+        :meth:`finish_step` when it ends; :meth:`step` does both around the body's move."""
         if self.done:
             raise EpisodeError("the episode is over; start a new one")
         self.begin()
-        t = self.t + 1
         heading = self.pending_heading
         if action is None:
-            action = int(self.policy.act(t, self.cell, heading))
+            action = int(self.policy.act(self.t + 1, self.cell, heading))
         else:
             try:
                 a = float(action)
@@ -199,13 +203,25 @@ class EpisodeRunner:
                 a = float("nan")
             if not (np.isfinite(a) and a == int(a) and (int(a) == STAY or 0 <= int(a) < 8)):
                 raise ConfigError(f"action must be 0..7 (N, NE, ..., NW), got {action!r}")
-        action = int(action)
-        self.arrive(action, int(self.body.move(action)), heading)
+        self.pending_heading = None
+        return int(action), heading
+
+    @_quiet_numerics
+    def finish_step(self, action: int, cell: int, heading: int | None) -> StepLog:
+        """Step t+1 is over: ``action`` took the robot to ``cell`` (:meth:`arrive`); the human's
+        next input when due. Its log entry."""
+        self.arrive(action, cell, heading)
         self._human_phase()
         self.result.wall_s = time.perf_counter() - self.t0
         if self.done:
             self.result.metrics = self.body.metrics()
         return self.result.log[-1]
+
+    def step(self, action: int | None = None) -> StepLog:
+        """Advance one decision step (:meth:`start_step`, the body's move,
+        :meth:`finish_step`); its log entry."""
+        action, heading = self.start_step(action)
+        return self.finish_step(action, int(self.body.move(action)), heading)
 
     @_quiet_numerics
     def arrive(self, action: int, cell: int, heading: int | None) -> None:

@@ -2,7 +2,7 @@
 force sensor and moves by tracking cell centres at physics rate. Registered as ``mujoco`` in
 the episode layer's body registry when :mod:`pathpref.sim` is imported.
 
-* ``human_input(heading)``: the human's intended heading becomes a noisy half-sine push on the
+* ``push(heading)``: the human's intended heading becomes a noisy half-sine push on the
   pushed body (the handle, or the tray of the ``carry`` arm); the robot observes the sector of
   the impulse its detector measured, or nothing if no cue was detected. The sampled heading
   and ``xfrc_applied`` are never read by the robot.
@@ -15,8 +15,9 @@ Scenes are built once per process and map; each episode gets fresh ``MjData``.
 With ``spec.physics`` set (:class:`~pathpref.episode.physics.Physics`) the body senses with the
 chosen sensor model and detector thresholds, draws each push's strength, duration and shape
 from the human model's distributions, and, unless the timing is ``decision``, takes the human
-over: pushes come at any time (:mod:`.pushing_human`), the base yields and stops on a cue,
-and the runner reads the felt cues (:meth:`MujocoBody.felt_inputs`). An empty ``physics`` is the
+over: pushes come at any time (:mod:`.pushing_human`), the base yields and stops on a cue.
+Every cue the base feels, in any phase, reaches the runner's door as it is felt
+(:meth:`MujocoBody.connect`). An empty ``physics`` is the
 legacy body, bit for bit.
 """
 
@@ -32,9 +33,10 @@ from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
 from .controller import ProfiledController, TrackingController
+from .decision import RELEASE_WINDOW_S
 from .diffdrive import DiffDriveBase
 from .force_cue import HumanPush, PushProfile
-from .mobile_base import RELEASE_WINDOW_S, MobileBase
+from .mobile_base import MobileBase
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, Scene, build_scene
 
@@ -76,9 +78,7 @@ class MujocoBody(Body):
         self.scene = base.scene
         self.base: MobileBase = base
         self.profile = self.base.profile
-        self.last_cue = None
         self.human: PushingHuman | None = None
-        self._read = 0
         #: decision-timing pushes: (intended heading, detected heading or -1, latency s)
         self.readings: list[tuple[int, int, float]] = []
 
@@ -99,17 +99,17 @@ class MujocoBody(Body):
         self.human.attach(self.base)
         return True
 
-    def felt_inputs(self) -> list[tuple[int, int, float]]:
-        """``(cell, heading, peak force)`` of the cues felt since the last call."""
-        new = self.base.felt[self._read:]
-        self._read = len(self.base.felt)
-        if new:
-            self.last_cue = new[-1].cue
-        return [(f.cell, f.heading, f.cue.peak_n) for f in new]
+    @property
+    def last_cue(self):
+        """The last cue the base felt (a :class:`~pathpref.episode.body.Felt`), None before
+        the first."""
+        return self.base.felt[-1] if self.base.felt else None
 
-    def input_strength(self) -> float | None:
-        """The peak force (N) of the cue :meth:`human_input` last detected."""
-        return None if self.last_cue is None else float(self.last_cue.peak_n)
+    def connect(self, observe) -> None:
+        """Every cue the base feels goes to ``observe`` (the runner's door) as it is felt
+        (:mod:`.mobile_base`, one cue stream)."""
+        self.observe = observe
+        self.base.listener = observe
 
     def _confidence(self, heading: int) -> float:
         """The human's confidence in ``heading`` at the current cell: its probability over
@@ -132,16 +132,15 @@ class MujocoBody(Body):
             sample_profile(self.physics, self.rng, self._confidence(heading))
         return HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
 
-    def human_input(self, heading: int) -> int | None:
-        """Push toward ``heading`` (:meth:`draw_push`) while the base holds its cell; the
-        detected sector or None."""
+    def push(self, heading: int) -> None:
+        """Push toward ``heading`` (:meth:`draw_push`) while the base holds its cell (the push
+        phase run to completion); its cue reaches the runner's door when it is read."""
         push = self.draw_push(heading)
-        self.last_cue = cue = self.base.receive_push(push)
+        cue = self.base.receive_push(push)
         self.cell = self.base.cell
         self.readings.append((heading, -1 if cue is None else cue.heading,
                               float("nan") if cue is None else
                               float(self.base.data.time) - push.t0))
-        return None if cue is None else cue.heading
 
     def metrics(self) -> dict[str, float]:
         """Simulated time, and the base's own measurements (tilt, penetration for the arm)."""

@@ -1,22 +1,24 @@
 """The physical robot: a planar base in a MuJoCo scene, driven cell to cell, pushed by a human.
 
-Two operations make up a decision step:
+The decision step's phases (push, move, hold) are the one machine of :mod:`.decision`;
+:meth:`MobileBase.receive_push`, :meth:`MobileBase.move_to` and :meth:`MobileBase.hold` run one
+phase to completion on it (the blocking callers), the dm_control tasks advance the same
+machine from their Environment's physics steps. A base's physics step is :meth:`substep`:
+controller, the pushes acting, ``mj_step``, sensing, cue detection, measurements and the
+``on_substep`` hooks (renderers, loggers; ``pre_substep`` hooks run before it: the simulated
+human of :mod:`.pushing_human` starts its pushes there).
 
-* :meth:`MobileBase.receive_push`: the base holds its cell while the simulated human pushes the
-  handle; the robot's :class:`~pathpref.sim.cue_detector.CueDetector`, fed only by the handle
-  force sensor, returns the detected cue (or None when nothing was detected);
-* :meth:`MobileBase.move_to`: the tracking controller drives to a cell centre at physics rate
-  until the base settles or the time limit passes; collisions are MuJoCo contacts.
-
-Hooks (``on_substep``) see every physics step, e.g. a renderer or a logger; ``pre_substep``
-hooks run before it (the simulated human of :mod:`.pushing_human` starts its pushes there).
+**One cue stream.** Every cue the detector gives, in any phase, becomes one
+:class:`~pathpref.episode.body.Felt` record (the cell and simulated time at which it was first
+felt, when it was read, its heading, peak force, impulse and duration), appended to
+:attr:`MobileBase.felt` and handed to the base's one listener (:attr:`MobileBase.listener`:
+the episode runner's door, connected by the body).
 
 **Pushes at any time** (:meth:`MobileBase.enable_pushes_any_time`): pushes in :attr:`pushes`
 act whenever their time comes (driving, braking or standing), the detector splits two pushes
 into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (admittance:
-velocity command ``F_hat / b``), and every cue is recorded in :attr:`felt` with the cell and
-simulated time at which it was first felt; :meth:`move_to` and :meth:`hold` then return at
-once so that the planner replans from the new belief instead of finishing the move.
+velocity command ``F_hat / b``), and a cue ends a move or a hold (:attr:`stop_on_cue`) so that
+the planner replans from the new belief instead of finishing the move.
 
 Sensing: by default the detector reads the raw force sensor (:class:`HandleSensor`, ideal: no
 noise, no bias; the handle's own inertia is in it, as MuJoCo computes it). With a
@@ -32,40 +34,24 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from ..episode.body import Felt
 from ..errors import ConfigError, EpisodeError
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue, CueDetector, FilteredCueDetector
+from .decision import DecisionStep
 from .estimator import EstimatorConfig, ForceEstimator
 from .force_cue import HumanPush, PushProfile
 from .scene import Scene
 from .sensing import FaultySensor, HandleSensor, SensorModel
 
-RELEASE_WINDOW_S = 0.4  # how long after a push ends the detector may still release
 #: the admittance's spring (N/m): a yielding base gives way 0.1 m to 30 N
 ADMITTANCE_K = 400.0
 #: share of the drive's force limit above which the base braces instead of yielding
 BRACE = 0.6
-
-
-@dataclass(frozen=True)
-class FeltCue:
-    """A cue with where and when it was felt: ``cell`` and ``t_felt`` (simulated s) of the
-    first force sample above the detector's onset threshold, ``t_cue`` when it was emitted."""
-
-    cue: Cue
-    cell: int
-    t_felt: float
-    t_cue: float
-
-    @property
-    def heading(self) -> int:
-        """The cue's compass sector (0..7)."""
-        return self.cue.heading
 
 
 class MobileBase:
@@ -106,13 +92,15 @@ class MobileBase:
         self.detector_settings: dict = dict(detector or {})
         self.detector = CueDetector(self.dt, **self._plain_settings())
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
-        #: called with each cue detected while driving (study mode feeds it to the belief)
-        self.on_cue: list[Callable[[MobileBase, Cue], None]] = []
         self.pre_substep: list[Callable[[MobileBase], None]] = []
         #: pushes that act when their time comes (pushes at any time); expired ones are dropped
         self.pushes: list[HumanPush] = []
-        #: cues felt with their cell and time (pushes at any time)
-        self.felt: list[FeltCue] = []
+        #: every cue felt since the last reset, as records (module docstring)
+        self.felt: list[Felt] = []
+        #: the one listener of the cue stream (the episode runner's door; None: nobody)
+        self.listener: Callable[[Felt], None] | None = None
+        #: the decision step's phases (:mod:`.decision`)
+        self.decision = DecisionStep(self)
         #: admittance damping (N s/m) while a cue is under way; None: track the target
         self.admittance_b: float | None = None
         #: end a move or a hold as soon as a cue is felt (the planner replans)
@@ -134,13 +122,9 @@ class MobileBase:
         self._static = np.array([self.model.geom(i).name.startswith(("obstacle_", "wall_"))
                                  for i in range(self.model.ngeom)], dtype=bool)
         self.target = np.zeros(2)
-        #: cues detected while driving (no simulated push is given then: a person pushing
-        #: live in study mode, or a false cue in a simulated episode)
-        self.cues_while_driving: list[Cue] = []
         #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
         #: simulated push is active
         self.external_forces = False
-        self.last_onset_s: float | None = None
         #: the sensor's faults; None (or ideal) reads the raw sensor exactly as before
         self.sensor_model = None if sensor_model is None or sensor_model.is_ideal \
             else sensor_model
@@ -278,8 +262,7 @@ class MobileBase:
             cue = self.detector.update(f)
         else:
             cue = self.detector.update(self.sense(), at_rest=self.estimator.at_rest)
-        if self.any_time:
-            self._track_onset(cue)
+        self._track_onset(cue)
         if self.measure:
             self._measure(push)
         for hook in self.on_substep:
@@ -339,16 +322,23 @@ class MobileBase:
         d.xfrc_applied[self.pushed_body, :3] = total
 
     def _track_onset(self, cue: Cue | None) -> None:
-        """Note where and when the cue under way was first felt; record an ended cue."""
-        det, t = self.detector, float(self.data.time)
+        """Note where and when the cue under way was first felt; an ended cue becomes a
+        :class:`~pathpref.episode.body.Felt` record of the stream (module docstring)."""
+        det = self.detector
         under_way = det.active or det._above > 0.0
         if cue is not None:
+            t = float(self.data.time)
             t0, cell = self._onset if self._onset is not None else (t, self.cell)
-            self.felt.append(FeltCue(cue, cell, t0, t))
+            felt = Felt(cell, cue.heading, t0, t, float(cue.peak_n),
+                        (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s))
+            self.felt.append(felt)
             self._onset = (t, self.cell) if under_way else None
-        elif under_way and self._onset is None:
-            self._onset = (t, self.cell)
-        elif not under_way:
+            if self.listener is not None:
+                self.listener(felt)
+        elif under_way:
+            if self._onset is None:
+                self._onset = (float(self.data.time), self.cell)
+        elif self._onset is not None:
             self._onset = None
 
     def yielding(self) -> bool:
@@ -423,48 +413,20 @@ class MobileBase:
             reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:
-        """Hold the current cell while ``push`` acts; return the detected cue or None."""
-        self.target = self.scene.cell_centre(self.cell)
-        push.t0 = float(self.data.time)
-        end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
-        cue = None
-        #: seconds from the push's onset to the detector going active (None: it did not)
-        self.last_onset_s = None
-        while self.data.time < end and cue is None:
-            cue = self.substep(push)
-            if self.last_onset_s is None and self.detector.active:
-                self.last_onset_s = float(self.data.time) - push.t0
-        self.detector.reset()
-        return cue
+        """Hold the current cell while ``push`` acts (the push phase, :mod:`.decision`, run to
+        completion); the detected cue or None."""
+        return self.decision.push(push).run().cue
 
     def move_to(self, cell: int, min_s: float = 0.0) -> int:
-        """Drive to the centre of ``cell`` (for at least ``min_s`` simulated seconds, holding
-        it once there); return the cell the base ends in. A cue detected on the way is kept
-        in ``cues_while_driving`` and given to every ``on_cue`` hook at once."""
-        self.target = self.scene.cell_centre(cell)
-        t0 = self.data.time
-        t_end = t0 + max(self.controller.time_limit_s, min_s)
-        d, settled, (pos, vel) = self.data, self.controller.settled, self._planar_views()
-        while d.time < t_end:
-            cue = self.substep()
-            if cue is not None:
-                self.cues_while_driving.append(cue)
-                for hook in self.on_cue:
-                    hook(self, cue)
-                if self.stop_on_cue:
-                    break
-            if d.time - t0 >= min_s and settled(pos, vel, self.target) and \
-                    not self.yielding():
-                break
+        """Drive to the centre of ``cell`` for at least ``min_s`` simulated seconds (the move
+        phase run to completion, within the controller's time limit); the cell the base ends
+        in."""
+        self.decision.move(cell, self.controller.time_limit_s, min_s).run()
         return self.cell
 
     def hold(self, seconds: float) -> int:
-        """Stand at the current cell's centre for ``seconds`` of simulated time (pushes at any
-        time may come meanwhile; with :attr:`stop_on_cue` a cue ends the hold). The cell the
-        base is in at the end."""
-        self.target = self.scene.cell_centre(self.cell)
-        t_end = self.data.time + seconds
-        while self.data.time < t_end:
-            if self.substep() is not None and self.stop_on_cue:
-                break
+        """Stand at the current cell's centre for ``seconds`` of simulated time (the hold
+        phase run to completion; with :attr:`stop_on_cue` a cue ends it); the cell the base
+        is in at the end."""
+        self.decision.hold(seconds).run()
         return self.cell

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..episode import Felt
 from ..experiments.trials import TrialWriter
 from ..sim.mobile_base import MobileBase
 from ..viz.rerun_log import RerunLogger
@@ -43,7 +44,7 @@ class TrialRecorder:
         if self.rerun:
             self.rerun.log_route(np.array(runner.trial.route))
         runner.base.on_substep.insert(0, self._substep)  # first: the force of this step
-        runner.base.on_cue.append(self._cue)
+        runner.on_cue.append(self._cue)
         runner.on_belief.append(self._belief)
         self._belief("start")
         self._step_row()
@@ -75,8 +76,8 @@ class TrialRecorder:
         self.k_push += 1
         self.push = None
 
-    def _cue(self, base: MobileBase, cue) -> None:
-        x, y = self.runner.world.cells[base.cell]
+    def _cue(self, cue: Felt) -> None:
+        x, y = self.runner.world.cells[self.runner.base.cell]
         self.rows["trial_cues"].append((
             self.n_cues, self.runner.time_s, int(x), int(y), int(cue.heading),
             float(cue.peak_n), float(cue.impulse[0]), float(cue.impulse[1]),

@@ -208,7 +208,7 @@ class BrowserFrontEnd:
             self._state = state
             self._state_seq += 1
 
-    def _latency(self, base, cue) -> None:
+    def _latency(self, cue) -> None:
         t = self.controls.released_at
         if t is not None:
             self.latencies_ms.append((time.perf_counter() - t) * 1000.0)
@@ -225,7 +225,7 @@ class BrowserFrontEnd:
         self._set_scene(scene_message(runner, position, total, "running"))
         runner.base.on_substep.append(Pacer())
         runner.base.on_substep.append(self.publish)
-        runner.base.on_cue.append(self._latency)
+        runner.on_cue.append(self._latency)
 
     def after_decision(self, runner: TrialRunner) -> None:
         """Publish the state after the decision step (and its belief update)."""

@@ -29,11 +29,10 @@ from typing import Protocol
 
 import numpy as np
 
-from ..episode import EpisodeRunner, EpisodeSpec, simulator_rng
+from ..episode import EpisodeRunner, EpisodeSpec, Felt, simulator_rng
 from ..episode.instances import seed_for
 from ..geometry.grid import STAY
 from ..sim.body import MujocoBody
-from ..sim.cue_detector import Cue
 from ..sim.mobile_base import MobileBase
 from .plan import Trial
 
@@ -76,9 +75,9 @@ class StudyBody(MujocoBody):
             return self.applied
         return self.base.data.xfrc_applied[self.base.pushed_body, :2].copy()
 
-    def human_input(self, heading: int) -> int | None:
-        """Not used in a trial: the person's cues reach the belief as they are detected."""
-        return None
+    def push(self, heading: int) -> None:
+        """Not used in a trial: the person pushes, and the cues reach the runner's door as
+        they are read."""
 
     def move(self, action: int) -> int:
         """Drive to the grid neighbour (at least :data:`MIN_STEP_S`); the cell reached."""
@@ -105,8 +104,9 @@ class TrialRunner(EpisodeRunner):
                            n_goals=len(trial.candidates), sim="mujoco", fixed=fixed)
         self.trial = trial
         body = StudyBody(world, spec, simulator_rng(spec), source)
-        self.cues: list[tuple[float, int, Cue]] = []  # (trial time, cell, cue)
-        self._since_decision: list[Cue] = []
+        self.cues: list[tuple[float, int, Felt]] = []  # (trial time, cell, cue)
+        #: told of every cue after it reached the belief (the recorder, the front end)
+        self.on_cue: list[Callable[[Felt], None]] = []
         super().__init__(spec, world, body)
         # the episode layer hands every policy the goal and the preference (for the reference
         # methods, refused in studies); a trial's robot gets neither
@@ -114,7 +114,6 @@ class TrialRunner(EpisodeRunner):
         self.goal_cell = world.cell(trial.goal)
         self.t_start = float(self.body.base.data.time)
         self.on_belief: list[Callable[[str], None]] = []
-        body.base.on_cue.append(self._cue)
 
     def _preference(self, free_goal: bool) -> np.ndarray:
         """The route's preference (the map's own is not used, and may be absent)."""
@@ -140,21 +139,21 @@ class TrialRunner(EpisodeRunner):
         """The goal is reached or the time limit has passed."""
         return self.result.goal_reached or self.timed_out
 
-    def _cue(self, base: MobileBase, cue: Cue) -> None:
-        """A cue detected by the robot's own sensing: into the belief at once."""
-        cell = base.cell
-        self.policy.observe(cell, cue.heading)
-        self.cues.append((self.time_s, cell, cue))
-        self._since_decision.append(cue)
+    def observe(self, felt: Felt) -> None:
+        """A cue read by the robot's own sensing enters the belief at once through the
+        runner's one door (the heading shown to the policy at the next decision is the last
+        cue since the previous one); then the trial's listeners are told."""
+        if self.done:
+            return
+        super().observe(felt)
+        self.cues.append((self.time_s, felt.cell, felt))
+        for hook in self.on_cue:
+            hook(felt)
         for hook in self.on_belief:
             hook("cue")
 
     def _human_phase(self) -> None:
-        """No simulated human: the heading shown to the policy is the last cue since the
-        previous decision (already in the belief)."""
-        self.pending_heading = (self._since_decision[-1].heading if self._since_decision
-                                else None)
-        self._since_decision = []
+        """No simulated human: the person's cues arrive through :meth:`observe`."""
 
     def _arrive(self, cell: int) -> None:
         """The trial's goal cell ends the trial (before the limit); nothing is ruled out."""

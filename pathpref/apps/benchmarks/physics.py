@@ -51,7 +51,7 @@ def false_cues(seconds: float = 1000.0, seed: int = 0) -> tuple[int, float]:
         s = base.cell
         moves = np.flatnonzero(~world.motion.blocked[s])
         base.move_to(int(world.motion.next_cell[s, rng.choice(moves)]))
-    return len(base.cues_while_driving), float(base.data.time)
+    return len(base.felt), float(base.data.time)  # every cue read (no push was made)
 
 
 def realistic_pushes(n: int, seed: int = 0, noise_deg: float = 10.0) -> list[tuple]:
@@ -95,8 +95,8 @@ def run_pushes(pushes: list[tuple], sensor_model=None, seed: int = 0, rest_s: fl
         push = HumanPush(angle, 0.0, profile, h)
         cue = base.receive_push(push)
         hits.append(cue is not None and cue.heading == h)
-        if base.last_onset_s is not None:
-            onset.append(base.last_onset_s)
+        if base.decision.onset_s is not None:
+            onset.append(base.decision.onset_s)
         if cue is not None:
             release.append(float(base.data.time) - push.t0 - profile.duration_s)
     return {"hits": hits, "onset_s": onset, "release_s": release,
@@ -210,7 +210,7 @@ def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
     while base.data.time < t0 + 1.2:
         base.substep()
     return {"two_push_cues": len(base.felt),
-            "two_push_angles_deg": [round(float(np.degrees(f.cue.angle)), 1)
+            "two_push_angles_deg": [round(float(np.degrees(f.angle)), 1)
                                     for f in base.felt]}
 
 

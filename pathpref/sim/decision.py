@@ -1,0 +1,116 @@
+"""The decision step of a physical base, one physics step at a time: the one machine every door
+runs (the ``--sim mujoco`` body, the study's trials and ``interact`` run it to completion, the
+dm_control tasks advance it from their Environment's physics steps).
+
+A decision step is a sequence of phases, each started by one call and advanced by
+:meth:`DecisionStep.advance` (one physics step, ``base.substep``) until it ends:
+
+* **push** (:meth:`DecisionStep.push`): the human's push acts for its profile's duration while
+  the base holds its cell (``hold=False``: it keeps its command, the control-rate tasks); the
+  detector may release up to :data:`RELEASE_WINDOW_S` after the push. It ends at the first
+  detected cue or then; the detector is reset. ``cue`` is the detected cue (None: missed),
+  ``onset_s`` the time from the push's start to the detector going active.
+* **move** (:meth:`DecisionStep.move`): the base drives to a cell centre. It ends when the base
+  has settled on it (after at least ``min_s``) and is not yielding to a push, when
+  ``max(limit_s, min_s)`` has passed, or, with ``base.stop_on_cue`` (pushes at any time), at a
+  cue: the base then holds the cell it is in.
+* **hold** (:meth:`DecisionStep.hold`): the base stands at its cell's centre for ``seconds``
+  (forever by default: until the caller starts another phase); with ``base.stop_on_cue`` (or
+  ``until_cue``) a cue ends it.
+
+Every cue the detector gives, in any phase, is recorded by the base (``base.felt``) and given
+to its one listener, the episode runner's door (:mod:`.mobile_base`); a phase only decides when
+it ends. Time limits compare simulated time with the phase's end, ``t >= t_end``, after each
+physics step.
+"""
+
+from __future__ import annotations
+
+import math
+
+#: how long after a push ends the detector may still release its cue (s)
+RELEASE_WINDOW_S = 0.4
+MOVE, PUSH, HOLD = "move", "push", "hold"
+
+
+class DecisionStep:
+    """The phases of a decision step on ``base`` (a :class:`~.mobile_base.MobileBase`; module
+    docstring). ``phase`` is the phase under way (None: none)."""
+
+    def __init__(self, base):
+        self.base = base
+        self.phase: str | None = None
+        #: the cue that ended the last push phase (None: the push was missed)
+        self.cue = None
+        #: seconds from the last push's start to the detector going active (None: it did not)
+        self.onset_s: float | None = None
+        self._push = None
+        self._t0 = self._t_end = self._min_s = 0.0
+        self._until_cue = False
+
+    def push(self, push, hold: bool = True) -> DecisionStep:
+        """Start the push phase: ``push`` begins now (its ``t0`` is set)."""
+        b = self.base
+        if hold:
+            b.target = b.scene.cell_centre(b.cell)
+        push.t0 = float(b.data.time)
+        self._push, self.phase, self.cue, self.onset_s = push, PUSH, None, None
+        self._t_end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
+        return self
+
+    def move(self, cell: int, limit_s: float, min_s: float = 0.0) -> DecisionStep:
+        """Start the move phase toward the centre of ``cell``."""
+        b = self.base
+        b.target = b.scene.cell_centre(cell)
+        self._pos, self._vel = b._planar_views()  # views into MjData: no copy per step
+        self._t0 = float(b.data.time)
+        self._min_s = float(min_s)
+        self._t_end = self._t0 + max(float(limit_s), self._min_s)
+        self.phase = MOVE
+        return self
+
+    def hold(self, seconds: float = math.inf, until_cue: bool | None = None) -> DecisionStep:
+        """Start the hold phase at the current cell's centre; a cue ends it when ``until_cue``
+        (default: ``base.stop_on_cue``)."""
+        b = self.base
+        b.target = b.scene.cell_centre(b.cell)
+        self._t_end = float(b.data.time) + seconds
+        self._until_cue = b.stop_on_cue if until_cue is None else bool(until_cue)
+        self.phase = HOLD
+        return self
+
+    def advance(self) -> bool:
+        """One physics step of the phase under way; True when it ended with this step."""
+        b, phase = self.base, self.phase
+        if phase == PUSH:
+            cue = b.substep(self._push)
+            if self.onset_s is None and b.detector.active:
+                self.onset_s = float(b.data.time) - self._push.t0
+            if cue is None and b.data.time < self._t_end:
+                return False
+            b.detector.reset()
+            self.cue = cue
+        elif phase == MOVE:
+            cue = b.substep()
+            t = b.data.time
+            if cue is not None and b.stop_on_cue:
+                b.target = b.scene.cell_centre(b.cell)  # stop here: the planner replans
+            elif not ((t - self._t0 >= self._min_s and
+                       b.controller.settled(self._pos, self._vel, b.target) and
+                       not b.yielding()) or t >= self._t_end):
+                return False
+        elif phase == HOLD:
+            cue = b.substep()
+            if not (cue is not None and self._until_cue) and b.data.time < self._t_end:
+                return False
+        else:
+            b.substep()
+            return True
+        self.phase = None
+        return True
+
+    def run(self) -> DecisionStep:
+        """Advance until the phase under way ends (a blocking caller)."""
+        while not self.advance():
+            pass
+        return self
