@@ -70,7 +70,7 @@ class CarryControl(Carry, NavigateControl):
         """The arm base; the agent's command is held for the IK target (with physics the
         physical arm's base also follows it, :class:`.navigate_control.CommandedVelocity`)."""
         if self.physics is None:
-            self.command = VelocityCommand(self.v_max)
+            self.command = VelocityCommand(v_max=self.v_max)
             return ArmBase(self.scene, data=data)
         return NavigateControl.make_base(self, data, rng)
 

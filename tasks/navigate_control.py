@@ -54,15 +54,17 @@ CONTROL_TIMESTEPS = (0.02, 0.1)
 CONTROL_TIMESTEP = 0.02
 
 
-class VelocityCommand:
+@dataclass(frozen=True)
+class VelocityCommand(TrackingController):
     """The legacy base's onboard loop at control rate: a zero-order hold of the whole command
     over a control step, the agent's ``(vx, vy)`` and the yaw regulation ``wz = -k_yaw yaw``
     with the yaw at the step's start. The controller of the task's
-    :class:`~pathpref.sim.mobile_base.MobileBase` (the same ``command`` signature)."""
+    :class:`~pathpref.sim.mobile_base.MobileBase`."""
 
-    def __init__(self, v_max: float, k_yaw: float = 3.0):
-        self.v_max, self.k_yaw = v_max, k_yaw
-        self.u = np.zeros(3)
+    #: the held command (vx, vy, wz); state, updated in place
+    u: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False)
+    #: the agent's velocity, not a target
+    tracks_target: ClassVar[bool] = False
 
     def hold(self, v: np.ndarray, yaw: float = 0.0) -> None:
         """Hold ``v = (vx, vy)`` (m/s) and ``wz = -k_yaw yaw`` until the next call."""
@@ -122,7 +124,7 @@ class NavigateControl(Navigate):
         :class:`HeldCommandBase`, or with physics the ``--sim mujoco`` body's base
         (:func:`~pathpref.sim.body.build_base`) driven by :class:`CommandedVelocity`."""
         if self.physics is None:
-            self.command = VelocityCommand(self.v_max)
+            self.command = VelocityCommand(v_max=self.v_max)
             return MobileBase(self.scene, controller=self.command, data=data)
         self.command = CommandedVelocity(v_max=self.v_max, a_max=self.physics.a_max)
         return build_base(self.scene, self.template.task, self.physics, rng, data=data,

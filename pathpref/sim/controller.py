@@ -24,15 +24,21 @@ def norm(v) -> float:
 @dataclass(frozen=True)
 class TrackingController:
     """Proportional velocity tracking of a cell centre, saturated at ``v_max``; yaw held at 0.
+    The base class of every controller a base drives with: what a base may ask of one is
+    defined here (:meth:`command`, :meth:`goal_velocity`, :meth:`ramp`, :meth:`reset`,
+    :meth:`settled`, ``a_max``), so no base probes a controller for what it has.
 
     A move ends when the base is within ``tol_m`` of the target and slower than ``still_mps``,
-    or after ``time_limit_s``."""
+    or after ``time_limit_s``. ``a_max`` (m/s^2) is the acceleration a base that shapes its
+    own drive (the differential drive's forward ramp and turning) may use; this law itself
+    changes its command at once (:meth:`ramp` is the identity)."""
     kp: float = 4.0
     v_max: float = 0.8
     k_yaw: float = 3.0
     tol_m: float = 0.02
     still_mps: float = 0.05
     time_limit_s: float = 3.0
+    a_max: float = 10.0
     #: the command steers toward ``target`` (a base may treat the last centimetres specially)
     tracks_target: ClassVar[bool] = True
 
@@ -43,6 +49,17 @@ class TrackingController:
         if n > self.v_max:
             v *= self.v_max / n
         return np.array([v[0], v[1], -self.k_yaw * yaw])
+
+    def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
+        """The planar velocity the law wants now (m/s): :meth:`command`'s ``(vx, vy)``."""
+        return self.command(pos, 0.0, target)[:2]
+
+    def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
+        """The command that follows ``goal`` within the law's limits: ``goal`` itself."""
+        return goal
+
+    def reset(self) -> None:
+        """Forget any state (the base stands); this law has none."""
 
     def settled(self, pos: np.ndarray, vel: np.ndarray, target: np.ndarray) -> bool:
         """Within ``tol_m`` of ``target`` and slower than ``still_mps`` (:func:`norm`; a base
@@ -65,7 +82,7 @@ class ProfiledController(TrackingController):
     call (the velocity ramp of a drive controller, e.g. ROS ``diff_drive_controller``'s
     acceleration limit). Stateful (the last command): :meth:`reset` before a new episode."""
 
-    a_max: float = 1.0
+    a_max: float = 1.0  # the ramp's limit (overrides the base class's 10 m/s^2)
     brake: float = 0.8
     dt: float = 0.002
     #: the last planar velocity command (m/s; state, updated in place)

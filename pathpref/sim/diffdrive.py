@@ -52,9 +52,7 @@ class DiffDriveBase(MobileBase):
             v = self.admittance_velocity()
         else:
             self._anchor = None
-            goal = getattr(c, "goal_velocity", None)
-            v = goal(pos, self.target) if goal is not None else \
-                c.command(pos, yaw, self.target)[:2]
+            v = c.goal_velocity(pos, self.target)
         speed = math.hypot(v[0], v[1])
         fwd_goal, w = 0.0, 0.0
         near = c.tracks_target and not self.yielding() and \
@@ -67,10 +65,10 @@ class DiffDriveBase(MobileBase):
             if abs(e) > np.pi / 2:
                 e, sign = wrap(e - np.pi), -1.0
             # turning while driving accelerates the base by |v| w: keep it within a_max
-            w_lim = min(self.w_max, getattr(c, "a_max", 10.0) / max(abs(self.forward), 1e-6))
+            w_lim = min(self.w_max, c.a_max / max(abs(self.forward), 1e-6))
             w = max(-w_lim, min(w_lim, self.k_turn * e))
             if abs(e) < self.drive_within:
                 fwd_goal = sign * speed * math.cos(e)
-        step = getattr(c, "a_max", 10.0) * self.dt
+        step = c.a_max * self.dt
         self.forward += max(-step, min(step, fwd_goal - self.forward))
         return np.array([self.forward, 0.0, w])

@@ -386,10 +386,7 @@ class MobileBase:
         if not self.yielding():
             self._anchor = None
             return self.controller.command(pos, d.qpos[self.yaw], self.target)
-        v = self.admittance_velocity()
-        ramp = getattr(self.controller, "ramp", None)
-        if ramp is not None:
-            v = ramp(v)
+        v = self.controller.ramp(self.admittance_velocity())
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
 
     def admittance_velocity(self) -> np.ndarray:
@@ -408,9 +405,7 @@ class MobileBase:
     def _reset_control(self) -> None:
         """A standing base: no yield under way, the controller's state cleared."""
         self._anchor = None
-        reset = getattr(self.controller, "reset", None)
-        if reset is not None:
-            reset()
+        self.controller.reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:
         """Hold the current cell while ``push`` acts (the push phase, :mod:`.decision`, run to
