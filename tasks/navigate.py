@@ -57,6 +57,7 @@ from dm_control.suite import base
 from dm_env import specs
 
 from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
+from pathpref.episode.physics import CELL_SIZE_M
 from pathpref.episode.physics import Physics as PhysicalParameters
 from pathpref.episode.spec import check_limit, check_number
 from pathpref.errors import ConfigError, EpisodeError
@@ -76,8 +77,8 @@ from .stage import ForceFilter, Physics, StagedBody
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
-#: metres per grid unit of the scenes
-CELL_SIZE = 0.5
+#: metres per grid unit of the scenes (the one home: ``pathpref.episode.physics.CELL_SIZE_M``)
+CELL_SIZE = CELL_SIZE_M
 #: physics seconds of one decision step (the default ``decision_s`` of the legacy physics)
 DECISION_S = 2.5
 #: the shortest move a decision step must leave room for (s)

@@ -78,6 +78,15 @@ def flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
+#: metres per grid unit of every physical scene (the MuJoCo bodies, the tasks, the studies, the
+#: rerun recordings): one home for the scale
+CELL_SIZE_M = 0.5
+#: the push detector's thresholds, one home for every detector and for :class:`Physics`: a cue
+#: begins when the force stays above ``on_n`` (N) for ``on_s`` (s) and ends when it stays below
+#: ``off_n`` for ``off_s``
+DETECTOR = {"on_n": 8.0, "on_s": 0.025, "off_n": 4.0, "off_s": 0.05}
+
+
 @dataclass(frozen=True)
 class Physics:
     """The physical parameters of a MuJoCo episode (module docstring). Defaults: realistic
@@ -88,10 +97,10 @@ class Physics:
     sensor_noise_n: float = -1.0
     sensor_bias_n: float = -1.0
     sensor_drift_n: float = -1.0
-    on_n: float = 8.0
-    on_s: float = 0.025
-    off_n: float = 4.0
-    off_s: float = 0.05
+    on_n: float = DETECTOR["on_n"]
+    on_s: float = DETECTOR["on_s"]
+    off_n: float = DETECTOR["off_n"]
+    off_s: float = DETECTOR["off_s"]
     timing: str = "decision"
     interval_s: float = 0.0
     jitter: float = 0.5

@@ -44,6 +44,7 @@ import mink
 import mujoco
 import numpy as np
 
+from ..episode.physics import CELL_SIZE_M
 from ..errors import EpisodeError
 from ..geometry.world import World
 from .mobile_base import MobileBase
@@ -76,7 +77,7 @@ def jaco_xml() -> Path:
     return path
 
 
-def build_arm_scene(world: World, cell_size: float = 0.5, base: BaseParams | None = None
+def build_arm_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams | None = None
                     ) -> Scene:
     """Compile the arm-on-base scene of ``world`` (see module docstring); ``base`` a
     physical base."""

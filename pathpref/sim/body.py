@@ -28,7 +28,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..episode.body import Body, register_body
-from ..episode.physics import Physics
+from ..episode.physics import CELL_SIZE_M, Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
@@ -44,7 +44,7 @@ from .scene import BaseParams, Scene, build_scene
 HOLD_S = 0.5
 
 @lru_cache(maxsize=8)
-def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate",
+def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigate",
               base: BaseParams | None = None) -> Scene:
     """One compiled scene per world (worlds hash by identity), cell size, task and base."""
     if task == "carry":
@@ -65,7 +65,7 @@ class MujocoBody(Body):
     tasks = ("navigate", "carry")
 
     def __init__(self, world: World, spec, rng: np.random.Generator,
-                 profile: PushProfile | None = None, cell_size: float = 0.5,
+                 profile: PushProfile | None = None, cell_size: float = CELL_SIZE_M,
                  scene: Scene | None = None, data=None, base: MobileBase | None = None):
         self.world = world
         self.rng = rng

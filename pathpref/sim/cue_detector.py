@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..episode.physics import DETECTOR
 from ..geometry.grid import heading_to_action
 
 
@@ -54,8 +55,10 @@ class CueDetector:
     """Feed one force sample per physics step with :meth:`update`; it returns a :class:`Cue`
     when one ends, else None."""
 
-    def __init__(self, dt: float, on_n: float = 8.0, on_s: float = 0.025, off_n: float = 4.0,
-                 off_s: float = 0.05, split: bool = False, turn_deg: float = 45.0):
+    def __init__(self, dt: float, on_n: float = DETECTOR["on_n"],
+                 on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
+                 off_s: float = DETECTOR["off_s"], split: bool = False,
+                 turn_deg: float = 45.0):
         self.dt, self.on_n, self.on_s, self.off_n, self.off_s = dt, on_n, on_s, off_n, off_s
         self.split, self.cos_turn = split, float(np.cos(np.deg2rad(turn_deg)))
         #: cues that ended by a split (re-onset or turn) since :meth:`reset`
@@ -167,8 +170,9 @@ class FilteredCueDetector(CueDetector):
     :meth:`update` takes ``at_rest`` (from the estimator) besides the force sample.
     """
 
-    def __init__(self, dt: float, tau_s: float = 0.015, on_n: float = 8.0, on_s: float = 0.025,
-                 off_n: float = 4.0, off_s: float = 0.05, on_k: float = 6.0, off_k: float = 3.0,
+    def __init__(self, dt: float, tau_s: float = 0.015, on_n: float = DETECTOR["on_n"],
+                 on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
+                 off_s: float = DETECTOR["off_s"], on_k: float = 6.0, off_k: float = 3.0,
                  floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0):
         self.tau_s, self.on_k, self.off_k, self.floor_tau_s = tau_s, on_k, off_k, floor_tau_s
         self.base_on_n, self.base_off_n = on_n, off_n

@@ -16,6 +16,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from ..episode.physics import CELL_SIZE_M
 from ..errors import ConfigError
 from ..geometry.world import World
 
@@ -119,7 +120,7 @@ def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
     wz.forcerange = [-spin * 20.0, spin * 20.0]
 
 
-def build_spec(world: World, cell_size: float = 0.5,
+def build_spec(world: World, cell_size: float = CELL_SIZE_M,
                base: BaseParams | None = None) -> mujoco.MjSpec:
     """The scene as an MjSpec (see module docstring); ``base`` a physical base."""
     if not (np.isfinite(cell_size) and cell_size > 0):
@@ -163,7 +164,7 @@ def build_spec(world: World, cell_size: float = 0.5,
     return spec
 
 
-def build_scene(world: World, cell_size: float = 0.5, base: BaseParams | None = None
+def build_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams | None = None
                 ) -> Scene:
     """Compile the scene of ``world``; a ConfigError names the cause when it cannot be built."""
     spec = build_spec(world, cell_size, base)

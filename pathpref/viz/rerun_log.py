@@ -25,6 +25,7 @@ import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
 
+from ..episode.physics import CELL_SIZE_M
 from ..geometry.world import World
 from .mapdraw import polytope_centres
 from .video import belief_rgba
@@ -64,7 +65,7 @@ class RerunLogger:
     """Writes an episode to an offline rerun file (entities in the module docstring)."""
 
     def __init__(self, world: World, goal_cells: np.ndarray, true_goal: int, out: str | Path,
-                 cell_size: float = 0.5, app: str = "pathpref",
+                 cell_size: float = CELL_SIZE_M, app: str = "pathpref",
                  preference: np.ndarray | None = None):
         self.rec = rr.RecordingStream(app)
         self.rec.save(str(out), default_blueprint=blueprint())

@@ -10,11 +10,12 @@ from typing import Any
 import numpy as np
 
 from ...episode import EpisodeSpec, cached_world, run_episode
+from ...episode.physics import CELL_SIZE_M
 from ...geometry.world import World
 
 
 # --- physics: MuJoCo sensing, episodes, rendering, arm --------------------------------------
-def scene_for(world: World, cell_size: float = 0.5, task: str = "navigate"):
+def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigate"):
     """The compiled MuJoCo scene (imports the simulator on first use)."""
     from ...sim.body import scene_for as build
 
