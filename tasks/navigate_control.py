@@ -162,7 +162,11 @@ class NavigateControl(Navigate):
                                    float(self.base.data.time) - push.t0))
 
     def check_action(self, action) -> np.ndarray:
-        """``action`` as ``(vx, vy)``; a one-line ConfigError naming the shape or the range."""
+        """``action`` as ``(vx, vy)``, each clipped to ``[-v_max, v_max]``; a one-line
+        ConfigError naming the shape or the range. The bound itself is accepted as every
+        library writes it: a Gymnasium ``Box`` holds it in float32 (``float32(0.8)`` is
+        ``0.800000011920929``) and PPO clips its actions to that, so a value within the
+        float32 rounding of ``v_max`` is in range (and clipped to it)."""
         if np.iscomplexobj(action) or any(isinstance(v, complex) for v in np.ravel(
                 np.asarray(action, dtype=object))):
             raise ConfigError(f"action must be (vx, vy) in m/s, real numbers, got "
@@ -174,10 +178,11 @@ class NavigateControl(Navigate):
         if a is None or a.shape != (2,):
             shown = repr(action)[:40] if a is None else f"an array of shape {a.shape}"
             raise ConfigError(f"action must be (vx, vy) in m/s, shape (2,), got {shown}")
-        if not (np.isfinite(a).all() and (np.abs(a) <= self.v_max + 1e-9).all()):
+        bound = max(self.v_max, float(np.float32(self.v_max)))  # float32's rounding of it
+        if not (np.isfinite(a).all() and (np.abs(a) <= bound).all()):
             raise ConfigError(f"action must be (vx, vy) with each in [-{self.v_max:g}, "
                               f"{self.v_max:g}] m/s, got {np.array2string(a, precision=3)}")
-        return a
+        return np.clip(a, -self.v_max, self.v_max)
 
     def before_step(self, action, physics: Physics) -> None:
         """Hold the commanded velocity; start the human's push when one is due."""

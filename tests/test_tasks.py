@@ -334,3 +334,34 @@ def test_readme_vector_example_runs():
     obs = scope["obs"]
     assert obs["position"].shape == (4, 2) and obs["goal_belief"].shape == (4, 10)
     assert len({tuple(p) for p in obs["goal_cells"][:, 0]}) > 1  # seeds 0..3: other goals
+
+
+@pytest.mark.parametrize("env_id", ["pathpref/NavigateControl-v0", "pathpref/CarryControl-v0"])
+def test_control_rate_tasks_accept_their_own_bounds(env_id):
+    """The bound as every library writes it is an action: Gymnasium's float32 ``high`` and
+    ``low`` (``float32(0.8) > 0.8``: stable-baselines3's PPO clips to it and died on the first
+    rollout), the float64 bound of the dm_env spec, and mixed corners, in Gymnasium and
+    dm_env; the base is commanded at most ``v_max``; a value one float32 step past the bound
+    is refused with one line."""
+    gym = pytest.importorskip("gymnasium")
+    from pathpref.errors import ConfigError
+
+    env = gym.make(f"pathpref_tasks:{env_id}", map="simple", method="compliant", delta_t=2,
+                   queries=20, t_max=4, time_limit=1.0)
+    env.reset(seed=0)
+    hi, lo = env.action_space.high, env.action_space.low
+    assert hi.dtype == np.float32 and float(hi[0]) > 0.8
+    task = env.unwrapped._env.task
+    for a in (hi, lo, hi.astype(np.float64), np.array([0.8, -0.8]), np.array([hi[0], lo[1]])):
+        env.step(a)
+        assert np.abs(task.command.u[:2]).max() <= 0.8  # clipped to v_max, not past it
+    past = np.nextafter(np.float32(0.8), np.float32(1.0))
+    with pytest.raises(ConfigError, match="each in"):
+        env.step(np.array([past, 0.0], np.float32))
+    dm = load(env_id.split("/")[1].replace("-v0", "").replace("NavigateControl",
+              "navigate_control").replace("CarryControl", "carry_control"), map="simple",
+              method="compliant", delta_t=2, queries=20, t_max=4, time_limit=1.0)
+    dm.reset()
+    spec = dm.action_spec()
+    for a in (spec.maximum, spec.minimum, hi, lo):
+        dm.step(np.broadcast_to(a, spec.shape))
