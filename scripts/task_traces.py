@@ -17,9 +17,9 @@ from pathpref_tasks import load  # noqa: E402
 #: (task, load kwargs, steps)
 CASES = [
     ("navigate", {"map": "simple", "method": "path_preference", "delta_t": 2, "seed": 5,
-                  "queries": 50, "t_max": 6}, 7),
+                  "queries": 50, "t_max": 6, "physics": "legacy"}, 7),
     ("navigate_control", {"map": "simple", "method": "path_preference", "delta_t": 1,
-                          "seed": 1, "queries": 20}, 60),
+                          "seed": 1, "queries": 20, "physics": "legacy"}, 60),
 ]
 
 

@@ -24,8 +24,9 @@ Unknown names and bad values are one-line :class:`~pathpref.errors.ConfigError` 
 fields or its JSON; ``docs/physics.md`` section 7): ``load("navigate", physics={"sensor":
 "realistic", "timing": "interval", "base": "diffdrive"})`` builds the base as ``--sim mujoco``
 does (:func:`pathpref.sim.body.build_base`) and stores the value with every episode's spec.
-Without it (None, ``""``, ``"legacy"``) the tasks run the legacy physics (ideal sensor, a fixed
-30 N / 0.3 s push, the original base and controllers), bit for bit as before the argument.
+Without it (None) the tasks run the default physics, ``Physics()``, as every door does;
+``"legacy"`` (or ``""``) runs the legacy physics (ideal sensor, a fixed 30 N / 0.3 s push, the
+original base and controllers), exactly as before the argument.
 """
 
 from __future__ import annotations

@@ -30,7 +30,8 @@ is reproducible episode by episode. ``env.task.policy_action()`` is the loaded m
 choice (its planner and belief), so the environment runs end to end without an agent.
 
 ``physics`` (a :class:`~pathpref.episode.physics.Physics`, a dict of its fields or its JSON;
-None: the legacy physics) builds the base as ``--sim mujoco`` does and goes into every
+None: ``Physics()``, every door's default; ``"legacy"``: the legacy physics)
+builds the base as ``--sim mujoco`` does and goes into every
 episode's spec; its default ``decision_s`` is 4.1 s (the controller's whole 3 s move and the
 longest push with the detector's release). With ``timing`` other than ``decision`` the human
 pushes at any physics step (:class:`~pathpref.sim.pushing_human.PushingHuman`): a cue felt
@@ -134,7 +135,7 @@ class Navigate(base.Task):
     decides = True
 
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,
-                 seed: int = 0, preset: str = DEFAULT_PRESET, queries: int = 5000,
+                 seed: int = 0, preset: str = DEFAULT_PRESET, queries: int | None = None,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate", force: bool = False, decision_s: float | None = None,
                  physics: Any = None):
@@ -149,7 +150,7 @@ class Navigate(base.Task):
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
             sim="mujoco", task=task, physics=PhysicalParameters.coerce(physics))
         self.template.validate()
-        #: the physical parameters (None: the legacy physics)
+        #: the physical parameters (None: the legacy physics, asked for by name)
         self.physics = ph = PhysicalParameters.from_json(self.template.physics)
         self.scene: Scene = scene_for(self.world, CELL_SIZE, task,
                                       None if ph is None else base_params(ph))

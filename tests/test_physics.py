@@ -109,11 +109,15 @@ def test_pushes_at_any_time_reach_the_belief():
 
 
 def test_legacy_spec_key_has_no_physics_field():
-    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco")
-    assert "physics" not in spec.key()
-    ph = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco",
-                            physics=Physics().to_json())
+    """The legacy physics only by name (its key keeps no physics field, as the rows stored
+    before the field); a physical body's default is ``Physics()``, in its key."""
+    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco",
+                              physics="legacy")
+    assert spec.physics == "" and "physics" not in spec.key()
+    ph = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco")
+    assert ph.physics == Physics().to_json()
     assert "physics=" in ph.key() and ph.key() != spec.key()
+    assert EpisodeSpec.single("simple", "path_preference", 5).physics == ""  # the grid
 
 
 def test_push_distributions():

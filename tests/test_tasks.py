@@ -12,6 +12,7 @@ import pytest  # noqa: E402
 from dm_env import test_utils  # noqa: E402
 from pathpref_tasks import load  # noqa: E402
 
+from pathpref.episode import Physics  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 
 
@@ -52,11 +53,12 @@ class CarryConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
     def make_object_under_test(self):
         return load("carry", task_kwargs={"map": "simple", "method": "compliant",
                                           "delta_t": 2, "seed": 0, "queries": 20, "t_max": 3,
-                                          "decision_s": 1.5})
+                                          "decision_s": 1.5, "physics": "legacy"})
 
 
 @pytest.mark.parametrize("name,kwargs,sub", [
-    ("navigate", {"delta_t": 1, "t_max": 4}, 1250),
+    ("navigate", {"delta_t": 1, "t_max": 4, "physics": "legacy"}, 1250),  # 2.5 s steps
+    ("navigate", {"delta_t": 1, "t_max": 4}, 2050),  # the default physics: 4.1 s steps
     ("navigate_control", {"delta_t": 1}, 10),
 ])
 def test_time_is_honest(name, kwargs, sub):
@@ -85,7 +87,7 @@ def _random_actions(env, rng):
 
 
 @pytest.mark.parametrize("name,kwargs", [
-    ("navigate", {"delta_t": 2, "t_max": 5}),
+    ("navigate", {"delta_t": 2, "t_max": 5, "physics": "legacy"}),  # 2.5 s steps: 4 in 4 s
     ("navigate_control", {"delta_t": 1, "push_period_s": 1.0}),
 ])
 def test_same_seed_same_episodes_step_by_step(name, kwargs):
@@ -297,8 +299,9 @@ def test_gymnasium_env_passes_check_env(env_id):
     env = gym.make(f"pathpref_tasks:{env_id}", map="simple", method="compliant", delta_t=2,
                    queries=20, t_max=4, render_mode="rgb_array", width=64, height=48,
                    time_limit=1.0 if control else None)
-    if control:
-        assert env.action_space == gym.spaces.Box(-0.8, 0.8, (2,), np.float32)
+    if control:  # the default physics' base: v_max
+        v = Physics().v_max
+        assert env.action_space == gym.spaces.Box(-v, v, (2,), np.float32)
     else:
         assert env.action_space == gym.spaces.Discrete(9)
     space = env.observation_space
@@ -336,8 +339,9 @@ def test_readme_vector_example_runs():
     assert len({tuple(p) for p in obs["goal_cells"][:, 0]}) > 1  # seeds 0..3: other goals
 
 
+@pytest.mark.parametrize("physics", ["legacy", None])  # 0.8 m/s (float32 above it), 1.0 m/s
 @pytest.mark.parametrize("env_id", ["pathpref/NavigateControl-v0", "pathpref/CarryControl-v0"])
-def test_control_rate_tasks_accept_their_own_bounds(env_id):
+def test_control_rate_tasks_accept_their_own_bounds(env_id, physics):
     """The bound as every library writes it is an action: Gymnasium's float32 ``high`` and
     ``low`` (``float32(0.8) > 0.8``: stable-baselines3's PPO clips to it and died on the first
     rollout), the float64 bound of the dm_env spec, and mixed corners, in Gymnasium and
@@ -347,20 +351,22 @@ def test_control_rate_tasks_accept_their_own_bounds(env_id):
     from pathpref.errors import ConfigError
 
     env = gym.make(f"pathpref_tasks:{env_id}", map="simple", method="compliant", delta_t=2,
-                   queries=20, t_max=4, time_limit=1.0)
+                   queries=20, t_max=4, time_limit=1.0, physics=physics)
     env.reset(seed=0)
     hi, lo = env.action_space.high, env.action_space.low
-    assert hi.dtype == np.float32 and float(hi[0]) > 0.8
     task = env.unwrapped._env.task
-    for a in (hi, lo, hi.astype(np.float64), np.array([0.8, -0.8]), np.array([hi[0], lo[1]])):
+    v = task.v_max
+    assert hi.dtype == np.float32 and float(hi[0]) >= v
+    for a in (hi, lo, hi.astype(np.float64), np.array([v, -v]), np.array([hi[0], lo[1]])):
         env.step(a)
-        assert np.abs(task.command.u[:2]).max() <= 0.8  # clipped to v_max, not past it
-    past = np.nextafter(np.float32(0.8), np.float32(1.0))
+        assert np.abs(task.command.u[:2]).max() <= v  # clipped to v_max, not past it
+    past = np.nextafter(np.float32(v), np.float32(2 * v))
     with pytest.raises(ConfigError, match="each in"):
         env.step(np.array([past, 0.0], np.float32))
     dm = load(env_id.split("/")[1].replace("-v0", "").replace("NavigateControl",
               "navigate_control").replace("CarryControl", "carry_control"), map="simple",
-              method="compliant", delta_t=2, queries=20, t_max=4, time_limit=1.0)
+              method="compliant", delta_t=2, queries=20, t_max=4, time_limit=1.0,
+              physics=physics)
     dm.reset()
     spec = dm.action_spec()
     for a in (spec.maximum, spec.minimum, hi, lo):

@@ -43,8 +43,8 @@ class NavigateControlPhysicsConformance(test_utils.EnvironmentTestMixin, unittes
 @pytest.mark.cross_cpu
 @pytest.mark.parametrize("case", range(2))
 def test_legacy_default_is_unchanged(case):
-    """Without ``physics`` the tasks run the legacy physics unchanged: every observation, reward
-    and action of the task's own policy equals ``tests/data/task_traces.json`` (written by
+    """With ``physics="legacy"`` the tasks run the legacy physics unchanged: every observation,
+    reward and action of the task's own policy equals ``tests/data/task_traces.json`` (written by
     ``scripts/task_traces.py``), actions and discrete observations exactly, floats to
     ``tests/close.py``'s tolerance. Until issue 24 this was a SHA-256 of the float bits, which
     differed between CPU classes (README, "Replays exactly"); the traces were taken with the
@@ -74,7 +74,7 @@ def test_realistic_sensing_noisy_at_rest_and_cue_detected():
     detected in the heading it was given (angle noise 0, so the sector is exact)."""
     passed = {"sensor": "realistic", "noise_deg": 0}
     env = load("navigate", delta_t=4, t_max=5, seed=2, physics=passed, **SMALL)
-    legacy = load("navigate", delta_t=4, t_max=5, seed=2, **SMALL)
+    legacy = load("navigate", delta_t=4, t_max=5, seed=2, physics="legacy", **SMALL)
     assert env.task.template.physics == Physics(**passed).to_json()
     ts = env.reset()
     legacy.reset()
@@ -133,14 +133,15 @@ def test_bad_physics_is_one_line_naming_the_field(name, physics, extra, msg):
 
 
 def test_physics_forms_store_the_same_json():
-    """A ``Physics``, a dict of its fields and its JSON give the same stored string; None,
-    "" and "legacy" the legacy physics."""
+    """A ``Physics``, a dict of its fields and its JSON give the same stored string; "" and
+    "legacy" the legacy physics; nothing given, the defaults (as every door's)."""
     ph = Physics(sensor="ft300s", base="diffdrive", peak_n=30.0)
     given = [ph, {"sensor": "ft300s", "base": "diffdrive", "peak_n": 30.0}, ph.to_json()]
     assert {load("navigate", physics=g, **SMALL).task.template.physics
             for g in given} == {ph.to_json()}
     assert {load("navigate", physics=g, **SMALL).task.template.physics
-            for g in (None, "", "legacy")} == {""}
+            for g in ("", "legacy")} == {""}  # the legacy physics only by name
+    assert load("navigate", **SMALL).task.template.physics == Physics().to_json()
 
 
 def test_pushes_at_any_time_update_the_belief_at_once():

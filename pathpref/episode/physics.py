@@ -197,8 +197,11 @@ class Physics:
     @classmethod
     def coerce(cls, value) -> str:
         """The spec string of a Python API argument: a :class:`Physics`, a dict of its
-        fields, its JSON, or None / ``"legacy"`` / ``""`` (legacy physics)."""
-        if value is None or value in ("", "legacy"):
+        fields, its JSON; None: the defaults (``Physics()``, as every door's); ``"legacy"``
+        (or ``""``): the legacy physics, only by name."""
+        if value is None:
+            return cls().to_json()
+        if value in ("", "legacy"):
             return ""
         if isinstance(value, Physics):
             return value.to_json()

@@ -7,9 +7,9 @@ import numbers
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from ..errors import ConfigError
+from ..errors import ConfigError, PathprefError
 from ..geometry.maps import MAX_T_MAX
-from ..planning.pomdp import PRESETS, PRIORS, Preset, get_preset
+from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS, Preset, get_preset
 from .cache import cached_map
 from .instances import HUMANS, seed_for
 from .physics import Physics
@@ -96,9 +96,11 @@ class EpisodeSpec:
     run: int
     instance_seed: int
     run_seed: int
-    preset: str = "paper"
+    preset: str = DEFAULT_PRESET
     queries: int | None = None
-    t_max: int = 30
+    #: mission time in decision steps; None: the map's (its ``t_max`` field, else its size
+    #: rule), as every door (CLI, tasks, studies) resolves it
+    t_max: int | None = None
     n_goals: int = 10
     normalize: bool = True
     coupling: bool | None = None
@@ -114,8 +116,9 @@ class EpisodeSpec:
     human: str = "map"
     #: the physical parameters of a MuJoCo episode: canonical JSON of :class:`.physics.Physics`,
     #: or "" for the legacy physics of rows written before the field (left out of the key then,
-    #: so their keys are unchanged)
-    physics: str = ""
+    #: so their keys are unchanged). None: the defaults for a physical body (``Physics()``,
+    #: realistic sensing), nothing for the grid; the legacy physics only by name ("legacy")
+    physics: str | None = None
     #: the path-preference belief's prior: "independent" (the paper's) or "routes"
     #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
     #: of episodes stored before the field existed (all independent) stay as they were
@@ -124,6 +127,16 @@ class EpisodeSpec:
     timeout_s: float = field(default=0.0, compare=False)
 
     def __post_init__(self) -> None:
+        if self.t_max is None and isinstance(self.map, str):  # the map's mission time
+            try:
+                object.__setattr__(self, "t_max", cached_map(self.map).t_max)
+            except PathprefError:
+                pass  # validate() names the map's problem
+        if self.physics is None:
+            object.__setattr__(self, "physics", "" if self.sim == "grid" else
+                               Physics().to_json())
+        elif self.physics == "legacy":
+            object.__setattr__(self, "physics", "")
         preset = PRESETS.get(self.preset)  # an unknown name is reported by validate()
         for name in ("queries", "ucb_c", "coupling", "prior"):
             if getattr(self, name) is None:
@@ -169,6 +182,10 @@ class EpisodeSpec:
     def validate(self) -> None:
         """Refuse settings no episode can run with (one line naming the field and the fix).
         Whether the body offers the task is checked where the body is chosen (:mod:`.body`)."""
+        if not isinstance(self.map, str):
+            raise ConfigError(f"map must be a string, got {_show(self.map)}")
+        if self.t_max is None:  # the map could not be read: its own error
+            cached_map(self.map)
         preset = get_preset(self.preset)
         for option, value, name in (
             ("--delta-t", self.delta_t, "delta_t"), ("--t-max", self.t_max, "t_max"),

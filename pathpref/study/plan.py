@@ -14,7 +14,7 @@ Per trial (a field missing from a trial is taken from ``defaults``):
 * ``map``: a built-in map or a map file (relative to the study file);
 * ``method`` (``compliant``, ``goal_only``, ``path_preference``, ``blended``; the reference
   methods read the goal and are refused) and ``preset`` (``robust``, ``paper``, ``original``),
-  ``queries`` (planner queries per decision, 1..100000);
+  ``queries`` (planner queries per decision, 1..100000; default: the preset's, as every door's);
 * ``start``, ``goal``: free cells ``[x, y]``; ``candidates``: the goal candidates the robot
   infers over (free cells, the goal among them; default: the free cells of the map's
   ``goal_band`` reachable from the start);
@@ -49,12 +49,14 @@ from ..episode import cached_world
 from ..errors import ConfigError, PathprefError
 from ..geometry.preference import preference_from_route
 from ..geometry.world import World
-from ..planning.pomdp import PRESETS
+from ..planning.pomdp import DEFAULT_PRESET, PRESETS
 
 STUDY_METHODS = ("compliant", "goal_only", "path_preference", "blended")
 TRIAL_FIELDS = {"name", "map", "method", "preset", "queries", "start", "goal", "candidates",
                 "route", "time_limit_s", "condition"}
-DEFAULTS = {"method": "path_preference", "preset": "robust", "queries": 500,
+#: what a trial (and the study's ``defaults``) leaves out: the planner's defaults are every
+#: door's (``pathpref.planning.pomdp.DEFAULT_PRESET`` and its queries; None: the preset's)
+DEFAULTS = {"method": "path_preference", "preset": DEFAULT_PRESET, "queries": None,
             "time_limit_s": 60.0, "condition": {}}
 MAX_TRIALS = 1000
 
@@ -183,7 +185,7 @@ def _trial(i: int, raw: Any, defaults: dict[str, Any], folder: Path) -> Trial:
     if t["preset"] not in PRESETS:
         raise ConfigError(f"{where}.preset must be one of {', '.join(sorted(PRESETS))}, got "
                           f"{str(t['preset'])[:40]!r}")
-    q = t["queries"]
+    q = t["queries"] if t["queries"] is not None else PRESETS[t["preset"]].queries
     if not isinstance(q, int) or isinstance(q, bool) or not 1 <= q <= 100_000:
         raise ConfigError(f"{where}.queries must be a whole number in 1..100000, got {q!r}")
     lim = t["time_limit_s"]
