@@ -157,25 +157,7 @@ def test_search_particles_match_exact_posterior(simple):
     n = 20000
     g, slots = tree_pool(planner.nbr, cdf, np.cumsum(belief.goal_marginal()), planner.goal_poly,
                          components(world.graph.neighbors), n, 7, 10**9)[:2]
-    pg = belief.goal_marginal()
-    assert np.all(np.abs(np.bincount(g, minlength=len(goals)) / n - pg)
-                  <= 5 * np.sqrt(pg * (1 - pg) / n) + 1e-9)
-    tested = 0
-    for gi in range(len(goals)):
-        rows = slots[g == gi]
-        if len(rows) < 1000:  # too few draws of this goal for a sharp test
-            continue
-        tested += 1
-        for v in range(world.n_polytopes):
-            if v == belief.goal_polytope[gi]:
-                assert np.all(rows[:, v] == -1)
-                continue
-            deg = len(world.graph.neighbors[v])
-            freq = np.bincount(rows[:, v], minlength=deg) / len(rows)
-            exact = belief.preference_given_goal(v)[gi, :deg]
-            se = np.sqrt(exact * (1 - exact) / len(rows))
-            assert np.all(np.abs(freq - exact) <= 5 * se + 1e-9), (gi, v)
-    assert tested >= 2
+    assert _assert_draws_match(world, belief, g, slots) >= 2
 
 
 def test_prior_in_the_episode_key_and_rows(tmp_path):

@@ -176,27 +176,19 @@ def physical_tables(records: list[dict[str, Any]]) -> str:
     blocks = []
     keys = sorted({(r["map"], r["sim"], r["variant"]) for r in records
                    if r.get("pushes") is not None})
+    def cell(recs, meth, d) -> str:
+        r = _find(recs, meth, d)
+        if r is None or r.get("pushes") is None:
+            return "–"
+        lat = r.get("cue_latency_ms")
+        return (f"missed {r['pushes_missed']} / misread {r['pushes_misread']} of "
+                f"{r['pushes']}, " + ("no cue" if lat is None else f"latency {lat:.0f} ms")
+                + f", {r['collisions']} collisions")
+
     for m, sim, var in keys:
         recs = [r for r in records if (r["map"], r["sim"], r["variant"]) == (m, sim, var)]
-        dts = sorted({r["delta_t"] for r in recs})
-        methods = sorted({r["method"] for r in recs}, key=_order)
-        lines = [f"**{m}**, how the pushes were read ({sim}; {var})", "",
-                 "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
-                 "|---|" + "---|" * len(dts)]
-        for meth in methods:
-            cells = []
-            for d in dts:
-                r = next((x for x in recs if x["method"] == meth and x["delta_t"] == d), None)
-                if r is None or r.get("pushes") is None:
-                    cells.append("–")
-                    continue
-                lat = r.get("cue_latency_ms")
-                cells.append(f"missed {r['pushes_missed']} / misread {r['pushes_misread']} of "
-                             f"{r['pushes']}, " + ("no cue" if lat is None else
-                                                   f"latency {lat:.0f} ms")
-                             + f", {r['collisions']} collisions")
-            lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
-        blocks.append("\n".join(lines))
+        blocks.append("\n".join(_grid(f"**{m}**, how the pushes were read ({sim}; {var})",
+                                       recs, lambda meth, d, recs=recs: cell(recs, meth, d))))
     return "\n\n".join(blocks)
 
 
@@ -214,6 +206,23 @@ def _order(method: str) -> tuple[int, str]:
     return (METHOD_ORDER.index(method) if method in METHOD_ORDER else len(METHOD_ORDER), method)
 
 
+def _grid(title: str, recs: list[dict[str, Any]], cell) -> list[str]:
+    """A Markdown table of ``recs``: a row per method (in :func:`_order`), a column per
+    Delta_T, each cell ``cell(method, delta_t)``, under ``title``."""
+    dts = sorted({r["delta_t"] for r in recs})
+    lines = [title, "", "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
+             "|---|" + "---|" * len(dts)]
+    for meth in sorted({r["method"] for r in recs}, key=_order):
+        lines.append(f"| {METHOD_LABEL.get(meth, meth)} | "
+                     + " | ".join(cell(meth, d) for d in dts) + " |")
+    return lines
+
+
+def _find(recs: list[dict[str, Any]], meth: str, dt: int) -> dict[str, Any] | None:
+    """The record of ``recs`` for method ``meth`` at Delta_T ``dt`` (None: none)."""
+    return next((x for x in recs if x["method"] == meth and x["delta_t"] == dt), None)
+
+
 def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> str:
     """Markdown: one table per (map, sim, variant), methods x Delta_T, rate [95% CI]."""
     blocks = []
@@ -225,19 +234,15 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
         ns = sorted({r["n"] for r in recs})
         title = (f"**{m}** ({sim}; {var}; n = {'/'.join(map(str, ns))} per cell; "
                  f"{failed_note(recs)})")
-        lines = [title, "", "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
-                 "|---|" + "---|" * len(dts)]
-        for meth in methods:
-            cells = []
-            for d in dts:
-                r = next((x for x in recs if x["method"] == meth and x["delta_t"] == d), None)
-                if r is None or r["n"] == 0:
-                    cells.append("–" if r is None or not r["failed"] else
-                                 f"– ({r['failed']} failed)")
-                else:
-                    cells.append(f"{r['success_rate']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]"
-                                 + (f" ({r['failed']} failed)" if r["failed"] else ""))
-            lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
+
+        def rate(meth, d, recs=recs) -> str:
+            r = _find(recs, meth, d)
+            if r is None or r["n"] == 0:
+                return "–" if r is None or not r["failed"] else f"– ({r['failed']} failed)"
+            return (f"{r['success_rate']:.2f} [{r['ci_low']:.2f}, {r['ci_high']:.2f}]"
+                    + (f" ({r['failed']} failed)" if r["failed"] else ""))
+
+        lines = _grid(title, recs, rate)
         if with_paper and m == "simple" and sim == "grid":
             lines += ["", "Paper (Table I, Map 1):", "",
                       "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
@@ -267,21 +272,16 @@ def side_by_side(records: list[dict[str, Any]]) -> str:
         phys = sorted({r["physics"] for r in recs if r.get("physics")})
         if plain and phys:
             var = f"{var}; {'; '.join(phys)}"
-        dts = sorted({r["delta_t"] for r in recs})
-        methods = sorted({r["method"] for r in recs}, key=_order)
-        lines = [f"**{m}**: {' / '.join(sims)} side by side ({var}; {failed_note(recs)})", "",
-                 "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
-                 "|---|" + "---|" * len(dts)]
-        for meth in methods:
-            cells = []
-            for d in dts:
-                vals = []
-                for sim in sims:
-                    r = next((x for x in recs if (x["method"], x["delta_t"], col(x)) ==
-                              (meth, d, sim)), None)
-                    vals.append("–" if r is None or not r["n"] else f"{r['success_rate']:.2f}")
-                cells.append(" / ".join(vals))
-            lines.append(f"| {METHOD_LABEL.get(meth, meth)} | " + " | ".join(cells) + " |")
+        def both(meth, d, recs=recs, sims=sims, col=col) -> str:
+            vals = []
+            for sim in sims:
+                r = next((x for x in recs if (x["method"], x["delta_t"], col(x)) ==
+                          (meth, d, sim)), None)
+                vals.append("–" if r is None or not r["n"] else f"{r['success_rate']:.2f}")
+            return " / ".join(vals)
+
+        lines = _grid(f"**{m}**: {' / '.join(sims)} side by side ({var}; {failed_note(recs)})",
+                      recs, both)
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)
 
