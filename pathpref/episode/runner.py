@@ -58,6 +58,8 @@ class EpisodeRunner:
     and ``body`` default to the spec's (cached world, registered body).
     """
 
+    #: the body gives the human's inputs itself (pushes at any time; set in ``__init__``)
+    continuous: bool = False
     #: the first NumPy floating-point error of the episode and their number
     numeric_errors: int = 0
     first_numeric_error: str = ""
@@ -91,7 +93,6 @@ class EpisodeRunner:
             ObservationModel(world, model.tables, physics.gamma_h, model.normalize)
         self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
         self.body = body if body is not None else make_body(spec, world)
-        self.continuous = False
         self.body.connect(self.observe)  # the one door of what the robot feels
         #: the body gives the human's inputs at times of its own (pushes at any time)
         self.continuous = self.body.attach_human(

@@ -136,15 +136,12 @@ class RouteBelief(PreferenceBelief):
             sp_ = self._splits[key] = _Split(self._minors[r], self.neighbors, S)
         return sp_
 
-    def observed_chain(self, g: int, extra: int = -1) -> _Chain:
-        """Goal ``g``'s chain on its observed polytopes (plus ``extra``, unobserved, with
-        uniform weights, when given): the states, their slot weights and heads."""
+    def observed_chain(self, g: int) -> _Chain:
+        """Goal ``g``'s chain on its observed polytopes: the states, their slot weights and
+        heads."""
         r = int(self.goal_polytope[g])
         minor = self._minors[r]
-        obs = [v for v in self.tables if minor.index[v] >= 0]
-        if extra >= 0:
-            obs.append(int(extra))
-        S = tuple(sorted(obs))
+        S = tuple(sorted(v for v in self.tables if minor.index[v] >= 0))
         split = self._split(r, S)
         k = len(S)
         K = int(self.degree.max())
@@ -194,11 +191,20 @@ class RouteBelief(PreferenceBelief):
             if minor.index[v] < 0:  # outside the goal's component: the independent posterior
                 out[g, :deg] = self.local_given_goal(v)[g, :deg]
                 continue
-            if v not in self.tables:
-                chain = self.observed_chain(g, extra=v)
-            i = chain.states.index(v)
-            out[g, :deg] = exit_probabilities(chain.rows(), i, chain.slot_w[i],
-                                              chain.heads[i], deg)[:deg]
+            if v in self.tables:
+                i = chain.states.index(v)
+                rows, slot_w, heads = chain.rows(), chain.slot_w[i], chain.heads[i]
+            else:  # v joins the chain as one more state, uniform weights
+                aug = chain.split.with_state(v, tuple(chain.states), self.neighbors)
+                if aug is None:
+                    continue
+                heads_all, n_slots = aug
+                i = len(chain.states)
+                w_all = np.vstack([chain.slot_w, np.zeros(chain.slot_w.shape[1])])
+                w_all[i, :deg] = 1.0
+                rows, slot_w, heads = chain_rows(w_all, heads_all, n_slots), w_all[i], \
+                    heads_all[i]
+            out[g, :deg] = exit_probabilities(rows, i, slot_w, heads, deg)[:deg]
         return out
 
 
@@ -232,47 +238,80 @@ class _Split:
 
     def __init__(self, minor: _Minor, neighbors: list[np.ndarray], S: tuple):
         k = len(S)
-        pos = {v: i for i, v in enumerate(S)}
-        members = np.flatnonzero(minor.index >= 0)
-        U = members[~np.isin(members, np.array(S, dtype=np.int64))]
-        n = len(U)
-        u_index = -np.ones(len(neighbors), dtype=np.int64)
-        u_index[U] = np.arange(n)
+        P = len(neighbors)
+        state = -np.ones(P, dtype=np.int64)  # S[i] -> i, the root -> k, else -1
+        state[np.array(S, dtype=np.int64)] = np.arange(k)
+        state[minor.root] = k
+        unobserved = (minor.index >= 0) & (state < 0)
+        n = int(unobserved.sum())
+        self.u_index = u_index = -np.ones(P, dtype=np.int64)
+        u_index[unobserved] = np.arange(n)
+        self.state = state
+        self.n = n
+        self.lu = None
         H = np.zeros((n, k + 1))
         self.logdet_u = 0.0
         if n:
-            rows, cols, data = [], [], []
+            src, dst = minor.src, minor.dst  # every slot of the component's members
+            in_u = unobserved[src]
+            a, b = u_index[src[in_u]], dst[in_u]
+            off = u_index[b] >= 0
+            diag = np.bincount(a, minlength=n).astype(float)  # deg(u): every neighbour 1
+            rows = np.concatenate([np.arange(n), a[off]])
+            cols = np.concatenate([np.arange(n), u_index[b[off]]])
+            data = np.concatenate([diag, -np.ones(int(off.sum()))])
             B = np.zeros((n, k + 1))
-            for a, u in enumerate(U.tolist()):
-                nb = neighbors[u]
-                rows.append(a)
-                cols.append(a)
-                data.append(float(len(nb)))
-                for w in nb.tolist():
-                    if u_index[w] >= 0:
-                        rows.append(a)
-                        cols.append(int(u_index[w]))
-                        data.append(-1.0)
-                    elif w == minor.root:
-                        B[a, k] += 1.0
-                    else:
-                        B[a, pos[w]] += 1.0
-            self.logdet_u, lu = _factor(n, np.array(rows), np.array(cols), np.array(data))
-            if lu is not None and k + 1 > 0:
-                H = np.maximum(lu.solve(B), 0.0)
+            np.add.at(B, (a[~off], state[b[~off]]), 1.0)
+            self.logdet_u, self.lu = _factor(n, rows, cols, data)
+            if self.lu is not None:
+                H = np.maximum(self.lu.solve(B), 0.0)
+        self.H = H
         K = max((len(nb) for nb in neighbors), default=1)
-        self.heads = np.zeros((k, max(K, 1), k + 1))
-        self.n_slots = np.zeros(k, dtype=np.int64)
-        for i, v in enumerate(S):
-            nb = neighbors[v]
-            self.n_slots[i] = len(nb)
-            for s, w in enumerate(nb.tolist()):
-                if w == minor.root:
-                    self.heads[i, s, k] = 1.0
-                elif w in pos:
-                    self.heads[i, s, pos[w]] = 1.0
-                else:
-                    self.heads[i, s] = H[u_index[w]]
+        self.K = max(K, 1)
+        self.heads, self.n_slots = self._heads(S, neighbors, state, H)
+
+    def _heads(self, S, neighbors, state: np.ndarray, H: np.ndarray):
+        """``(heads (len(S), K, m), n_slots)``: for each slot of each state, where the walk
+        first enters the states or ``r`` (``m`` columns, ``state[]`` numbering them) after
+        stepping to its head: a unit vector for a state or ``r``, the head's row of ``H``
+        otherwise."""
+        heads = np.zeros((len(S), self.K, H.shape[1]))
+        n_slots = np.array([len(neighbors[v]) for v in S], dtype=np.int64)
+        if not len(S):
+            return heads, n_slots
+        i = np.repeat(np.arange(len(S)), n_slots)  # every slot (i, s) and its head y
+        s = np.arange(len(i)) - np.repeat(np.cumsum(n_slots) - n_slots, n_slots)
+        y = np.concatenate([np.asarray(neighbors[v], dtype=np.int64) for v in S])
+        known = state[y] >= 0
+        heads[i[known], s[known], state[y[known]]] = 1.0
+        heads[i[~known], s[~known]] = H[self.u_index[y[~known]]]
+        return heads, n_slots
+
+    def with_state(self, v: int, S: tuple, neighbors: list[np.ndarray]):
+        """The heads and slot counts of the chain on ``S + (v,)`` for an unobserved ``v``
+        (states ``0..k-1``, ``v`` as ``k``, ``r`` as ``k + 1``), from this factorisation and
+        one more solve: with ``h(y) = P_y(reach v before leaving U) = [L_UU^-1]_{yv} /
+        [L_UU^-1]_{vv}``, the first entry into ``S``, ``v`` or ``r`` from ``y`` is
+        ``H(y, .) - h(y) H(v, .)`` on ``S`` and ``r`` and ``h(y)`` on ``v`` (strong Markov at
+        the visit to ``v``). None when the block could not be factorised."""
+        if self.lu is None:
+            return None
+        k = len(S)
+        iv = int(self.u_index[v])
+        e = np.zeros(self.n)
+        e[iv] = 1.0
+        col = self.lu.solve(e)
+        h = np.clip(col / col[iv], 0.0, 1.0)
+        Hv = self.H[iv]
+        H = np.empty((self.n, k + 2))
+        H[:, :k] = self.H[:, :k] - h[:, None] * Hv[:k]
+        H[:, k] = h
+        H[:, k + 1] = self.H[:, k] - h * Hv[k]
+        np.maximum(H, 0.0, out=H)
+        state = self.state.copy()
+        state[self.state == k] = k + 1  # r moves one column on
+        state[v] = k
+        return self._heads((*S, v), neighbors, state, H)
 
 
 class _Minor:
@@ -285,6 +324,12 @@ class _Minor:
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
+        #: every slot ``(v, N(v)[k])`` of the members, as arrays (the pattern of ``~L``)
+        deg = np.array([len(neighbors[v]) for v in members.tolist()], dtype=np.int64)
+        self.src = np.repeat(members, deg)
+        self.dst = (np.concatenate([np.asarray(neighbors[v], dtype=np.int64)
+                                    for v in members.tolist()])
+                    if len(members) else np.zeros(0, dtype=np.int64))
 
 
 def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
