@@ -145,3 +145,33 @@ def test_goal_belief_prior_multiplies_the_likelihood(simple):
     b.update(simple.cell((3, 2)), 0)
     want = prior * model.goal_likelihood[simple.cell((3, 2)), 0]
     assert b.goal_marginal() == pytest.approx(want / want.sum())
+
+
+def test_a_goal_row_far_below_the_others_keeps_its_shape(simple):
+    """Evidence that makes one goal 1e-150 as likely per observation as the others (1e-1050
+    after seven): its row of the table is rescaled on its own instead of underflowing to 0/0,
+    so its exits keep their exact odds (2^7 : 1 here) and its log weight stays finite, for the
+    independent and the route belief."""
+    from pathpref.inference.routes import RouteBelief
+
+    goals = np.array([simple.cell((x, 8)) for x in range(1, 5)])
+    model = ObservationModel.build(simple, goals)
+    v = 0
+    deg = len(simple.graph.neighbors[v])
+    f = np.ones((len(goals), deg))
+    f[0] = 1e-150
+    f[0, 0] = 2e-150  # goal 0: exit 0 twice as likely as each other exit
+    for b in (PreferenceBelief(model), RouteBelief(model)):
+        for _ in range(7):
+            b._multiply(v, f)
+        row = b.local_given_goal(v)[0]
+        assert np.isfinite(row).all() and row[0] == pytest.approx(128 * row[1], rel=1e-12)
+        w = b.goal_log_weights()
+        assert np.isfinite(w).all() and w[1] - w[0] > 1000 * np.log(10)
+    # independent prior: log mean of goal 0's row, worked out by hand
+    ind = PreferenceBelief(model)
+    for _ in range(7):
+        ind._multiply(v, f)
+    w = ind.goal_log_weights()
+    want = 1050 * np.log(10) - np.log((128 + deg - 1) / deg)
+    assert w[1] - w[0] == pytest.approx(want, rel=1e-9)

@@ -8,7 +8,7 @@ independent of every other ``p_u`` (paper Fig. 3). With a uniform, independent p
 
 where ``L_v(g, k)`` is the product of the likelihoods of the observations made while in ``v``.
 :class:`PreferenceBelief` keeps one ``|Omega_g| x deg(v)`` table ``T_v`` per visited polytope
-(each row scaled to a largest entry of 1, its scale kept in ``log_scale``) and the per-goal
+(scaled to a largest entry of 1, its scales kept in ``log_scale``) and the per-goal
 sum ``lw(g) = sum_v log r_v(g)`` of log row means ``r_v(g) = mean_k T_v(g, k)``. The goal
 marginal is ``P(g) ~ P0(g) exp(lw(g))``; an update touches one table and one entry of ``lw`` per
 goal, so it costs ``O(|Omega_g| deg(v))`` whatever the number of polytopes.
@@ -30,6 +30,9 @@ COUPLING_FLOOR = 1e-6
 #: :meth:`PreferenceBelief._multiply`): far below any probability an episode can resolve,
 #: far above the smallest double, so products of a few such weights stay representable
 ROW_FLOOR = 1e-280
+#: a row whose largest entry falls below this (relative to its table's largest) is rescaled on
+#: its own (:meth:`PreferenceBelief._multiply`)
+ROW_RESCALE = 1e-100
 
 
 def entropy(p: np.ndarray) -> float:
@@ -151,21 +154,29 @@ class PreferenceBelief(Belief):
     def _multiply(self, v: int, factor: np.ndarray) -> None:
         """``T_v *= factor`` (broadcast to ``(G, deg)``), keeping ``log_rowmean`` in step.
 
-        Each row is kept with its largest entry 1 and its scale in ``log_scale[v]``
-        (``T_v(g, .) = t[g, .] exp(log_scale[v][g])``), so no row underflows to all zeros
-        (a 0/0 in the normalised tables) however many observations it holds; an entry is
-        floored at :data:`ROW_FLOOR` of its row's largest (the posterior is exact while no exit
-        is that much less likely than another given one goal; beyond, those exits keep that
-        relative weight instead of underflowing to an impossible 0)."""
+        The table is kept with its largest entry 1 (one scale for the whole table: the
+        paper's arithmetic, bit for bit), and a row whose largest entry falls below
+        :data:`ROW_RESCALE` is rescaled on its own, so no row underflows to all zeros (a 0/0 in
+        the normalised tables) however many observations it holds. The scales are kept in
+        ``log_scale[v]`` (``T_v(g, .) = t[g, .] exp(log_scale[v][g])``). An entry is floored at
+        :data:`ROW_FLOOR` of its row's largest (the posterior is exact while no exit is that
+        much less likely than another given one goal; beyond, those exits keep that relative
+        weight instead of underflowing to an impossible 0)."""
         t = self._table(v)
         old = np.log(t.mean(axis=1))
         t *= factor
+        top = t.max()
         with np.errstate(divide="ignore"):
+            if top > 0:
+                t /= top
+                self.log_scale[v] += np.log(top)
             self.log_rowmean += np.log(t.mean(axis=1)) - old
-            top = t.max(axis=1)
-            self.log_scale[v] += np.log(top)  # -inf: an impossible observation for that goal
-        t /= np.where(top > 0, top, 1.0)[:, None]
-        t[top <= 0] = 1.0  # its shape no longer matters: the goal's weight is 0
+            row = t.max(axis=1)
+            low = row < ROW_RESCALE
+            if low.any():
+                self.log_scale[v][low] += np.log(row[low])  # -inf: impossible for that goal
+                t[low] /= np.where(row[low] > 0, row[low], 1.0)[:, None]
+                t[low & (row <= 0)] = 1.0  # its shape no longer matters: the goal's weight is 0
         np.maximum(t, ROW_FLOOR, out=t)
 
     def update(self, cell: int, heading: int, weight: float = 1.0) -> None:
