@@ -394,3 +394,21 @@ def test_ping_pong_pushes_keep_decisions_bounded(simple):
             assert np.isfinite(p).all() and np.allclose(p.sum(axis=1), 1.0)
         planner.search(s_b, belief, 30, i)
     assert time.process_time() - t0 < 60.0
+
+
+def test_observed_first_walk_stage_gives_up_with_one_line(simple):
+    """The fallback's walk over the unobserved polytopes is bounded too: with no step allowed
+    it is tried ``WALK_TRIES`` times per tree and the decision fails with one EpisodeError line
+    (recorded as a failed episode), never loops."""
+    from pathpref.errors import EpisodeError
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    goals = np.array([simple.cell((9, 9))])
+    model = ObservationModel.build(simple, goals, normalize=True)
+    belief = RouteBelief(model)
+    planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
+    with pytest.raises(EpisodeError, match="passed 0 steps 16 times") as e:
+        planner._observed_first(belief, np.zeros(4, np.int64), planner.preference_cdf(belief),
+                                0, 0)
+    assert "\n" not in str(e.value)
