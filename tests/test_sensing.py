@@ -208,3 +208,131 @@ def test_tray_sensor_of_the_arm_with_realistic_faults(worlds):
         cue = arm.receive_push(_push(float(ACTION_ANGLES[heading])))
         assert cue is not None and cue.heading == heading
         arm.move_to(arm.cell)
+
+
+def _noisy_trace(det, rng, seconds, force=(0.0, 0.0), sigma=1.0, at_rest=True):
+    """Feed ``det`` a constant ``force`` plus white noise; the cues it gives."""
+    out = []
+    for _ in range(int(round(seconds / det.dt))):
+        cue = det.update(np.asarray(force) + sigma * rng.standard_normal(2), at_rest=at_rest)
+        if cue is not None:
+            out.append(cue)
+    return out
+
+
+def _half_sine_push(det, rng, peak, angle, seconds=0.6, sigma=1.0, base=(0.0, 0.0)):
+    out = []
+    for k in range(int(round((seconds + 0.3) / det.dt))):
+        t = k * det.dt
+        m = peak * np.sin(np.pi * t / seconds) if t <= seconds else 0.0
+        f = np.asarray(base) + m * np.array([np.cos(angle), np.sin(angle)])
+        # at_rest as the estimator says it on a rigid base (it stays still under the push):
+        # true while the detector has nothing under way
+        idle = not det.active and det._above == 0.0
+        cue = det.update(f + sigma * rng.standard_normal(2), at_rest=idle)
+        if cue is not None:
+            out.append(cue)
+    return out
+
+
+def test_pushes_do_not_raise_the_noise_level():
+    """The detector alone, 1 N white noise per axis: the filtered noise is an AR(1) process
+    with ``a = dt / (tau + dt) = 2/17``, per-axis spread ``sqrt(a / (2 - a)) = 0.25 N``. The
+    level learnt in 4 s of rest and after 20 pushes of 15 N, 0.6 s with 1 s of rest between
+    is that within 30 % (the 2 s average of correlated samples fluctuates by about 9 %, the
+    gate at ``off`` lowers it by 2.5 %); every push is felt once in its sector and the
+    on-threshold stays at 8 N. (The previous detector learnt each push's rising edge as
+    noise: 25-30 N thresholds after five pushes.)"""
+    det = FilteredCueDetector(0.002)
+    rng = np.random.default_rng(0)
+    assert _noisy_trace(det, rng, 4.0) == []
+    assert det.noise_n == pytest.approx(0.25, rel=0.3)
+    for k in range(20):
+        h = k % 8
+        cues = _half_sine_push(det, rng, 15.0, float(ACTION_ANGLES[h]))
+        assert [c.heading for c in cues] == [h]
+        assert _noisy_trace(det, rng, 1.0) == []
+        assert det.on_n == 8.0
+    assert det.noise_n == pytest.approx(0.25, rel=0.3)
+
+
+def test_calibration_queue_is_bounded():
+    """Worst case of the calibration queue: an hour-long rest keeps at most ``hold_s`` of
+    samples pending."""
+    det = FilteredCueDetector(0.002, hold_s=0.1)
+    rng = np.random.default_rng(1)
+    _noisy_trace(det, rng, 5.0)
+    assert len(det._pending) == 50
+
+
+def test_resting_hand_becomes_the_baseline():
+    """A 7 N hand (0.5 N noise) rests on the handle in the push's direction for 3 s: it sets
+    a cue off (7 N plus noise crosses 8 N), which settles at the new baseline without a cue;
+    a 25 N push then gives one cue in its sector and ends at the hand's level. Lifted, the
+    hand leaves no cue (a 7 N drop is below the on-threshold)."""
+    det = FilteredCueDetector(0.002)
+    rng = np.random.default_rng(2)
+    assert _noisy_trace(det, rng, 1.0, sigma=0.5) == []
+    hand = (7.0, 0.0)
+    # the hand arrives: not at rest for the estimator (the sensed body moved) for 0.1 s
+    assert _noisy_trace(det, rng, 0.1, hand, sigma=0.5, at_rest=False) == []
+    det.update(np.array([9.5, 0.0]), at_rest=False)  # a twitch of the hand: over 8 N
+    for _ in range(20):
+        det.update(np.array([9.5, 0.0]), at_rest=False)
+    assert det.active
+    assert _noisy_trace(det, rng, 2.9, hand, sigma=0.5) == []
+    assert not det.active and det.settled == 1
+    assert det.baseline == pytest.approx(hand, abs=0.3)
+    cues = _half_sine_push(det, rng, 25.0, float(ACTION_ANGLES[2]), 0.3, 0.5, hand)
+    assert [c.heading for c in cues] == [2]
+    assert cues[0].peak_n == pytest.approx(25.0, abs=2.0)  # the push, not push + hand
+    assert _noisy_trace(det, rng, 2.0, (0.0, 0.0), sigma=0.5) == []
+
+
+def test_push_that_ends_in_a_resting_hand_is_one_cue():
+    """A 25 N push north that ends with the hand left resting at 5 N (north): one cue, north,
+    at the settle (the push stood 20 N out of the new level), and the hand is the baseline."""
+    det = FilteredCueDetector(0.002)
+    rng = np.random.default_rng(3)
+    _noisy_trace(det, rng, 1.0, sigma=0.5)
+    cues = []
+    for k in range(int(1.5 / det.dt)):
+        t = k * det.dt
+        m = 25.0 * np.sin(np.pi * t / 0.6) if t <= 0.3 else max(5.0, 25.0 * np.sin(
+            np.pi * t / 0.6))
+        c = det.update(np.array([0.0, m]) + 0.5 * rng.standard_normal(2), at_rest=False)
+        if c is not None:
+            cues.append(c)
+    assert [c.heading for c in cues] == [0] and det.settled == 1
+    # the settle window's mean holds the last of the push's decline (within ``off`` = 4 N of
+    # the level): 5.34 N measured; the slow baseline tracker removes the rest while idle
+    assert det.baseline == pytest.approx((0.0, 5.0), abs=0.6)
+
+
+def test_detector_settings_are_checked():
+    with pytest.raises(ConfigError, match="settle_s"):
+        FilteredCueDetector(0.002, settle_s=0.01)
+    with pytest.raises(ConfigError, match="hold_s"):
+        FilteredCueDetector(0.002, hold_s=float("nan"))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_repeated_weak_pushes_on_the_realistic_base(seed):
+    """20 pushes of 12-15 N for 0.6 s on a fresh physical base with realistic sensing: at
+    least 19 felt in their sector (measured 20/20 for seeds 0-4; the previous detector
+    3-4/20), and the on-threshold never left 8 N."""
+    from pathpref.apps.benchmarks.physics import repeated_push_recall
+
+    r = repeated_push_recall(seed=seed)
+    assert r["recall"] >= 0.95 and r["on_n_max"] == 8.0
+
+
+@pytest.mark.parametrize("hand_heading", [2, 3, 6])
+def test_resting_hand_then_push_on_the_realistic_base(hand_heading):
+    """A 6 N hand on the handle for 3 s (in the push's direction, 45 degrees and 180 degrees
+    from it), then a 25 N push east: one cue, east (seed 2 with the hand along the push was
+    missed by the previous detector: the hand's cue never ended)."""
+    from pathpref.apps.benchmarks.physics import resting_hand_push
+
+    for seed in (0, 2):
+        assert resting_hand_push(heading=2, hand_heading=hand_heading, seed=seed) == [2]

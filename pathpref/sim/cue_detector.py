@@ -25,11 +25,13 @@ nobody gave (east then north: 45 degrees). ``split=False`` is the original detec
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..episode.physics import DETECTOR
+from ..errors import ConfigError
 from ..geometry.grid import heading_to_action
 
 
@@ -63,6 +65,8 @@ class CueDetector:
         self.split, self.cos_turn = split, float(np.cos(np.deg2rad(turn_deg)))
         #: cues that ended by a split (re-onset or turn) since :meth:`reset`
         self.splits = 0
+        #: cues that ended at a new baseline (:class:`FilteredCueDetector`'s settle rule)
+        self.settled = 0
         self.reset()
 
     def reset(self) -> None:
@@ -157,15 +161,34 @@ class CueDetector:
 
 
 class FilteredCueDetector(CueDetector):
-    """The hysteresis detector for a noisy force estimate.
+    """The hysteresis detector for a noisy force estimate, calibrated while idle.
 
-    * a first-order low-pass (time constant ``tau_s``, 15 ms) before the thresholds;
+    * a first-order low-pass (time constant ``tau_s``, 15 ms) before the thresholds:
+      ``f_k = f_{k-1} + a (x_k - f_{k-1})``, ``a = dt / (tau_s + dt)``;
+    * a **baseline** ``b`` (what the handle feels with nobody pushing: a hand resting on it, a
+      bias the estimator has not yet removed): the thresholds apply to ``e = f - b``, and the
+      cue's impulse is ``sum e dt``. ``b`` follows the filtered force with time constant
+      ``baseline_tau_s`` (1 s) from idle samples only (below);
     * thresholds relative to the noise: ``on = max(on_n, on_k sigma)``,
-      ``off = max(off_n, off_k sigma)`` with ``sigma`` the per-axis spread of the filtered
-      force, learnt (exponential average over ``floor_tau_s``) while the caller says the robot
-      is at rest and no cue is under way; the on/off hysteresis and its timers are kept;
-    * the impulse sums the filtered force only while its magnitude is above ``off``, so the
-      release tail (pure noise) does not turn the cue's direction.
+      ``off = max(off_n, off_k sigma)``, ``sigma^2`` the per-axis variance of ``e`` at rest,
+      an exponential average over ``floor_tau_s`` of ``|e|^2 / 2``;
+    * **what may calibrate** ``b`` and ``sigma``: a sample at rest (the caller's ``at_rest``)
+      with no cue under way, committed ``hold_s`` (0.15 s, the estimator's ``quiet_s``) after
+      it was taken if no cue went active meanwhile (the rising edge of a push, taken before
+      the push crossed ``on``, is dropped); ``sigma`` further takes only samples with
+      ``|e| < off`` (a push's edge, a resting hand's arrival is never noise). Pushes therefore
+      cannot raise the thresholds. Gating at ``off = 3 sigma`` keeps 98.9 % of a 2-D
+      Gaussian's samples and lowers ``sigma^2`` by 5 % (``4.5 e^-4.5 / (1 - e^-4.5)``); a
+      noise larger than the current ``off`` is still learnt, the gate widening by
+      ``off_k / 2`` per time constant;
+    * **settling** (a resting hand that set a cue off): an active cue whose ``e`` has stayed
+      within ``off`` of its mean for ``settle_s`` (0.5 s), that mean below ``on``, ends there;
+      the mean becomes the new baseline, and the cue is emitted (impulse up to the window)
+      only if its peak stood out of that level by more than ``on`` (a push followed by a
+      resting hand), else dropped (a hand arriving at 6 N plus noise). A cue thus ends either
+      back at the baseline (below ``off`` for ``off_s``) or at a new one;
+    * the impulse sums ``e`` only while ``|e| > off``, so the release tail (pure noise) does
+      not turn the cue's direction.
 
     :meth:`update` takes ``at_rest`` (from the estimator) besides the force sample.
     """
@@ -173,27 +196,68 @@ class FilteredCueDetector(CueDetector):
     def __init__(self, dt: float, tau_s: float = 0.015, on_n: float = DETECTOR["on_n"],
                  on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
                  off_s: float = DETECTOR["off_s"], on_k: float = 6.0, off_k: float = 3.0,
-                 floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0):
+                 floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0,
+                 baseline_tau_s: float = 1.0, hold_s: float = 0.15, settle_s: float = 0.5):
+        for name, v in (("tau_s", tau_s), ("floor_tau_s", floor_tau_s),
+                        ("baseline_tau_s", baseline_tau_s), ("hold_s", hold_s),
+                        ("settle_s", settle_s)):
+            if not (math.isfinite(v) and v >= 0) or (name == "settle_s" and v <= on_s):
+                raise ConfigError(f"detector {name} must be a finite number >= 0"
+                                  f"{' and > on_s' if name == 'settle_s' else ''}, got {v}")
         self.tau_s, self.on_k, self.off_k, self.floor_tau_s = tau_s, on_k, off_k, floor_tau_s
         self.base_on_n, self.base_off_n = on_n, off_n
+        self.baseline_tau_s, self.hold_s, self.settle_s = baseline_tau_s, hold_s, settle_s
         self._alpha = dt / (tau_s + dt)
         self._beta = dt / (floor_tau_s + dt)
+        self._gamma = dt / (baseline_tau_s + dt)
+        self._hold_n = int(round(hold_s / dt))
         self.var = 0.0  # per-axis variance of the filtered force at rest (N^2)
+        self.baseline = np.zeros(2)  # N, world x-y
         super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg)
 
     def reset(self) -> None:
-        """Forget any cue in progress and the filter's state (the noise level stays)."""
+        """Forget any cue in progress, the filter's state and the baseline (the noise level
+        stays)."""
         self._clear()
         self.f = np.zeros(2)
+        self.baseline = np.zeros(2)
+        self._pending: deque[tuple[float, float]] = deque()
+
+    def _clear(self) -> None:
+        super()._clear()
+        self._settle = 0.0
+        self._settle_sum = np.zeros(2)
+        self._settle_impulse = np.zeros(2)
 
     @property
     def noise_n(self) -> float:
         """The learnt per-axis spread of the filtered force at rest (N, 1 sigma)."""
         return float(np.sqrt(self.var))
 
+    def _calibrate(self, fx: float, fy: float, at_rest: bool) -> None:
+        """One idle sample: queue it (at rest) or drop the queue; commit the samples older
+        than ``hold_s`` to the baseline and, below ``off``, to the noise level; refresh the
+        thresholds (class docstring)."""
+        q = self._pending
+        if not at_rest:
+            q.clear()
+        else:
+            q.append((fx, fy))
+            while len(q) > self._hold_n:
+                x, y = q.popleft()
+                b = self.baseline
+                ex, ey = x - float(b[0]), y - float(b[1])
+                if ex * ex + ey * ey < self.off_n * self.off_n:
+                    self.var += self._beta * (0.5 * (ex * ex + ey * ey) - self.var)
+                b[0] += self._gamma * ex
+                b[1] += self._gamma * ey
+        sigma = self.noise_n
+        self.on_n = max(self.base_on_n, self.on_k * sigma)
+        self.off_n = max(self.base_off_n, self.off_k * sigma)
+
     def update(self, f_xy: np.ndarray, at_rest: bool = False) -> Cue | None:
-        """One force sample (and whether the robot is at rest with no push): low-pass, then
-        the hysteresis of :class:`CueDetector` on the filtered force; the cue or None."""
+        """One force sample (and whether the robot is at rest with no push): low-pass, minus
+        the baseline, then the hysteresis of :class:`CueDetector`; the cue or None."""
         x, y = float(f_xy[0]), float(f_xy[1])
         if not (math.isfinite(x) and math.isfinite(y)):
             return None
@@ -202,14 +266,47 @@ class FilteredCueDetector(CueDetector):
         fx, fy = float(f[0]), float(f[1])
         fx, fy = fx + a * (x - fx), fy + a * (y - fy)
         f[0], f[1] = fx, fy
-        mag = float(np.hypot(fx, fy))
         if not self.active and self._above == 0.0:
-            if at_rest:
-                self.var += self._beta * (0.5 * (fx ** 2 + fy ** 2) - self.var)
-            sigma = self.noise_n
-            self.on_n = max(self.base_on_n, self.on_k * sigma)
-            self.off_n = max(self.base_off_n, self.off_k * sigma)
+            self._calibrate(fx, fy, at_rest)
+        e = np.array([fx - self.baseline[0], fy - self.baseline[1]])
+        mag = float(np.hypot(e[0], e[1]))
         if not self.active:
-            self._onset(f, mag)
+            self._onset(e, mag)
+            if self.active:
+                self._pending.clear()  # the push's rising edge never calibrates
             return None
-        return self._active(f, mag, mag > self.off_n)
+        settled = self._settling(e, mag)
+        if settled is not False:
+            return settled
+        return self._active(e, mag, mag > self.off_n)
+
+    def _settling(self, e: np.ndarray, mag: float) -> Cue | None | bool:
+        """The settle rule (class docstring): False while the cue goes on, else the cue that
+        ends at a new baseline (None when it is dropped). The window restarts at a sample
+        farther than ``off`` from the window's mean so far; a full window whose mean is not
+        below ``on`` (a steady push, not a resting hand) starts a new window."""
+        if self._settle > 0.0:
+            m = self._settle_sum / self._settle
+            if float(np.hypot(e[0] - m[0], e[1] - m[1])) > self.off_n:
+                self._settle, self._settle_sum = 0.0, np.zeros(2)
+                self._settle_impulse = np.zeros(2)
+        self._settle += self.dt
+        self._settle_sum = self._settle_sum + e * self.dt
+        if mag > self.off_n:
+            self._settle_impulse = self._settle_impulse + e * self.dt
+        if self._settle < self.settle_s - 1e-12:
+            return False
+        level = self._settle_sum / self._settle
+        lift = float(np.hypot(level[0], level[1]))
+        if lift >= self.on_n:
+            self._settle, self._settle_sum = 0.0, np.zeros(2)
+            self._settle_impulse = np.zeros(2)
+            return False
+        cue = None
+        if self._peak - lift > self.on_n:
+            cue = Cue(self._impulse - self._settle_impulse, self._peak,
+                      self._duration - self._settle)
+        self.baseline = self.baseline + level
+        self._clear()
+        self.settled += 1
+        return cue

@@ -134,6 +134,77 @@ def cue_accuracy_realistic(n: int = 200, seed: int = 0) -> dict[str, Any]:
     }
 
 
+def repeated_push_recall(n: int = 20, peak_n: tuple[float, float] = (12.0, 15.0),
+                         duration_s: float = 0.6, rest_s: float = 0.5,
+                         seed: int = 0) -> dict[str, Any]:
+    """``n`` pushes (peak ``U[peak_n]``, ``duration_s`` half-sine, a random sector each) on a
+    fresh physical base with realistic sensing standing at ``simple``'s (3, 3), ``rest_s``
+    of rest before each: the recall (share detected in the intended sector) and the largest
+    on-threshold the detector used (a detector that learns pushes as noise goes deaf)."""
+    from ...geometry.grid import ACTION_ANGLES
+    from ...sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    base = physical_base(world, seed=seed)
+    home = world.cell((3, 3))
+    base.reset(home)
+    rng = np.random.default_rng(seed)
+    hits, on = 0, []
+    for _ in range(n):
+        base.hold(rest_s)
+        h = int(rng.integers(8))
+        prof = PushProfile(peak_n=float(rng.uniform(*peak_n)), duration_s=duration_s)
+        cue = base.receive_push(HumanPush(float(ACTION_ANGLES[h]), 0.0, prof, h))
+        hits += cue is not None and cue.heading == h
+        on.append(float(base.detector.on_n))
+        base.move_to(home)
+    return {"recall": hits / n, "on_n_max": max(on)}
+
+
+def resting_hand_push(hand_n: float = 6.0, hand_s: float = 3.0, push_n: float = 25.0,
+                      heading: int = 2, hand_heading: int = 2, seed: int = 0) -> list:
+    """A hand resting on the handle (a constant ``hand_n`` toward ``hand_heading`` from 0.3 s
+    after reset, kept on) and after ``hand_s`` a 0.3 s half-sine ``push_n`` push toward
+    ``heading``, on a physical base with realistic sensing: the headings of the cues felt
+    from the push's onset to 1.2 s after it."""
+    from ...geometry.grid import ACTION_ANGLES
+    from ...sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    base = physical_base(world, seed=seed)
+    base.reset(world.cell((3, 3)))
+    base.hold(0.3)
+    a = float(ACTION_ANGLES[hand_heading])
+    t0 = float(base.data.time)
+    base.pushes = [SteadyPush(hand_n * np.array([np.cos(a), np.sin(a)]), t0, hand_s + 1.2)]
+    while base.data.time < t0 + hand_s:
+        base.substep()
+    t1 = float(base.data.time)
+    base.pushes.append(HumanPush(float(ACTION_ANGLES[heading]), t1,
+                                 PushProfile(peak_n=push_n, duration_s=0.3), heading))
+    got = []
+    while base.data.time < t1 + 1.2:
+        cue = base.substep()
+        if cue is not None:
+            got.append(cue.heading)
+    return got
+
+
+def cue_calibration(quick: bool = False) -> dict[str, Any]:
+    """The detector stays calibrated (``cue_detector.FilteredCueDetector``): recall of 20
+    repeated 12-15 N, 0.6 s pushes on a fresh base (seeds 0..k), and the share of 25 N
+    pushes after a 6 N resting hand (3 s, every relative direction) felt once, in the right
+    sector."""
+    seeds = range(2 if quick else 5)
+    rep = [repeated_push_recall(seed=s) for s in seeds]
+    trials = [(s, r) for s in seeds for r in range(8)]
+    ok = sum(resting_hand_push(heading=2, hand_heading=(2 + r) % 8, seed=s) == [2]
+             for s, r in trials)
+    return {"cue_recall_repeated_15n": float(np.mean([r["recall"] for r in rep])),
+            "cue_on_threshold_repeated_15n_max": max(r["on_n_max"] for r in rep),
+            "cue_recall_after_resting_hand": ok / len(trials)}
+
+
 def pushes_while_driving(pushes: list[tuple], sensor_model=None, seed: int = 0) -> dict:
     """Pushes at random moments of motion: for each push of :func:`realistic_pushes` the base
     (pushes at any time: splitting detector, admittance, stop on a cue) starts driving to the
@@ -498,6 +569,7 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         **cue_accuracy_realistic(100 if quick else 400),
         **cue_accuracy_while_driving(60 if quick else 200),
         **two_pushes(),
+        **cue_calibration(quick),
         "false_cues_per_hour_realistic": n_real / real_s * 3600.0,
         "false_cue_drive_realistic_s": real_s,
         "force_estimate_peak_driving_n": real_peak,
