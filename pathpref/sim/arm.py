@@ -28,12 +28,35 @@ ProfiledController`: speed and acceleration limits, braking margin, no overshoot
 the IK's base velocity, yields by admittance while a cue is under way, and the penetration is
 measured at every physics step.
 
-The base velocity actuators receive the IK's base velocities; the arm servos receive
-``q + v dt`` from the measured ``q``, so the IK itself corrects the tray's orientation when a
-push deflects the soft shoulder (solved at 100 Hz; with 50 Hz and equal costs the tray tilted
-up to 15 degrees under a 30 N push, now about 5). Pushes are applied to the tray; the robot
-senses them with the force sensor between the tray and the arm (``tool/tool_force``), through
-the same detector as the handle.
+**Compliant arm** (physical mode). As in mink's mobile examples (``examples/mobile_tidybot.py``:
+``configuration.integrate_inplace(vel, dt)``, the actuators get ``configuration.q``), the IK
+integrates a *kinematic* configuration ``q_kin`` (its base joints set to the measured base at
+each solve; a ``DampingTask`` on them, cost 100, and no posture cost, so the IK moves the arm
+only), and never restarts from the measured joints: a push cannot carry the target along. From
+``q_kin`` comes the tray's desired pose relative to the base, ``T_rel``; at every physics step
+the arm applies an impedance at the tray about ``T_d = T_base T_rel`` (measured base)::
+
+    F   = K (p_d - p) - D v          (K = ``stiffness``, 1000 N/m; D 40 N s/m)
+    M   = K_r e_r - D_r w            (e_r = 1/2 sum_i r_i x r_d,i; K_r 60 N m/rad; D_r 2)
+    tau = J_p^T F + J_r^T M + k_0 (q_kin - q)      (arm joints; k_0 = 2 N m/rad)
+
+with ``v``, ``w`` the tray's velocity due to the arm's joints (``J q_dot_arm``). The servos
+realise ``tau`` with ``ctrl = q + tau / kp`` (servo force ``kp (ctrl - q) - kv q_dot = tau -
+kv q_dot``: their ``kv`` stays as joint damping, integrated implicitly), within their 60 N m.
+The static deflection under a push ``F`` is at most ``F / K`` plus the base's own yield
+(30 + 2.5 mm at 30 N; the joints' friction carries part: 24.6 mm measured), back within
+10 mm 0.23 s after release (``pathpref bench``'s ``arm.tray_*`` keys). **Sharing the push**:
+the arm takes it through ``K``; the base holds its cell with its own controller (rigid in
+the decision protocol) and, with pushes at any time, yields by its admittance
+(``MobileBase``) while a cue is under way. The tray's plate collides with walls, obstacles
+and the base (``contype`` 1, ``conaffinity`` 0: not with the arm that holds it).
+
+**Legacy mode** (no physical parameters). The base velocity actuators receive the IK's base
+velocities; the arm servos receive ``q + v dt`` from the measured ``q``, so the IK itself
+corrects the tray's orientation when a push deflects the soft shoulder (solved at 100 Hz;
+with 50 Hz and equal costs the tray tilted up to 15 degrees under a 30 N push, now about 5).
+Pushes are applied to the tray; the robot senses them with the force sensor between the tray
+and the arm (``tool/tool_force``), through the same detector as the handle.
 """
 
 from __future__ import annotations
@@ -62,6 +85,16 @@ ARM_JOINTS = [f"jaco/joint_{k}" for k in range(1, 7)]
 #: servo gains (kp, kv) per joint: a soft shoulder and elbow let the tray yield to a push, a
 #: stiff wrist keeps it level while it does
 ARM_GAINS = [(120.0, 10.0)] * 3 + [(250.0, 12.0)] * 3
+#: the physical arm's end-effector impedance (module docstring, "Compliant arm"): translational
+#: stiffness (N/m: 30 N deflects the tray 30 mm), rotational stiffness (N m/rad), and the
+#: dampings (N s/m, N m s/rad) added to the servos' joint damping
+TRAY_STIFFNESS = 1000.0
+TRAY_ROT_STIFFNESS = 60.0
+TRAY_DAMPING = 40.0
+TRAY_ROT_DAMPING = 2.0
+#: the weak joint spring toward the kinematic configuration (N m/rad) that keeps the arm's
+#: posture where the tray's six constraints leave it free (near a singularity)
+POSTURE_STIFFNESS = 2.0
 
 
 def jaco_xml() -> Path:
@@ -109,10 +142,16 @@ class ArmBase(MobileBase):
     """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
 
     def __init__(self, scene: Scene, ik_period: float = 0.01, physical: bool = False,
-                 **kwargs):
+                 stiffness: float = TRAY_STIFFNESS, **kwargs):
         super().__init__(scene, **kwargs)
         m = self.model
         self.physical = physical
+        if not (np.isfinite(stiffness) and stiffness > 0):
+            from ..errors import ConfigError
+
+            raise ConfigError(f"arm stiffness must be a positive number of N/m, got {stiffness}")
+        #: the tray's translational stiffness (N/m; physical mode, module docstring)
+        self.stiffness = float(stiffness)
         self.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
         self.tray = int(m.body("tool/tray").id)
         self.pushed_body = self.tray  # people push the tray
@@ -131,7 +170,21 @@ class ArmBase(MobileBase):
                                             orientation_cost=5.0)
         self.base_task = mink.FrameTask("base", "body", position_cost=[1.0, 1.0, 0.0],
                                         orientation_cost=[0.0, 0.0, 10.0])
-        self.posture = mink.PostureTask(m, cost=1e-2)
+        self.arm_dofs = np.array([m.joint(j).dofadr[0] for j in ARM_JOINTS])
+        base_dofs = np.array([m.joint(j).dofadr[0] for j in ("slide_x", "slide_y", "yaw")])
+        self.base_qpos = np.array([m.joint(j).qposadr[0] for j in ("slide_x", "slide_y",
+                                                                   "yaw")])
+        posture_cost = np.full(m.nv, 1e-2)
+        if physical:
+            posture_cost[base_dofs] = 0.0  # the posture never pulls on the base
+            cost = np.zeros(m.nv)
+            cost[base_dofs] = 100.0
+            self.base_damping = mink.DampingTask(m, cost)
+        self.posture = mink.PostureTask(m, cost=posture_cost)
+        self._jacp, self._jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        self._base_body = int(m.body("base").id)
+        self._rel_p, self._rel_R = TRAY_OFFSET.copy(), np.eye(3)
+        self.q_kin = ARM_HOME.copy()
         home = np.zeros(m.nq)
         home[self.arm_qpos] = ARM_HOME
         self.posture.set_target(home)
@@ -152,6 +205,7 @@ class ArmBase(MobileBase):
                                          minimum_distance_from_collisions=0.03,
                                          collision_detection_distance=0.15),
         ]
+        self._kp = np.array([kp for kp, _ in ARM_GAINS])
         self._k = 0
         self.tilts: list[float] = []
         self.ik_solves = 0
@@ -171,6 +225,15 @@ class ArmBase(MobileBase):
         self._k = 0
         self.tilts = []
         self.deepest = 0.0
+        self.cfg.update(self.data.qpos.copy())  # the kinematic configuration starts at home
+        self.q_kin = self.cfg.q[self.arm_qpos].copy()
+        self._relative_target()
+
+    def _relative_target(self) -> None:
+        """The tray's pose relative to the base in the kinematic configuration (``T_rel``)."""
+        T = self.cfg.get_transform("tool/tray", "body", "base", "body")
+        self._rel_p = np.asarray(T.translation(), float).copy()
+        self._rel_R = np.asarray(T.rotation().as_matrix(), float).copy()
 
     def tray_target(self) -> mink.SE3:
         """Level, at ``TRAY_OFFSET`` from the base's measured position, in the base's
@@ -182,14 +245,20 @@ class ArmBase(MobileBase):
     def solve_ik(self) -> np.ndarray:
         """One whole-body IK solve from the measured state; returns joint velocities."""
         d = self.data
-        self.cfg.update(d.qpos.copy())
-        if not self.physical:
+        tasks = [self.tray_task, self.base_task, self.posture]
+        if self.physical:  # the kinematic configuration, its base at the measured base
+            q = self.cfg.q.copy()
+            q[self.base_qpos] = d.qpos[self.base_qpos]
+            self.cfg.update(q)
+            tasks = [self.tray_task, self.posture, self.base_damping]
+        else:
+            self.cfg.update(d.qpos.copy())
             self.tray_task.set_target(self.tray_target())
         self.base_task.set_target(mink.SE3.from_rotation_and_translation(
             mink.SO3.identity(), np.array([self.target[0], self.target[1], 0.1])))
         try:
-            v = mink.solve_ik(self.cfg, [self.tray_task, self.base_task, self.posture],
-                              self.ik_dt, solver="daqp", damping=1e-3, limits=self.limits)
+            v = mink.solve_ik(self.cfg, tasks, self.ik_dt, solver="daqp", damping=1e-3,
+                              limits=self.limits)
         except mink.NoSolutionFound as e:
             raise EpisodeError(f"IK found no solution at t = {d.time:.2f} s: {e}") from None
         if not np.isfinite(v).all():
@@ -198,6 +267,9 @@ class ArmBase(MobileBase):
         return v
 
     def _control(self) -> None:
+        if self.physical:
+            self._control_physical()
+            return
         d = self.data
         if self._k % self.ik_every == 0:
             v = self.solve_ik()
@@ -205,9 +277,39 @@ class ArmBase(MobileBase):
             d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + v[3:9] * self.ik_dt
         self._k += 1
         self.tilts.append(tilt_deg(d, self.tray))
-        if self.physical:
-            d.ctrl[self.actuators] = self._base_command()
-            self.deepest = max(self.deepest, self.max_penetration())
+
+    def _control_physical(self) -> None:
+        """Physical mode (module docstring, "Compliant arm"): the IK integrates the kinematic
+        configuration every ``ik_period``; every physics step the impedance at the tray about
+        the pose it gives, and the base's own command."""
+        d = self.data
+        if self._k % self.ik_every == 0:
+            v = self.solve_ik()
+            self.cfg.integrate_inplace(v, self.ik_dt)
+            self.q_kin = self.cfg.q[self.arm_qpos].copy()
+            self._relative_target()
+        self._k += 1
+        d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + self.impedance_torque() / self._kp
+        self.tilts.append(tilt_deg(d, self.tray))
+        d.ctrl[self.actuators] = self._base_command()
+        self.deepest = max(self.deepest, self.max_penetration())
+
+    def impedance_torque(self) -> np.ndarray:
+        """The arm joints' torques of the tray impedance (module docstring), N m."""
+        m, d = self.model, self.data
+        Rb = d.xmat[self._base_body].reshape(3, 3)
+        p_d = d.xpos[self._base_body] + Rb @ self._rel_p
+        R_d = Rb @ self._rel_R
+        R = d.xmat[self.tray].reshape(3, 3)
+        mujoco.mj_jacBody(m, d, self._jacp, self._jacr, self.tray)
+        Jp, Jr = self._jacp[:, self.arm_dofs], self._jacr[:, self.arm_dofs]
+        qd = d.qvel[self.arm_dofs]
+        e_r = 0.5 * (np.cross(R[:, 0], R_d[:, 0]) + np.cross(R[:, 1], R_d[:, 1])
+                     + np.cross(R[:, 2], R_d[:, 2]))
+        f = self.stiffness * (p_d - d.xpos[self.tray]) - TRAY_DAMPING * (Jp @ qd)
+        moment = TRAY_ROT_STIFFNESS * e_r - TRAY_ROT_DAMPING * (Jr @ qd)
+        return Jp.T @ f + Jr.T @ moment + POSTURE_STIFFNESS * (
+            self.q_kin - d.qpos[self.arm_qpos])
 
     def move_to(self, cell: int) -> int:
         """Drive to ``cell`` (:meth:`MobileBase.move_to`), then record the penetration."""

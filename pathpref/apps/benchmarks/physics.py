@@ -376,6 +376,64 @@ def carry_drift(force_n: float = 30.0, seconds: float = 3.0, physical: bool = Tr
     return {"carry_drift_mm": max(against), "carry_yield_mm": max(along)}
 
 
+def tray_push(force_n: float = 30.0, seconds: float = 3.0, shape: str = "steady",
+              headings: tuple[int, ...] = (0, 4), after_s: float = 4.0,
+              **arm_kwargs) -> dict[str, float]:
+    """A push on the tray of the standing physical ``carry`` robot at ``simple``'s (3, 3)
+    (``steady``: a constant ``force_n`` for ``seconds``; ``half_sine``: the simulated human's
+    pulse of that peak and duration), toward each of ``headings`` (default north and south,
+    the arm's weak plane): the tray's largest distance from where it stood before the push
+    (mm), its largest tilt (degrees), and the time from the release until it is back within
+    10 mm of that place for good (s; ``after_s`` when it never is); the worst heading each.
+    ``arm_kwargs`` go to the arm (e.g. ``stiffness``)."""
+    from ...geometry.grid import ACTION_ANGLES
+    from ...sim.arm import tilt_deg
+    from ...sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    dev, tilt, rec = [], [], []
+    for h in headings:
+        base = physical_base(world, task="carry")
+        for k, v in arm_kwargs.items():
+            setattr(base, k, v)
+        base.reset(world.cell((3, 3)))
+        base.hold(0.5)
+        p0, t0 = base.end_effector.copy(), float(base.data.time)
+        a = float(ACTION_ANGLES[h])
+        if shape == "steady":
+            push = SteadyPush(force_n * np.array([np.cos(a), np.sin(a)]), t0, seconds)
+        else:
+            push = HumanPush(a, t0, PushProfile(peak_n=force_n, duration_s=seconds), h)
+        base.pushes = [push]
+        worst, most, back = 0.0, 0.0, None
+        while base.data.time < t0 + seconds + after_s:
+            base.substep()
+            e = float(np.linalg.norm(base.end_effector - p0))
+            worst, most = max(worst, e), max(most, tilt_deg(base.data, base.tray))
+            if base.data.time > t0 + seconds:
+                if e > 0.010:
+                    back = None
+                elif back is None:
+                    back = float(base.data.time) - t0 - seconds
+        dev.append(1e3 * worst)
+        tilt.append(most)
+        rec.append(after_s if back is None else back)
+    return {"deviation_mm": max(dev), "tilt_deg": max(tilt), "recovery_s": max(rec)}
+
+
+def tray_compliance(quick: bool = False) -> dict[str, float]:
+    """The ``arm`` bench's compliance keys (:func:`tray_push`): a 30 N push for 3 s and the
+    default human's largest push (60 N, 0.6 s half-sine)."""
+    s30 = tray_push(30.0, 3.0)
+    s60 = tray_push(60.0, 0.6, shape="half_sine")
+    return {"tray_deviation_30n_3s_mm": s30["deviation_mm"],
+            "tray_recovery_s": s30["recovery_s"],
+            "tray_tilt_30n_deg": s30["tilt_deg"],
+            "tray_deviation_60n_mm": s60["deviation_mm"],
+            "tray_recovery_60n_s": s60["recovery_s"],
+            "tray_tilt_60n_deg": s60["tilt_deg"]}
+
+
 def carry_moves(n: int = 30, seed: int = 0, physical: bool = True) -> dict[str, float]:
     """``n`` random legal one-cell moves of the ``carry`` robot on ``simple``: the overshoot
     of each (mm past the target along the move, 0 when it never passes it), the deepest
@@ -634,6 +692,7 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         pens.append(phys.metrics["max_penetration_mm"])  # every physics step
         tips.append(phys.metrics["tip_margin"])
     return {
+        **tray_compliance(quick),
         **carry_drift(),
         "carry_drift_legacy_mm": carry_drift(physical=False)["carry_drift_mm"],
         **carry_moves(20 if quick else 60),
