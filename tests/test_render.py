@@ -249,3 +249,88 @@ def test_render_on_a_full_disk_exits_2_and_keeps_no_file(tmp_path, capsys, monke
                  "--out", str(out)]) == 2
     assert len(capsys.readouterr().err.splitlines()) == 1
     assert os.listdir(tmp_path / "out") == []
+
+
+# --- every push drawn, the arm close-up -----------------------------------------------------
+def test_push_trace_follows_the_applied_force():
+    """Onset above 0.5 N, the force now while acting, the peak (alpha 0.7) until ``hold_s``
+    after the onset, then nothing; a second rise is a new push."""
+    from pathpref.sim.render import PushTrace
+
+    tr = PushTrace(hold_s=1.0)
+    assert tr.shown(0.0) is None
+    tr.update(0.1, np.array([0.3, 0.0, 0.0]))
+    assert tr.shown(0.1) is None  # below 0.5 N
+    tr.update(0.2, np.array([0.0, 10.0, 0.0]))
+    tr.update(0.3, np.array([0.0, 20.0, 0.0]))
+    f, alpha = tr.shown(0.3)
+    assert f.tolist() == [0.0, 20.0, 0.0] and alpha == 1.0 and tr.t0 == 0.2
+    tr.update(0.4, np.array([0.0, 5.0, 0.0]))
+    tr.update(0.5, np.zeros(3))
+    f, alpha = tr.shown(1.2)
+    assert f.tolist() == [0.0, 20.0, 0.0] and alpha == 0.7
+    assert tr.shown(1.21) is None  # 1.0 s after the onset at 0.2
+    tr.update(1.5, np.array([-8.0, 0.0, 0.0]))
+    assert tr.t0 == 1.5 and tr.shown(1.5)[0].tolist() == [-8.0, 0.0, 0.0]
+
+
+def test_pushes_at_any_time_are_drawn(worlds):
+    """Two pushes on a driving base given through ``base.pushes`` (not the push phase's
+    argument, which the video followed before: 0 of 785 frames had the arrow): at every step
+    either acts, the trace shows exactly the sum the simulation applied."""
+    from pathpref.sim.force_cue import HumanPush, PushProfile
+    from pathpref.sim.mobile_base import MobileBase
+    from pathpref.sim.render import PushTrace, applied_push
+
+    w = worlds["simple"]
+    base = MobileBase(build_scene(w))
+    base.enable_pushes_any_time()
+    base.stop_on_cue = False
+    base.reset(w.cell((3, 3)))
+    base.target = base.scene.cell_centre(w.cell((5, 3)))
+    pushes = [HumanPush(0.0, 0.3, PushProfile(), 2), HumanPush(np.pi / 2, 0.5, PushProfile(), 0)]
+    base.pushes = list(pushes)
+    tr = PushTrace(2.0)
+    acting = 0
+    while base.data.time < 1.2:
+        base.substep()
+        t = float(base.data.time) - base.dt  # the force of the step just taken
+        tr.update(float(base.data.time), applied_push(base.data, base.pushed_body))
+        want = sum((p.force(t) for p in pushes if p.active(t)), np.zeros(3))
+        if np.hypot(*want[:2]) > 0.5:
+            acting += 1
+            assert tr.acting and np.allclose(tr.shown(float(base.data.time))[0], want,
+                                             atol=1e-9)
+    assert acting > 200  # 0.5 s of pushing at 2 ms
+
+
+def test_carry_video_has_an_arm_closeup(worlds):
+    """The carry scene's perspective view holds the close-up inset (white border, bottom
+    right) following the tray; a push arrow into the tray shows in it in red."""
+    import mujoco
+
+    from pathpref.sim.arm import ArmBase
+    from pathpref.sim.body import scene_for
+    from pathpref.sim.render import CLOSEUP_SHARE
+
+    sc = scene_for(worlds["simple"], 0.5, "carry")
+    arm = ArmBase(sc)
+    arm.reset(worlds["simple"].cell((3, 3)))
+    mujoco.mj_forward(sc.model, arm.data)
+    r = RolloutRenderer(sc, 640, 360)
+    assert r.closeup is not None
+    _, plain = r.views(arm.data, Overlay())
+    _, pushed = r.views(arm.data, Overlay(push_origin=arm.end_effector,
+                                          push_force=np.array([0.0, 30.0, 0.0])))
+    ch, cw = r.closeup.height, r.closeup.width
+    r.close()
+    assert ch == round(r.persp_h * CLOSEUP_SHARE)
+    corner = plain[-ch:, -cw:]
+    assert (corner[0] == 255).all() and (corner[:, 0] == 255).all()  # the border
+    assert corner[2:, 2:].std() > 10  # a picture, not blank
+    red = (pushed[-ch:, -cw:, 0] > 180) & (pushed[-ch:, -cw:, 1] < 80) & \
+        (pushed[-ch:, -cw:, 2] < 80)
+    assert red.sum() > 50
+    nav = RolloutRenderer(build_scene(worlds["simple"]), 640, 360)
+    assert nav.closeup is None  # navigate: no tray
+    nav.close()

@@ -22,7 +22,7 @@ from ..episode import EpisodeResult, EpisodeRunner, EpisodeSpec, cached_world, s
 from ..errors import ConfigError
 from ..geometry.world import World
 from ..sim.body import MujocoBody
-from ..sim.render import Overlay, RolloutRenderer, VideoWriter
+from ..sim.render import Overlay, PushTrace, RolloutRenderer, VideoWriter, applied_push
 from ..viz.mapdraw import polytope_centres
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
 
@@ -85,7 +85,8 @@ class FrameMaker:
         self.polygons = world.arrangement.polygons
         self.trail: list[np.ndarray] = []
         self.last_trail_t = -1.0
-        self.push: tuple | None = None  # (t0, origin, peak force)
+        #: the push drawn: the force applied to the pushed body, whatever its timing
+        self.pushes = PushTrace(HOLD_S)
         self.cue: tuple | None = None  # (t, origin, direction, heading)
         self.cue_seen = None
         self.runner: EpisodeRunner | None = None
@@ -103,12 +104,7 @@ class FrameMaker:
         if t - self.last_trail_t >= TRAIL_EVERY_S:
             self.trail.append(b.position.copy())
             self.last_trail_t = t
-        if push is not None and push.active(t):
-            f = push.force(t)
-            if self.push is None or self.push[0] != push.t0:
-                self.push = (push.t0, b.data.xpos[b.pushed_body].copy(), f, push)
-            elif np.linalg.norm(f) > np.linalg.norm(self.push[2]):
-                self.push = (push.t0, self.push[1], f, push)
+        self.pushes.update(t, applied_push(b.data, b.pushed_body))
         cue = self.body.last_cue
         if cue is not None and cue is not self.cue_seen:
             self.cue_seen = cue
@@ -124,12 +120,10 @@ class FrameMaker:
                     trail=np.array(self.trail + [b.position.copy()]),
                     robot_xy=b.position.copy())
         push_n = None
-        if self.push is not None and t - self.push[0] <= HOLD_S:
-            t0, _, peak, live = self.push
-            now = live.force(t) if live.active(t) else None
+        shown = self.pushes.shown(t)
+        if shown is not None:
             o.push_origin = b.data.xpos[b.pushed_body].copy()  # it follows the robot
-            o.push_force = now if now is not None and np.linalg.norm(now) > 0.5 else peak
-            o.push_alpha = 1.0 if now is not None else 0.7
+            o.push_force, o.push_alpha = shown
             push_n = float(np.linalg.norm(o.push_force))
         cue_heading = None
         if self.cue is not None and t - self.cue[0] <= HOLD_S:
@@ -182,7 +176,8 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
         if maker is not None:
             maker.track(b, push)
         state["k"] += 1
-        if state["k"] % (every_push if push is not None else every):
+        pushing = push is not None or (maker is not None and maker.pushes.acting)
+        if state["k"] % (every_push if pushing else every):
             return
         camera = logger is not None and state["slot"] % CAMERA_EVERY == 0
         state["slot"] += 1

@@ -8,6 +8,17 @@ video tints them by absolute probability) with the true goal ringed in pink, a b
 robot and its trail, the human's push as a red arrow into the pushed body (1 m per 30 N) and the
 detected cue as a green arrow from the robot. The caller (``pathpref render``) composes the
 views with the text and chart panel of :mod:`pathpref.viz.video`.
+
+**Every push, whatever its timing.** :class:`PushTrace` follows the force the simulation
+applies to the pushed body (``xfrc_applied``: the renderer shows the truth, the robot never
+reads it), so a push is drawn whether it came with the decision step's push phase or at any
+time (pushes while driving, several at once, the viewer's perturbation).
+
+**Arm close-up.** In a scene with the carry arm (a body ``tool/tray``) the perspective view
+carries an inset (:data:`CLOSEUP_SHARE` of its height, bottom right) from a camera that
+follows the tray (:data:`CLOSEUP_DISTANCE_M` away, aimed :data:`CLOSEUP_DROP_M` below it,
+looking down 20 degrees), with the
+overlays, so the tray's yield under a push is visible.
 """
 
 from __future__ import annotations
@@ -30,6 +41,53 @@ CUE_ARROW_M = 0.8  # length of the detected cue's arrow
 #: (measured: rgb (71, 41, 120) renders as (119, 69, 198)); overlay colours meant as given
 #: are scaled by its inverse
 UNLIT = 1.0 / 1.65
+#: a push is drawn while the applied horizontal force exceeds this (N)
+PUSH_SHOWN_N = 0.5
+#: the arm close-up: share of the perspective view's height, camera distance (m)
+CLOSEUP_SHARE = 0.6
+CLOSEUP_DISTANCE_M = 1.4
+#: the close-up looks this far below the tray (m), so the arm under it is in the picture
+CLOSEUP_DROP_M = 0.25
+
+
+def applied_push(data: mujoco.MjData, body: int) -> np.ndarray:
+    """The force the simulation applies to ``body`` at this step (N, world frame, 3-D with
+    z = 0): the pushes' sum, from ``xfrc_applied``."""
+    f = np.zeros(3)
+    f[:2] = data.xfrc_applied[body, :2]
+    return f
+
+
+class PushTrace:
+    """The push to draw (module docstring): a push begins when the applied horizontal force
+    rises above :data:`PUSH_SHOWN_N`; it is drawn with the force acting now while it acts,
+    then with its peak (faded) until ``hold_s`` after it began."""
+
+    def __init__(self, hold_s: float):
+        self.hold_s = float(hold_s)
+        self.t0: float | None = None
+        self.peak = np.zeros(3)
+        self.now = np.zeros(3)
+        self.acting = False
+
+    def update(self, t: float, force: np.ndarray) -> None:
+        """One physics step's applied force (``applied_push``) at time ``t``."""
+        f = np.asarray(force, float)
+        n = float(np.hypot(f[0], f[1]))
+        acting = n > PUSH_SHOWN_N
+        if acting and not self.acting:
+            self.t0, self.peak = float(t), f.copy()
+        elif acting and n > float(np.hypot(self.peak[0], self.peak[1])):
+            self.peak = f.copy()
+        self.acting, self.now = acting, f.copy()
+
+    def shown(self, t: float) -> tuple[np.ndarray, float] | None:
+        """The force to draw at ``t`` and its alpha (1 while acting, 0.7 after), or None."""
+        if self.acting:
+            return self.now, 1.0
+        if self.t0 is not None and t - self.t0 <= self.hold_s:
+            return self.peak, 0.7
+        return None
 
 
 @dataclass
@@ -121,6 +179,18 @@ class RolloutRenderer:
         self.persp = (make_renderer(scene.model, self.persp_h, self.column)
                       if self.column >= 16 else None)
         self.opt = mujoco.MjvOption()
+        m = scene.model
+        self.tray = int(m.body("tool/tray").id) if "tool/tray" in {
+            m.body(i).name for i in range(m.nbody)} else -1
+        self.closeup = None
+        if self.tray >= 0 and self.persp is not None:
+            ch = max(16, int(round(self.persp_h * CLOSEUP_SHARE)))
+            cw = max(16, min(self.column, int(round(ch * 4 / 3))))
+            self.closeup = make_renderer(m, ch, cw)
+            self.closeup_cam = mujoco.MjvCamera()
+            self.closeup_cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+            self.closeup_cam.distance = CLOSEUP_DISTANCE_M
+            self.closeup_cam.azimuth, self.closeup_cam.elevation = -60.0, -20.0
 
     def overlays(self, scn: mujoco.MjvScene, o: Overlay) -> None:
         """Add the overlay geoms of ``o`` to ``scn`` (module docstring)."""
@@ -194,11 +264,32 @@ class RolloutRenderer:
             r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False  # a floor, not a mirror
             self.overlays(r.scene, overlay)
             out.append(r.render())
+        if self.closeup is not None and out[1] is not None:
+            out[1] = self._inset(out[1], self.closeup_view(data, overlay))
         return out[0], out[1]
+
+    def closeup_view(self, data: mujoco.MjData, overlay: Overlay) -> np.ndarray:
+        """The arm close-up (module docstring): a free camera looking at the tray."""
+        cam = self.closeup_cam
+        cam.lookat[:] = data.xpos[self.tray] - np.array([0.0, 0.0, CLOSEUP_DROP_M])
+        r = self.closeup
+        r.update_scene(data, camera=cam, scene_option=self.opt)
+        r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False
+        self.overlays(r.scene, overlay)
+        return r.render()
+
+    @staticmethod
+    def _inset(view: np.ndarray, inset: np.ndarray, border: int = 2) -> np.ndarray:
+        """``inset`` in ``view``'s bottom right corner with a white border (a copy)."""
+        out = view.copy()
+        h, w = min(inset.shape[0], out.shape[0]), min(inset.shape[1], out.shape[1])
+        out[-h:, -w:] = 255
+        out[-h + border:, -w + border:] = inset[border:h, border:w]
+        return out
 
     def close(self) -> None:
         """Release the renderers' GL contexts."""
-        for r in (self.top, self.persp):
+        for r in (self.top, self.persp, self.closeup):
             if r is not None:
                 r.close()
 
