@@ -378,14 +378,14 @@ def carry_drift(force_n: float = 30.0, seconds: float = 3.0, physical: bool = Tr
 
 def tray_push(force_n: float = 30.0, seconds: float = 3.0, shape: str = "steady",
               headings: tuple[int, ...] = (0, 4), after_s: float = 4.0,
-              **arm_kwargs) -> dict[str, float]:
+              stiffness: float | None = None) -> dict[str, float]:
     """A push on the tray of the standing physical ``carry`` robot at ``simple``'s (3, 3)
     (``steady``: a constant ``force_n`` for ``seconds``; ``half_sine``: the simulated human's
     pulse of that peak and duration), toward each of ``headings`` (default north and south,
     the arm's weak plane): the tray's largest distance from where it stood before the push
     (mm), its largest tilt (degrees), and the time from the release until it is back within
     10 mm of that place for good (s; ``after_s`` when it never is); the worst heading each.
-    ``arm_kwargs`` go to the arm (e.g. ``stiffness``)."""
+    ``stiffness``: the arm's tray stiffness (N/m; None: ``arm.TRAY_STIFFNESS``)."""
     from ...geometry.grid import ACTION_ANGLES
     from ...sim.arm import tilt_deg
     from ...sim.force_cue import HumanPush, PushProfile
@@ -394,8 +394,8 @@ def tray_push(force_n: float = 30.0, seconds: float = 3.0, shape: str = "steady"
     dev, tilt, rec = [], [], []
     for h in headings:
         base = physical_base(world, task="carry")
-        for k, v in arm_kwargs.items():
-            setattr(base, k, v)
+        if stiffness is not None:
+            base.stiffness = float(stiffness)
         base.reset(world.cell((3, 3)))
         base.hold(0.5)
         p0, t0 = base.end_effector.copy(), float(base.data.time)
