@@ -87,12 +87,12 @@ CONDITIONS = {
     "grid+noise": ("grid", "noise"),
     "mujoco-ideal": ("mujoco", ""),
     "realistic": ("mujoco", Physics().to_json()),
-    "anytime": ("mujoco", Physics(timing="interval").to_json()),
-    "diffdrive": ("mujoco", Physics(base="diffdrive").to_json()),
+    "anytime": ("mujoco", Physics.of(timing="interval").to_json()),
+    "diffdrive": ("mujoco", Physics.of(base="diffdrive").to_json()),
     # does push strength help the observation model? a human who pushes harder when surer
     # (strength_confidence 1), the robot ignoring or using the strength
-    "strength-ignored": ("mujoco", Physics(strength_confidence=1.0).to_json()),
-    "strength-used": ("mujoco", Physics(strength_confidence=1.0, use_strength=True).to_json()),
+    "strength-ignored": ("mujoco", Physics.of(strength_confidence=1.0).to_json()),
+    "strength-used": ("mujoco", Physics.of(strength_confidence=1.0, use_strength=True).to_json()),
 }
 STUDY = ["grid", "grid+noise", "mujoco-ideal", "realistic", "anytime", "diffdrive"]
 

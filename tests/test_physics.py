@@ -3,7 +3,10 @@ two cues, the human who pushes like a person, the physical parameters of an epis
 
 from __future__ import annotations
 
+import json
+import math
 import os
+from dataclasses import replace
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -12,6 +15,7 @@ import pytest  # noqa: E402
 
 import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
 from pathpref.episode import EpisodeSpec, Physics, run_episode  # noqa: E402
+from pathpref.episode.physics import HumanModel  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 from pathpref.sim.body import scene_for  # noqa: E402
 from pathpref.sim.cue_detector import CueDetector  # noqa: E402
@@ -96,7 +100,7 @@ def test_push_while_driving_stops_the_move_and_yields(simple):
 
 
 def test_pushes_at_any_time_reach_the_belief():
-    ph = Physics(timing="interval", sensor="ideal").to_json()
+    ph = Physics.of(timing="interval", sensor="ideal").to_json()
     spec = EpisodeSpec.single("simple", "path_preference", 3, seed=3, instance=1,
                               sim="mujoco", physics=ph)
     res = run_episode(spec)
@@ -123,7 +127,7 @@ def test_legacy_spec_key_has_no_physics_field():
 def test_push_distributions():
     """Log-normal strength and duration: the medians are the settings (to sampling error of
     2000 draws), the clips hold."""
-    p = Physics()
+    p = Physics().human
     rng = np.random.default_rng(0)
     prof = [sample_profile(p, rng) for _ in range(2000)]
     peaks = np.array([q.peak_n for q in prof])
@@ -136,22 +140,107 @@ def test_push_distributions():
         pytest.approx(16 * 20 * 0.25**2 * 0.75**2)
 
 
-@pytest.mark.parametrize("field,value,msg", [
-    ("sensor_noise_n", -2.0, r"sensor_noise_n \(--sensor-noise-n\) must be a number in 0..50"),
-    ("base", "tank", r"base \(--base\) must be one of holonomic, diffdrive"),
-    ("force_limit_n", 5.0, "force_limit_n must be above the detector's on_n"),
-    ("timing", "sometimes", r"timing \(--timing\) must be one of decision, interval"),
+@pytest.mark.parametrize("given,msg", [
+    ({"sensor_noise_n": -2.0}, r"sensor_noise_n \(--sensor-noise-n\) must be a number in 0..50"),
+    ({"base": "tank"}, r"base \(--base\) must be one of holonomic, diffdrive"),
+    ({"force_limit_n": 5.0, "mass_kg": 20.0, "a_max": 0.2},
+     "force_limit_n must be above the detector's on_n"),
+    ({"timing": "sometimes"}, r"timing \(--timing\) must be one of decision, interval"),
+    ({"v_max": 3.0}, r"v_max \(--v-max\) must be a number in 0.05..1.5"),
+    ({"nonsense": 1}, "unknown field 'nonsense'"),
+    # the drive cannot deliver the planned acceleration: 120 N on 135 kg is 0.889 m/s^2
+    ({"a_max": 10.0}, r"a_max \(--a-max\) must be at most 0.889 m/s\^2"),
+    ({"a_max": 0.8, "friction_n": 30.0}, r"at most 0.667 m/s\^2"),  # (120 - 30) / 135
+    ({"a_max": 0.8, "mass_kg": 200.0}, r"at most 0.6 m/s\^2"),
+    ({"friction_n": 130.0}, "friction_n must be below force_limit_n"),
 ])
-def test_bad_physics(field, value, msg):
+def test_bad_physics(given, msg):
     with pytest.raises(ConfigError, match=msg):
-        Physics(**{field: value})
+        Physics.of(**given)
 
 
-def test_push_longer_than_the_episode():
-    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco", t_max=2,
-                              physics=Physics(duration_max_s=3.0, duration_s=2.0).to_json())
-    with pytest.raises(ConfigError, match="duration_max_s must be below the episode"):
-        spec.validate()
+def test_physics_groups_and_stable_json():
+    """The three typed groups hold every flat field once; the canonical JSON of the defaults
+    is the one stored keys hold (the fields added later, mass and friction, appear only when
+    set), and it parses back to the same value."""
+    p = Physics()
+    flat = p.flat()
+    assert set(flat) == set(json.loads(p.to_json())) | {"mass_kg", "friction_n"}
+    assert p.drive.kind == flat["base"] == "holonomic" and p.human.gamma_h == 1.5
+    assert Physics.from_json(p.to_json()) == p
+    heavy = Physics.of(mass_kg=200.0, a_max=0.5)
+    assert json.loads(heavy.to_json())["mass_kg"] == 200.0
+    assert Physics.from_json(heavy.to_json()) == heavy
+
+
+def test_grid_episodes_take_the_human_model():
+    """A grid episode's human has a rationality of its own (``gamma_h``): the spec keeps
+    only the human's settings, the default human leaves the key as before, and physical
+    settings are refused with the fix."""
+    base = EpisodeSpec.single("simple", "path_preference", 5, seed=1)
+    assert base.physics == "" and base.human_model.gamma_h == 1.5 and base.physical is None
+    same = EpisodeSpec.single("simple", "path_preference", 5, seed=1,
+                              physics={"gamma_h": 1.5})
+    assert same.physics == "" and same.key() == base.key()
+    wild = EpisodeSpec.single("simple", "path_preference", 5, seed=1,
+                              physics={"gamma_h": 0.2})
+    wild.validate()
+    assert wild.human_model.gamma_h == 0.2 and wild.key() != base.key()
+    assert set(json.loads(wild.physics)) == set(json.loads(HumanModel().to_json()))
+    with pytest.raises(ConfigError, match=r"sensor \(--sensor\) needs a physical body"):
+        EpisodeSpec.single("simple", "path_preference", 5, seed=1,
+                           physics={"sensor": "ideal"}).validate()
+    # the human's rationality reaches the grid human: P(h) ~ exp(-gamma Delta_h) with Delta
+    # at most a few cells, so at gamma 0.01 every heading is within a factor exp(0.01 * 8)
+    # of any other; the default human (1.5) prefers some by far more
+    from pathpref.episode.runner import EpisodeRunner
+
+    def spread(spec):
+        r = EpisodeRunner(spec)
+        q = r.human.probs(r.cell)
+        return q.max() / q[q > 0].min()
+
+    assert spread(replace(wild, physics=HumanModel(gamma_h=0.01).to_json())) < math.exp(0.08)
+    assert spread(base) > 2.0
+
+
+@pytest.mark.parametrize("given,move,step", [
+    # 2 sqrt(d / a), d = 0.5 sqrt(2): the default drive never reaches v_max within a cell
+    ({}, 2 * math.sqrt(0.5 * math.sqrt(2) / 0.8), 3.4),          # 1.880 + 0.5 + 0.6 + 0.4
+    ({"v_max": 0.5, "a_max": 0.3}, 2 * math.sqrt(0.5 * math.sqrt(2) / 0.3), 4.6),  # 3.070
+    # v^2 / a = 0.1125 < d: cruise at v, d / v + v / a = 2.357 + 0.375
+    ({"v_max": 0.3}, 0.5 * math.sqrt(2) / 0.3 + 0.3 / 0.8, 4.3),
+    ({"duration_max_s": 3.0, "duration_s": 2.0}, 2 * math.sqrt(0.5 * math.sqrt(2) / 0.8), 5.8),
+])
+def test_one_rule_for_the_decision_step(given, move, step):
+    """The step every door uses (``Physics.step_s``): the drive's diagonal move, the settle
+    allowance and the longest push with its release window, rounded up to 0.1 s; the move
+    limit is the step less the push window."""
+    p = Physics.of(**given)
+    assert p.move_s() == pytest.approx(move, rel=1e-12)
+    assert p.step_s() == pytest.approx(step, abs=1e-12)
+    assert p.move_limit_s() == pytest.approx(step - p.human.duration_max_s - 0.4, abs=1e-12)
+
+
+def test_a_slow_drive_gets_the_time_its_move_needs():
+    """A 0.5 m/s, 0.3 m/s^2 drive needs 3.07 s for a diagonal cell: its move limit (3.6 s,
+    the one rule) lets it settle on the target (the fixed 3 s limit cut it short)."""
+    from pathpref.episode.cache import cached_world
+    from pathpref.sim.body import MujocoBody
+
+    spec = EpisodeSpec.single("simple", "compliant", 5, sim="mujoco",
+                              physics=Physics.of(v_max=0.5, a_max=0.3, sensor="ideal"))
+    world = cached_world("simple")
+    body = MujocoBody(world, spec, np.random.default_rng(0))
+    where = {tuple(c): i for i, c in enumerate(world.cells.tolist())}
+    start, target = next((i, where[(x + 1, y + 1)]) for (x, y), i in where.items()
+                         if (x + 1, y + 1) in where)
+    body.reset(start)
+    assert body.base.move_to(target) == target
+    took = float(body.base.data.time)
+    centre = body.base.scene.cell_centre(target)
+    assert np.hypot(*(body.base.position - centre)) < 0.02  # settled (tol_m)
+    assert 3.0 < took < spec.physical.move_limit_s()
 
 
 def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
@@ -238,9 +327,13 @@ def test_tip_force_of_the_arm_on_base(simple):
     (["--sim", "mujoco", "--sensor-noise-n", "-2"], "sensor_noise_n (--sensor-noise-n) must be "
                                                      "a number in 0..50"),
     (["--sim", "mujoco", "--base", "tank"], "argument --base: invalid choice: 'tank'"),
-    (["--sim", "mujoco", "--force-limit-n", "5"], "force_limit_n must be above the detector"),
-    (["--sim", "mujoco", "--duration-max-s", "5", "--duration-s", "4", "--t-max", "3"],
-     "duration_max_s must be below the episode's length"),
+    (["--sim", "mujoco", "--force-limit-n", "5", "--mass-kg", "20", "--a-max", "0.2"],
+     "force_limit_n must be above the detector"),
+    (["--sim", "mujoco", "--v-max", "3", "--a-max", "10"], "v_max (--v-max) must be a number"),
+    (["--sim", "mujoco", "--a-max", "10"], "a_max (--a-max) must be at most 0.889"),
+    (["--sim", "grid", "--sensor", "ideal"], "--sensor is a physical parameter: it needs --sim"),
+    (["--sim", "mujoco", "--robot", "carry", "--base", "diffdrive"],
+     "physics base diffdrive runs the navigate task only"),
     (["--sensor", "ideal"], "--sensor is a physical parameter: it needs --sim mujoco"),
     (["--sim", "mujoco", "--physics", "legacy", "--timing", "rate"], "--timing is a physical"),
     (["--sim", "mujoco", "--task", "carry", "--base", "diffdrive"], "diffdrive runs the navigate"),
@@ -264,7 +357,8 @@ def test_physical_parameters_are_stored_with_every_row(tmp_path):
     with ResultStore(db) as st:
         (row,) = st.episodes()
     ph = Physics.from_json(row["physics"])
-    assert (ph.timing, ph.sensor_noise_n, ph.base, ph.gamma_h, ph.sensor) == \
+    assert (ph.human.timing, ph.sensing.sensor_noise_n, ph.drive.kind, ph.human.gamma_h,
+            ph.sensing.sensor) == \
         ("interval", 1.5, "diffdrive", 2.0, "realistic")
     assert run_episode(row_spec(row)).spec.key() == row["key"]
 
@@ -302,8 +396,8 @@ def test_corrective_human_reacts_to_wrong_moves_and_withholds_from_a_failing_rob
     from pathpref.sim.pushing_human import PushingHuman
 
     probs = np.array([0.6, 0.1, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05])
-    ph = Physics(timing="corrective", p_correct=1.0, p_needless=0.0, reaction_s=0.4)
-    human = PushingHuman(ph, np.random.default_rng(0), 5, lambda c: 0, lambda c: probs)
+    ph = Physics.of(timing="corrective", p_correct=1.0, p_needless=0.0, reaction_s=0.4)
+    human = PushingHuman(ph.human, np.random.default_rng(0), 5, lambda c: 0, lambda c: probs)
     base = SimpleNamespace(data=SimpleNamespace(time=10.0), pre_substep=[], cell=0, pushes=[])
     human.attach(base)
     human.robot_moves(0, 0)  # right: nothing (p_needless 0)
@@ -330,8 +424,8 @@ def test_push_timing_not_locked_to_decisions(timing):
 
     from pathpref.sim.pushing_human import PushingHuman
 
-    ph = Physics(timing=timing, interval_s=2.0, jitter=0.5, reaction_s=0.3)
-    human = PushingHuman(ph, np.random.default_rng(1), 5, lambda c: 0)
+    ph = Physics.of(timing=timing, interval_s=2.0, jitter=0.5, reaction_s=0.3)
+    human = PushingHuman(ph.human, np.random.default_rng(1), 5, lambda c: 0)
     base = SimpleNamespace(data=SimpleNamespace(time=0.0), pre_substep=[], cell=0, pushes=[])
     human.attach(base)
     assert human.next_t == pytest.approx(0.3)

@@ -166,8 +166,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="results database (SQLite); episodes already in it are skipped")
     ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
                     help="grid world or the MuJoCo base with force cues")
-    ev.add_argument("--task", default="navigate", choices=["navigate", "carry"],
-                    help="navigate, or carry (arm on the base; needs --sim mujoco)")
+    ev.add_argument("--robot", "--task", dest="task", default="navigate",
+                    choices=["navigate", "carry"],
+                    help="which robot: navigate (the base), or carry (arm on the base; needs "
+                    "--sim mujoco); --task is its older name")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
@@ -221,8 +223,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "blended, goal_known, oracle)")
     rd.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5,
                     help="decision steps between the human's pushes")
-    rd.add_argument("--task", default="navigate", choices=["navigate", "carry"],
-                    help="navigate (base) or carry (arm on the base, mink IK)")
+    rd.add_argument("--robot", "--task", dest="task", default="navigate",
+                    choices=["navigate", "carry"],
+                    help="which robot: navigate (base) or carry (arm on the base, mink IK); "
+                    "--task is its older name")
     rd.add_argument("--out", default=None, help="video file (.mp4)")
     rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
     rd.add_argument("--size", default=None, metavar="WxH",

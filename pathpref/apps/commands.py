@@ -180,7 +180,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     check_model_size_early(args.map, args.goals)
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
-                        seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
+                        seed=args.seed, n_goals=args.goals, sim=args.sim, robot=args.task,
                         physics=physics_json(args, args.sim),
                         **_common_episode_args(args, args.map))
     cleanup = _new_database_guard(args.db)
@@ -338,7 +338,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
-                              sim="mujoco", task=args.task,
+                              sim="mujoco", robot=args.task,
                               physics=physics_json(args, "mujoco"), **common)
     spec.validate()
     # temporary files made exclusively (mkstemp) beside the outputs, moved on success

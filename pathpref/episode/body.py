@@ -144,7 +144,7 @@ def simulator_rng(spec: EpisodeSpec) -> np.random.Generator:
 
 def make_body(spec: EpisodeSpec, world: World) -> Body:
     """The body ``spec.sim`` for an episode of ``spec`` on ``world``."""
-    return body_class(spec.sim, spec.task)(world, spec, simulator_rng(spec))
+    return body_class(spec.sim, spec.robot)(world, spec, simulator_rng(spec))
 
 
 register_body("grid", GridBody)

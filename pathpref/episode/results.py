@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 from .instances import Instance
@@ -56,7 +56,7 @@ class EpisodeResult:
 
 def result_row(res: EpisodeResult) -> dict[str, Any]:
     """Flat dictionary of an episode for the results store."""
-    d = asdict(res.spec)
+    d = res.spec.stored()
     inst = res.instance
     return {
         **d,

@@ -26,7 +26,6 @@ from ..planning.policies import PolicyContext, make_policy
 from .body import Body, Felt, make_body
 from .cache import cached_model, cached_world
 from .instances import episode_instance, human_preference
-from .physics import Physics
 from .results import EpisodeResult, StepLog
 from .spec import EpisodeSpec
 
@@ -88,9 +87,10 @@ class EpisodeRunner:
                             rng=np.random.default_rng(policy_seq), true_goal=inst.true_goal,
                             true_preference=self.pref)
         self.policy = make_policy(spec.method, ctx)
-        self.physics = physics = Physics.from_json(spec.physics)
-        human_model = model if physics is None or physics.gamma_h == model.gamma else \
-            ObservationModel(world, model.tables, physics.gamma_h, model.normalize)
+        self.physics = spec.physical
+        gamma_h = spec.human_model.gamma_h  # the human's rationality, any body (grid too)
+        human_model = model if gamma_h == model.gamma else \
+            ObservationModel(world, model.tables, gamma_h, model.normalize)
         self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
         self.body = body if body is not None else make_body(spec, world)
         self.body.connect(self.observe)  # the one door of what the robot feels
@@ -181,9 +181,9 @@ class EpisodeRunner:
         """How confident an observation is: with ``use_strength``, its push's peak force over
         the human model's median strength, clipped to 0.5..2 (a firm push is a confident one);
         else 1."""
-        if self.physics is None or not self.physics.use_strength or strength is None:
+        if self.physics is None or not self.physics.sensing.use_strength or strength is None:
             return 1.0
-        return float(np.clip(strength / self.physics.peak_n, 0.5, 2.0))
+        return float(np.clip(strength / self.physics.human.peak_n, 0.5, 2.0))
 
     @_quiet_numerics
     def start_step(self, action: int | None = None) -> tuple[int, int | None]:

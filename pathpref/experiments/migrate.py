@@ -28,7 +28,6 @@ redoes exactly what was lost.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import os
 import sqlite3
 import tempfile
@@ -76,8 +75,8 @@ def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
 
 def _new_spec(row: dict[str, Any], map_paths: dict[str, str]) -> EpisodeSpec:
     """The current spec of an old row (missing fields default; the map possibly re-pointed)."""
-    names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
-    fields = {k: row[k] for k in names if k in row and row[k] is not None}
+    fields = {name: row[stored] for stored, name in EpisodeSpec.field_names().items()
+              if stored in row and row[stored] is not None}
     fields["map"] = map_paths.get(row["map"], row["map"])
     fields.setdefault("prior", "independent")  # rows before schema 4 ran with the paper's prior
     fields.setdefault("physics", "")  # ... and the legacy physics
@@ -118,7 +117,7 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
         if key in kept:
             continue
         new_key[row["key"]] = key
-        kept[key] = {**row, **dataclasses.asdict(spec), "key": key, "map_hash": spec.map_hash}
+        kept[key] = {**row, **spec.stored(), "key": key, "map_hash": spec.map_hash}
     backup = path.with_name(path.name + f".schema{version}.bak")
     if backup.exists():
         raise ConfigError(f"{backup} exists; move it away before upgrading {path}")

@@ -95,6 +95,8 @@ def variant(r: dict[str, Any], physics: bool = True) -> str:
         parts.append(f"{r['human']} human")
     if physics and r.get("sim", "grid") != "grid":
         parts.append(physics_label(r.get("physics")))
+    elif r.get("physics"):  # a grid episode's human model (its settings, not the default)
+        parts.append(physics_label(r["physics"]).replace("physics", "human model", 1))
     return ", ".join(parts)
 
 

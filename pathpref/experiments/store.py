@@ -568,8 +568,7 @@ class ResultStore:
 
 def row_spec(row: dict[str, Any]) -> EpisodeSpec:
     """The :class:`EpisodeSpec` of a stored row: ``run_episode(row_spec(row))`` replays it."""
-    names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
-    spec = {k: row.get(k) for k in names}
+    spec = {name: row.get(stored) for stored, name in EpisodeSpec.field_names().items()}
     # rows before schema 4: the independent prior and the legacy physics they ran with
     spec["prior"] = spec["prior"] or "independent"
     spec["physics"] = spec["physics"] or ""
