@@ -440,3 +440,26 @@ def test_push_timing_not_locked_to_decisions(timing):
         assert gaps.min() >= 1.0 - 1e-9 and gaps.max() <= 3.0 + 1e-9
     else:
         assert abs(gaps.std() - 2.0) < 0.15 and gaps.min() < 0.1
+
+
+def test_grid_gamma_h_from_the_command_line_is_stored_and_reported(tmp_path, capsys):
+    """``--gamma-h`` on a grid sweep: stored with the row (the human's JSON), replayed with
+    the same key, and reported as its own cell (never mixed with the default human)."""
+    from pathpref.apps.cli import main
+    from pathpref.experiments.store import ResultStore, row_spec
+
+    db = tmp_path / "g.sqlite"
+    common = ["evaluate", "--db", str(db), "--instances", "1", "--runs", "1", "--delta-t", "5",
+              "--methods", "compliant", "--t-max", "6", "--no-progress", "--workers", "1"]
+    assert main(common + ["--gamma-h", "0.5"]) == 0
+    assert main(common) == 0
+    with ResultStore(db) as st:
+        rows = st.episodes()
+    humans = sorted(HumanModel().to_json() if not r["physics"] else r["physics"] for r in rows)
+    assert [json.loads(h)["gamma_h"] for h in humans] == [0.5, 1.5]
+    for r in rows:
+        assert run_episode(row_spec(r)).spec.key() == r["key"]
+    capsys.readouterr()
+    assert main(["report", str(db), "--csv", str(tmp_path / "g.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "human model gamma_h=0.5" in out
