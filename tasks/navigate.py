@@ -9,9 +9,10 @@ every door, :meth:`~pathpref.episode.physics.Physics.step_s`, 3.4 s by default; 
 legacy physics):
 
 1. *move* (at most ``decision_s`` minus the push window, 0.7 s in the legacy physics, and the
-   drive's move limit, ``Physics.move_limit_s``): the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a move
-   to the grid neighbour of SPEC 3 (the current cell when the grid move is blocked); the
-   base's tracking controller drives there at physics rate until it settles;
+   drive's move limit, ``Physics.move_limit_s``): the agent's action (0..7: N, NE, E, SE, S,
+   SW, W, NW; 8: stay) is a move to the grid neighbour of SPEC 3 (the current cell when the
+   grid move is blocked); the base's tracking controller drives there at physics rate until
+   it settles;
 2. *push* (when the human's input is due for the next decision, at most the push window): the
    simulated human pushes the handle where the base stopped; the robot's detector, fed only
    by its force sensor, reports the heading and the belief is updated;
@@ -33,12 +34,13 @@ choice (its planner and belief), so the environment runs end to end without an a
 ``physics`` (a :class:`~pathpref.episode.physics.Physics`, a dict of its fields or its JSON;
 None: ``Physics()``, every door's default; ``"legacy"``: the legacy physics)
 builds the base as ``--sim mujoco`` does and goes into every
-episode's spec; its default ``decision_s`` is ``Physics.step_s()`` (the drive's diagonal
-move with a settle allowance and the longest push with the detector's release). With ``timing`` other than ``decision`` the human
-pushes at any physics step (:class:`~pathpref.sim.pushing_human.PushingHuman`): a cue felt
-while driving ends the move (*move* above; the runner records the step and reads the cue, the
-belief is updated in the next physics step) and the base holds its cell for the rest of the
-step; a cue felt while holding is read at once too; there is no *push* phase then.
+episode's spec; its default ``decision_s`` is ``Physics.step_s()`` (the drive's diagonal move
+with a settle allowance and the longest push with the detector's release). With ``timing``
+other than ``decision`` the human pushes at any physics step
+(:class:`~pathpref.sim.pushing_human.PushingHuman`): a cue felt while driving ends the move
+(*move* above; the runner records the step and reads the cue, the belief is updated in the next
+physics step) and the base holds its cell for the rest of the step; a cue felt while holding is
+read at once too; there is no *push* phase then.
 
 ``map`` is a built-in name, a JSON path, a map dictionary or a
 :class:`~pathpref.geometry.maps.MapSpec`; a map whose arrangement may exceed

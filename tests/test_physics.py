@@ -463,3 +463,62 @@ def test_grid_gamma_h_from_the_command_line_is_stored_and_reported(tmp_path, cap
     assert main(["report", str(db), "--csv", str(tmp_path / "g.csv")]) == 0
     out = capsys.readouterr().out
     assert "human model gamma_h=0.5" in out
+
+
+def _pushed_east(guidance: bool) -> float:
+    """How far a standing base goes east under a 20 N push held for 2 s (1.5 s after it)."""
+    from pathpref.episode.cache import cached_world
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world))
+    if guidance:
+        base.enable_guidance(20.0, 80.0)
+    else:
+        base.enable_pushes_any_time(80.0)
+    base.reset(world.cell((2, 2)))
+    x0 = float(base.position[0])
+    base.pushes.append(HumanPush(0.0, float(base.data.time),
+                                 PushProfile(peak_n=20.0, duration_s=2.0, noise_deg=0.0,
+                                             shape="plateau"), 2))
+    base.decision.hold(3.5, until_cue=False).run()
+    return float(base.position[0]) - x0
+
+
+def test_guidance_deforms_the_motion_and_keeps_it():
+    """Guidance (Bajcsy-style): the admittance v = F / b = 20 / 80 = 0.25 m/s carries the
+    base's target, so a 2 s push (0.2 s ramps: 1.8 s at full force) moves the base about
+    0.25 m/s x 1.8 s = 0.45 m and it stays there; the tap protocol's yielding base springs
+    back to where it stood (its admittance has a 400 N/m spring to its anchor)."""
+    guided, tapped = _pushed_east(True), _pushed_east(False)
+    assert 0.3 < guided < 0.6
+    assert abs(tapped) < 0.05
+
+
+def test_guidance_reads_a_sustained_push_while_it_lasts():
+    """A guidance episode: partial records reach the runner while a push lasts, carry at
+    most GUIDANCE_MAX_EVIDENCE per cue, and are not cues (the cue count is the body's)."""
+    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
+    from pathpref.episode.runner import EpisodeRunner
+
+    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=1, sim="mujoco", queries=50,
+                              t_max=8, physics=Physics.of(timing="guidance"))
+    runner = EpisodeRunner(spec)
+    seen = []
+    door = runner.body.base.listener
+
+    def listen(felt):
+        seen.append(felt)
+        door(felt)
+
+    runner.body.base.listener = listen
+    while not runner.done:
+        runner.step()
+    cues = [f for f in seen if not f.partial]
+    partial = [f for f in seen if f.partial]
+    assert len(cues) >= 1 and len(partial) >= 5 * len(cues)
+    assert all(f.evidence is not None and f.evidence[1] >= 0 for f in seen)
+    total = sum(f.evidence[1] for f in seen)
+    assert total <= GUIDANCE_MAX_EVIDENCE * len(cues) + 1e-9
+    assert runner.result.metrics["cues_felt"] == len(cues)
+    with pytest.raises(ConfigError, match="timing guidance needs base holonomic"):
+        Physics.of(timing="guidance", base="diffdrive")

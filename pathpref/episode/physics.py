@@ -24,7 +24,10 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   paper; ``interval``: every ``interval_s`` with uniform jitter ``+-jitter`` of it, at any
   moment of motion; ``rate``: a Poisson process of mean interval ``interval_s``; ``corrective``:
   after a reaction time, when the robot starts a move the human finds wrong, with probability
-  ``p_correct``, or a right one, with ``p_needless``); ``interval_s`` 0 means ``delta_t``
+  ``p_correct``, or a right one, with ``p_needless``; ``guidance``: Bajcsy et al.'s sustained
+  corrections, at the ``interval`` times the human holds the handle for a log-normal time of
+  median ``hold_s`` while the base drives, the base complies and the belief is updated online
+  from the force's direction, below); ``interval_s`` 0 means ``delta_t``
   decision steps of :meth:`Physics.step_s` seconds (the one rule); push strength log-normal with
   median ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n,
   peak_max_n]``; duration log-normal with median ``duration_s`` and spread ``duration_spread``,
@@ -41,7 +44,17 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   0.8 m/s^2, inside its 1.0 m/s^2 acceleration limit because 120 N moves its 135 kg at
   0.89 m/s^2 at most), ``force_limit_n`` (actuator force limit per axis, N),
   ``admittance_b`` (N s/m, how the base yields while a cue is under way), ``mass_kg`` (the
-  whole base) and ``friction_n`` (the floor's Coulomb resistance to sliding, per axis, N).
+  whole base) and ``friction_n`` (the floor's Coulomb resistance to sliding, per axis, N);
+  ``admittance_m`` (kg): the guided base's admittance ``M dv/dt + b v = F_hat``, ``v`` added to
+  its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017).
+
+**Guidance** (``timing = guidance``): every ``GUIDANCE_PERIOD_S`` of a push under way the
+robot updates its belief with the direction ``theta`` of the force felt over that period, by
+the continuous likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h, kappa)``
+(``kappa = DIRECTION_KAPPA``) to the power ``period / GUIDANCE_EVIDENCE_S`` (a push held for
+the default median 2 s is one observation, delivered while it lasts; a longer one is more, up
+to ``GUIDANCE_MAX_EVIDENCE``: the robot's model, whatever the simulated human's ``hold_s``);
+the cue's heading is the next decision's input, as for a tap.
   The drive must deliver what the controller plans: ``a_max <= (force_limit_n - friction_n) /
   mass_kg`` and ``v_max`` within the velocity servos' range (``DRIVE_V_MAX``); other
   combinations are refused with one line.
@@ -57,7 +70,7 @@ from dataclasses import asdict, dataclass, field, fields
 from ..errors import ConfigError
 
 SENSORS = ("ideal", "ft300s", "realistic")
-TIMINGS = ("decision", "interval", "rate", "corrective")
+TIMINGS = ("decision", "interval", "rate", "corrective", "guidance")
 SHAPES = ("half_sine", "bell")
 BASES = ("holonomic", "diffdrive")
 
@@ -75,6 +88,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "noise_deg": (0.0, 90.0), "gamma_h": (0.01, 100.0), "strength_confidence": (0.0, 3.0),
     "v_max": (0.05, 1.5), "a_max": (0.1, 10.0), "force_limit_n": (1.0, 2000.0),
     "admittance_b": (5.0, 2000.0), "mass_kg": (20.0, 1000.0), "friction_n": (0.0, 500.0),
+    "hold_s": (0.5, 10.0), "admittance_m": (1.0, 500.0),
 }
 #: the overrides that may be left at "the preset's" (stored as -1)
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
@@ -101,7 +115,17 @@ SETTLE_S = 0.5
 DRIVE_V_MAX = 1.5
 #: fields added after rows were stored: left out of the canonical JSON at their default, so
 #: the keys of stored episodes are unchanged
-QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0}
+QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0}
+#: the robot's model of how far a push's direction strays from the heading the human chose:
+#: von Mises concentration ``1 / sigma^2`` for the human model's default 10 degrees
+#: (:meth:`~pathpref.inference.belief.Belief.update_direction`)
+DIRECTION_KAPPA = 1.0 / math.radians(10.0) ** 2
+#: how long a sustained push is held to count as one observation (s; the robot's model)
+GUIDANCE_EVIDENCE_S = QUIET_DEFAULTS["hold_s"]
+#: the most evidence one sustained push gives (in observations), however long it lasts
+GUIDANCE_MAX_EVIDENCE = 2.0
+#: how often a sustained push's direction updates the belief while it lasts (s)
+GUIDANCE_PERIOD_S = 0.1
 
 #: metres per grid unit of every physical scene (the MuJoCo bodies, the tasks, the studies, the
 #: rerun recordings): one home for the scale
@@ -192,6 +216,8 @@ class HumanModel:
     noise_deg: float = 10.0
     gamma_h: float = 1.5
     strength_confidence: float = 0.0
+    #: ``guidance`` timing: the median of how long the human holds the handle (s)
+    hold_s: float = QUIET_DEFAULTS["hold_s"]
 
     def __post_init__(self) -> None:
         _check(self)
@@ -217,6 +243,8 @@ class Drive:
     admittance_b: float = 80.0
     mass_kg: float = QUIET_DEFAULTS["mass_kg"]
     friction_n: float = QUIET_DEFAULTS["friction_n"]
+    #: the admittance's virtual mass while guided (kg; ``guidance`` timing)
+    admittance_m: float = QUIET_DEFAULTS["admittance_m"]
 
     def __post_init__(self) -> None:
         _check(self)
@@ -257,6 +285,9 @@ class Physics:
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(f"physics {name} must be a {cls.__name__}, got "
                                   f"{type(getattr(self, name)).__name__}")
+        if self.human.timing == "guidance" and self.drive.kind != "holonomic":
+            raise ConfigError("physics timing guidance needs base holonomic (the guided base "
+                              "yields in every direction); use --base holonomic")
         if self.drive.force_limit_n <= self.sensing.on_n:
             raise ConfigError(f"physics force_limit_n must be above the detector's on_n "
                               f"({self.sensing.on_n:g} N): the base could not feel a push it "

@@ -26,6 +26,7 @@ from ..planning.policies import PolicyContext, make_policy
 from .body import Body, Felt, make_body
 from .cache import cached_model, cached_world
 from .instances import episode_instance, human_preference
+from .physics import DIRECTION_KAPPA
 from .results import EpisodeResult, StepLog
 from .spec import EpisodeSpec
 
@@ -172,7 +173,14 @@ class EpisodeRunner:
         over (a task's physics runs on to the end of its step)."""
         if self.done:
             return
-        self.policy.observe(felt.cell, felt.heading, self._weight(felt.peak_n))
+        if felt.evidence is not None:  # a sustained push, read as it lasts (Felt)
+            angle, weight = felt.evidence
+            if weight > 0:
+                self.policy.observe_direction(felt.cell, angle, DIRECTION_KAPPA, weight)
+        else:
+            self.policy.observe(felt.cell, felt.heading, self._weight(felt.peak_n))
+        if felt.partial:
+            return
         self.pending_heading = felt.heading
         if self.continuous:
             self.result.inputs = self.body.inputs_given()

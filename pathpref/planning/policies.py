@@ -80,6 +80,11 @@ class Policy(ABC):
         else:
             self.belief.update(cell, heading, weight)
 
+    def observe_direction(self, cell: int, angle: float, kappa: float, weight: float) -> None:
+        """A force direction ``angle`` felt at ``cell`` (a sample of a sustained push):
+        :meth:`Belief.update_direction`."""
+        self.belief.update_direction(cell, angle, kappa, weight)
+
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
         self.belief.rule_out(goal_index)

@@ -40,8 +40,6 @@ from .mobile_base import MobileBase
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, Scene, build_scene
 
-#: how long a standing robot waits before its next decision when pushes come at any time (s)
-HOLD_S = 0.5
 
 @lru_cache(maxsize=8)
 def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigate",
@@ -93,7 +91,11 @@ class MujocoBody(Body):
         self.probs = probs
         if self.physics is None or self.physics.human.timing == "decision":
             return False
-        self.base.enable_pushes_any_time(self.physics.drive.admittance_b)
+        drive = self.physics.drive
+        if self.physics.human.timing == "guidance":
+            self.base.enable_guidance(drive.admittance_m, drive.admittance_b)
+        else:
+            self.base.enable_pushes_any_time(drive.admittance_b)
         self.human = PushingHuman(self.physics.human, self.rng.spawn(1)[0], self.delta_t,
                                   heading_at, probs, self.physics.step_s(self.scene.cell_size))
         self.human.attach(self.base)
@@ -189,7 +191,11 @@ class MujocoBody(Body):
         return out
 
     def move(self, action: int) -> int:
-        """Drive to the grid neighbour of SPEC 3; the cell the base ends in."""
+        """Drive to the grid neighbour of SPEC 3; the cell the base ends in. When the human
+        pushes on a clock of its own (pushes at any time) a decision step lasts the one rule's
+        ``Physics.step_s`` (the base holds its target for the rest of it), so ``delta_t`` steps
+        are ``delta_t`` of the human's nominal steps, as in the dm_control tasks; a cue ends
+        it early (the planner replans)."""
         target = self.cell if action == STAY else int(self.world.motion.next_cell[self.cell,
                                                                                   action])
         if self.human is None:
@@ -197,10 +203,11 @@ class MujocoBody(Body):
             return self.cell
         self.cell = self.base.cell
         self.human.robot_moves(self.cell, None if target == self.cell else action)
+        step = self.physics.step_s(self.scene.cell_size)
         if target == self.cell:
-            self.cell = self.base.hold(HOLD_S)
+            self.cell = self.base.hold(step)
         else:
-            self.cell = self.base.move_to(target)
+            self.cell = self.base.move_to(target, min_s=step)
         return self.cell
 
 

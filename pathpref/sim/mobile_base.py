@@ -20,6 +20,16 @@ into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (
 velocity command ``F_hat / b``), and a cue ends a move or a hold (:attr:`stop_on_cue`) so that
 the planner replans from the new belief instead of finishing the move.
 
+**Guidance** (:meth:`MobileBase.enable_guidance`; Bajcsy et al. 2017): pushes act at any
+time; the admittance velocity ``v_a`` of ``M dv_a/dt + b v_a = F_hat`` moves the base's
+target (``dp_target/dt = v_a``: the push deforms the planned motion and the base keeps the
+deformation, it does not spring back) and is added to the tracking command as its feedforward;
+``v_a`` decays (time constant ``M / b``) once the push is released; every ``GUIDANCE_PERIOD_S`` of a
+cue under way a *partial* :class:`~pathpref.episode.body.Felt` carries the direction of the
+force felt over that period and its share of one observation (``period / GUIDANCE_EVIDENCE_S``,
+at most ``GUIDANCE_MAX_EVIDENCE`` per cue) to the listener; the cue's final record carries the
+rest (:mod:`pathpref.episode.physics`, "Guidance").
+
 The base is three parts: the base itself (its joints, controller, decision step, pushes and
 cue stream: this module), its sensing chain (:class:`~.sensing_chain.SensingChain`: sensor,
 faults, estimator, detector; :attr:`MobileBase.sensing`) and its measurements
@@ -35,7 +45,9 @@ import mujoco
 import numpy as np
 
 from ..episode.body import Felt
+from ..episode.physics import GUIDANCE_EVIDENCE_S, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..errors import ConfigError, EpisodeError
+from ..geometry.grid import heading_to_action
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue, CueDetector
 from .decision import DecisionStep
@@ -105,6 +117,12 @@ class MobileBase:
         self.stop_on_cue = False
         #: pushes at any time are on (:meth:`enable_pushes_any_time`)
         self.any_time = False
+        #: guidance admittance ``(M, b)`` (:meth:`enable_guidance`; None: off) and its state
+        self.guidance: tuple[float, float] | None = None
+        self.v_admit = np.zeros(2)
+        self._evidence = np.zeros(2)  # the impulse since the last evidence record (N s)
+        self._evidence_s = 0.0  # its duration (s)
+        self._evidence_given = 0.0  # the evidence the cue under way has given (observations)
         self._onset: tuple[float, int] | None = None
         self._anchor: np.ndarray | None = None
         #: measure the base (:mod:`.measurements`; episodes with physical parameters)
@@ -176,6 +194,15 @@ class MobileBase:
         self.sensing.split_pushes()
         self.admittance_b = float(admittance_b)
         self.stop_on_cue = True
+        self.any_time = True
+
+    def enable_guidance(self, mass: float, damping: float) -> None:
+        """Guidance (module docstring): pushes at any time, the splitting detector, the
+        admittance ``M dv/dt + b v = F_hat`` (``mass`` kg, ``damping`` N s/m) added to the
+        tracking command, the belief updated while a push lasts; moves are not stopped by a
+        cue (the push deforms them)."""
+        self.sensing.split_pushes()
+        self.guidance = (float(mass), float(damping))
         self.any_time = True
 
     # --- state ---------------------------------------------------------------------------
@@ -279,11 +306,18 @@ class MobileBase:
         """Note where and when the cue under way was first felt; an ended cue becomes a
         :class:`~pathpref.episode.body.Felt` record of the stream (module docstring)."""
         under_way = self.sensing.under_way
+        if self.guidance is not None and (under_way or cue is not None):
+            self._evidence += self.sensing.force_estimate * self.dt
+            self._evidence_s += self.dt
+            if cue is None and self._evidence_s >= GUIDANCE_PERIOD_S - 1e-9:
+                self._give_evidence()
         if cue is not None:
             t = float(self.data.time)
             t0, cell = self._onset if self._onset is not None else (t, self.cell)
             felt = Felt(cell, cue.heading, t0, t, float(cue.peak_n),
-                        (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s))
+                        (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s),
+                        evidence=None if self.guidance is None else self._take_evidence())
+            self._evidence_given = 0.0  # the next cue has its own evidence
             self.felt.append(felt)
             self._onset = (t, self.cell) if under_way else None
             if self.listener is not None:
@@ -293,6 +327,28 @@ class MobileBase:
                 self._onset = (float(self.data.time), self.cell)
         elif self._onset is not None:
             self._onset = None
+
+    def _take_evidence(self) -> tuple[float, float]:
+        """The direction of the force felt since the last evidence record and its weight
+        (module docstring); starts the next period (a cue's total is capped)."""
+        e = self._evidence
+        weight = min(self._evidence_s / GUIDANCE_EVIDENCE_S,
+                     GUIDANCE_MAX_EVIDENCE - self._evidence_given)
+        angle = math.atan2(float(e[1]), float(e[0]))
+        self._evidence_given += max(weight, 0.0)
+        self._evidence[:], self._evidence_s = 0.0, 0.0
+        return angle, max(weight, 0.0)
+
+    def _give_evidence(self) -> None:
+        """A partial record of the cue under way (guidance) to the listener, at the cell the
+        base is in: not a cue, not in :attr:`felt`."""
+        t = float(self.data.time)
+        t0 = self._onset[0] if self._onset is not None else t
+        e = (float(self._evidence[0]), float(self._evidence[1]))
+        angle, weight = self._take_evidence()
+        if self.listener is not None:
+            self.listener(Felt(self.cell, heading_to_action(angle), t0, t, None, e, t - t0,
+                               evidence=(angle, weight), partial=True))
 
     def yielding(self) -> bool:
         """Whether the base yields to a push now (admittance on and a cue under way)."""
@@ -306,7 +362,9 @@ class MobileBase:
         d = self.data
         if self._float_for is not self.controller:
             self._float_control = self._can_float()
-        if self._float_control and not self.yielding():
+        if self.guidance is not None:
+            self._admit()
+        if self._float_control and self.guidance is None and not self.yielding():
             self._anchor = None
             c, q, ctrl, (ix, iy, iyaw), (a0, a1, a2) = \
                 self.controller, d.qpos, d.ctrl, self._float_adr, self._float_act
@@ -337,9 +395,20 @@ class MobileBase:
         pos = d.qpos[self.xy]
         if not self.yielding():
             self._anchor = None
-            return self.controller.command(pos, d.qpos[self.yaw], self.target)
+            command = self.controller.command(pos, d.qpos[self.yaw], self.target)
+            if self.guidance is not None:
+                command[:2] += self.v_admit
+            return command
         v = self.controller.ramp(self.admittance_velocity())
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
+
+    def _admit(self) -> None:
+        """One step of the guidance admittance ``v += dt (F_hat - b v) / M`` (explicit Euler;
+        stable for ``dt < 2 M / b``: 0.5 s for the defaults against the 2 ms step) and of the
+        target it deforms, ``p_target += dt v``."""
+        mass, damping = self.guidance
+        self.v_admit += self.dt * (self.sensing.force_estimate - damping * self.v_admit) / mass
+        self.target = self.target + self.dt * self.v_admit
 
     def admittance_velocity(self) -> np.ndarray:
         """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
@@ -357,6 +426,8 @@ class MobileBase:
     def _reset_control(self) -> None:
         """A standing base: no yield under way, the controller's state cleared."""
         self._anchor = None
+        self.v_admit[:] = 0.0
+        self._evidence[:], self._evidence_s, self._evidence_given = 0.0, 0.0, 0.0
         self.controller.reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:

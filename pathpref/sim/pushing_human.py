@@ -45,6 +45,11 @@ def sample_profile(human: HumanModel, rng: np.random.Generator,
         p.peak_n * float(np.exp(p.strength_confidence * (confidence - 0.5)))
     peak = median * p.peak_spread ** rng.standard_normal()
     dur = p.duration_s * p.duration_spread ** rng.standard_normal()
+    if p.timing == "guidance":  # a sustained push: held for a log-normal time, median hold_s
+        hold = p.hold_s * p.duration_spread ** rng.standard_normal()
+        return PushProfile(peak_n=float(np.clip(peak, p.peak_min_n, p.peak_max_n)),
+                           duration_s=float(np.clip(hold, 0.5, 10.0)), noise_deg=p.noise_deg,
+                           shape="plateau")
     return PushProfile(peak_n=float(np.clip(peak, p.peak_min_n, p.peak_max_n)),
                        duration_s=float(np.clip(dur, 0.1, p.duration_max_s)),
                        noise_deg=p.noise_deg, shape=p.shape)
@@ -74,7 +79,7 @@ class PushingHuman:
         self.base = base
         base.pre_substep.append(self)
         t = float(base.data.time)
-        if self.model.timing in ("interval", "rate"):
+        if self.model.timing in ("interval", "rate", "guidance"):
             # the first push when the mission starts (after a reaction time), as the paper's
             # protocol gives an input before the first move; then at the human's own times
             self.next_t = t + self.model.reaction_s
