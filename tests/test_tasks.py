@@ -58,7 +58,7 @@ class CarryConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
 
 @pytest.mark.parametrize("name,kwargs,sub", [
     ("navigate", {"delta_t": 1, "t_max": 4, "physics": "legacy"}, 1250),  # 2.5 s steps
-    ("navigate", {"delta_t": 1, "t_max": 4}, 2050),  # the default physics: 4.1 s steps
+    ("navigate", {"delta_t": 1, "t_max": 4}, 1700),  # the default physics: Physics.step_s 3.4 s
     ("navigate_control", {"delta_t": 1}, 10),
 ])
 def test_time_is_honest(name, kwargs, sub):

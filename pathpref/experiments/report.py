@@ -93,9 +93,10 @@ def variant(r: dict[str, Any], physics: bool = True) -> str:
         parts.append(f"{r['n_goals']} goals")
     if (r.get("human") or "map") != "map":
         parts.append(f"{r['human']} human")
-    if physics and r.get("sim", "grid") != "grid":
+    grid = r.get("sim", "grid") == "grid"
+    if physics and not grid:
         parts.append(physics_label(r.get("physics")))
-    elif r.get("physics"):  # a grid episode's human model (its settings, not the default)
+    elif grid and r.get("physics"):  # a grid episode's human model (not the default one)
         parts.append(physics_label(r["physics"]).replace("physics", "human model", 1))
     return ", ".join(parts)
 
