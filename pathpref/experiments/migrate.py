@@ -9,10 +9,13 @@ schema lacks take the values that reproduce the old behaviour), and writes a new
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 -> 4 only
-adds the ``physics`` and ``prior`` columns (empty in old rows: the legacy physics and the
-independent prior they ran with) and the (empty) study tables of :mod:`.trials`, in place;
-every row and key stays as it was.
+``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 or 4 -> 5
+only adds columns, in place: ``physics``, ``prior`` and ``push_rule`` (empty in old rows: the
+legacy physics, the independent prior and the periodic human they ran with), the
+``homotopy_success`` of each episode and the ``is_intervention`` of each step (NULL in old
+rows: not measured; they are not recomputed, a rerun of the sweep into a new file measures
+them), and to a schema 3 file the (empty) study tables of :mod:`.trials`; every row and key
+stays as it was. A schema 2 file's rows get these columns empty too.
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -43,6 +46,7 @@ from .store import (
     ADDITIVE,
     EPISODE_COLUMNS,
     SCHEMA_VERSION,
+    STEP_COLUMNS,
     UPGRADABLE,
     ResultStore,
     damaged,
@@ -102,7 +106,7 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
                 "backup": None}
-    if version in ADDITIVE:  # a column and the study tables added in place: no row changes
+    if version in ADDITIVE:  # columns (and the study tables) added in place: no row changes
         ResultStore(path).close()
         return {"from": version, "to": SCHEMA_VERSION, "episodes": len(rows), "merged": 0,
                 "steps": len(steps), "backup": "(none: tables added in place)"}
@@ -146,7 +150,10 @@ def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[
             store.conn.executemany(
                 f"INSERT INTO episodes ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
                 [[_plain(r.get(c)) for c in cols] for r in episodes])
-            store.conn.executemany("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", steps)
+            width = len(STEP_COLUMNS)  # older files' steps lack the last columns: NULL
+            store.conn.executemany(
+                f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
+                [(*s, *(None,) * (width - len(s))) for s in steps])
         store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
         store.conn.execute("PRAGMA journal_mode=DELETE")
         store.close()
