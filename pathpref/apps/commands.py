@@ -149,6 +149,7 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
         "preset": args.preset,
         "time_budget_ms": args.time_budget_ms or 0.0,
         "human": args.human,
+        "push_rule": args.push_rule,
         "queries": args.queries,
         "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",

@@ -81,11 +81,12 @@ def parse_push_rule(text: str) -> PushRule | None:
                           "'corrective delay=D miss=M'")
     delay, miss = m.groups()
     try:
-        return PushRule(int(delay) if delay is not None else 0,
-                        float(miss) if miss is not None else 0.0)
+        numbers = (int(delay) if delay is not None else 0,
+                   float(miss) if miss is not None else 0.0)
     except ValueError:
         raise ConfigError(f"push rule {text!r}: delay must be an integer and miss a number"
                           ) from None
+    return PushRule(*numbers)
 
 
 def miss_stream(run_seed: int) -> np.random.Generator:

@@ -218,9 +218,10 @@ class EpisodeSpec:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")
         rule = parse_push_rule(self.push_rule)
-        if rule is not None and (rule.text != self.push_rule or self.delta_t != 1):
-            raise ConfigError(f"push_rule {self.push_rule!r}: the corrective human watches every "
-                              f"step; write {rule.text!r} with --delta-t 1")
+        if rule is not None and rule.text != self.push_rule:
+            raise ConfigError(f"push_rule {self.push_rule!r}: write it {rule.text!r}")
+        if rule is not None and self.delta_t != 1:
+            raise ConfigError("--push-rule corrective watches every step: use --delta-t 1")
         physics = Physics.from_json(self.physics)
         if physics is not None:
             if self.sim == "grid":
