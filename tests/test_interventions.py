@@ -208,3 +208,19 @@ def test_a_stored_homotopy_success_that_contradicts_its_row_is_refused(tmp_path)
     c.close()
     with pytest.raises(ConfigError, match="homotopy_success = 1 but goal_reached = 0"):
         ResultStore(db, create=False).episodes()
+
+
+def test_a_body_that_pushes_on_its_own_clock_leaves_is_intervention_unmeasured(tmp_path):
+    """MuJoCo pushes at any moment (timing 'interval'): the runner does not give them, so the
+    step rows hold NULL (not measured), never a 0 that would read as 'no push'."""
+    pytest.importorskip("mujoco")
+    import pathpref.sim  # noqa: F401 - registers the MuJoCo bodies
+    from pathpref.episode import Physics
+
+    spec = EpisodeSpec.single("simple", "compliant", 1, seed=0, sim="mujoco", t_max=4,
+                              physics=Physics(timing="interval").to_json())
+    res = run_episode(spec)
+    assert res.inputs > 0 and {s.is_intervention for s in res.log} == {None}
+    with ResultStore(tmp_path / "m.sqlite") as st:
+        st.add(res)
+        assert {s["is_intervention"] for s in st.steps(spec.key())} == {None}

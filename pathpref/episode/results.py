@@ -15,8 +15,8 @@ class StepLog:
     """One decision step: the robot's cell after it, the action, the observed heading (-1:
     none), the belief's ``P(true goal)`` and goal entropy (nats), and ``is_intervention``: 1
     when the human pushed at this cell right after this step (row 0: before step 1), else 0
-    (the rows of an episode sum to its ``inputs`` when the runner gives the pushes; a body
-    that gives them itself, ``continuous``, leaves every row 0)."""
+    (the rows of an episode sum to its ``inputs``); None (stored NULL: not measured) for a
+    body that gives the pushes itself, at times of its own (``EpisodeRunner.continuous``)."""
 
     t: int
     x: int
@@ -25,7 +25,7 @@ class StepLog:
     heading: int
     p_true_goal: float
     goal_entropy: float
-    is_intervention: int = 0
+    is_intervention: int | None = 0
 
 
 @dataclass

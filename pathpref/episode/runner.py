@@ -155,7 +155,8 @@ class EpisodeRunner:
         x, y = self.world.cells[self.cell]
         self.result.log.append(StepLog(self.t, int(x), int(y), action, heading,
                                        float(p[self.instance.true_goal]),
-                                       float(self.policy.belief.goal_entropy())))
+                                       float(self.policy.belief.goal_entropy()),
+                                       None if self.continuous else 0))
 
     def _human_phase(self) -> None:
         """Before step t+1: the human gives an input when one is due (a body that took the
