@@ -151,21 +151,20 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
 def homotopy_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """The homotopy-level success of ``rows`` (the rows a rate counts): its rate and 95%
     Wilson interval over the ``homotopy_n`` rows that measured it (``homotopy_success`` not
-    NULL; a failed row holds 0); NaN and ``(0, 1)`` when none did."""
+    NULL; a failed row holds 0); None and ``(0, 1)`` when none did."""
     measured = [r for r in rows if r.get("homotopy_success") is not None]
     n, k = len(measured), sum(r["homotopy_success"] for r in measured)
     lo, hi = wilson(k, n)
-    return {"homotopy_n": n, "homotopy_rate": k / n if n else float("nan"),
+    return {"homotopy_n": n, "homotopy_rate": k / n if n else None,
             "homotopy_ci_low": lo, "homotopy_ci_high": hi}
 
 
 def push_summary(ok: list[dict[str, Any]]) -> dict[str, Any]:
     """Pushes per episode (the mean of ``inputs``) over the episodes that ran (``ok``), and
-    over the successful ones; NaN without such episodes."""
+    over the successful ones; None without such episodes."""
     won = [r["inputs"] for r in ok if r["success"]]
-    return {"pushes_per_episode": (sum(r["inputs"] for r in ok) / len(ok) if ok
-                                   else float("nan")),
-            "pushes_per_success": sum(won) / len(won) if won else float("nan")}
+    return {"pushes_per_episode": sum(r["inputs"] for r in ok) / len(ok) if ok else None,
+            "pushes_per_success": sum(won) / len(won) if won else None}
 
 
 #: per-episode metrics of a physical body that a cell sums (:func:`physical_summary`)
@@ -283,7 +282,7 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                     f"{r['homotopy_rate']:.2f} [{r['homotopy_ci_low']:.2f}, "
                     f"{r['homotopy_ci_high']:.2f}]")
             pushes = r["pushes_per_episode"]
-            return rate + ("" if math.isnan(pushes) else f"; {pushes:.1f} pushes")
+            return rate + ("" if pushes is None else f"; {pushes:.1f} pushes")
 
         if with_paper and m == "simple" and sim == "grid":
             lines += ["", "Paper (Table I, Map 1):", "",
