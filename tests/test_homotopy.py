@@ -176,3 +176,46 @@ def test_strict_success_implies_homotopy_success_for_the_consistent_human():
         assert res.homotopy_success <= res.goal_reached
         seen.add((res.success, res.homotopy_success))
     assert (True, True) in seen  # the rule is exercised, not vacuous
+
+
+def test_db_upgrade_fills_homotopy_success_of_old_rows_as_a_replay_measures_it(tmp_path,
+                                                                               capsys):
+    """The saved schema-3 sweep: ``db upgrade`` fills every row's ``homotopy_success`` from
+    its stored steps; the paper-preset grid rows (they replay exactly, test_saved_sweep.py)
+    get the value a replay measures; a row whose map does not load stays NULL until
+    ``--map`` points at it."""
+    import shutil
+    import sqlite3
+
+    from pathpref.apps.cli import main
+    from pathpref.episode import run_episode
+    from pathpref.experiments.migrate import recompute_homotopy
+    from pathpref.experiments.store import ResultStore, row_spec
+
+    db = tmp_path / "saved.sqlite"
+    shutil.copy("tests/data/saved_sweep.sqlite", db)
+    c = sqlite3.connect(db)
+    with c:
+        moved = c.execute("SELECT key FROM episodes WHERE map = 'simple' AND goal_reached = 1 "
+                          "ORDER BY key LIMIT 1").fetchone()[0]
+        c.execute("UPDATE episodes SET map = 'gone/simple.json' WHERE key = ?", (moved,))
+    c.close()
+    assert main(["db", "upgrade", str(db)]) == 0
+    assert "filled in for 38 older episodes" in capsys.readouterr().out
+    with ResultStore(db, create=False) as st:
+        rows = {r["key"]: r for r in st.episodes()}
+    assert rows[moved]["homotopy_success"] is None
+    assert recompute_homotopy(db, {"gone/simple.json": "simple"}) == {"recomputed": 1,
+                                                                       "left": 0}
+    with ResultStore(db, create=False) as st:
+        rows = {r["key"]: r for r in st.episodes()}
+    assert {r["homotopy_success"] for r in rows.values()} == {0, 1}
+    replayed = set()
+    for row in rows.values():
+        if row["sim"] != "grid" or row["preset"] != "paper" or not row["goal_reached"]:
+            continue
+        spec = row_spec({**row, "map": "simple" if row["key"] == moved else row["map"]})
+        res = run_episode(spec)
+        assert int(res.homotopy_success) == row["homotopy_success"], row["key"]
+        replayed.add((row["success"], row["homotopy_success"]))
+    assert {(1, 1), (0, 1), (0, 0)} <= replayed  # strict and homotopy disagree on some rows

@@ -22,9 +22,8 @@ import time
 import numpy as np
 
 from ..errors import ConfigError, EpisodeError
-from ..geometry.following import human_route
 from ..geometry.grid import STAY
-from ..geometry.homotopy import same_class
+from ..geometry.homotopy import route_homotopic
 from ..geometry.world import World
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.policies import PolicyContext, make_policy
@@ -277,11 +276,9 @@ class EpisodeRunner:
     def _homotopic(self, goal: int) -> bool:
         """Whether the robot's path (the logged cells, then ``goal``) goes the same way round
         every obstacle as the human's route from the start to ``goal``
-        (:func:`~pathpref.geometry.homotopy.same_class`)."""
-        route = human_route(self.world, self.pref, self.instance.start, goal)
+        (:func:`~pathpref.geometry.homotopy.route_homotopic`)."""
         path = [(s.x, s.y) for s in self.result.log] + [tuple(self.world.cells[goal])]
-        return bool(route) and same_class(self.world.spec, path,
-                                          self.world.cells[route])
+        return route_homotopic(self.world, self.pref, self.instance.start, goal, path)
 
     def _score(self, before: int, after: int) -> None:
         """The success rule on the move ``before -> after``: leaving ``v`` toward anything but

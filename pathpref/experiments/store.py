@@ -54,7 +54,8 @@ UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: place and the version set to 5, so every stored episode reads and replays as before. The
 #: added columns of the old rows stay NULL: the legacy physics, the independent prior and the
 #: periodic human they ran with (keys unchanged), and ``homotopy_success`` and
-#: ``is_intervention`` *not measured* (reports count them over the rows that have them)
+#: ``is_intervention`` *not measured* (reports count them over the rows that have them;
+#: 'pathpref db upgrade' fills ``homotopy_success`` from the stored steps where it can)
 ADDITIVE = (3, 4)
 #: the first schema with the study tables
 STUDY_SCHEMA = 4

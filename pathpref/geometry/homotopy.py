@@ -37,7 +37,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .following import human_route
 from .maps import MapSpec
+from .world import World
 
 
 def obstacle_points(spec: MapSpec) -> np.ndarray:
@@ -81,3 +83,12 @@ def same_class(spec: MapSpec, path_a: Sequence, path_b: Sequence) -> bool:
         return False
     loop = cell_centres(np.concatenate([a, b[::-1]]))
     return not winding_numbers(loop, obstacle_points(spec)).any()
+
+
+def route_homotopic(world: World, pref: np.ndarray, start: int, goal: int,
+                    path: Sequence) -> bool:
+    """Whether the cell path ``path`` (1-based ``(x, y)``, from ``start``'s cell to ``goal``'s)
+    is in the class of the human's route from ``start`` to ``goal`` under ``pref``
+    (:func:`~pathpref.geometry.following.human_route`); False when there is no route."""
+    route = human_route(world, pref, start, goal)
+    return bool(route) and same_class(world.spec, path, world.cells[route])
