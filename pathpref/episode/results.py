@@ -64,8 +64,8 @@ class EpisodeResult:
     @property
     def homotopy_success(self) -> bool:
         """Goal reached in the human route's homotopy class (winding numbers round every
-        obstacle, :mod:`pathpref.geometry.homotopy`), episode ran to its end; the strict
-        :attr:`success` implies nothing about it and it is reported beside it."""
+        obstacle, :mod:`pathpref.geometry.homotopy`), episode ran to its end; reported
+        beside the strict :attr:`success`, which stays the headline."""
         return self.goal_reached and self.homotopic and self.status == "ok"
 
 

@@ -11,7 +11,8 @@ round every obstacle as the human's route (:mod:`pathpref.geometry.homotopy`).
 
 The robot's :class:`~.body.Body` (``spec.sim``) turns the human's heading into what the robot
 observes and a chosen move into the cell it reaches. Seeds: ``run_seed`` spawns three streams
-(human, policy, body noise), so the human's draws do not depend on the simulator.
+(human, policy, body noise), so the human's draws do not depend on the simulator; the
+corrective human's misses draw from a fourth (:func:`.corrective.miss_stream`).
 """
 
 from __future__ import annotations
