@@ -219,3 +219,33 @@ def test_db_upgrade_fills_homotopy_success_of_old_rows_as_a_replay_measures_it(t
         assert int(res.homotopy_success) == row["homotopy_success"], row["key"]
         replayed.add((row["success"], row["homotopy_success"]))
     assert {(1, 1), (0, 1), (0, 0)} <= replayed  # strict and homotopy disagree on some rows
+
+
+def test_the_human_route_is_a_shortest_preferred_path_on_a_long_serpentine():
+    """The route walk is bounded by the number of cells; on a serpentine whose one route
+    crosses the whole map (the worst case: every cell on it) it ends at the goal, every
+    polytope change is the preferred one, and its cost equals the Dijkstra distance."""
+    from pathpref.geometry.following import preference_following_distance, preference_route
+
+    walls = [{"cells": {"lower_left": [2 if k % 2 else 1, y], "size": [8, 1]}}
+             for k, y in enumerate(range(2, 10, 2))]
+    world = load_world({"name": "serpentine", "width": 9, "height": 9, "obstacles": walls,
+                        "preference": {"route": [[1, 1], [9, 1], [9, 3], [1, 3], [1, 5], [9, 5],
+                                                 [9, 7], [1, 7], [1, 9], [9, 9]]}})
+    start, goal = world.cell((1, 1)), world.cell((9, 9))
+    pref = world.require_preference()
+    route = human_route(world, pref, start, goal)
+    assert route[0] == start and route[-1] == goal and len(route) <= world.n_cells
+    cells = world.cells[route]
+    steps = np.diff(cells, axis=0)
+    assert all((abs(s) <= 1).all() and s.any() for s in steps)
+    cost = sum(np.linalg.norm(s) for s in steps)
+    togo = preference_following_distance(world, pref, goal)
+    assert abs(cost - togo[start]) <= 1e-9 * togo[start]
+    poly = world.cell_polytope
+    for a, b in zip(route[:-1], route[1:], strict=True):
+        v, w = poly[a], poly[b]
+        assert v == w or pref[v] < 0 or pref[v] == w
+    # it visits every row: the serpentine leaves no shortcut
+    assert sorted({int(y) for _, y in cells}) == list(range(1, 10))
+    assert preference_route(world, pref, start, goal) == route  # the map's own route
