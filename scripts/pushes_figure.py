@@ -59,8 +59,9 @@ def run_map(map_name: str, db: Path, args, human: list[tuple[str, int, str]]) ->
 
 
 def points(rows: list[dict], human: list[tuple[str, int, str]]) -> list[dict]:
-    """One point per (method, setting) over ``rows``: episodes, mean pushes per episode, strict
-    and homotopy-level success with Wilson 95 % intervals (a failed row counts as a failure)."""
+    """One point per (method, setting) over ``rows``: episodes, mean pushes per episode (and
+    per successful episode), strict and homotopy-level success with Wilson 95 % intervals (a
+    failed row counts as a failure)."""
     out = []
     for label, dt, rule in human:
         for m in METHODS:
@@ -70,8 +71,10 @@ def points(rows: list[dict], human: list[tuple[str, int, str]]) -> list[dict]:
                 continue
             n = len(rs)
             k, kh = sum(r["success"] for r in rs), sum(r["homotopy_success"] or 0 for r in rs)
+            won = [r["inputs"] for r in rs if r["success"]]
             out.append({"method": m, "setting": label, "n": n,
                         "pushes": sum(r["inputs"] for r in rs) / n,
+                        "pushes_per_success": sum(won) / len(won) if won else None,
                         "success": k / n, "ci": wilson(k, n),
                         "homotopy": kh / n, "homotopy_ci": wilson(kh, n)})
     return out
