@@ -244,7 +244,7 @@ def test_a_slow_drive_gets_the_time_its_move_needs():
 
 
 def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
-    """The saved schema-3 sweep upgrades to schema 4 in place: same keys, ``physics`` empty
+    """The saved schema-3 sweep upgrades to schema 5 in place: same keys, ``physics`` empty
     (NULL: the legacy physics, as :func:`row_spec` reads it)."""
     import shutil
     import sqlite3
@@ -256,7 +256,7 @@ def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
     shutil.copy("tests/data/saved_sweep.sqlite", db)
     old_keys = {r[0] for r in sqlite3.connect(db).execute("SELECT key FROM episodes")}
     out = upgrade_database(db)
-    assert (out["from"], out["to"], out["merged"]) == (3, 4, 0)
+    assert (out["from"], out["to"], out["merged"]) == (3, 5, 0)
     with ResultStore(db) as st:
         rows = st.episodes()
     assert {r["key"] for r in rows} == old_keys and {r["physics"] for r in rows} == {None}

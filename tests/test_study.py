@@ -194,7 +194,7 @@ def test_schema3_database_gets_the_study_tables_and_keeps_its_episodes(tmp_path)
     assert main(["study", "run", str(STUDY), "--participant", "x", "--db", str(db),
                  "--script", str(PUSHES)]) == 0
     c = _db(db)
-    assert c.execute("SELECT value FROM meta").fetchone()[0] == "4"
+    assert c.execute("SELECT value FROM meta").fetchone()[0] == "5"
     assert c.execute("SELECT count(*) FROM trials").fetchone()[0] == 2
     assert load_records(db) == before
 

@@ -101,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the human's preference: the map's (the paper's protocol, "
                         "default) or consistent with its goal (goals the preference leads "
                         "to; every polytope's preference then leads to the goal)")
+        sp.add_argument("--push-rule", default="", metavar="RULE",
+                        help="when the human pushes: every --delta-t steps (default, '') or "
+                        "only when needed, 'corrective delay=D miss=M' (reaction delay D "
+                        "steps, misses a need with probability M; needs --delta-t 1)")
         sp.add_argument("--queries", action=RangeAction, limits="queries", default=None,
                         help="POMCP queries per decision (default: the preset's, 5000)")
         sp.add_argument("--t-max", action=RangeAction, limits="t_max", default=None,

@@ -97,7 +97,7 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
 # --- db -------------------------------------------------------------------------------------
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
     """``pathpref db upgrade``: migrate a results database to the current schema."""
-    from ..experiments.migrate import upgrade_database
+    from ..experiments.migrate import recompute_homotopy, upgrade_database
 
     remap = {}
     for item in args.map or []:
@@ -112,6 +112,11 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
         print(f"upgraded {args.db} from schema {r['from']} to {r['to']}: {r['episodes']} episodes, "
               f"{r['steps']} steps ({r['merged']} duplicate rows of one map under two paths "
               f"merged); the old file is {r['backup']}")
+    h = recompute_homotopy(args.db, remap)
+    if h["recomputed"] or h["left"]:
+        print(f"homotopy_success filled in for {h['recomputed']} older episodes from their "
+              f"stored steps; {h['left']} left NULL (not measured: their map does not load "
+              "as stored; point it with --map OLD=NEW)")
     return 0
 
 
@@ -149,6 +154,7 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
         "preset": args.preset,
         "time_budget_ms": args.time_budget_ms or 0.0,
         "human": args.human,
+        "push_rule": args.push_rule,
         "queries": args.queries,
         "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",

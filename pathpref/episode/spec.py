@@ -11,6 +11,7 @@ from ..errors import ConfigError, PathprefError
 from ..geometry.maps import MAX_T_MAX
 from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS, Preset, get_preset
 from .cache import cached_map
+from .corrective import parse_push_rule
 from .instances import HUMANS, seed_for
 from .physics import HumanModel, Physics, grid_human
 
@@ -129,6 +130,10 @@ class EpisodeSpec:
     #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
     #: of episodes stored before the field existed (all independent) stay as they were
     prior: str | None = None
+    #: when the human pushes: "" every delta_t steps (the paper's), or the corrective human's
+    #: rule ``corrective delay=D miss=M`` (:mod:`.corrective`; delta_t 1); left out of the key
+    #: when "", so the keys stored before the field existed stay as they were
+    push_rule: str = ""
     #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
     timeout_s: float = field(default=0.0, compare=False)
 
@@ -218,6 +223,8 @@ class EpisodeSpec:
         d.pop("map")
         if d["prior"] == "independent":
             d.pop("prior")
+        if d["push_rule"] == "":
+            d.pop("push_rule")
         d["map_hash"] = self.map_hash
         return "|".join(f"{k}={d[k]}" for k in sorted(d))
 
@@ -252,6 +259,11 @@ class EpisodeSpec:
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")
+        rule = parse_push_rule(self.push_rule)
+        if rule is not None and rule.text != self.push_rule:
+            raise ConfigError(f"push_rule {self.push_rule!r}: write it {rule.text!r}")
+        if rule is not None and self.delta_t != 1:
+            raise ConfigError("--push-rule corrective watches every step: use --delta-t 1")
         if self.human_model is None:  # the parse failed: name why
             grid_human(self.physics) if self.sim == "grid" else Physics.from_json(self.physics)
         physics = self.physical

@@ -9,10 +9,21 @@ schema lacks take the values that reproduce the old behaviour), and writes a new
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 -> 4 only
-adds the ``physics`` and ``prior`` columns (empty in old rows: the legacy physics and the
-independent prior they ran with) and the (empty) study tables of :mod:`.trials`, in place;
-every row and key stays as it was.
+``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 or 4 -> 5
+only adds columns, in place: ``physics``, ``prior`` and ``push_rule`` (empty in old rows: the
+legacy physics, the independent prior and the periodic human they ran with), the
+``homotopy_success`` of each episode and the ``is_intervention`` of each step (NULL in old
+rows: not measured), and to a schema 3 file the (empty) study tables of :mod:`.trials`; every
+row and key stays as it was. A schema 2 file's rows get these columns empty too.
+
+**homotopy** (:func:`recompute_homotopy`, run by ``pathpref db upgrade`` after the schema is
+current) fills the NULL ``homotopy_success`` of old rows where it follows from what is stored,
+without running anything: 0 for an episode that did not reach the goal or did not run; for
+one that did, the class test of the stored step cells against the human's route, once the
+row's map loads with its stored content hash and its instance, drawn again from its seeds,
+has the stored start, candidates and true goal. Any other row stays NULL (its map moved:
+``--map OLD=NEW``). ``is_intervention`` is not recomputed (which steps had a push is not
+stored in old rows; the periodic human's are every ``Delta_T``, but a NULL stays honest).
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -28,6 +39,8 @@ redoes exactly what was lost.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
+import json
 import os
 import sqlite3
 import tempfile
@@ -36,18 +49,22 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ..episode import EpisodeSpec, cached_map
+from ..episode import EpisodeSpec, cached_map, cached_world
+from ..episode.instances import episode_instance, human_preference
 from ..errors import ConfigError, PathprefError
+from ..geometry.homotopy import route_homotopic
 from .store import (
     ADDITIVE,
     EPISODE_COLUMNS,
     SCHEMA_VERSION,
+    STEP_COLUMNS,
     UPGRADABLE,
     ResultStore,
     damaged,
     inspect_results_file,
     open_readonly,
     require_sqlite_file,
+    row_spec,
     schema_version,
 )
 from .trials import has_study_tables
@@ -101,7 +118,7 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
                 "backup": None}
-    if version in ADDITIVE:  # a column and the study tables added in place: no row changes
+    if version in ADDITIVE:  # columns (and the study tables) added in place: no row changes
         ResultStore(path).close()
         return {"from": version, "to": SCHEMA_VERSION, "episodes": len(rows), "merged": 0,
                 "steps": len(steps), "backup": "(none: tables added in place)"}
@@ -129,6 +146,51 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
             "merged": len(rows) - len(kept), "backup": str(backup)}
 
 
+def _stored_homotopy(store: ResultStore, row: dict[str, Any], map_paths: dict[str, str]
+                     ) -> int | None:
+    """The ``homotopy_success`` of a stored episode from its row and step rows (module
+    docstring, **homotopy**); None when it cannot be known."""
+    if row["status"] != "ok" or not row["goal_reached"]:
+        return 0
+    spec = dataclasses.replace(row_spec(row), map=map_paths.get(row["map"], row["map"]))
+    try:
+        world = cached_world(spec.map)
+        if world.spec.content_hash != row["map_hash"]:
+            return None
+        inst, free_goal = episode_instance(world, spec.fixed, spec.instance_seed, spec.n_goals,
+                                           spec.human, spec.t_max)
+    except PathprefError:
+        return None
+    cells = world.cells
+    if (json.dumps(cells[inst.start].tolist()) != row["start"]
+            or json.dumps(cells[list(inst.goals)].tolist()) != row["goals"]
+            or inst.true_goal != row["true_goal"]):
+        return None
+    path = [(s["x"], s["y"]) for s in store.steps(row["key"])]
+    if len(path) != row["steps"] + 1 or list(path[-1]) != cells[inst.goal_cell].tolist():
+        return None
+    pref = human_preference(world, inst, free_goal, spec.human)
+    return int(route_homotopic(world, pref, inst.start, inst.goal_cell, path))
+
+
+def recompute_homotopy(path: str | Path, map_paths: dict[str, str] | None = None
+                       ) -> dict[str, int]:
+    """Fill the NULL ``homotopy_success`` of the finished episodes of ``path`` where the
+    stored rows determine it (module docstring, **homotopy**); the numbers filled and left."""
+    map_paths = map_paths or {}
+    with ResultStore(path) as store:
+        rows = store.episodes("WHERE homotopy_success IS NULL AND status != 'running'")
+        filled = []
+        for row in rows:
+            value = _stored_homotopy(store, row, map_paths)
+            if value is not None:
+                filled.append((value, row["key"]))
+        with store.conn:
+            store.conn.executemany("UPDATE episodes SET homotopy_success = ? WHERE key = ? "
+                                   "AND homotopy_success IS NULL", filled)
+    return {"recomputed": len(filled), "left": len(rows) - len(filled)}
+
+
 @contextlib.contextmanager
 def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple]
                   ) -> Iterator[str]:
@@ -145,7 +207,10 @@ def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[
             store.conn.executemany(
                 f"INSERT INTO episodes ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
                 [[_plain(r.get(c)) for c in cols] for r in episodes])
-            store.conn.executemany("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", steps)
+            width = len(STEP_COLUMNS)  # older files' steps lack the last columns: NULL
+            store.conn.executemany(
+                f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
+                [(*s, *(None,) * (width - len(s))) for s in steps])
         store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
         store.conn.execute("PRAGMA journal_mode=DELETE")
         store.close()

@@ -7,6 +7,12 @@ is in ``n`` and counts against the success, goal and preference rates, so 9 succ
 rows of which 3 failed read 0.38, never 9/21 = 0.43. Every record and every table says how many
 rows failed. ``exclude_failed=True`` (``pathpref report --exclude-failed``) leaves them out of
 the rates instead, still counted.
+
+Beside the strict success (the paper's headline) every record gives the homotopy-level success
+(goal reached in the human route's homotopy class, :mod:`pathpref.geometry.homotopy`) with its
+interval, over the rows that measured it (rows written before schema 5 hold NULL: not
+measured, and are left out of that rate only), and the pushes per episode: the mean of the
+rows' ``inputs`` over the episodes that ran, and over the successful ones.
 """
 
 from __future__ import annotations
@@ -93,6 +99,8 @@ def variant(r: dict[str, Any], physics: bool = True) -> str:
         parts.append(f"{r['n_goals']} goals")
     if (r.get("human") or "map") != "map":
         parts.append(f"{r['human']} human")
+    if r.get("push_rule"):
+        parts.append(f"{r['push_rule']} pushes")
     grid = r.get("sim", "grid") == "grid"
     if physics and not grid:
         parts.append(physics_label(r.get("physics")))
@@ -136,9 +144,30 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
             "pref_rate": sum(r["pref_followed"] for r in ok) / n if n else float("nan"),
             "instances": len({r["instance_seed"] for r in counted}),
             "failed_excluded": bool(exclude_failed),
+            **homotopy_summary(counted),
+            **push_summary(ok),
             **physical_summary(ok),
         })
     return out
+
+
+def homotopy_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The homotopy-level success of ``rows`` (the rows a rate counts): its rate and 95%
+    Wilson interval over the ``homotopy_n`` rows that measured it (``homotopy_success`` not
+    NULL; a failed row holds 0); None and ``(0, 1)`` when none did."""
+    measured = [r for r in rows if r.get("homotopy_success") is not None]
+    n, k = len(measured), sum(r["homotopy_success"] for r in measured)
+    lo, hi = wilson(k, n)
+    return {"homotopy_n": n, "homotopy_rate": k / n if n else None,
+            "homotopy_ci_low": lo, "homotopy_ci_high": hi}
+
+
+def push_summary(ok: list[dict[str, Any]]) -> dict[str, Any]:
+    """Pushes per episode (the mean of ``inputs``) over the episodes that ran (``ok``), and
+    over the successful ones; None without such episodes."""
+    won = [r["inputs"] for r in ok if r["success"]]
+    return {"pushes_per_episode": sum(r["inputs"] for r in ok) / len(ok) if ok else None,
+            "pushes_per_success": sum(won) / len(won) if won else None}
 
 
 #: per-episode metrics of a physical body that a cell sums (:func:`physical_summary`)
@@ -227,7 +256,8 @@ def _find(recs: list[dict[str, Any]], meth: str, dt: int) -> dict[str, Any] | No
 
 
 def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> str:
-    """Markdown: one table per (map, sim, variant), methods x Delta_T, rate [95% CI]."""
+    """Markdown: one table per (map, sim, variant), methods x Delta_T, rate [95% CI]; under
+    it the homotopy-level success [95% CI] and the pushes per episode of the same cells."""
     blocks = []
     keys = sorted({(r["map"], r["sim"], r["variant"]) for r in records})
     for m, sim, var in keys:
@@ -246,6 +276,17 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                     + (f" ({r['failed']} failed)" if r["failed"] else ""))
 
         lines = _grid(title, recs, rate)
+
+        def homotopy(meth, d, recs=recs) -> str:
+            r = _find(recs, meth, d)
+            if r is None:
+                return "–"
+            rate = ("not measured" if not r["homotopy_n"] else
+                    f"{r['homotopy_rate']:.2f} [{r['homotopy_ci_low']:.2f}, "
+                    f"{r['homotopy_ci_high']:.2f}]")
+            pushes = r["pushes_per_episode"]
+            return rate + ("" if pushes is None else f"; {pushes:.1f} pushes")
+
         if with_paper and m == "simple" and sim == "grid":
             lines += ["", "Paper (Table I, Map 1):", "",
                       "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
@@ -255,6 +296,8 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                     vals = [TABLE_I[meth].get(d) for d in dts]
                     lines.append(f"| {METHOD_LABEL[meth]} | " + " | ".join(
                         "–" if v is None else f"{v:.2f}" for v in vals) + " |")
+        lines += [""] + _grid(f"**{m}**, homotopy-level success [95% CI]; pushes per episode",
+                              recs, homotopy)
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)
 
