@@ -59,14 +59,17 @@ def test_other_hosts_need_the_token():
 
         with pytest.raises(InvalidStatus, match="403"):
             connect(f"ws://127.0.0.1:{front.port}/ws")
-        with connect(f"ws://127.0.0.1:{front.port}/ws?token={front.token}") as ws:
+        with connect(f"ws://127.0.0.1:{front.port}/ws?token={front.token}",
+                     origin=f"http://127.0.0.1:{front.port}") as ws:
             ws.send('{"type": "push", "fx": 5, "fy": 0}')
             ws.send('{"type": "release"}')
     finally:
         front.close()
     loop = BrowserFrontEnd(port=0)
     try:
-        assert loop.token is None and _get(f"http://127.0.0.1:{loop.port}/")[0] == 200
+        # bound to loopback too: the token is required (another site's page, a stale tab)
+        assert loop.token and _get(f"http://127.0.0.1:{loop.port}/")[0] == 403
+        assert _get(f"http://127.0.0.1:{loop.port}/?token={loop.token}")[0] == 200
     finally:
         loop.close()
 
@@ -74,22 +77,24 @@ def test_other_hosts_need_the_token():
 def test_malformed_and_oversized_messages_are_ignored(caplog):
     from websockets.sync.client import connect
 
-    front = BrowserFrontEnd(port=0)
+    front = BrowserFrontEnd(port=0, clock=lambda: 0.0)  # a still clock: no dead man here
     try:
-        url = f"ws://127.0.0.1:{front.port}/ws"
-        with connect(url) as ws:
+        url = f"ws://127.0.0.1:{front.port}/ws?token={front.token}"
+        origin = f"http://127.0.0.1:{front.port}"
+        with connect(url, origin=origin) as ws:
             for bad in ("{not json", "[]", '{"type": "push", "fx": 1e400, "fy": 0}',
                         json.dumps({"type": "push", "fx": 1, "fy": 1, "pad": "x" * 400})):
                 ws.send(bad)
             ws.send('{"type": "push", "fx": 20, "fy": -10}')
             assert wait_for(lambda: front.controls.force().tolist() == [20.0, -10.0])
             assert front.controls.ignored == 4
-        with connect(url, max_size=None) as ws:  # a frame over 64 KiB closes that connection
+        # a frame over 64 KiB closes that connection
+        with connect(url, origin=origin, max_size=None) as ws:
             ws.send("x" * 100_000)
             with pytest.raises(Exception):  # noqa: B017 - closed with 1009, whatever the type
                 for _ in range(3):
                     ws.recv(timeout=120)
-        with connect(url) as ws:  # the session goes on: a new connection works
+        with connect(url, origin=origin) as ws:  # the session goes on: a new connection works
             ws.send('{"type": "push", "fx": 0, "fy": 30}')
             assert wait_for(lambda: front.controls.force().tolist() == [0.0, 30.0])
         # the page closed mid-drag: the push ends with it

@@ -372,7 +372,7 @@ def cmd_interact(args: argparse.Namespace) -> int:
 def cmd_study_run(args: argparse.Namespace) -> int:
     """``pathpref study run``: a participant's trials through the browser, the viewer or a
     push script, recorded in ``--db`` (:mod:`pathpref.study`)."""
-    from ..study.conduct import check_participant, run_study
+    from ..study.conduct import Session, check_participant
     from ..study.plan import load_study
 
     study = load_study(args.study)
@@ -380,24 +380,35 @@ def cmd_study_run(args: argparse.Namespace) -> int:
     check_database(args.db)
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port must be an integer in 0..65535, got {args.port}")
+    script = None
     if args.script:
-        from ..study.script import PushScript, ScriptedFrontEnd
+        from ..study.script import PushScript
 
-        front = ScriptedFrontEnd(PushScript.load(args.script))
-        print(f"scripted participant {args.participant}: pushes from {args.script} "
-              "(no screen; faster than real time)", flush=True)
-    elif args.ui == "viewer":
-        os.environ.setdefault("MUJOCO_GL", "glfw")
-        from ..study.viewer import ViewerFrontEnd
+        script = PushScript.load(args.script)
+        script.check_names(study)
+    # every refusal (lock, existing participant, study file) before a page is served
+    session = Session(study, args.participant, args.db, resume=args.resume)
+    try:
+        if script is not None:
+            from ..study.script import ScriptedFrontEnd
 
-        front = ViewerFrontEnd()
-    else:
-        from ..study.server import BrowserFrontEnd
+            front = ScriptedFrontEnd(script)
+            print(f"scripted participant {args.participant}: pushes from {args.script} "
+                  "(no screen; faster than real time)", flush=True)
+        elif args.ui == "viewer":
+            os.environ.setdefault("MUJOCO_GL", "glfw")
+            from ..study.viewer import ViewerFrontEnd
 
-        front = BrowserFrontEnd(host=args.host, port=args.port)
-        print(f"open {front.url} in a browser (Ctrl-C to stop)", flush=True)
-    rows = run_study(study, args.participant, args.db, front, resume=args.resume,
-                     log=lambda m: print(m, flush=True))
+            front = ViewerFrontEnd()
+        else:
+            from ..study.server import BrowserFrontEnd
+
+            front = BrowserFrontEnd(host=args.host, port=args.port)
+            print(f"open {front.url} in a browser (Ctrl-C to stop)", flush=True)
+    except BaseException:
+        session.close()
+        raise
+    rows = session.run(front, log=lambda m: print(m, flush=True))
     ok = sum(r["success"] or 0 for r in rows)
     print(f"{args.participant}: {len(rows)} trial(s) recorded in {args.db}, {ok} successful")
     return 0

@@ -7,10 +7,20 @@ participant's trials (:meth:`~.plan.Study.order_for`) through a :class:`FrontEnd
 (:mod:`.server`), the MuJoCo viewer (:mod:`.viewer`) or a scripted participant
 (:mod:`.script`). Every trial gets a rerun file beside the database:
 ``DB_STEM.rerun/PARTICIPANT-K-NAME.rrd``.
+
+**One live session per participant.** :func:`open_session` takes an exclusive ``flock`` on
+``DB.PARTICIPANT.lock`` beside the database before it reads or deletes anything, and holds it
+until the session ends (the operating system drops it when the process dies, so a killed
+session never blocks its ``--resume``). A second session of the same participant, ``--resume``
+or not, is refused with one line naming the process that holds the lock, and nothing is
+deleted. All checks (participant, lock, existing trials, study file) run before a front end
+is made, so a refused command serves no page and prints no URL.
 """
 
 from __future__ import annotations
 
+import fcntl
+import os
 import re
 import time
 from datetime import UTC, datetime
@@ -66,35 +76,111 @@ def rerun_path(db: str | Path, participant: str, position: int, trial: Trial) ->
     return db.with_name(db.stem + ".rerun") / f"{participant}-{position:02d}-{name}.rrd"
 
 
+def lock_path(db: str | Path, participant: str) -> Path:
+    """The lock file of ``participant``'s sessions in ``db`` (module docstring)."""
+    db = Path(db)
+    return db.with_name(f"{db.name}.{participant}.lock")
+
+
+class Session:
+    """``participant``'s session of ``study`` in ``db``, checked and locked (module docstring);
+    :meth:`run` runs it, :meth:`close` releases the lock (``run`` does, at its end)."""
+
+    def __init__(self, study: Study, participant: str, db: str | Path, resume: bool = False):
+        check_participant(participant)
+        self.study, self.participant, self.db, self.resume = study, participant, Path(db), resume
+        self.path = lock_path(db, participant)
+        self.fd: int | None = None
+        self._lock()
+        try:
+            self._check()
+        except BaseException:
+            self.close()
+            raise
+
+    def _lock(self) -> None:
+        for _ in range(3):  # the holder may unlink the file between our open and our flock
+            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "?"
+                os.close(fd)
+                raise ConfigError(
+                    f"participant {self.participant!r} has a live session on {self.db} "
+                    f"(process {holder}); let it end or stop it before --resume") from None
+            try:
+                same = os.fstat(fd).st_ino == os.stat(self.path).st_ino
+            except FileNotFoundError:
+                same = False
+            if same:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                self.fd = fd
+                return
+            os.close(fd)
+        raise ConfigError(f"cannot lock {self.path}: it keeps changing; try again")
+
+    def _check(self) -> None:
+        if not self.db.exists():
+            return
+        with ResultStore(self.db) as store:
+            existing = TrialWriter(store.conn, self.participant).trials()
+        if existing and not self.resume:
+            raise ConfigError(
+                f"participant {self.participant!r} already has {len(existing)} trial(s) in "
+                f"{self.db}; give --resume to continue them, or another --participant")
+        if existing and existing[0]["study_hash"] != self.study.hash:
+            raise ConfigError(f"participant {self.participant!r} in {self.db} ran another "
+                              f"study file ({existing[0]['study']}); resume with that file")
+
+    def close(self) -> None:
+        """Release the lock (the file is removed first, then unlocked)."""
+        if self.fd is None:
+            return
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+        os.close(self.fd)
+        self.fd = None
+
+    def run(self, front: FrontEnd, log=print) -> list[dict]:
+        """Run (or resume) the participant's trials through ``front``; the trial rows."""
+        study, participant, db = self.study, self.participant, self.db
+        try:
+            store = ResultStore(db)
+            try:
+                writer = TrialWriter(store.conn, participant)
+                lost = writer.discard_unfinished()
+                if lost:
+                    log(f"trial {', '.join(map(str, lost))} of {participant!r} did not "
+                        "finish; running it again")
+                done = {r["trial"] for r in writer.trials()}
+                order = study.order_for(participant)
+                for position, trial in enumerate(order, start=1):
+                    if position in done:
+                        continue
+                    run_trial(study, trial, position, len(order), participant, db, writer,
+                              front, log)
+                return writer.trials()
+            finally:
+                store.close()
+        finally:
+            front.close()
+            self.close()
+
+
 def run_study(study: Study, participant: str, db: str | Path, front: FrontEnd,
               resume: bool = False, log=print) -> list[dict]:
     """Run (or resume) ``participant``'s trials of ``study`` into ``db``; the trial rows."""
-    check_participant(participant)
-    store = ResultStore(db)
     try:
-        writer = TrialWriter(store.conn, participant)
-        existing = writer.trials()
-        if existing and not resume:
-            raise ConfigError(
-                f"participant {participant!r} already has {len(existing)} trial(s) in {db}; "
-                "give --resume to continue them, or another --participant")
-        if existing and existing[0]["study_hash"] != study.hash:
-            raise ConfigError(f"participant {participant!r} in {db} ran another study file "
-                              f"({existing[0]['study']}); resume with that file")
-        lost = writer.discard_unfinished()
-        if lost:
-            log(f"trial {', '.join(map(str, lost))} of {participant!r} did not finish; "
-                "running it again")
-        done = {r["trial"] for r in writer.trials()}
-        order = study.order_for(participant)
-        for position, trial in enumerate(order, start=1):
-            if position in done:
-                continue
-            run_trial(study, trial, position, len(order), participant, db, writer, front, log)
-        return writer.trials()
-    finally:
+        session = Session(study, participant, db, resume)
+    except BaseException:
         front.close()
-        store.close()
+        raise
+    return session.run(front, log)
 
 
 def run_trial(study: Study, trial: Trial, position: int, total: int, participant: str,

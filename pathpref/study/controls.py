@@ -7,12 +7,22 @@ into the force on the robot's handle (a :class:`~.session.PushSource`) or a requ
   next message; its magnitude is capped at :data:`MAX_FORCE_N` (60 N, twice the simulated
   human's 30 N peak, within the 50-100 N that people exert on a handle in pHRI studies);
 * ``{"type": "release"}``: stop pushing;
-* ``{"type": "start"}``: the participant is ready for the next trial.
+* ``{"type": "start"}``: the participant is ready for the next trial;
+* ``{"type": "alive"}``: nothing but a sign of life (the browser page sends one every 0.25 s).
+
+**Dead-man rule** (``deadman_s``, the browser's :data:`DEADMAN_S` = 0.5 s): a push lasts only
+while its messages keep coming. A push message older than ``deadman_s`` (by ``clock``) no
+longer acts: :meth:`Controls.force` is zero from then on, as if ``release`` had come, so a
+page that freezes or drops mid-drag ends its push within ``deadman_s``. The page repeats its
+push every 0.1 s while the pointer is down. A scripted participant (simulated time, no wall
+clock) has no dead man: ``deadman_s=None``.
 
 The browser page sends these over its WebSocket, a scripted participant
 (:mod:`.script`) calls :meth:`Controls.handle` with the same text. A malformed message
 (not JSON, not an object, unknown type, non-finite or missing numbers) or one longer than
-:data:`MAX_MESSAGE_BYTES` is logged in one line and ignored; the session goes on.
+:data:`MAX_MESSAGE_BYTES` is ignored and the session goes on. Logging is rate-limited: the
+first :data:`LOG_FIRST` ignored messages get a line each, then at most one line per
+:data:`LOG_EVERY_S` seconds (by ``clock``) saying how many were ignored since the last line.
 """
 
 from __future__ import annotations
@@ -27,30 +37,76 @@ import numpy as np
 
 MAX_FORCE_N = 60.0
 MAX_MESSAGE_BYTES = 256
+#: the browser's dead-man time (s): a push whose messages stop for this long ends
+DEADMAN_S = 0.5
+#: ignored messages logged one line each; after that one line per LOG_EVERY_S seconds
+LOG_FIRST = 5
+LOG_EVERY_S = 10.0
 
 log = logging.getLogger("pathpref.study")
+
+
+def finite_number(v) -> bool:
+    """A JSON number that is a finite float (a 400-digit integer is not: it overflows)."""
+    if not isinstance(v, int | float) or isinstance(v, bool):
+        return False
+    try:
+        return math.isfinite(float(v))
+    except OverflowError:
+        return False
 
 
 class Controls:
     """The participant's current push and requests (thread-safe: the web server's thread
     writes, the physics loop reads)."""
 
-    def __init__(self):
+    def __init__(self, deadman_s: float | None = None, clock=time.monotonic):
         self._lock = threading.Lock()
         self._force = np.zeros(2)
         self.started = threading.Event()
         self.ignored = 0
+        self.deadman_s, self.clock = deadman_s, clock
+        self._pushed_at = 0.0
+        #: pushes ended by the dead-man rule (their page stopped sending)
+        self.deadman_releases = 0
+        self._logged = 0
+        self._log_at: float | None = None
+        self._unlogged = 0
         #: wall time (perf_counter) of the last message that ended a push (release)
         self.released_at: float | None = None
 
     def force(self) -> np.ndarray:
-        """The force (N, world x-y) the participant applies now."""
+        """The force (N, world x-y) the participant applies now (zero once the push's
+        messages are older than ``deadman_s``: module docstring)."""
         with self._lock:
+            if (self.deadman_s is not None and self._force.any()
+                    and self.clock() - self._pushed_at > self.deadman_s):
+                self._force = np.zeros(2)
+                self.deadman_releases += 1
+                self.released_at = time.perf_counter()
             return self._force.copy()
 
+    def release(self) -> None:
+        """End the push now (the page that pushed went away)."""
+        with self._lock:
+            if self._force.any():
+                self.released_at = time.perf_counter()
+            self._force = np.zeros(2)
+
     def _ignore(self, why: str) -> None:
+        """Count an ignored message; log it within the rate limit (module docstring)."""
         self.ignored += 1
-        log.warning("ignored a front-end message: %s", why)
+        now = self.clock()
+        if self._logged < LOG_FIRST:
+            self._logged += 1
+            self._log_at = now
+            log.warning("ignored a front-end message: %s", why)
+        elif now - self._log_at >= LOG_EVERY_S:
+            log.warning("ignored %d more front-end messages, the last: %s",
+                        self._unlogged + 1, why)
+            self._unlogged, self._log_at = 0, now
+        else:
+            self._unlogged += 1
 
     def handle(self, text: str | bytes) -> bool:
         """Apply one message (module docstring); False when it was ignored."""
@@ -59,7 +115,7 @@ class Controls:
             return False
         try:
             msg = json.loads(text)
-        except (ValueError, UnicodeDecodeError):
+        except (ValueError, UnicodeDecodeError, RecursionError):
             self._ignore("not JSON")
             return False
         if not isinstance(msg, dict):
@@ -68,24 +124,24 @@ class Controls:
         kind = msg.get("type")
         if kind == "push":
             fx, fy = msg.get("fx"), msg.get("fy")
-            if not all(isinstance(v, int | float) and not isinstance(v, bool)
-                       and math.isfinite(v) for v in (fx, fy)):
+            if not all(finite_number(v) for v in (fx, fy)):
                 self._ignore("push needs finite numbers fx and fy (N)")
                 return False
-            f = np.array([fx, fy], float)
+            f = np.array([float(fx), float(fy)], float)
             n = float(np.hypot(*f))
             if n > MAX_FORCE_N:
                 f *= MAX_FORCE_N / n
             with self._lock:
                 self._force = f
+                self._pushed_at = self.clock()
         elif kind == "release":
             with self._lock:
                 self._force = np.zeros(2)
                 self.released_at = time.perf_counter()
         elif kind == "start":
             self.started.set()
-        else:
-            self._ignore(f"unknown type {str(kind)[:20]!r} (push, release, start)")
+        elif kind != "alive":
+            self._ignore(f"unknown type {str(kind)[:20]!r} (push, release, start, alive)")
             return False
         return True
 

@@ -187,11 +187,11 @@ def _trial(i: int, raw: Any, defaults: dict[str, Any], folder: Path) -> Trial:
                           f"{str(t['preset'])[:40]!r}")
     q = t["queries"] if t["queries"] is not None else PRESETS[t["preset"]].queries
     if not isinstance(q, int) or isinstance(q, bool) or not 1 <= q <= 100_000:
-        raise ConfigError(f"{where}.queries must be a whole number in 1..100000, got {q!r}")
+        raise ConfigError(f"{where}.queries must be a whole number in 1..100000, got {str(q)[:40]}")
     lim = t["time_limit_s"]
     if not isinstance(lim, int | float) or isinstance(lim, bool) or not 1 <= lim <= 3600:
         raise ConfigError(f"{where}.time_limit_s must be a number of seconds in 1..3600, got "
-                          f"{lim!r}")
+                          f"{str(lim)[:40]}")
     start = _cell(t["start"], f"{where}.start")
     goal = _cell(t["goal"], f"{where}.goal")
     s, g = _free(world, start, f"{where}.start"), _free(world, goal, f"{where}.goal")
@@ -258,7 +258,7 @@ def parse_study(raw: Any, path: str = "<study>", folder: Path | None = None) -> 
         raise ConfigError(f"order must be fixed or latin, got {str(order)[:40]!r}")
     seed = raw.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
-        raise ConfigError(f"seed must be a whole number in 0..2^63-1, got {seed!r}")
+        raise ConfigError(f"seed must be a whole number in 0..2^63-1, got {str(seed)[:40]}")
     defaults = raw.get("defaults", {})
     if not isinstance(defaults, dict):
         raise ConfigError("defaults must be an object of trial fields")
@@ -294,4 +294,6 @@ def load_study(path: str | Path) -> Study:
     except (ValueError, UnicodeDecodeError) as e:
         raise ConfigError(f"{p} is not valid {p.suffix[1:].upper()}: "
                           f"{str(e).splitlines()[0]}") from None
+    except RecursionError:
+        raise ConfigError(f"{p} is nested too deeply to be a study file") from None
     return parse_study(raw, str(p), p.parent)

@@ -16,12 +16,11 @@ other trial. At each physics step the script sends ``push`` when a push starts a
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
-from .controls import Controls
+from .controls import Controls, finite_number
 
 
 def _pushes(raw: Any, where: str) -> list[tuple[float, float, float, float]]:
@@ -33,8 +32,7 @@ def _pushes(raw: Any, where: str) -> list[tuple[float, float, float, float]]:
         if not isinstance(p, dict) or set(p) != {"t", "fx", "fy", "duration"}:
             raise ConfigError(f"{w} must be an object with exactly t, fx, fy, duration")
         vals = [p[n] for n in ("t", "fx", "fy", "duration")]
-        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                   for v in vals):
+        if not all(finite_number(v) for v in vals):
             raise ConfigError(f"{w}: t, fx, fy and duration must be finite numbers")
         t, fx, fy, d = map(float, vals)
         if not 0 <= t <= 3600:
@@ -71,7 +69,17 @@ class PushScript:
             raise ConfigError(f"cannot read push file {path}: {e.strerror}") from None
         except ValueError as e:
             raise ConfigError(f"{path} is not valid JSON: {e}") from None
+        except RecursionError:
+            raise ConfigError(f"{path} is nested too deeply to be a push file") from None
         return cls(raw, str(path))
+
+    def check_names(self, study) -> None:
+        """Every trial the file names is a trial of ``study`` (one line naming it if not)."""
+        have = {t.name for t in study.trials}
+        for name in self.named:
+            if name not in have:
+                raise ConfigError(f"push file trials.{str(name)[:40]}: the study has no trial "
+                                  f"of that name; its trials: {', '.join(sorted(have))[:200]}")
 
     def for_trial(self, name: str) -> list[tuple[float, float, float, float]]:
         """The pushes ``(t, fx, fy, duration)`` of the trial ``name``."""
