@@ -133,6 +133,9 @@ def cmd_db_salvage(args: argparse.Namespace) -> int:
     print(f"saved {r['episodes']} episodes and {r['steps']} step rows of {args.db} into "
           f"{args.out}; lost {about}{r['episodes_lost']} episodes ({r['incomplete']} with "
           f"missing step rows) and {about}{r['steps_lost']} step rows")
+    if r["study"]:
+        print(f"saved {r['trials']} study trials ({r['trial_rows']} rows of the study "
+              f"tables); lost {about}{r['trials_lost']} trials (rows missing or unreadable)")
     return 0
 
 
