@@ -228,24 +228,40 @@ def cmd_report(args: argparse.Namespace) -> int:
     trials = load_trials(args.db)
     if trials:
         print(study_tables(trials) + ("\n" if recs else ""))
-        if not recs:
-            return 0
-    if not recs:
+    elif not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
-    print(markdown_tables(recs))
-    both = side_by_side(recs)
-    if both:
-        print("\n" + both)
-    reading = physical_tables(recs)
-    if reading:
-        print("\n" + reading)
-    atomic_output(csv_path, lambda p: write_csv(recs, p))
-    print(f"\nwrote {csv_path}")
-    if args.figure:
-        from ..viz.plots import success_figure
+    if recs:
+        print(markdown_tables(recs))
+        both = side_by_side(recs)
+        if both:
+            print("\n" + both)
+        reading = physical_tables(recs)
+        if reading:
+            print("\n" + reading)
+        atomic_output(csv_path, lambda p: write_csv(recs, p))
+        print(f"\nwrote {csv_path}")
+        if args.figure:
+            from ..viz.plots import success_figure
 
-        atomic_output(args.figure, lambda p: success_figure(recs, p))
-        print(f"wrote {args.figure}")
+            atomic_output(args.figure, lambda p: success_figure(recs, p))
+            print(f"wrote {args.figure}")
+    if trials:  # a database of episodes and trials: the study's files get a -study suffix
+        from ..experiments.report import study_records
+        from ..viz.plots import study_figure
+
+        srecs = study_records(trials)
+
+        def beside(path: str | Path) -> Path:
+            path = Path(path)
+            return path if not recs else path.with_name(f"{path.stem}-study{path.suffix}")
+
+        study_csv = beside(csv_path)
+        atomic_output(study_csv, lambda p: write_csv(srecs, p))
+        print(("" if recs else "\n") + f"wrote {study_csv}")
+        if args.figure:
+            fig = beside(args.figure)
+            atomic_output(fig, lambda p: study_figure(srecs, p))
+            print(f"wrote {fig}")
     return 0
 
 
