@@ -15,11 +15,17 @@ session never blocks its ``--resume``). A second session of the same participant
 or not, is refused with one line naming the process that holds the lock, and nothing is
 deleted. All checks (participant, lock, existing trials, study file) run before a front end
 is made, so a refused command serves no page and prints no URL.
+
+**Gamepad calibration** (:class:`~.controls.StickCalibration`): every calibration the
+participant's front end accepts is appended, as one JSON line (time, the trial it came
+before, device, rest, reach, dead zone, maximum force), to ``DB.PARTICIPANT.calibration.jsonl``
+beside the database (the database's schema is left as it is).
 """
 
 from __future__ import annotations
 
 import fcntl
+import json
 import os
 import re
 import time
@@ -74,6 +80,13 @@ def rerun_path(db: str | Path, participant: str, position: int, trial: Trial) ->
     db = Path(db)
     name = re.sub(r"[^A-Za-z0-9_.-]", "_", trial.name)[:40]
     return db.with_name(db.stem + ".rerun") / f"{participant}-{position:02d}-{name}.rrd"
+
+
+def calibration_path(db: str | Path, participant: str) -> Path:
+    """The participant's gamepad calibrations: JSON lines beside the database (module
+    docstring)."""
+    db = Path(db)
+    return db.with_name(f"{db.name}.{participant}.calibration.jsonl")
 
 
 def lock_path(db: str | Path, participant: str) -> Path:
@@ -134,6 +147,18 @@ class Session:
             raise ConfigError(f"participant {self.participant!r} in {self.db} ran another "
                               f"study file ({existing[0]['study']}); resume with that file")
 
+    def _record_calibration(self, cal) -> None:
+        """Append a gamepad calibration to the participant's calibration file (one JSON line:
+        when, before which trial, the device, rest, reach, and the rule's constants)."""
+        from .controls import MAX_FORCE_N, STICK_DEADZONE
+
+        line = json.dumps({"utc": datetime.now(UTC).isoformat(timespec="seconds"),
+                           "trial": self.position, "device": cal.device,
+                           "rest": list(cal.rest), "reach": cal.reach,
+                           "deadzone": STICK_DEADZONE, "max_force_n": MAX_FORCE_N})
+        with open(calibration_path(self.db, self.participant), "a") as f:
+            f.write(line + "\n")
+
     def close(self) -> None:
         """Release the lock (the file is removed first, then unlocked)."""
         if self.fd is None:
@@ -149,6 +174,10 @@ class Session:
     def run(self, front: FrontEnd, log=print) -> list[dict]:
         """Run (or resume) the participant's trials through ``front``; the trial rows."""
         study, participant, db = self.study, self.participant, self.db
+        self.position = 0
+        controls = front.source()
+        if controls is not None and hasattr(controls, "on_calibration"):
+            controls.on_calibration.append(self._record_calibration)
         try:
             store = ResultStore(db)
             try:
@@ -162,6 +191,7 @@ class Session:
                 for position, trial in enumerate(order, start=1):
                     if position in done:
                         continue
+                    self.position = position
                     run_trial(study, trial, position, len(order), participant, db, writer,
                               front, log)
                 return writer.trials()

@@ -8,7 +8,19 @@ into the force on the robot's handle (a :class:`~.session.PushSource`) or a requ
   human's 30 N peak, within the 50-100 N that people exert on a handle in pHRI studies);
 * ``{"type": "release"}``: stop pushing;
 * ``{"type": "start"}``: the participant is ready for the next trial;
-* ``{"type": "alive"}``: nothing but a sign of life (the browser page sends one every 0.25 s).
+* ``{"type": "alive"}``: nothing but a sign of life (the browser page sends one every 0.25 s);
+* ``{"type": "calibrate", "rest": [x, y], "reach": r, "device": "..."}``: the participant's
+  gamepad calibration (:class:`StickCalibration`), recorded by the session;
+* ``{"type": "stick", "ax": x, "ay": y}``: the gamepad's stick axes (the browser's Gamepad API:
+  in ``[-1, 1]``, ``ay`` positive *down*), turned into a force by the calibrated rule
+  (:func:`stick_force`); refused before a calibration.
+
+**The stick rule.** With the calibration's rest position ``(rx, ry)`` and reach ``r`` (the
+largest deflection the participant reached from rest), the deflection is
+``v = ((ax - rx) / r, -(ay - ry) / r)`` (north up), and the force is
+``F = MAX_FORCE_N * g(|v|) * v / |v|`` with ``g(m) = clip((m - STICK_DEADZONE) /
+(1 - STICK_DEADZONE), 0, 1)``: nothing inside the dead zone (15% of the reach: a stick at rest
+never pushes), linear to 60 N at full reach. A stick message inside the dead zone is a release.
 
 **Dead-man rule** (``deadman_s``, the browser's :data:`DEADMAN_S` = 0.5 s): a push lasts only
 while its messages keep coming. A push message older than ``deadman_s`` (by ``clock``) no
@@ -32,6 +44,7 @@ import logging
 import math
 import threading
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -42,6 +55,11 @@ DEADMAN_S = 0.5
 #: ignored messages logged one line each; after that one line per LOG_EVERY_S seconds
 LOG_FIRST = 5
 LOG_EVERY_S = 10.0
+#: the stick's dead zone, a share of the calibrated reach (:func:`stick_force`)
+STICK_DEADZONE = 0.15
+#: a calibration's reach must lie in this range (axes span [-1, 1]; a reach under 0.2 means
+#: the participant did not move the stick)
+REACH_RANGE = (0.2, 1.5)
 
 log = logging.getLogger("pathpref.study")
 
@@ -54,6 +72,48 @@ def finite_number(v) -> bool:
         return math.isfinite(float(v))
     except OverflowError:
         return False
+
+
+@dataclass(frozen=True)
+class StickCalibration:
+    """A participant's gamepad calibration: the stick's rest position (axes units) and the
+    largest deflection from it the participant reached (module docstring)."""
+
+    rest: tuple[float, float]
+    reach: float
+    device: str = ""
+
+    @classmethod
+    def parse(cls, msg: dict) -> StickCalibration | str:
+        """The calibration of a ``calibrate`` message, or why it is refused."""
+        rest, reach, device = msg.get("rest"), msg.get("reach"), msg.get("device", "")
+        if (not isinstance(rest, list) or len(rest) != 2
+                or not all(finite_number(v) and -1.0 <= v <= 1.0 for v in rest)):
+            return "calibrate needs rest [x, y] within [-1, 1]"
+        if not finite_number(reach) or not REACH_RANGE[0] <= reach <= REACH_RANGE[1]:
+            return f"calibrate needs reach in {REACH_RANGE[0]}..{REACH_RANGE[1]}"
+        if not isinstance(device, str):
+            return "calibrate's device must be a string"
+        return cls((float(rest[0]), float(rest[1])), float(reach), device[:80])
+
+
+def stick_force(ax: float, ay: float, cal: StickCalibration) -> np.ndarray:
+    """The force (N, world x-y) of stick axes ``(ax, ay)`` under ``cal`` (module docstring)."""
+    v = np.array([(ax - cal.rest[0]) / cal.reach, -(ay - cal.rest[1]) / cal.reach])
+    m = float(np.hypot(*v))
+    g = min(1.0, max(0.0, (m - STICK_DEADZONE) / (1.0 - STICK_DEADZONE)))
+    return np.zeros(2) if g == 0.0 else MAX_FORCE_N * g * v / m
+
+
+def stick_axes(f: np.ndarray, cal: StickCalibration) -> tuple[float, float]:
+    """Stick axes that give the force ``f`` (|f| < MAX_FORCE_N) under ``cal``: the inverse of
+    :func:`stick_force` (a simulated gamepad)."""
+    n = float(np.hypot(*f))
+    if n == 0.0:
+        return cal.rest
+    m = STICK_DEADZONE + (1.0 - STICK_DEADZONE) * min(1.0, n / MAX_FORCE_N)
+    ux, uy = f[0] / n, f[1] / n
+    return (cal.rest[0] + m * cal.reach * ux, cal.rest[1] - m * cal.reach * uy)
 
 
 class Controls:
@@ -74,6 +134,9 @@ class Controls:
         self._unlogged = 0
         #: wall time (perf_counter) of the last message that ended a push (release)
         self.released_at: float | None = None
+        self.calibration: StickCalibration | None = None
+        #: told of every accepted calibration (the session records it)
+        self.on_calibration: list = []
 
     def force(self) -> np.ndarray:
         """The force (N, world x-y) the participant applies now (zero once the push's
@@ -140,8 +203,31 @@ class Controls:
                 self.released_at = time.perf_counter()
         elif kind == "start":
             self.started.set()
+        elif kind == "calibrate":
+            cal = StickCalibration.parse(msg)
+            if isinstance(cal, str):
+                self._ignore(cal)
+                return False
+            self.calibration = cal
+            for hook in self.on_calibration:
+                hook(cal)
+        elif kind == "stick":
+            ax, ay = msg.get("ax"), msg.get("ay")
+            if self.calibration is None:
+                self._ignore("stick before a calibration")
+                return False
+            if not all(finite_number(v) and -1.5 <= v <= 1.5 for v in (ax, ay)):
+                self._ignore("stick needs numbers ax and ay in [-1, 1]")
+                return False
+            f = stick_force(float(ax), float(ay), self.calibration)
+            with self._lock:
+                if not f.any() and self._force.any():
+                    self.released_at = time.perf_counter()
+                self._force = f
+                self._pushed_at = self.clock()
         elif kind != "alive":
-            self._ignore(f"unknown type {str(kind)[:20]!r} (push, release, start, alive)")
+            self._ignore(f"unknown type {str(kind)[:20]!r} (push, release, start, alive, "
+                         "calibrate, stick)")
             return False
         return True
 
