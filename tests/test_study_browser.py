@@ -214,3 +214,77 @@ def test_browser_drag_end_to_end(tmp_path):
     assert _colour_pixels(img, (0x3C, 0x3C, 0x46)) > 5000  # the table (obstacle) and walls
     assert _colour_pixels(img, (0x1E, 0x6E, 0xDC)) > 500  # the robot
     assert _colour_pixels(img, (0xE0, 0x21, 0x8A)) > 200  # the goal ring
+
+
+FAKE_PAD = """
+window.fakeAxes = [0.02, -0.01];
+navigator.getGamepads = () => [{ index: 0, id: "fake pad", connected: true,
+                                 axes: window.fakeAxes, buttons: [] }];
+"""
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium not found (make install puts it there "
+                    "with apt-get install chromium)")
+def test_browser_gamepad_calibration_and_pushes(tmp_path):
+    """A gamepad in the page (the Gamepad API, faked in the page: Chromium headless has no
+    device): the calibration step (rest, then full reach) is sent and recorded for the
+    participant, and stick pushes west and north reach the database as cues in those
+    directions with the force of the stated rule: 0.8 of the reach gives
+    60 * (0.8 - 0.15) / 0.85 = 45.882 N."""
+    playwright = pytest.importorskip("playwright.sync_api")
+    study = tmp_path / "one.json"
+    study.write_text(json.dumps({"trials": [{
+        "name": "left", "map": "simple", "start": [5, 2], "goal": [5, 9],
+        "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [2, 2], [2, 9], [5, 9]],
+        "time_limit_s": 8, "queries": 100}]}))
+    db = tmp_path / "g.sqlite"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pathpref", "study", "run", str(study), "--participant", "p",
+         "--db", str(db), "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True, env={**os.environ, "MUJOCO_GL": "egl"})
+    rest, reach = (0.02, -0.01), 0.9
+    try:
+        url = re.search(r"(http://\S+)", proc.stdout.readline()).group(1)
+        with playwright.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1100, "height": 700})
+            page.add_init_script(FAKE_PAD)
+            page.goto(url)
+            page.wait_for_function("window.study.scene !== null && window.study.role === "
+                                   "'driver'", timeout=EVENT_MS)
+            page.wait_for_selector("#calibrate", state="visible", timeout=EVENT_MS)
+            page.click("#calibrate")
+            page.wait_for_function("window.study.pad.step === 'reach'", timeout=EVENT_MS)
+            page.evaluate(f"window.fakeAxes[0] = {rest[0] + reach}")  # full reach, east
+            page.wait_for_function("window.study.pad.cal !== null", timeout=EVENT_MS)
+            page.evaluate(f"window.fakeAxes[0] = {rest[0]}")
+            page.click("#start")
+            page.wait_for_function("window.study.scene.status === 'running' && "
+                                   "window.study.state !== null", timeout=EVENT_MS)
+            for dx, dy in [(-1, 0), (0, 1)]:
+                cues = page.evaluate("window.study.state.cues")
+                # 0.8 of the reach; the browser's axis 1 points down (north is negative)
+                page.evaluate(f"window.fakeAxes[0] = {rest[0] + 0.8 * reach * dx}; "
+                              f"window.fakeAxes[1] = {rest[1] - 0.8 * reach * dy}")
+                _wait_sim(page, 0.4)
+                page.evaluate(f"window.fakeAxes[0] = {rest[0]}; window.fakeAxes[1] = {rest[1]}")
+                page.wait_for_function(f"window.study.state.cues > {cues}", timeout=EVENT_MS,
+                                       polling="raf")
+                _wait_sim(page, 1.0)
+            page.wait_for_function("window.study.scene.status === 'finished'", timeout=EVENT_MS)
+            browser.close()
+        out = proc.communicate(timeout=EVENT_MS / 1000)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    c = sqlite3.connect(db)
+    assert [r[0] for r in c.execute("SELECT heading FROM trial_cues ORDER BY k")] == [
+        HEADING[(-1, 0)], HEADING[(0, 1)]]
+    peaks = [r[0] for r in c.execute("SELECT peak_n FROM trial_pushes ORDER BY k")]
+    assert peaks == pytest.approx([60 * 0.65 / 0.85] * 2, rel=1e-6)
+    cal = [json.loads(line) for line in Path(f"{db}.p.calibration.jsonl").read_text()
+           .splitlines()]
+    assert len(cal) == 1 and cal[0]["trial"] == 1 and cal[0]["device"] == "fake pad"
+    assert cal[0]["rest"] == pytest.approx(list(rest), abs=1e-12)
+    assert cal[0]["reach"] == pytest.approx(reach, abs=1e-12)
