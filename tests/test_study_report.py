@@ -34,20 +34,27 @@ def test_range_interval_by_hand():
     assert (lo, hi) == (pytest.approx(8.51586, abs=1e-4), pytest.approx(13.48414, abs=1e-4))
 
 
-def row(p, k, success, violations, effort, pushes=3, time_s=10.0, belief="shown"):
+def row(p, k, success, violations, effort, pushes=3, time_s=10.0, belief="shown", peak=None):
     return {"participant": p, "trial": k, "success": success, "violations": violations,
+            "push_peak_n": peak,
             "effort_ns": effort, "pushes": pushes, "time_s": time_s, "method": "path_preference",
             "condition": json.dumps({"belief": belief})}
 
 
 def test_study_records_on_route_and_no_negative_interval():
-    trials = [row("a", 1, 1, 0, 1.0), row("a", 2, 0, 2, 2.0), row("a", 3, 1, 0, 3.0),
-              row("a", 4, 1, 1, 10.0), row("b", 1, 1, 0, 50.0)]
+    trials = [row("a", 1, 1, 0, 1.0, peak=30.0), row("a", 2, 0, 2, 2.0, peak=35.0),
+              row("a", 3, 1, 0, 3.0, peak=40.0), row("a", 4, 1, 1, 10.0, pushes=0),
+              row("b", 1, 1, 0, 50.0)]
     recs = {(r["by"], r["group"]): r for r in study_records(trials)}
     a = recs[("participant", "a")]
     assert a["n"] == 4 and a["success_rate"] == 0.75 and a["on_route"] == 0.5
     assert a["effort_ns_low"] == 0.0 and a["effort_ns_high"] == pytest.approx(10.49614, abs=1e-4)
+    # peak push over the 3 trials with a push: 35 -+ 4.302653 * 5 / sqrt(3) = 35 -+ 12.42069
+    assert a["push_peak_n"] == 35.0
+    assert (a["push_peak_n_low"], a["push_peak_n_high"]) == (
+        pytest.approx(22.57931, abs=1e-4), pytest.approx(47.42069, abs=1e-4))
     b = recs[("participant", "b")]
+    assert math.isnan(b["push_peak_n"])
     assert b["n"] == 1 and math.isnan(b["effort_ns_low"])
     # on route: 3 of 5 trials without a violation; Wilson [0.231, 0.882]
     c = recs[("condition", "path_preference, belief=shown")]

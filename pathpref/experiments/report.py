@@ -332,15 +332,21 @@ def mean_interval(values: list[float], z_level: float = 0.975) -> tuple[float, f
 
 
 def load_trials(db: str | Path) -> list[dict[str, Any]]:
-    """Every finished study trial of ``db`` (none when it has no study tables)."""
+    """Every finished study trial of ``db`` (none when it has no study tables), each with
+    ``push_peak_n``: the mean peak force of its pushes (N; None without a push)."""
     from .trials import has_study_tables, read_rows
 
     with ResultStore(db, create=False) as store:
         try:
             if not has_study_tables(store.conn):
                 return []
-            return read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
+            rows = read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
                              "participant, trial")
+            peaks = {(p, k): v for p, k, v in store.conn.execute(
+                "SELECT participant, trial, avg(peak_n) FROM trial_pushes "
+                "GROUP BY participant, trial")}
+            return [r | {"push_peak_n": peaks.get((r["participant"], r["trial"]))}
+                    for r in rows]
         except sqlite3.DatabaseError as e:
             raise ConfigError(f"cannot read trials from {db}: {e} (the file is damaged)"
                               ) from None
@@ -378,7 +384,8 @@ def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
     ``condition``): trials ``n``; success rate and the share of trials *on route* (no
     violation of the route's preference), each with its 95% Wilson interval; the means of
     time (s; a timed-out trial counts its full time), pushes and effort (integral of |F| dt,
-    N s) with :func:`range_interval` (``nan`` when ``n < 3``)."""
+    N s), and of the trials' mean peak push force (N, ``push_peak_n``; over the trials with a
+    push), with :func:`range_interval` (``nan`` when fewer than 3 values)."""
     out = []
     for by, key in (("participant", lambda r: r["participant"]),
                     ("condition", condition_label)):
@@ -393,10 +400,10 @@ def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
             rec["ci_low"], rec["ci_high"] = wilson(k, n)
             rec["on_route"] = on / n
             rec["on_route_low"], rec["on_route_high"] = wilson(on, n)
-            for name, col in (("time_s", "time_s"), ("pushes", "pushes"),
-                              ("effort_ns", "effort_ns")):
-                m, lo, hi = range_interval([float(r[col]) for r in rs])
-                rec[name], rec[f"{name}_low"], rec[f"{name}_high"] = m, lo, hi
+            for col in ("time_s", "pushes", "effort_ns", "push_peak_n"):
+                vals = [float(r[col]) for r in rs if r.get(col) is not None]
+                m, lo, hi = range_interval(vals) if vals else (math.nan,) * 3
+                rec[col], rec[f"{col}_low"], rec[f"{col}_high"] = m, lo, hi
             out.append(rec)
     return out
 
@@ -404,8 +411,11 @@ def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
 def study_tables(trials: list[dict[str, Any]]) -> str:
     """Markdown of :func:`study_records`: per participant and per condition, success rate
     [95% Wilson], the means [95% t interval clipped to the quantity's range; ``n < 3``: none]
-    of time, pushes and effort, and the share of trials on route [95% Wilson]."""
+    of time, pushes and effort, the share of trials on route [95% Wilson] and the mean peak
+    push force."""
     def fmt(m: float, lo: float, hi: float, digits: int = 1) -> str:
+        if math.isnan(m):
+            return "-"
         if math.isnan(lo):
             return f"{m:.{digits}f} (n < {MIN_INTERVAL_N})"
         return f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
@@ -417,7 +427,8 @@ def study_tables(trials: list[dict[str, Any]]) -> str:
         if lines:
             lines.append("")
         lines += [f"**{title}**", "", f"| {by} | n | success | time (s) | pushes | "
-                  "effort (N s) | on route |", "|---|---|---|---|---|---|---|"]
+                  "effort (N s) | on route | peak push (N) |",
+                  "|---|---|---|---|---|---|---|---|"]
         for r in (r for r in recs if r["by"] == by):
             lines.append(
                 f"| {r['group']} | {r['n']} | {r['success_rate']:.2f} [{r['ci_low']:.2f}, "
@@ -425,5 +436,6 @@ def study_tables(trials: list[dict[str, Any]]) -> str:
                 + " | ".join(fmt(r[c], r[f"{c}_low"], r[f"{c}_high"])
                              for c in ("time_s", "pushes", "effort_ns"))
                 + f" | {r['on_route']:.2f} [{r['on_route_low']:.2f}, "
-                f"{r['on_route_high']:.2f}] |")
+                f"{r['on_route_high']:.2f}] | "
+                + fmt(r["push_peak_n"], r["push_peak_n_low"], r["push_peak_n_high"]) + " |")
     return "\n".join(lines)
