@@ -179,3 +179,25 @@ def test_salvage_keeps_the_study_tables(demo_db, tmp_path, capsys):
     q = "SELECT * FROM trial_forces ORDER BY k"
     assert rows(out2, q) == rows(demo_db, "SELECT * FROM trial_forces WHERE trial = 1 "
                                  "ORDER BY k")
+
+
+def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
+    """The replay's frames carry the info panel (it was blank): the trial, the step, the
+    belief and the recorded outcome, on every frame."""
+    from pathpref.study import replay
+
+    infos = []
+    real = replay.info_panel
+
+    def spy(w, h, info):
+        infos.append(info)
+        return real(w, h, info)
+
+    monkeypatch.setattr(replay, "info_panel", spy)
+    n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "p.mp4", 320, 180)
+    assert len(infos) == n > 0
+    outcome, time_s, cues = rows(demo_db, "SELECT outcome, time_s, cues FROM trials WHERE "
+                                 "trial = 1")[0]
+    assert infos[0].title.startswith("demo trial 1: ")
+    assert f"recorded: {outcome} in {time_s:.1f} s" in infos[-1].extra
+    assert infos[-1].pushes == cues and abs(float(infos[-1].belief.sum()) - 1.0) < 1e-9

@@ -33,7 +33,7 @@ from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import has_study_tables, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
-from ..viz.video import belief_rgba, compose
+from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
 from .plan import Trial
 from .record import PUSH_ON_N
 from .session import TrialRunner
@@ -177,7 +177,20 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
                     push_origin=b.data.xpos[b.pushed_body].copy(),
                     push_force=np.array([*runner.body.applied, 0.0]), route=route)
         top, persp = renderer.views(b.data, o)
-        video.append(compose(top, persp, None, width, height))
+        panel = None
+        if renderer.column >= 16 and height - renderer.persp_h >= 16:
+            f = float(np.hypot(*runner.body.applied))
+            cue = runner.cues[-1] if runner.cues and runner.time_s - runner.cues[-1][0] <= 1.0 \
+                else None
+            panel = info_panel(renderer.column, height - renderer.persp_h, PanelInfo(
+                title=f"{participant} trial {trial}: {spec.name} ({spec.method})",
+                step=runner.t, t_max=runner.spec.t_max, sim_time=runner.time_s,
+                belief=runner.policy.belief.goal_marginal(), true_goal=spec.goal_index,
+                pushes=len(runner.cues), push_n=f if f > PUSH_ON_N else None,
+                cue_heading=None if cue is None else int(cue[2].heading),
+                extra=[f"time limit {spec.time_limit_s:g} s",
+                       f"recorded: {row['outcome']} in {row['time_s']:.1f} s"]))
+        video.append(compose(top, persp, panel, width, height))
 
     def departs(at: int) -> ConfigError:
         return ConfigError(f"the replay departs from the recording at decision step {at} "
