@@ -416,3 +416,21 @@ def test_hostile_files_are_one_line(tmp_path, capsys, kind):
     assert want in err
     assert not db.exists()
 
+
+
+def test_waiting_for_start_is_bounded(tmp_path):
+    """Nobody presses Start: past the limit the session ends in one line, nothing recorded,
+    and a later session of the participant runs the trial."""
+    from pathpref.study.conduct import run_study
+    from pathpref.study.script import PushScript, ScriptedFrontEnd
+
+    study = parse_study({"trials": [TRIAL]})
+    db = tmp_path / "p.sqlite"
+    th, box = _run_in_thread(study, "p1", db, BrowserFrontEnd(port=0, start_limit_s=0.3))
+    th.join(WAIT_S)
+    err = box.get("error")
+    assert isinstance(err, PageGone) and "\n" not in str(err) and "Start" in str(err)
+    assert sqlite3.connect(db).execute("SELECT count(*) FROM trials").fetchone()[0] == 0
+    rows = run_study(study, "p1", db, ScriptedFrontEnd(PushScript({"pushes": []})),
+                     log=lambda m: None)
+    assert [r["status"] for r in rows] == ["done"]

@@ -29,7 +29,9 @@ thread) publishes the state, and the driving page's messages go to
   no driver is *present*: connected and heard from (any message; the page sends ``alive``
   every 0.25 s) within :data:`PRESENT_S`. A pause longer than ``pause_limit_s`` (default
   :data:`PAUSE_LIMIT_S`) ends the session with one line; the trial stays unfinished, and
-  ``--resume`` runs it again.
+  ``--resume`` runs it again. Waiting for Start is bounded too (``start_limit_s``, default
+  :data:`START_LIMIT_S`, an hour): then the session ends the same way, before the trial
+  begins.
 * *Bounded connections*: at most :data:`MAX_CONNECTIONS` TCP connections at a time (more are
   closed as they are accepted), and a connection that has not finished its HTTP request or
   WebSocket handshake within :data:`OPEN_TIMEOUT_S` is closed. Malformed messages are logged
@@ -69,6 +71,8 @@ MAX_FRAME_BYTES = 64 * 1024  # larger WebSocket frames close the connection (the
 PRESENT_S = 2.0
 #: a trial paused longer than this (s) ends the session, the trial left to run again
 PAUSE_LIMIT_S = 600.0
+#: a wait for Start longer than this (s) ends the session (the trial not yet begun)
+START_LIMIT_S = 3600.0
 #: TCP connections served at a time; the page and a few observers need far fewer
 MAX_CONNECTIONS = 16
 #: seconds a connection may take to send its HTTP request and finish the handshake
@@ -107,7 +111,8 @@ class BrowserFrontEnd:
     name = "browser"
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765,
-                 pause_limit_s: float = PAUSE_LIMIT_S, max_connections: int = MAX_CONNECTIONS,
+                 pause_limit_s: float = PAUSE_LIMIT_S, start_limit_s: float = START_LIMIT_S,
+                 max_connections: int = MAX_CONNECTIONS,
                  open_timeout_s: float = OPEN_TIMEOUT_S, clock=time.monotonic):
         from .controls import DEADMAN_S
 
@@ -116,7 +121,7 @@ class BrowserFrontEnd:
         self.host = host
         self.token = secrets.token_urlsafe(16)
         self.page = resources.files("pathpref.study").joinpath("page.html").read_bytes()
-        self.pause_limit_s = float(pause_limit_s)
+        self.pause_limit_s, self.start_limit_s = float(pause_limit_s), float(start_limit_s)
         self.max_connections, self.open_timeout_s = int(max_connections), float(open_timeout_s)
         self._lock = threading.Lock()
         self._scene: dict | None = None
@@ -363,8 +368,12 @@ class BrowserFrontEnd:
         self.runner, self.position, self.total = runner, position, total
         self._set_scene("waiting", self.last_outcome)
         self.publish()
+        t0 = self.clock()
         while not self.controls.started.wait(0.2):
-            pass
+            if self.clock() - t0 > self.start_limit_s:
+                raise PageGone(
+                    f"nobody pressed Start for {self.start_limit_s:g} s before trial "
+                    f"{position}; run the same command with --resume to go on from it")
         self._set_scene("running")
         runner.base.on_substep.append(self._hold)
         runner.base.on_substep.append(Pacer())
