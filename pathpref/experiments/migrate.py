@@ -25,7 +25,8 @@ then row by row), and an episode with a missing step row is left out, so a rerun
 redoes exactly what was lost. The study tables (schema 4) are salvaged the same way: a trial is
 kept, with every row of its tables, when its ``trials`` row reads back and its rows are whole
 (:func:`_whole_trials`); a trial missing rows is left out whole and counted lost (``study run
---resume`` cannot redo it: its participant's later trials stay).
+--resume`` on the new database runs that trial again, the participant's other trials stay).
+The study rows are read into memory as the episodes are (a salvage is a one-off repair).
 """
 
 from __future__ import annotations
@@ -243,8 +244,8 @@ def _whole_trials(tables: dict[str, list[dict[str, Any]]]) -> tuple[set[tuple], 
     of trials left out. Whole: the ``trials`` row reads back; ``trial_steps`` has ``t = 0..n``
     (``n = steps`` for a finished trial), ``trial_forces`` and ``trial_beliefs`` have
     ``k = 0..m`` for some ``m``, and a finished trial has ``k = 0..pushes-1`` pushes and
-    ``k = 0..cues-1`` cues. An unfinished trial (``study run --resume`` runs it again) is kept
-    with whatever reads back."""
+    ``k = 0..cues-1`` cues. An unfinished trial (``study run --resume`` runs it again) needs
+    only gap-free rows."""
     seq: dict[tuple[str, tuple], list[int]] = defaultdict(list)
     for table in ("trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs"):
         col = "t" if table == "trial_steps" else "k"

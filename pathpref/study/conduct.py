@@ -8,7 +8,7 @@ participant's trials (:meth:`~.plan.Study.order_for`) through a :class:`FrontEnd
 (:mod:`.script`). Every trial gets a rerun file beside the database:
 ``DB_STEM.rerun/PARTICIPANT-K-NAME.rrd``.
 
-**One live session per participant.** :func:`open_session` takes an exclusive ``flock`` on
+**One live session per participant.** :class:`Session` takes an exclusive ``flock`` on
 ``DB.PARTICIPANT.lock`` beside the database before it reads or deletes anything, and holds it
 until the session ends (the operating system drops it when the process dies, so a killed
 session never blocks its ``--resume``). A second session of the same participant, ``--resume``
@@ -113,7 +113,11 @@ class Session:
 
     def _lock(self) -> None:
         for _ in range(3):  # the holder may unlink the file between our open and our flock
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as e:
+                raise ConfigError(f"cannot create the session lock {self.path}: {e.strerror}; "
+                                  "give a --db in a writable folder") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
