@@ -225,18 +225,21 @@ navigator.getGamepads = () => [{ index: 0, id: "fake pad", connected: true,
 
 @pytest.mark.skipif(CHROMIUM is None, reason="chromium not found (make install puts it there "
                     "with apt-get install chromium)")
-def test_browser_gamepad_calibration_and_pushes(tmp_path):
+def test_browser_gamepad_calibration_pushes_and_questionnaire(tmp_path):
     """A gamepad in the page (the Gamepad API, faked in the page: Chromium headless has no
     device): the calibration step (rest, then full reach) is sent and recorded for the
     participant, and stick pushes west and north reach the database as cues in those
     directions with the force of the stated rule: 0.8 of the reach gives
-    60 * (0.8 - 0.15) / 0.85 = 45.882 N."""
+    60 * (0.8 - 0.15) / 0.85 = 45.882 N. The study asks the NASA-TLX after the trial: the
+    answers given in the page are recorded with the trial's position and name."""
     playwright = pytest.importorskip("playwright.sync_api")
     study = tmp_path / "one.json"
-    study.write_text(json.dumps({"trials": [{
+    study.write_text(json.dumps({"questionnaire": "nasa-tlx", "trials": [{
         "name": "left", "map": "simple", "start": [5, 2], "goal": [5, 9],
         "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [2, 2], [2, 9], [5, 9]],
         "time_limit_s": 8, "queries": 100}]}))
+    answers = {"mental": 40, "physical": 65, "temporal": 20, "performance": 15, "effort": 55,
+               "frustration": 5}
     db = tmp_path / "g.sqlite"
     proc = subprocess.Popen(
         [sys.executable, "-m", "pathpref", "study", "run", str(study), "--participant", "p",
@@ -272,12 +275,21 @@ def test_browser_gamepad_calibration_and_pushes(tmp_path):
                                        polling="raf")
                 _wait_sim(page, 1.0)
             page.wait_for_function("window.study.scene.status === 'finished'", timeout=EVENT_MS)
+            # the questionnaire after the trial: the session ends only once it is answered
+            page.wait_for_selector("#tlx", state="visible", timeout=EVENT_MS)
+            assert proc.poll() is None
+            for k, v in answers.items():
+                page.evaluate(f"document.getElementById('tlx-{k}').value = {v}")
+            page.click("#tlxsubmit")
+            out = proc.communicate(timeout=EVENT_MS / 1000)[0]
             browser.close()
-        out = proc.communicate(timeout=EVENT_MS / 1000)[0]
     finally:
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0, out
+    tlx = [json.loads(line) for line in Path(f"{db}.p.tlx.jsonl").read_text().splitlines()]
+    assert [(t["trial"], t["name"], t["scores"]) for t in tlx] == [(1, "left", answers)]
+    assert tlx[0]["raw_tlx"] == pytest.approx(200 / 6, abs=1e-12)  # (40+65+20+15+55+5) / 6
     c = sqlite3.connect(db)
     assert [r[0] for r in c.execute("SELECT heading FROM trial_cues ORDER BY k")] == [
         HEADING[(-1, 0)], HEADING[(0, 1)]]

@@ -102,3 +102,31 @@ def test_ten_trial_study_with_a_simulated_gamepad(tmp_path):
     rec = json.loads(lines[0])
     assert (rec["trial"], rec["rest"], rec["reach"], rec["deadzone"]) == (1, [0.1, -0.05], 0.9,
                                                                           0.15)
+
+
+def test_tlx_answers_are_checked():
+    from pathpref.study.controls import TLX_SCALES
+
+    c = Controls()
+    got = []
+    c.on_tlx.append(lambda k, scores: got.append((k, scores)))
+    good = dict(zip(TLX_SCALES, (10, 20, 30, 40, 50, 60), strict=True))
+    for bad in ({**good, "mental": 101}, {**good, "mental": 2.5},
+                {k: v for k, v in good.items() if k != "effort"}, {**good, "fun": 3}):
+        assert not c.handle(json.dumps({"type": "tlx", "trial": 1, "scores": bad}))
+    assert not c.handle(json.dumps({"type": "tlx", "trial": 0, "scores": good}))
+    assert c.handle(json.dumps({"type": "tlx", "trial": 2, "scores": good}))
+    assert c.handle(json.dumps({"type": "tlx", "trial": 2, "scores": {**good, "effort": 0}}))
+    assert got == [(2, good)] and c.tlx == {2: good}  # the first answer stands
+    assert c.ignored == 5
+
+
+def test_study_file_questionnaire_field():
+    from pathpref.errors import ConfigError
+    from pathpref.study.plan import parse_study
+
+    raw = json.loads(STUDY.read_text())
+    assert parse_study(raw).questionnaire is None
+    assert parse_study({**raw, "questionnaire": "nasa-tlx"}).questionnaire == "nasa-tlx"
+    with pytest.raises(ConfigError, match="questionnaire must be nasa-tlx"):
+        parse_study({**raw, "questionnaire": "sus"})

@@ -20,6 +20,10 @@ is made, so a refused command serves no page and prints no URL.
 participant's front end accepts is appended, as one JSON line (time, the trial it came
 before, device, rest, reach, dead zone, maximum force), to ``DB.PARTICIPANT.calibration.jsonl``
 beside the database (the database's schema is left as it is).
+
+**Questionnaire** (the study's ``questionnaire``: ``nasa-tlx``): the front end asks it after
+every trial; each answer is appended as one JSON line (time, trial position and name, the six
+scales, and the raw TLX: their mean) to ``DB.PARTICIPANT.tlx.jsonl``.
 """
 
 from __future__ import annotations
@@ -87,6 +91,13 @@ def calibration_path(db: str | Path, participant: str) -> Path:
     docstring)."""
     db = Path(db)
     return db.with_name(f"{db.name}.{participant}.calibration.jsonl")
+
+
+def tlx_path(db: str | Path, participant: str) -> Path:
+    """The participant's NASA-TLX answers: JSON lines beside the database (module
+    docstring)."""
+    db = Path(db)
+    return db.with_name(f"{db.name}.{participant}.tlx.jsonl")
 
 
 def lock_path(db: str | Path, participant: str) -> Path:
@@ -163,6 +174,16 @@ class Session:
         with open(calibration_path(self.db, self.participant), "a") as f:
             f.write(line + "\n")
 
+    def _record_tlx(self, k: int, scores: dict[str, int]) -> None:
+        """Append the NASA-TLX answers after trial ``k`` (module docstring)."""
+        order = self.study.order_for(self.participant)
+        name = order[k - 1].name if 1 <= k <= len(order) else None
+        line = json.dumps({"utc": datetime.now(UTC).isoformat(timespec="seconds"),
+                           "trial": k, "name": name, "scores": scores,
+                           "raw_tlx": sum(scores.values()) / len(scores)})
+        with open(tlx_path(self.db, self.participant), "a") as f:
+            f.write(line + "\n")
+
     def close(self) -> None:
         """Release the lock (the file is removed first, then unlocked)."""
         if self.fd is None:
@@ -182,6 +203,9 @@ class Session:
         controls = front.source()
         if controls is not None and hasattr(controls, "on_calibration"):
             controls.on_calibration.append(self._record_calibration)
+            controls.on_tlx.append(self._record_tlx)
+        if study.questionnaire and hasattr(front, "questionnaire"):
+            front.questionnaire = study.questionnaire
         try:
             store = ResultStore(db)
             try:

@@ -13,7 +13,10 @@ into the force on the robot's handle (a :class:`~.session.PushSource`) or a requ
   gamepad calibration (:class:`StickCalibration`), recorded by the session;
 * ``{"type": "stick", "ax": x, "ay": y}``: the gamepad's stick axes (the browser's Gamepad API:
   in ``[-1, 1]``, ``ay`` positive *down*), turned into a force by the calibrated rule
-  (:func:`stick_force`); refused before a calibration.
+  (:func:`stick_force`); refused before a calibration;
+* ``{"type": "tlx", "trial": k, "scores": {"mental": 55, ...}}``: the NASA-TLX answers after
+  trial ``k``: the six scales of :data:`TLX_SCALES`, whole numbers 0..100 (raw, unweighted
+  TLX).
 
 **The stick rule.** With the calibration's rest position ``(rx, ry)`` and reach ``r`` (the
 largest deflection the participant reached from rest), the deflection is
@@ -55,6 +58,8 @@ DEADMAN_S = 0.5
 #: ignored messages logged one line each; after that one line per LOG_EVERY_S seconds
 LOG_FIRST = 5
 LOG_EVERY_S = 10.0
+#: the NASA-TLX's six scales (Hart & Staveland 1988), each answered 0..100
+TLX_SCALES = ("mental", "physical", "temporal", "performance", "effort", "frustration")
 #: the stick's dead zone, a share of the calibrated reach (:func:`stick_force`)
 STICK_DEADZONE = 0.15
 #: a calibration's reach must lie in this range (axes span [-1, 1]; a reach under 0.2 means
@@ -135,6 +140,9 @@ class Controls:
         #: wall time (perf_counter) of the last message that ended a push (release)
         self.released_at: float | None = None
         self.calibration: StickCalibration | None = None
+        #: questionnaire answers by trial position; hooks told of each (the session records)
+        self.tlx: dict[int, dict[str, int]] = {}
+        self.on_tlx: list = []
         #: told of every accepted calibration (the session records it)
         self.on_calibration: list = []
 
@@ -211,6 +219,19 @@ class Controls:
             self.calibration = cal
             for hook in self.on_calibration:
                 hook(cal)
+        elif kind == "tlx":
+            k, scores = msg.get("trial"), msg.get("scores")
+            if (not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= 100_000
+                    or not isinstance(scores, dict) or set(scores) != set(TLX_SCALES)
+                    or not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 100
+                               for v in scores.values())):
+                self._ignore("tlx needs trial k and scores " + ", ".join(TLX_SCALES)
+                             + " (whole numbers 0..100)")
+                return False
+            if k not in self.tlx:
+                self.tlx[k] = {n: scores[n] for n in TLX_SCALES}
+                for hook in self.on_tlx:
+                    hook(k, self.tlx[k])
         elif kind == "stick":
             ax, ay = msg.get("ax"), msg.get("ay")
             if self.calibration is None:
@@ -227,7 +248,7 @@ class Controls:
                 self._pushed_at = self.clock()
         elif kind != "alive":
             self._ignore(f"unknown type {str(kind)[:20]!r} (push, release, start, alive, "
-                         "calibrate, stick)")
+                         "calibrate, stick, tlx)")
             return False
         return True
 

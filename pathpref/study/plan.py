@@ -25,6 +25,9 @@ Per trial (a field missing from a trial is taken from ``defaults``):
 * ``condition``: labels (strings) for the analysis; ``"belief": "hidden"`` hides the robot's
   goal probabilities from the participant (shown otherwise).
 
+``questionnaire``: ``"nasa-tlx"`` has the browser ask the NASA-TLX (six 0..100 scales) after
+every trial; the answers are recorded per participant (:mod:`.conduct`).
+
 ``order``: ``fixed`` (file order for everyone) or ``latin``: a balanced Latin square (Williams
 design). Row ``r`` of ``n`` trials is ``r, r+1, r+n-1, r+2, r+n-2, ...`` (mod n); with an odd
 ``n`` the ``n`` mirrored rows are added. The participant's row is the SHA-256 of the participant
@@ -110,6 +113,8 @@ class Study:
     seed: int
     trials: tuple[Trial, ...]
     hash: str
+    #: ``"nasa-tlx"``: the browser asks the NASA-TLX after every trial (None: no questionnaire)
+    questionnaire: str | None = None
 
     def order_for(self, participant: str) -> list[Trial]:
         """The participant's trials in order (module docstring)."""
@@ -249,10 +254,15 @@ def parse_study(raw: Any, path: str = "<study>", folder: Path | None = None) -> 
     folder = folder or Path(".")
     if not isinstance(raw, dict):
         raise ConfigError(f"{path}: a study file is an object with 'trials'")
-    unknown = sorted(set(raw) - {"name", "order", "seed", "defaults", "trials"})
+    unknown = sorted(set(raw) - {"name", "order", "seed", "defaults", "trials",
+                                 "questionnaire"})
     if unknown:
         raise ConfigError(f"{path}: '{unknown[0]}' is not a study field; fields: name, order, "
-                          "seed, defaults, trials")
+                          "seed, defaults, trials, questionnaire")
+    questionnaire = raw.get("questionnaire")
+    if questionnaire not in (None, "nasa-tlx"):
+        raise ConfigError(f"questionnaire must be nasa-tlx (or left out), got "
+                          f"{str(questionnaire)[:40]!r}")
     order = raw.get("order", "fixed")
     if order not in ("fixed", "latin"):
         raise ConfigError(f"order must be fixed or latin, got {str(order)[:40]!r}")
@@ -277,7 +287,7 @@ def parse_study(raw: Any, path: str = "<study>", folder: Path | None = None) -> 
     name = raw.get("name", Path(path).stem)
     if not isinstance(name, str):
         raise ConfigError("name must be a string")
-    return Study(str(path), name, order, seed, parsed, digest)
+    return Study(str(path), name, order, seed, parsed, digest, questionnaire)
 
 
 def load_study(path: str | Path) -> Study:

@@ -32,6 +32,8 @@ thread) publishes the state, and the driving page's messages go to
   ``--resume`` runs it again. Waiting for Start is bounded too (``start_limit_s``, default
   :data:`START_LIMIT_S`, an hour): then the session ends the same way, before the trial
   begins.
+* *Questionnaire*: with the study's ``questionnaire`` the page asks it after every trial and
+  the next trial (or the session's end) waits for the answer, bounded like Start.
 * *Bounded connections*: at most :data:`MAX_CONNECTIONS` TCP connections at a time (more are
   closed as they are accepted), and a connection that has not finished its HTTP request or
   WebSocket handshake within :data:`OPEN_TIMEOUT_S` is closed. Malformed messages are logged
@@ -86,7 +88,7 @@ class PageGone(ConfigError):
 
 
 def scene_message(runner: TrialRunner, position: int, total: int, status: str,
-                  outcome: dict | None = None) -> dict:
+                  outcome: dict | None = None, questionnaire: str | None = None) -> dict:
     """What the page draws that does not move: the map and the trial (``runner``'s)."""
     world, trial = runner.world, runner.trial
     spec = world.spec
@@ -99,7 +101,7 @@ def scene_message(runner: TrialRunner, position: int, total: int, status: str,
                   "start": trial.start, "goal": trial.goal, "route": trial.route,
                   "candidates": trial.candidates, "show_belief": trial.show_belief,
                   "time_limit_s": trial.time_limit_s},
-        "outcome": outcome,
+        "outcome": outcome, "questionnaire": questionnaire,
     }
 
 
@@ -138,6 +140,8 @@ class BrowserFrontEnd:
         #: (trial position, wall seconds) of every pause of a trial
         self.pauses: list[tuple[int, float]] = []
         self._status = "waiting"
+        #: the questionnaire asked after every trial (the session sets it from the study)
+        self.questionnaire: str | None = None
         self._ready = threading.Event()
         self._error: BaseException | None = None
         self.loop = asyncio.new_event_loop()
@@ -315,7 +319,8 @@ class BrowserFrontEnd:
         return self.controls
 
     def _set_scene(self, status: str, outcome: dict | None = None) -> None:
-        scene = scene_message(self.runner, self.position, self.total, status, outcome)
+        scene = scene_message(self.runner, self.position, self.total, status, outcome,
+                              self.questionnaire if status in ("done", "finished") else None)
         with self._lock:
             self._scene, self._status = scene, status
 
@@ -390,6 +395,15 @@ class BrowserFrontEnd:
         last = self.position == self.total
         self.last_outcome = {k: outcome[k] for k in ("outcome", "time_s", "pushes")}
         self._set_scene("finished" if last else "done", self.last_outcome)
+        if self.questionnaire:  # the answers come before the next trial (or the end)
+            t0 = self.clock()
+            while self.position not in self.controls.tlx:
+                if self.clock() - t0 > self.start_limit_s:
+                    raise PageGone(
+                        f"no questionnaire answer after trial {self.position} for "
+                        f"{self.start_limit_s:g} s (the trial is recorded); run the same "
+                        "command with --resume to go on")
+                time.sleep(0.05)
 
     def close(self) -> None:
         """Let the page see the last scene, then stop the server and its thread."""
