@@ -33,7 +33,11 @@ has one per time step ``0..steps``, a failed one none) or which step rows belong
 **salvage** (:func:`salvage_database`) copies every episode that reads back whole, with its step
 rows, into a new database; rows on damaged pages are read around (one rowid range at a time,
 then row by row), and an episode with a missing step row is left out, so a rerun of the sweep
-redoes exactly what was lost.
+redoes exactly what was lost. The study tables (schema 4) are salvaged the same way: a trial is
+kept, with every row of its tables, when its ``trials`` row reads back and its rows are whole
+(:func:`_whole_trials`); a trial missing rows is left out whole and counted lost (``study run
+--resume`` on the new database runs that trial again, the participant's other trials stay).
+The study rows are read into memory as the episodes are (a salvage is a one-off repair).
 """
 
 from __future__ import annotations
@@ -67,7 +71,7 @@ from .store import (
     row_spec,
     schema_version,
 )
-from .trials import has_study_tables
+from .trials import STUDY_TABLE_NAMES, has_study_tables
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
@@ -192,11 +196,12 @@ def recompute_homotopy(path: str | Path, map_paths: dict[str, str] | None = None
 
 
 @contextlib.contextmanager
-def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple]
-                  ) -> Iterator[str]:
-    """A new pathpref database holding ``episodes`` and ``steps``, written to a temporary file
-    in the folder of ``beside`` (rollback journal, no side file) for the caller to move into
-    place; whatever is left of it afterwards is removed."""
+def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple],
+                  study: dict[str, list[tuple]] | None = None) -> Iterator[str]:
+    """A new pathpref database holding ``episodes`` and ``steps`` (and the study tables'
+    ``study[table]`` rows), written to a temporary file in the folder of ``beside`` (rollback
+    journal, no side file) for the caller to move into place; whatever is left of it afterwards
+    is removed."""
     fd, tmp = tempfile.mkstemp(dir=beside.parent, prefix=f".{beside.stem}.", suffix=".new")
     os.close(fd)
     os.unlink(tmp)  # ResultStore creates the file itself
@@ -211,6 +216,10 @@ def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[
             store.conn.executemany(
                 f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
                 [(*s, *(None,) * (width - len(s))) for s in steps])
+            for table, rows in (study or {}).items():
+                if rows:
+                    store.conn.executemany(
+                        f"INSERT INTO {table} VALUES ({', '.join('?' * len(rows[0]))})", rows)
         store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
         store.conn.execute("PRAGMA journal_mode=DELETE")
         store.close()
@@ -292,6 +301,37 @@ def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]]
     keys = {e["key"] for e in episodes}
     orphans = sum(len(t) for k, t in ts.items() if k not in keys)
     return whole, broken, orphans
+
+
+def _whole_trials(tables: dict[str, list[dict[str, Any]]]) -> tuple[set[tuple], int]:
+    """The ``(participant, trial)`` of the study trials whose rows are whole, and the number
+    of trials left out. Whole: the ``trials`` row reads back; ``trial_steps`` has ``t = 0..n``
+    (``n = steps`` for a finished trial), ``trial_forces`` and ``trial_beliefs`` have
+    ``k = 0..m`` for some ``m``, and a finished trial has ``k = 0..pushes-1`` pushes and
+    ``k = 0..cues-1`` cues. An unfinished trial (``study run --resume`` runs it again) needs
+    only gap-free rows."""
+    seq: dict[tuple[str, tuple], list[int]] = defaultdict(list)
+    for table in ("trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs"):
+        col = "t" if table == "trial_steps" else "k"
+        for r in tables[table]:
+            seq[(table, (r["participant"], r["trial"]))].append(r[col])
+    whole: set[tuple] = set()
+    broken = 0
+    for r in tables["trials"]:
+        key = (r["participant"], r["trial"])
+        got = {t: sorted(seq.get((t, key), [])) for t in (
+            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs")}
+        ok = all(v == list(range(len(v))) for v in got.values())
+        if r["status"] == "done":
+            ok = ok and (len(got["trial_steps"]) == (r["steps"] or 0) + 1
+                         and len(got["trial_pushes"]) == r["pushes"]
+                         and len(got["trial_cues"]) == r["cues"]
+                         and bool(got["trial_forces"]) and bool(got["trial_beliefs"]))
+        if ok and key not in whole:
+            whole.add(key)
+        else:
+            broken += 1
+    return whole, broken
 
 
 def check_database(path: str | Path) -> dict[str, Any]:
@@ -397,6 +437,8 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
                                   "databases")
             episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
             steps, steps_lost, exact_s = _read_table(ro, "steps")
+            study = ({t: _read_table(ro, t) for t in STUDY_TABLE_NAMES}
+                     if has_study_tables(ro) else None)
         finally:
             ro.close()
     except sqlite3.DatabaseError as e:
@@ -404,9 +446,21 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
                           ) from None
     whole, broken, orphans = _whole_episodes(episodes, steps)
     kept = [tuple(s.values()) for s in steps if s["key"] in whole]
-    with _new_database(out, whole.values(), kept) as tmp:
+    trials = trial_rows = trials_lost = 0
+    study_rows: dict[str, list[tuple]] = {}
+    if study is not None:
+        good, broken_trials = _whole_trials({t: v[0] for t, v in study.items()})
+        study_rows = {t: [tuple(r.values()) for r in v[0]
+                          if (r["participant"], r["trial"]) in good] for t, v in study.items()}
+        trials, trial_rows = len(good), sum(len(v) for v in study_rows.values())
+        # a trial whose `trials` row did not read back is lost too (its other rows go with it)
+        trials_lost = broken_trials + study["trials"][1]
+        exact_e = exact_e and study["trials"][2]
+    with _new_database(out, whole.values(), kept, study_rows) as tmp:
         os.replace(tmp, out)
-    return {"episodes": len(whole), "steps": len(kept),
+    return {"episodes": len(whole), "steps": len(kept), "trials": trials,
+            "trial_rows": trial_rows, "trials_lost": trials_lost,
+            "study": study is not None,
             "episodes_lost": episodes_lost + len(broken),
             "steps_lost": steps_lost + len(steps) - len(kept), "incomplete": len(broken),
             "unreadable": episodes_lost, "orphans": orphans,

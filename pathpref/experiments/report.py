@@ -378,15 +378,21 @@ def mean_interval(values: list[float], z_level: float = 0.975) -> tuple[float, f
 
 
 def load_trials(db: str | Path) -> list[dict[str, Any]]:
-    """Every finished study trial of ``db`` (none when it has no study tables)."""
+    """Every finished study trial of ``db`` (none when it has no study tables), each with
+    ``push_peak_n``: the mean peak force of its pushes (N; None without a push)."""
     from .trials import has_study_tables, read_rows
 
     with ResultStore(db, create=False) as store:
         try:
             if not has_study_tables(store.conn):
                 return []
-            return read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
+            rows = read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
                              "participant, trial")
+            peaks = {(p, k): v for p, k, v in store.conn.execute(
+                "SELECT participant, trial, avg(peak_n) FROM trial_pushes "
+                "GROUP BY participant, trial")}
+            return [r | {"push_peak_n": peaks.get((r["participant"], r["trial"]))}
+                    for r in rows]
         except sqlite3.DatabaseError as e:
             raise ConfigError(f"cannot read trials from {db}: {e} (the file is damaged)"
                               ) from None
@@ -400,31 +406,82 @@ def condition_label(row: dict[str, Any]) -> str:
     return ", ".join([row["method"], *(f"{k}={v}" for k, v in sorted(labels.items()))])
 
 
-def study_tables(trials: list[dict[str, Any]]) -> str:
-    """Markdown: per participant and per condition, success rate [95% Wilson], and the means
-    [95% t interval] of time (s; a timed-out trial counts its full time), pushes and effort
-    (integral of |F| dt, N s)."""
-    def fmt(v: tuple[float, float, float], digits: int = 1) -> str:
-        m, lo, hi = v
-        if math.isnan(lo):
-            return f"{m:.{digits}f}"
-        return f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+#: fewer values than this get a mean and no interval (a t interval at n = 2 spans
+#: 12.7 standard deviations either side: effort 58.5 [-684.7, 801.7] N s)
+MIN_INTERVAL_N = 3
 
-    def table(title: str, key) -> list[str]:
+
+def range_interval(values: list[float], low: float = 0.0, high: float = math.inf
+                   ) -> tuple[float, float, float]:
+    """Mean and 95% interval of a quantity that lies in ``[low, high]`` (time, pushes and
+    effort: ``[0, inf)``): the Student-t interval (:func:`mean_interval`) clipped to the range,
+    so it never claims an impossible value (no negative effort); with fewer than
+    :data:`MIN_INTERVAL_N` values, no interval ``(nan, nan)`` (shown as ``n < 3``). Clipping
+    keeps the t interval's coverage for every mean inside the range (the dropped part held
+    no possible mean)."""
+    m, lo, hi = mean_interval(values)
+    if len(values) < MIN_INTERVAL_N:
+        return m, float("nan"), float("nan")
+    return m, max(low, lo), min(high, hi)
+
+
+def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One record per participant and per condition (``by``: ``participant`` or
+    ``condition``): trials ``n``; success rate and the share of trials *on route* (no
+    violation of the route's preference), each with its 95% Wilson interval; the means of
+    time (s; a timed-out trial counts its full time), pushes and effort (integral of |F| dt,
+    N s), and of the trials' mean peak push force (N, ``push_peak_n``; over the trials with a
+    push), with :func:`range_interval` (``nan`` when fewer than 3 values)."""
+    out = []
+    for by, key in (("participant", lambda r: r["participant"]),
+                    ("condition", condition_label)):
         groups: dict[str, list[dict]] = defaultdict(list)
         for r in trials:
             groups[key(r)].append(r)
-        lines = [f"**{title}**", "", f"| {title.split()[-1]} | n | success | time (s) | "
-                 "pushes | effort (N s) |", "|---|---|---|---|---|---|"]
         for g, rs in sorted(groups.items()):
+            n = len(rs)
             k = sum(r["success"] for r in rs)
-            lo, hi = wilson(k, len(rs))
-            lines.append(
-                f"| {g} | {len(rs)} | {k / len(rs):.2f} [{lo:.2f}, {hi:.2f}] | "
-                f"{fmt(mean_interval([r['time_s'] for r in rs]))} | "
-                f"{fmt(mean_interval([float(r['pushes']) for r in rs]))} | "
-                f"{fmt(mean_interval([r['effort_ns'] for r in rs]))} |")
-        return lines
+            on = sum((r["violations"] or 0) == 0 for r in rs)
+            rec = {"by": by, "group": g, "n": n, "success_rate": k / n}
+            rec["ci_low"], rec["ci_high"] = wilson(k, n)
+            rec["on_route"] = on / n
+            rec["on_route_low"], rec["on_route_high"] = wilson(on, n)
+            for col in ("time_s", "pushes", "effort_ns", "push_peak_n"):
+                vals = [float(r[col]) for r in rs if r.get(col) is not None]
+                m, lo, hi = range_interval(vals) if vals else (math.nan,) * 3
+                rec[col], rec[f"{col}_low"], rec[f"{col}_high"] = m, lo, hi
+            out.append(rec)
+    return out
 
-    return "\n".join(table("Study trials per participant", lambda r: r["participant"]) + [""]
-                     + table("Study trials per condition", condition_label))
+
+def study_tables(trials: list[dict[str, Any]]) -> str:
+    """Markdown of :func:`study_records`: per participant and per condition, success rate
+    [95% Wilson], the means [95% t interval clipped to the quantity's range; ``n < 3``: none]
+    of time, pushes and effort, the share of trials on route [95% Wilson] and the mean peak
+    push force."""
+    def fmt(m: float, lo: float, hi: float, digits: int = 1) -> str:
+        if math.isnan(m):
+            return "-"
+        if math.isnan(lo):
+            return f"{m:.{digits}f} (n < {MIN_INTERVAL_N})"
+        return f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+    recs = study_records(trials)
+    lines: list[str] = []
+    for by, title in (("participant", "Study trials per participant"),
+                      ("condition", "Study trials per condition")):
+        if lines:
+            lines.append("")
+        lines += [f"**{title}**", "", f"| {by} | n | success | time (s) | pushes | "
+                  "effort (N s) | on route | peak push (N) |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in (r for r in recs if r["by"] == by):
+            lines.append(
+                f"| {r['group']} | {r['n']} | {r['success_rate']:.2f} [{r['ci_low']:.2f}, "
+                f"{r['ci_high']:.2f}] | "
+                + " | ".join(fmt(r[c], r[f"{c}_low"], r[f"{c}_high"])
+                             for c in ("time_s", "pushes", "effort_ns"))
+                + f" | {r['on_route']:.2f} [{r['on_route_low']:.2f}, "
+                f"{r['on_route_high']:.2f}] | "
+                + fmt(r["push_peak_n"], r["push_peak_n_low"], r["push_peak_n_high"]) + " |")
+    return "\n".join(lines)
