@@ -15,7 +15,7 @@ import pytest  # noqa: E402
 
 import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
 from pathpref.episode import EpisodeSpec, Physics, run_episode  # noqa: E402
-from pathpref.episode.physics import HumanModel  # noqa: E402
+from pathpref.episode.physics import QUIET_DEFAULTS, Drive, HumanModel  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 from pathpref.sim.body import scene_for  # noqa: E402
 from pathpref.sim.cue_detector import CueDetector  # noqa: E402
@@ -165,7 +165,10 @@ def test_physics_groups_and_stable_json():
     set), and it parses back to the same value."""
     p = Physics()
     flat = p.flat()
-    assert set(flat) == set(json.loads(p.to_json())) | {"mass_kg", "friction_n"}
+    assert set(flat) == set(json.loads(p.to_json())) | set(QUIET_DEFAULTS)
+    assert Physics(sensor="ideal", base="diffdrive") == Physics.of(sensor="ideal",
+                                                                   base="diffdrive")
+    assert Physics(drive=Drive(v_max=0.5), a_max=0.3).drive == Drive(v_max=0.5, a_max=0.3)
     assert p.drive.kind == flat["base"] == "holonomic" and p.human.gamma_h == 1.5
     assert Physics.from_json(p.to_json()) == p
     heavy = Physics.of(mass_kg=200.0, a_max=0.5)

@@ -65,7 +65,7 @@ from __future__ import annotations
 import json
 import math
 import numbers
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 
 from ..errors import ConfigError
 
@@ -269,16 +269,37 @@ FIELDS: dict[str, tuple[str, str]] = {
     for group, cls in GROUPS.items() for f in fields(cls)}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Physics:
     """The physical parameters of a MuJoCo episode (module docstring): the sensing chain, the
     simulated human and the base's drive. Defaults: realistic sensing, pushes at input steps
     drawn from the literature's distributions, the holonomic base at the limits of a Clearpath
-    Ridgeback (``docs/physics.md``). :meth:`of` builds one from flat field names."""
+    Ridgeback (``docs/physics.md``). Built from the groups, from flat field names
+    (``Physics(sensor="ideal", base="diffdrive")``, :meth:`of`) or both (the flat names then
+    set fields of the groups given)."""
 
     sensing: Sensing = field(default_factory=Sensing)
     human: HumanModel = field(default_factory=HumanModel)
     drive: Drive = field(default_factory=Drive)
+
+    def __init__(self, sensing: Sensing | None = None, human: HumanModel | None = None,
+                 drive: Drive | None = None, **flat) -> None:
+        given = {"sensing": sensing, "human": human, "drive": drive}
+        parts: dict[str, dict] = {name: {} for name in GROUPS}
+        for k, v in flat.items():
+            if k not in FIELDS:
+                raise ConfigError(f"physics has unknown field '{k}'; known: "
+                                  f"{', '.join(sorted(FIELDS))}")
+            group, attr = FIELDS[k]
+            parts[group][attr] = v
+        for name, cls in GROUPS.items():
+            value = given[name]
+            if value is None:
+                value = cls(**parts[name])
+            elif parts[name]:
+                value = replace(value, **parts[name])
+            object.__setattr__(self, name, value)
+        self.__post_init__()
 
     def __post_init__(self) -> None:
         for name, cls in GROUPS.items():
@@ -297,14 +318,7 @@ class Physics:
     def of(cls, **flat) -> Physics:
         """The parameters with the flat fields ``flat`` set (``Physics.of(sensor="ideal",
         base="diffdrive")``); an unknown name is a ConfigError listing the known ones."""
-        parts: dict[str, dict] = {name: {} for name in GROUPS}
-        for k, v in flat.items():
-            if k not in FIELDS:
-                raise ConfigError(f"physics has unknown field '{k}'; known: "
-                                  f"{', '.join(sorted(FIELDS))}")
-            group, attr = FIELDS[k]
-            parts[group][attr] = v
-        return cls(**{name: GROUPS[name](**kw) for name, kw in parts.items()})
+        return cls(**flat)
 
     def flat(self) -> dict:
         """Every field by its flat name (the JSON keys and flags)."""
