@@ -156,6 +156,11 @@ def crash_test(workdir: Path, worker_kills: int = 10, coordinator_kills: int = 3
     assert clean.returncode == 0, err[-2000:]
     total = count(clean_db)
     log(f"clean run: {total} episodes in {time.monotonic() - t:.1f} s")
+    # the timeout must catch only the frozen worker: at least 4x the slowest clean episode
+    # (a loaded machine slows every episode alike)
+    with sqlite3.connect(clean_db) as c:
+        slowest = float(c.execute("SELECT MAX(wall_s) FROM episodes").fetchone()[0] or 0.0)
+    timeout_s = max(timeout_s, 4.0 * slowest)
 
     cmd = sweep_cmd(db, instances, queries, "--episode-timeout", f"{timeout_s:g}")
     t = time.monotonic()

@@ -37,8 +37,8 @@ def child(n: int, which: str) -> None:
     from pathpref.episode import EpisodeSpec, Physics
     from pathpref.episode.runner import run_episode
 
-    physics = {"realistic": Physics(), "legacy": None, "interval": Physics(timing="interval"),
-               "diffdrive": Physics(base="diffdrive")}[which]
+    physics = {"realistic": Physics(), "legacy": None, "interval": Physics.of(timing="interval"),
+               "diffdrive": Physics.of(base="diffdrive")}[which]
     ph = "" if physics is None else physics.to_json()
 
     def spec(i: int, t_max: int) -> EpisodeSpec:

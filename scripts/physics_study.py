@@ -14,13 +14,19 @@ Conditions (every condition runs the same specs: map, method, Delta_T, instance 
   Ridgeback-class base within its limits, still at input steps;
 * ``anytime``: the same with pushes at any time (an interval of Delta_T seconds +-50 %, while
   the base drives, brakes or stands; the move stops on a cue and the robot replans);
-* ``diffdrive``: ``realistic`` on the differential-drive base.
+* ``diffdrive``: ``realistic`` on the differential-drive base;
+* ``guidance``: Bajcsy-style sustained corrections on the ``anytime`` clock: the human holds
+  the handle (log-normal, median 2 s) while the base drives, the base complies (admittance
+  20 kg, 80 N s/m added to its tracking) and the belief is updated online from the force's
+  direction (von Mises likelihood, ``docs/physics.md``); compare with ``anytime`` (taps on the
+  same clock, same instances).
 
 Per condition: success (goal reached and preference followed) with a Wilson 95 % interval, cue
 accuracy (observed sector = the human's intended one, over the pushes given; missed pushes
 count as wrong) with its interval, pushes per episode, decision steps, how many episodes take
 exactly the grid+noise control's cell sequence (the first condition's without it), the mean final
-P(true goal), and wall time per episode. `--conditions strength-ignored strength-used` asks
+P(true goal) and its mean over the episode's steps (how sharp the belief was while it
+mattered), and wall time per episode. `--conditions strength-ignored strength-used` asks
 whether push strength helps the observation model (docs/physics.md).
 """
 
@@ -87,12 +93,13 @@ CONDITIONS = {
     "grid+noise": ("grid", "noise"),
     "mujoco-ideal": ("mujoco", ""),
     "realistic": ("mujoco", Physics().to_json()),
-    "anytime": ("mujoco", Physics(timing="interval").to_json()),
-    "diffdrive": ("mujoco", Physics(base="diffdrive").to_json()),
+    "anytime": ("mujoco", Physics.of(timing="interval").to_json()),
+    "diffdrive": ("mujoco", Physics.of(base="diffdrive").to_json()),
+    "guidance": ("mujoco", Physics.of(timing="guidance").to_json()),
     # does push strength help the observation model? a human who pushes harder when surer
     # (strength_confidence 1), the robot ignoring or using the strength
-    "strength-ignored": ("mujoco", Physics(strength_confidence=1.0).to_json()),
-    "strength-used": ("mujoco", Physics(strength_confidence=1.0, use_strength=True).to_json()),
+    "strength-ignored": ("mujoco", Physics.of(strength_confidence=1.0).to_json()),
+    "strength-used": ("mujoco", Physics.of(strength_confidence=1.0, use_strength=True).to_json()),
 }
 STUDY = ["grid", "grid+noise", "mujoco-ideal", "realistic", "anytime", "diffdrive"]
 
@@ -102,6 +109,7 @@ def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
     sim, physics = CONDITIONS[name]
     world = cached_world(specs[0].map)
     success, hits, pushes, steps, cells, wall, p_goal = [], 0, 0, [], [], [], []
+    p_mean = []
     for base in specs:
         spec = replace(base, sim=sim, physics="" if physics == "noise" else physics)
         body = NoisyGridBody(world, spec, simulator_rng(spec)) if physics == "noise" else \
@@ -112,6 +120,7 @@ def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
         wall.append(time.perf_counter() - t)
         success.append(res.success)
         p_goal.append(res.log[-1].p_true_goal)
+        p_mean.append(float(np.mean([s.p_true_goal for s in res.log])))
         steps.append(res.steps)
         cells.append([(s.x, s.y) for s in res.log])
         if rec.pairs:
@@ -126,6 +135,7 @@ def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
             "pushes": pushes, "pushes_per_episode": pushes / n,
             "steps_mean": float(np.mean(steps)), "wall_s_per_episode": float(np.mean(wall)),
             "p_true_goal_final": float(np.mean(p_goal)),
+            "p_true_goal_mean": float(np.mean(p_mean)),
             "cells": cells}
 
 
@@ -158,14 +168,15 @@ def main() -> None:
     print(f"\n{args.episodes} episodes per condition ({args.map}, {args.method}, "
           f"preset {args.preset}, Delta_T {args.delta_t}, 1000 queries, seed {args.seed})\n")
     print("| condition | success [95% CI] | cue accuracy [95% CI] | pushes/episode | steps | "
-          "final P(true goal) | same path as control | wall s/episode |")
-    print("|---|---|---|---|---|---|---|---|")
+          "final P(true goal) | mean P(true goal) | same path as control | wall s/episode |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name, r in out.items():
         lo, hi = r["success_ci"]
         clo, chi = r["cue_accuracy_ci"]
         print(f"| {name} | {r['success']:.2f} [{lo:.2f}, {hi:.2f}] | {r['cue_accuracy']:.3f} "
               f"[{clo:.3f}, {chi:.3f}] | {r['pushes_per_episode']:.1f} | {r['steps_mean']:.1f} "
-              f"| {r['p_true_goal_final']:.2f} | {r['same_as_control']}/{r['n']} "
+              f"| {r['p_true_goal_final']:.2f} | {r['p_true_goal_mean']:.2f} "
+              f"| {r['same_as_control']}/{r['n']} "
               f"| {r['wall_s_per_episode']:.2f} |")
     if args.out:
         with open(args.out, "w") as f:

@@ -4,13 +4,15 @@ decision per environment step.
 A dm_env environment (dm_control's ``control.Environment``) by the suite's contract: the task
 sets controls in ``before_step`` and the Environment advances the physics (see
 :mod:`.stage`). One environment step is one decision step of the paper and lasts exactly
-``decision_s`` seconds of physics (``control_timestep()``, 2.5 s by default; 4.1 s with
-``physics``, below):
+``decision_s`` seconds of physics (``control_timestep()``; with ``physics`` the one rule of
+every door, :meth:`~pathpref.episode.physics.Physics.step_s`, 3.4 s by default; 2.5 s with the
+legacy physics):
 
 1. *move* (at most ``decision_s`` minus the push window, 0.7 s in the legacy physics, and the
-   controller's 3 s): the agent's action (0..7: N, NE, E, SE, S, SW, W, NW; 8: stay) is a move
-   to the grid neighbour of SPEC 3 (the current cell when the grid move is blocked); the
-   base's tracking controller drives there at physics rate until it settles;
+   drive's move limit, ``Physics.move_limit_s``): the agent's action (0..7: N, NE, E, SE, S,
+   SW, W, NW; 8: stay) is a move to the grid neighbour of SPEC 3 (the current cell when the
+   grid move is blocked); the base's tracking controller drives there at physics rate until
+   it settles;
 2. *push* (when the human's input is due for the next decision, at most the push window): the
    simulated human pushes the handle where the base stopped; the robot's detector, fed only
    by its force sensor, reports the heading and the belief is updated;
@@ -32,12 +34,13 @@ choice (its planner and belief), so the environment runs end to end without an a
 ``physics`` (a :class:`~pathpref.episode.physics.Physics`, a dict of its fields or its JSON;
 None: ``Physics()``, every door's default; ``"legacy"``: the legacy physics)
 builds the base as ``--sim mujoco`` does and goes into every
-episode's spec; its default ``decision_s`` is 4.1 s (the controller's whole 3 s move and the
-longest push with the detector's release). With ``timing`` other than ``decision`` the human
-pushes at any physics step (:class:`~pathpref.sim.pushing_human.PushingHuman`): a cue felt
-while driving ends the move (*move* above; the runner records the step and reads the cue, the
-belief is updated in the next physics step) and the base holds its cell for the rest of the
-step; a cue felt while holding is read at once too; there is no *push* phase then.
+episode's spec; its default ``decision_s`` is ``Physics.step_s()`` (the drive's diagonal move
+with a settle allowance and the longest push with the detector's release). With ``timing``
+other than ``decision`` the human pushes at any physics step
+(:class:`~pathpref.sim.pushing_human.PushingHuman`): a cue felt while driving ends the move
+(*move* above; the runner records the step and reads the cue, the belief is updated in the next
+physics step) and the base holds its cell for the rest of the step; a cue felt while holding is
+read at once too; there is no *push* phase then.
 
 ``map`` is a built-in name, a JSON path, a map dictionary or a
 :class:`~pathpref.geometry.maps.MapSpec`; a map whose arrangement may exceed
@@ -148,16 +151,16 @@ class Navigate(base.Task):
             map=map_name, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
-            sim="mujoco", task=task, physics=PhysicalParameters.coerce(physics))
+            sim="mujoco", robot=task, physics=PhysicalParameters.coerce(physics))
         self.template.validate()
         #: the physical parameters (None: the legacy physics, asked for by name)
-        self.physics = ph = PhysicalParameters.from_json(self.template.physics)
+        self.physics = ph = self.template.physical
         self.scene: Scene = scene_for(self.world, CELL_SIZE, task,
                                       None if ph is None else base_params(ph))
         self.dt = float(self.scene.model.opt.timestep)
         #: the longest a push phase lasts (s): the longest push and the detector's release
         self.push_window_s = (PushProfile().duration_s if ph is None else
-                              ph.duration_max_s) + RELEASE_WINDOW_S
+                              ph.human.duration_max_s) + RELEASE_WINDOW_S
         if decision_s is None:
             decision_s = DECISION_S if ph is None else self.physical_decision_s()
         self.decision_s = check_number("decision_s", decision_s, 1.5, 10.0, integer=False)
@@ -184,17 +187,19 @@ class Navigate(base.Task):
     def move_limit_s(self) -> float:
         """The longest move of a decision step (s): the controller's limit, within what the
         step leaves after the push window."""
-        return min(MOVE_LIMIT_S, self.decision_s - self.push_window_s - 2 * self.dt)
+        limit = MOVE_LIMIT_S if self.physics is None else \
+            self.physics.move_limit_s(CELL_SIZE)
+        return min(limit, self.decision_s - self.push_window_s - 2 * self.dt)
 
     def physical_decision_s(self) -> float:
-        """The default step with physics: a whole move (the controller's limit, as the
-        ``--sim mujoco`` body drives) and the push window, rounded up to 0.1 s."""
-        return math.ceil(10 * (MOVE_LIMIT_S + self.push_window_s + 2 * self.dt) - 1e-9) / 10
+        """The default step with physics: the one rule every door uses,
+        :meth:`~pathpref.episode.physics.Physics.step_s` (a move and the push window)."""
+        return self.physics.step_s(CELL_SIZE)
 
     def make_base(self, data, rng: np.random.Generator) -> MobileBase:
         """The robot's base on the Environment's ``MjData``, built as the ``--sim mujoco``
         body builds it (:func:`~pathpref.sim.body.build_base`) from the task's physics."""
-        return build_base(self.scene, self.template.task, self.physics, rng, data=data)
+        return build_base(self.scene, self.template.robot, self.physics, rng, data=data)
 
     def initialize_episode(self, physics: Physics) -> None:
         """Draw the next episode's instance and run (see module docstring for seeds), place

@@ -106,10 +106,10 @@ class NavigateControl(Navigate):
     def __init__(self, push_period_s: float | None = None, **kwargs: Any):
         super().__init__(**kwargs)
         ph = self.physics
-        self.v_max = TrackingController().v_max if ph is None else ph.v_max
-        if push_period_s is not None and ph is not None and ph.timing != "decision":
+        self.v_max = TrackingController().v_max if ph is None else ph.drive.v_max
+        if push_period_s is not None and ph is not None and ph.human.timing != "decision":
             raise ConfigError(f"push_period_s sets the pushes of physics timing 'decision'; "
-                              f"with timing {ph.timing!r} set physics interval_s")
+                              f"with timing {ph.human.timing!r} set physics interval_s")
         period = self.template.delta_t * self.decision_s if push_period_s is None \
             else push_period_s
         self.push_period_s = check_number("push_period_s", period, 1.0, 1000.0, integer=False)
@@ -126,8 +126,8 @@ class NavigateControl(Navigate):
         if self.physics is None:
             self.command = VelocityCommand(v_max=self.v_max)
             return MobileBase(self.scene, controller=self.command, data=data)
-        self.command = CommandedVelocity(v_max=self.v_max, a_max=self.physics.a_max)
-        return build_base(self.scene, self.template.task, self.physics, rng, data=data,
+        self.command = CommandedVelocity(v_max=self.v_max, a_max=self.physics.drive.a_max)
+        return build_base(self.scene, self.template.robot, self.physics, rng, data=data,
                           controller=self.command)
 
     def initialize_episode(self, physics: Physics) -> None:

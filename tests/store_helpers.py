@@ -13,7 +13,7 @@ BASE = {"map": "simple", "map_hash": "h0", "sim": "grid", "task": "navigate", "r
         "coupling": 1, "fixed": "", "start": "[0, 0]", "goals": "[[1, 1]]", "true_goal": 0,
         "status": "ok", "reason": "", "pref_followed": 1, "inputs": 1, "violations": 0,
         "wall_s": 0.1, "ucb_c": 1.0, "metrics": "{}", "time_budget_ms": 0.0, "human": "map",
-        "back_crossings": 0, "physics": "", "prior": "independent"}
+        "back_crossings": 0, "physics": "", "prior": "independent", "push_rule": ""}
 
 
 def synthetic_db(path: str | Path, cells: dict[tuple[str, int], tuple[int, int]],
@@ -27,11 +27,13 @@ def synthetic_db(path: str | Path, cells: dict[tuple[str, int], tuple[int, int]]
                 key = f"{method}-{dt}-{i:04d}-" + "k" * 40
                 row = {**BASE, "key": key, "method": method, "delta_t": dt, "instance": i,
                        "instance_seed": i, "run_seed": 1000 + i, "success": int(i < k),
-                       "goal_reached": int(i < k), "steps": steps}
+                       "goal_reached": int(i < k), "homotopy_success": int(i < k),
+                       "steps": steps}
                 st.conn.execute(f"INSERT INTO episodes ({', '.join(cols)}) VALUES "
                                 f"({', '.join('?' * len(cols))})", [row[c] for c in cols])
-                st.conn.executemany("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-                                    [(key, t, t, 0, 1, -1, 0.5, 1.0) for t in range(steps + 1)])
+                st.conn.executemany("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                                    [(key, t, t, 0, 1, -1, 0.5, 1.0, int(t == 0))
+                                     for t in range(steps + 1)])
     return Path(path)
 
 

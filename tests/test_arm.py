@@ -28,7 +28,7 @@ def arm(worlds):
 def carry_spec(seed, **kw):
     d = dict(map="simple", method="path_preference", delta_t=3, instance=0, run=0,
              instance_seed=seed_for(seed, 0), run_seed=seed_for(seed, 0, 0), sim="mujoco",
-             task="carry", queries=1000)
+             robot="carry", queries=1000)
     d.update(kw)
     return EpisodeSpec(**d)
 

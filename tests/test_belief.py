@@ -175,3 +175,66 @@ def test_a_goal_row_far_below_the_others_keeps_its_shape(simple):
     w = ind.goal_log_weights()
     want = 1050 * np.log(10) - np.log((128 + deg - 1) / deg)
     assert w[1] - w[0] == pytest.approx(want, rel=1e-9)
+
+
+def brute_direction_posterior(model, observations, kappa):
+    """(G, 256) posterior by enumeration for force directions: each observation ``(s, theta,
+    w)`` multiplies by ``(sum_h exp(kappa (cos(theta - mu_h) - 1)) P(h | s, g, theta_v))^w``."""
+    from pathpref.geometry.grid import ACTION_ANGLES
+
+    w = model.world
+    thetas = np.array(list(itertools.product([0, 1], repeat=w.n_polytopes)))
+    logp = np.zeros((len(model.goals), len(thetas)))
+    for s, angle, weight in observations:
+        v = w.cell_polytope[s]
+        a = np.exp(kappa * (np.cos(angle - ACTION_ANGLES) - 1.0))
+        mix = sum(a[h] * model.likelihood[s, h] for h in range(8))  # (G, K)
+        logp += weight * np.log(mix[:, thetas[:, v]])
+    p = np.exp(logp - logp.max())
+    return p / p.sum(), thetas
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_force_direction_updates_equal_brute_force(simple, seed):
+    """Online updates from sampled force directions (a sustained push: tempered von Mises
+    mixtures) give the posterior that enumeration over every preference gives."""
+    rng = np.random.default_rng(seed)
+    goals = rng.choice(simple.n_cells, size=10, replace=False)
+    model = ObservationModel.build(simple, goals)
+    obs = [(s, float(rng.uniform(-np.pi, np.pi)), float(rng.uniform(0.05, 1.0)))
+           for s, _ in random_observations(simple, model, rng, 20)]
+    belief, goal_only = PreferenceBelief(model), GoalBelief(model)
+    for s, angle, w in obs:
+        belief.update_direction(s, angle, 3.0, w)
+        goal_only.update_direction(s, angle, 3.0, w)
+    post, thetas = brute_direction_posterior(model, obs, 3.0)
+    assert np.allclose(belief.goal_marginal(), post.sum(axis=1), atol=1e-10)
+    for v in range(simple.n_polytopes):
+        ref = np.stack([post[:, thetas[:, v] == k].sum(axis=1) for k in range(2)], axis=1)
+        assert np.allclose(belief.joint(v), ref, atol=1e-10)
+    # the goal-only belief: the same mixture of the unconstrained likelihood
+    from pathpref.geometry.grid import ACTION_ANGLES
+
+    lw = np.zeros(len(goals))
+    for s, angle, w in obs:
+        a = np.exp(3.0 * (np.cos(angle - ACTION_ANGLES) - 1.0))
+        lw += w * np.log(a @ model.goal_likelihood[s])
+    ref = np.exp(lw - lw.max())
+    assert np.allclose(goal_only.goal_marginal(), ref / ref.sum(), atol=1e-10)
+
+
+def test_force_direction_limits(simple):
+    """A direction with a sharp spread along a heading's axis is that heading's update; no
+    spread (kappa 0) is no evidence (the model's headings sum to one)."""
+    from pathpref.geometry.grid import ACTION_ANGLES
+
+    rng = np.random.default_rng(3)
+    model = ObservationModel.build(simple, rng.choice(simple.n_cells, size=10, replace=False))
+    obs = random_observations(simple, model, rng, 12)
+    sharp, plain, none = (PreferenceBelief(model) for _ in range(3))
+    for s, h in obs:
+        sharp.update_direction(s, float(ACTION_ANGLES[h]), 5000.0)
+        plain.update(s, h)
+        none.update_direction(s, float(ACTION_ANGLES[h]), 0.0)
+    assert np.allclose(sharp.goal_marginal(), plain.goal_marginal(), rtol=1e-9, atol=1e-12)
+    assert np.allclose(none.goal_marginal(), 0.1, atol=1e-12)

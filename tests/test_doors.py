@@ -18,7 +18,7 @@ from pathpref.experiments.store import ResultStore, row_spec  # noqa: E402
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset  # noqa: E402
 
 SETTINGS = ("preset", "queries", "t_max", "physics", "coupling", "prior", "ucb_c",
-            "normalize", "human", "time_budget_ms", "sim", "task")
+            "normalize", "human", "time_budget_ms", "sim", "robot")
 
 
 def _settings(spec: EpisodeSpec) -> dict:

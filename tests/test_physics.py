@@ -3,7 +3,10 @@ two cues, the human who pushes like a person, the physical parameters of an epis
 
 from __future__ import annotations
 
+import json
+import math
 import os
+from dataclasses import replace
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -12,6 +15,7 @@ import pytest  # noqa: E402
 
 import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
 from pathpref.episode import EpisodeSpec, Physics, run_episode  # noqa: E402
+from pathpref.episode.physics import QUIET_DEFAULTS, Drive, HumanModel  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 from pathpref.sim.body import scene_for  # noqa: E402
 from pathpref.sim.cue_detector import CueDetector  # noqa: E402
@@ -96,7 +100,7 @@ def test_push_while_driving_stops_the_move_and_yields(simple):
 
 
 def test_pushes_at_any_time_reach_the_belief():
-    ph = Physics(timing="interval", sensor="ideal").to_json()
+    ph = Physics.of(timing="interval", sensor="ideal").to_json()
     spec = EpisodeSpec.single("simple", "path_preference", 3, seed=3, instance=1,
                               sim="mujoco", physics=ph)
     res = run_episode(spec)
@@ -123,7 +127,7 @@ def test_legacy_spec_key_has_no_physics_field():
 def test_push_distributions():
     """Log-normal strength and duration: the medians are the settings (to sampling error of
     2000 draws), the clips hold."""
-    p = Physics()
+    p = Physics().human
     rng = np.random.default_rng(0)
     prof = [sample_profile(p, rng) for _ in range(2000)]
     peaks = np.array([q.peak_n for q in prof])
@@ -136,26 +140,114 @@ def test_push_distributions():
         pytest.approx(16 * 20 * 0.25**2 * 0.75**2)
 
 
-@pytest.mark.parametrize("field,value,msg", [
-    ("sensor_noise_n", -2.0, r"sensor_noise_n \(--sensor-noise-n\) must be a number in 0..50"),
-    ("base", "tank", r"base \(--base\) must be one of holonomic, diffdrive"),
-    ("force_limit_n", 5.0, "force_limit_n must be above the detector's on_n"),
-    ("timing", "sometimes", r"timing \(--timing\) must be one of decision, interval"),
+@pytest.mark.parametrize("given,msg", [
+    ({"sensor_noise_n": -2.0}, r"sensor_noise_n \(--sensor-noise-n\) must be a number in 0..50"),
+    ({"base": "tank"}, r"base \(--base\) must be one of holonomic, diffdrive"),
+    ({"force_limit_n": 5.0, "mass_kg": 20.0, "a_max": 0.2},
+     "force_limit_n must be above the detector's on_n"),
+    ({"timing": "sometimes"}, r"timing \(--timing\) must be one of decision, interval"),
+    ({"v_max": 3.0}, r"v_max \(--v-max\) must be a number in 0.05..1.5"),
+    ({"nonsense": 1}, "unknown field 'nonsense'"),
+    # the drive cannot deliver the planned acceleration: 120 N on 135 kg is 0.889 m/s^2
+    ({"a_max": 10.0}, r"a_max \(--a-max\) must be at most 0.889 m/s\^2"),
+    ({"a_max": 0.8, "friction_n": 30.0}, r"at most 0.667 m/s\^2"),  # (120 - 30) / 135
+    ({"a_max": 0.8, "mass_kg": 200.0}, r"at most 0.6 m/s\^2"),
+    ({"friction_n": 130.0}, "friction_n must be below force_limit_n"),
 ])
-def test_bad_physics(field, value, msg):
+def test_bad_physics(given, msg):
     with pytest.raises(ConfigError, match=msg):
-        Physics(**{field: value})
+        Physics.of(**given)
 
 
-def test_push_longer_than_the_episode():
-    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, sim="mujoco", t_max=2,
-                              physics=Physics(duration_max_s=3.0, duration_s=2.0).to_json())
-    with pytest.raises(ConfigError, match="duration_max_s must be below the episode"):
-        spec.validate()
+def test_physics_groups_and_stable_json():
+    """The three typed groups hold every flat field once; the canonical JSON of the defaults
+    is the one stored keys hold (the fields added later, mass and friction, appear only when
+    set), and it parses back to the same value."""
+    p = Physics()
+    flat = p.flat()
+    assert set(flat) == set(json.loads(p.to_json())) | set(QUIET_DEFAULTS)
+    assert Physics(sensor="ideal", base="diffdrive") == Physics.of(sensor="ideal",
+                                                                   base="diffdrive")
+    assert Physics(drive=Drive(v_max=0.5), a_max=0.3).drive == Drive(v_max=0.5, a_max=0.3)
+    assert p.drive.kind == flat["base"] == "holonomic" and p.human.gamma_h == 1.5
+    assert Physics.from_json(p.to_json()) == p
+    heavy = Physics.of(mass_kg=200.0, a_max=0.5)
+    assert json.loads(heavy.to_json())["mass_kg"] == 200.0
+    assert Physics.from_json(heavy.to_json()) == heavy
+
+
+def test_grid_episodes_take_the_human_model():
+    """A grid episode's human has a rationality of its own (``gamma_h``): the spec keeps
+    only the human's settings, the default human leaves the key as before, and physical
+    settings are refused with the fix."""
+    base = EpisodeSpec.single("simple", "path_preference", 5, seed=1)
+    assert base.physics == "" and base.human_model.gamma_h == 1.5 and base.physical is None
+    same = EpisodeSpec.single("simple", "path_preference", 5, seed=1,
+                              physics={"gamma_h": 1.5})
+    assert same.physics == "" and same.key() == base.key()
+    wild = EpisodeSpec.single("simple", "path_preference", 5, seed=1,
+                              physics={"gamma_h": 0.2})
+    wild.validate()
+    assert wild.human_model.gamma_h == 0.2 and wild.key() != base.key()
+    assert set(json.loads(wild.physics)) == set(json.loads(HumanModel().to_json()))
+    with pytest.raises(ConfigError, match=r"sensor \(--sensor\) needs a physical body"):
+        EpisodeSpec.single("simple", "path_preference", 5, seed=1,
+                           physics={"sensor": "ideal"}).validate()
+    # the human's rationality reaches the grid human: P(h) ~ exp(-gamma Delta_h) with Delta
+    # at most a few cells, so at gamma 0.01 every heading is within a factor exp(0.01 * 8)
+    # of any other; the default human (1.5) prefers some by far more
+    from pathpref.episode.runner import EpisodeRunner
+
+    def spread(spec):
+        r = EpisodeRunner(spec)
+        q = r.human.probs(r.cell)
+        return q.max() / q[q > 0].min()
+
+    assert spread(replace(wild, physics=HumanModel(gamma_h=0.01).to_json())) < math.exp(0.08)
+    assert spread(base) > 2.0
+
+
+@pytest.mark.parametrize("given,move,step", [
+    # 2 sqrt(d / a), d = 0.5 sqrt(2): the default drive never reaches v_max within a cell
+    ({}, 2 * math.sqrt(0.5 * math.sqrt(2) / 0.8), 3.4),          # 1.880 + 0.5 + 0.6 + 0.4
+    ({"v_max": 0.5, "a_max": 0.3}, 2 * math.sqrt(0.5 * math.sqrt(2) / 0.3), 4.6),  # 3.070
+    # v^2 / a = 0.1125 < d: cruise at v, d / v + v / a = 2.357 + 0.375
+    ({"v_max": 0.3}, 0.5 * math.sqrt(2) / 0.3 + 0.3 / 0.8, 4.3),
+    ({"duration_max_s": 3.0, "duration_s": 2.0}, 2 * math.sqrt(0.5 * math.sqrt(2) / 0.8), 5.8),
+])
+def test_one_rule_for_the_decision_step(given, move, step):
+    """The step every door uses (``Physics.step_s``): the drive's diagonal move, the settle
+    allowance and the longest push with its release window, rounded up to 0.1 s; the move
+    limit is the step less the push window."""
+    p = Physics.of(**given)
+    assert p.move_s() == pytest.approx(move, rel=1e-12)
+    assert p.step_s() == pytest.approx(step, abs=1e-12)
+    assert p.move_limit_s() == pytest.approx(step - p.human.duration_max_s - 0.4, abs=1e-12)
+
+
+def test_a_slow_drive_gets_the_time_its_move_needs():
+    """A 0.5 m/s, 0.3 m/s^2 drive needs 3.07 s for a diagonal cell: its move limit (3.6 s,
+    the one rule) lets it settle on the target (the fixed 3 s limit cut it short)."""
+    from pathpref.episode.cache import cached_world
+    from pathpref.sim.body import MujocoBody
+
+    spec = EpisodeSpec.single("simple", "compliant", 5, sim="mujoco",
+                              physics=Physics.of(v_max=0.5, a_max=0.3, sensor="ideal"))
+    world = cached_world("simple")
+    body = MujocoBody(world, spec, np.random.default_rng(0))
+    where = {tuple(c): i for i, c in enumerate(world.cells.tolist())}
+    start, target = next((i, where[(x + 1, y + 1)]) for (x, y), i in where.items()
+                         if (x + 1, y + 1) in where)
+    body.reset(start)
+    assert body.base.move_to(target) == target
+    took = float(body.base.data.time)
+    centre = body.base.scene.cell_centre(target)
+    assert np.hypot(*(body.base.position - centre)) < 0.02  # settled (tol_m)
+    assert 3.0 < took < spec.physical.move_limit_s()
 
 
 def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
-    """The saved schema-3 sweep upgrades to schema 4 in place: same keys, ``physics`` empty
+    """The saved schema-3 sweep upgrades to schema 5 in place: same keys, ``physics`` empty
     (NULL: the legacy physics, as :func:`row_spec` reads it)."""
     import shutil
     import sqlite3
@@ -167,7 +259,7 @@ def test_schema3_database_upgrades_with_legacy_physics(tmp_path):
     shutil.copy("tests/data/saved_sweep.sqlite", db)
     old_keys = {r[0] for r in sqlite3.connect(db).execute("SELECT key FROM episodes")}
     out = upgrade_database(db)
-    assert (out["from"], out["to"], out["merged"]) == (3, 4, 0)
+    assert (out["from"], out["to"], out["merged"]) == (3, 5, 0)
     with ResultStore(db) as st:
         rows = st.episodes()
     assert {r["key"] for r in rows} == old_keys and {r["physics"] for r in rows} == {None}
@@ -238,9 +330,13 @@ def test_tip_force_of_the_arm_on_base(simple):
     (["--sim", "mujoco", "--sensor-noise-n", "-2"], "sensor_noise_n (--sensor-noise-n) must be "
                                                      "a number in 0..50"),
     (["--sim", "mujoco", "--base", "tank"], "argument --base: invalid choice: 'tank'"),
-    (["--sim", "mujoco", "--force-limit-n", "5"], "force_limit_n must be above the detector"),
-    (["--sim", "mujoco", "--duration-max-s", "5", "--duration-s", "4", "--t-max", "3"],
-     "duration_max_s must be below the episode's length"),
+    (["--sim", "mujoco", "--force-limit-n", "5", "--mass-kg", "20", "--a-max", "0.2"],
+     "force_limit_n must be above the detector"),
+    (["--sim", "mujoco", "--v-max", "3", "--a-max", "10"], "v_max (--v-max) must be a number"),
+    (["--sim", "mujoco", "--a-max", "10"], "a_max (--a-max) must be at most 0.889"),
+    (["--sim", "grid", "--sensor", "ideal"], "--sensor is a physical parameter: it needs --sim"),
+    (["--sim", "mujoco", "--robot", "carry", "--base", "diffdrive"],
+     "physics base diffdrive runs the navigate task only"),
     (["--sensor", "ideal"], "--sensor is a physical parameter: it needs --sim mujoco"),
     (["--sim", "mujoco", "--physics", "legacy", "--timing", "rate"], "--timing is a physical"),
     (["--sim", "mujoco", "--task", "carry", "--base", "diffdrive"], "diffdrive runs the navigate"),
@@ -264,7 +360,8 @@ def test_physical_parameters_are_stored_with_every_row(tmp_path):
     with ResultStore(db) as st:
         (row,) = st.episodes()
     ph = Physics.from_json(row["physics"])
-    assert (ph.timing, ph.sensor_noise_n, ph.base, ph.gamma_h, ph.sensor) == \
+    assert (ph.human.timing, ph.sensing.sensor_noise_n, ph.drive.kind, ph.human.gamma_h,
+            ph.sensing.sensor) == \
         ("interval", 1.5, "diffdrive", 2.0, "realistic")
     assert run_episode(row_spec(row)).spec.key() == row["key"]
 
@@ -302,8 +399,8 @@ def test_corrective_human_reacts_to_wrong_moves_and_withholds_from_a_failing_rob
     from pathpref.sim.pushing_human import PushingHuman
 
     probs = np.array([0.6, 0.1, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05])
-    ph = Physics(timing="corrective", p_correct=1.0, p_needless=0.0, reaction_s=0.4)
-    human = PushingHuman(ph, np.random.default_rng(0), 5, lambda c: 0, lambda c: probs)
+    ph = Physics.of(timing="corrective", p_correct=1.0, p_needless=0.0, reaction_s=0.4)
+    human = PushingHuman(ph.human, np.random.default_rng(0), 5, lambda c: 0, lambda c: probs)
     base = SimpleNamespace(data=SimpleNamespace(time=10.0), pre_substep=[], cell=0, pushes=[])
     human.attach(base)
     human.robot_moves(0, 0)  # right: nothing (p_needless 0)
@@ -330,8 +427,8 @@ def test_push_timing_not_locked_to_decisions(timing):
 
     from pathpref.sim.pushing_human import PushingHuman
 
-    ph = Physics(timing=timing, interval_s=2.0, jitter=0.5, reaction_s=0.3)
-    human = PushingHuman(ph, np.random.default_rng(1), 5, lambda c: 0)
+    ph = Physics.of(timing=timing, interval_s=2.0, jitter=0.5, reaction_s=0.3)
+    human = PushingHuman(ph.human, np.random.default_rng(1), 5, lambda c: 0)
     base = SimpleNamespace(data=SimpleNamespace(time=0.0), pre_substep=[], cell=0, pushes=[])
     human.attach(base)
     assert human.next_t == pytest.approx(0.3)
@@ -346,3 +443,85 @@ def test_push_timing_not_locked_to_decisions(timing):
         assert gaps.min() >= 1.0 - 1e-9 and gaps.max() <= 3.0 + 1e-9
     else:
         assert abs(gaps.std() - 2.0) < 0.15 and gaps.min() < 0.1
+
+
+def test_grid_gamma_h_from_the_command_line_is_stored_and_reported(tmp_path, capsys):
+    """``--gamma-h`` on a grid sweep: stored with the row (the human's JSON), replayed with
+    the same key, and reported as its own cell (never mixed with the default human)."""
+    from pathpref.apps.cli import main
+    from pathpref.experiments.store import ResultStore, row_spec
+
+    db = tmp_path / "g.sqlite"
+    common = ["evaluate", "--db", str(db), "--instances", "1", "--runs", "1", "--delta-t", "5",
+              "--methods", "compliant", "--t-max", "6", "--no-progress", "--workers", "1"]
+    assert main(common + ["--gamma-h", "0.5"]) == 0
+    assert main(common) == 0
+    with ResultStore(db) as st:
+        rows = st.episodes()
+    humans = sorted(HumanModel().to_json() if not r["physics"] else r["physics"] for r in rows)
+    assert [json.loads(h)["gamma_h"] for h in humans] == [0.5, 1.5]
+    for r in rows:
+        assert run_episode(row_spec(r)).spec.key() == r["key"]
+    capsys.readouterr()
+    assert main(["report", str(db), "--csv", str(tmp_path / "g.csv")]) == 0
+    out = capsys.readouterr().out
+    assert "human model gamma_h=0.5" in out
+
+
+def _pushed_east(guidance: bool) -> float:
+    """How far a standing base goes east under a 20 N push held for 2 s (1.5 s after it)."""
+    from pathpref.episode.cache import cached_world
+
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world))
+    if guidance:
+        base.enable_guidance(20.0, 80.0)
+    else:
+        base.enable_pushes_any_time(80.0)
+    base.reset(world.cell((2, 2)))
+    x0 = float(base.position[0])
+    base.pushes.append(HumanPush(0.0, float(base.data.time),
+                                 PushProfile(peak_n=20.0, duration_s=2.0, noise_deg=0.0,
+                                             shape="plateau"), 2))
+    base.decision.hold(3.5, until_cue=False).run()
+    return float(base.position[0]) - x0
+
+
+def test_guidance_deforms_the_motion_and_keeps_it():
+    """Guidance (Bajcsy-style): the admittance v = F / b = 20 / 80 = 0.25 m/s carries the
+    base's target, so a 2 s push (0.2 s ramps: 1.8 s at full force) moves the base about
+    0.25 m/s x 1.8 s = 0.45 m and it stays there; the tap protocol's yielding base springs
+    back to where it stood (its admittance has a 400 N/m spring to its anchor)."""
+    guided, tapped = _pushed_east(True), _pushed_east(False)
+    assert 0.3 < guided < 0.6
+    assert abs(tapped) < 0.05
+
+
+def test_guidance_reads_a_sustained_push_while_it_lasts():
+    """A guidance episode: partial records reach the runner while a push lasts, carry at
+    most GUIDANCE_MAX_EVIDENCE per cue, and are not cues (the cue count is the body's)."""
+    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
+    from pathpref.episode.runner import EpisodeRunner
+
+    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=1, sim="mujoco", queries=50,
+                              t_max=8, physics=Physics.of(timing="guidance"))
+    runner = EpisodeRunner(spec)
+    seen = []
+    door = runner.body.base.listener
+
+    def listen(felt):
+        seen.append(felt)
+        door(felt)
+
+    runner.body.base.listener = listen
+    while not runner.done:
+        runner.step()
+    cues = [f for f in seen if not f.partial]
+    partial = [f for f in seen if f.partial]
+    assert len(cues) >= 1 and len(partial) >= 5 * len(cues)
+    assert all(f.evidence is not None and f.evidence[1] >= 0 for f in seen)
+    total = sum(f.evidence[1] for f in seen)
+    assert total <= GUIDANCE_MAX_EVIDENCE * len(cues) + 1e-9
+    assert runner.result.metrics["cues_felt"] == len(cues)
+    with pytest.raises(ConfigError, match="timing guidance needs base holonomic"):
+        Physics.of(timing="guidance", base="diffdrive")

@@ -121,7 +121,7 @@ def test_cells_never_mix_physics_human_or_prior():
     from pathpref.episode import Physics
     from pathpref.experiments.report import physical_tables, success_table
 
-    noisy = Physics(sensor_noise_n=50.0).to_json()
+    noisy = Physics.of(sensor_noise_n=50.0).to_json()
     rows = []
     for i in range(6):
         for phys, wins, missed in ((Physics().to_json(), 5, 0), (noisy, 2, 3)):
@@ -169,7 +169,7 @@ def test_physical_episodes_count_missed_pushes_and_collisions():
     from pathpref.sim.scene import build_scene
 
     out = {}
-    for name, phys in (("default", Physics()), ("noisy", Physics(sensor_noise_n=50.0))):
+    for name, phys in (("default", Physics()), ("noisy", Physics.of(sensor_noise_n=50.0))):
         spec = EpisodeSpec.single("simple", "compliant", 1, sim="mujoco", queries=50,
                                   t_max=6, physics=phys.to_json(), seed=3)
         out[name] = run_episode(spec).metrics
@@ -186,4 +186,12 @@ def test_physical_episodes_count_missed_pushes_and_collisions():
         base.target = np.array(target)
         for _ in range(1500):
             base.substep()
-    assert base.physical_metrics()["collisions"] == 2
+    m = base.physical_metrics()
+    assert m["collisions"] == 2
+    # contact safety: the legacy base tracks at its 0.8 m/s limit into the wall, so it meets
+    # the wall at no more than that and at a good part of it; the contact is resolved with
+    # a few millimetres' penetration at most (MuJoCo's soft contact) and a normal force
+    # between the drive's push and its 120 N limit plus the impact's
+    assert 0.3 < m["contact_impact_speed"] <= 0.8 + 1e-6
+    assert 0.0 < m["contact_penetration_mm"] < 10.0
+    assert 10.0 < m["contact_peak_force_n"] < 5000.0

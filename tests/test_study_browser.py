@@ -59,14 +59,17 @@ def test_other_hosts_need_the_token():
 
         with pytest.raises(InvalidStatus, match="403"):
             connect(f"ws://127.0.0.1:{front.port}/ws")
-        with connect(f"ws://127.0.0.1:{front.port}/ws?token={front.token}") as ws:
+        with connect(f"ws://127.0.0.1:{front.port}/ws?token={front.token}",
+                     origin=f"http://127.0.0.1:{front.port}") as ws:
             ws.send('{"type": "push", "fx": 5, "fy": 0}')
             ws.send('{"type": "release"}')
     finally:
         front.close()
     loop = BrowserFrontEnd(port=0)
     try:
-        assert loop.token is None and _get(f"http://127.0.0.1:{loop.port}/")[0] == 200
+        # bound to loopback too: the token is required (another site's page, a stale tab)
+        assert loop.token and _get(f"http://127.0.0.1:{loop.port}/")[0] == 403
+        assert _get(f"http://127.0.0.1:{loop.port}/?token={loop.token}")[0] == 200
     finally:
         loop.close()
 
@@ -74,22 +77,24 @@ def test_other_hosts_need_the_token():
 def test_malformed_and_oversized_messages_are_ignored(caplog):
     from websockets.sync.client import connect
 
-    front = BrowserFrontEnd(port=0)
+    front = BrowserFrontEnd(port=0, clock=lambda: 0.0)  # a still clock: no dead man here
     try:
-        url = f"ws://127.0.0.1:{front.port}/ws"
-        with connect(url) as ws:
+        url = f"ws://127.0.0.1:{front.port}/ws?token={front.token}"
+        origin = f"http://127.0.0.1:{front.port}"
+        with connect(url, origin=origin) as ws:
             for bad in ("{not json", "[]", '{"type": "push", "fx": 1e400, "fy": 0}',
                         json.dumps({"type": "push", "fx": 1, "fy": 1, "pad": "x" * 400})):
                 ws.send(bad)
             ws.send('{"type": "push", "fx": 20, "fy": -10}')
             assert wait_for(lambda: front.controls.force().tolist() == [20.0, -10.0])
             assert front.controls.ignored == 4
-        with connect(url, max_size=None) as ws:  # a frame over 64 KiB closes that connection
+        # a frame over 64 KiB closes that connection
+        with connect(url, origin=origin, max_size=None) as ws:
             ws.send("x" * 100_000)
             with pytest.raises(Exception):  # noqa: B017 - closed with 1009, whatever the type
                 for _ in range(3):
                     ws.recv(timeout=120)
-        with connect(url) as ws:  # the session goes on: a new connection works
+        with connect(url, origin=origin) as ws:  # the session goes on: a new connection works
             ws.send('{"type": "push", "fx": 0, "fy": 30}')
             assert wait_for(lambda: front.controls.force().tolist() == [0.0, 30.0])
         # the page closed mid-drag: the push ends with it
@@ -209,3 +214,89 @@ def test_browser_drag_end_to_end(tmp_path):
     assert _colour_pixels(img, (0x3C, 0x3C, 0x46)) > 5000  # the table (obstacle) and walls
     assert _colour_pixels(img, (0x1E, 0x6E, 0xDC)) > 500  # the robot
     assert _colour_pixels(img, (0xE0, 0x21, 0x8A)) > 200  # the goal ring
+
+
+FAKE_PAD = """
+window.fakeAxes = [0.02, -0.01];
+navigator.getGamepads = () => [{ index: 0, id: "fake pad", connected: true,
+                                 axes: window.fakeAxes, buttons: [] }];
+"""
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium not found (make install puts it there "
+                    "with apt-get install chromium)")
+def test_browser_gamepad_calibration_pushes_and_questionnaire(tmp_path):
+    """A gamepad in the page (the Gamepad API, faked in the page: Chromium headless has no
+    device): the calibration step (rest, then full reach) is sent and recorded for the
+    participant, and stick pushes west and north reach the database as cues in those
+    directions with the force of the stated rule: 0.8 of the reach gives
+    60 * (0.8 - 0.15) / 0.85 = 45.882 N. The study asks the NASA-TLX after the trial: the
+    answers given in the page are recorded with the trial's position and name."""
+    playwright = pytest.importorskip("playwright.sync_api")
+    study = tmp_path / "one.json"
+    study.write_text(json.dumps({"questionnaire": "nasa-tlx", "trials": [{
+        "name": "left", "map": "simple", "start": [5, 2], "goal": [5, 9],
+        "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [2, 2], [2, 9], [5, 9]],
+        "time_limit_s": 8, "queries": 100}]}))
+    answers = {"mental": 40, "physical": 65, "temporal": 20, "performance": 15, "effort": 55,
+               "frustration": 5}
+    db = tmp_path / "g.sqlite"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pathpref", "study", "run", str(study), "--participant", "p",
+         "--db", str(db), "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+        text=True, env={**os.environ, "MUJOCO_GL": "egl"})
+    rest, reach = (0.02, -0.01), 0.9
+    try:
+        url = re.search(r"(http://\S+)", proc.stdout.readline()).group(1)
+        with playwright.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            page = browser.new_page(viewport={"width": 1100, "height": 700})
+            page.add_init_script(FAKE_PAD)
+            page.goto(url)
+            page.wait_for_function("window.study.scene !== null && window.study.role === "
+                                   "'driver'", timeout=EVENT_MS)
+            page.wait_for_selector("#calibrate", state="visible", timeout=EVENT_MS)
+            page.click("#calibrate")
+            page.wait_for_function("window.study.pad.step === 'reach'", timeout=EVENT_MS)
+            page.evaluate(f"window.fakeAxes[0] = {rest[0] + reach}")  # full reach, east
+            page.wait_for_function("window.study.pad.cal !== null", timeout=EVENT_MS)
+            page.evaluate(f"window.fakeAxes[0] = {rest[0]}")
+            page.click("#start")
+            page.wait_for_function("window.study.scene.status === 'running' && "
+                                   "window.study.state !== null", timeout=EVENT_MS)
+            for dx, dy in [(-1, 0), (0, 1)]:
+                cues = page.evaluate("window.study.state.cues")
+                # 0.8 of the reach; the browser's axis 1 points down (north is negative)
+                page.evaluate(f"window.fakeAxes[0] = {rest[0] + 0.8 * reach * dx}; "
+                              f"window.fakeAxes[1] = {rest[1] - 0.8 * reach * dy}")
+                _wait_sim(page, 0.4)
+                page.evaluate(f"window.fakeAxes[0] = {rest[0]}; window.fakeAxes[1] = {rest[1]}")
+                page.wait_for_function(f"window.study.state.cues > {cues}", timeout=EVENT_MS,
+                                       polling="raf")
+                _wait_sim(page, 1.0)
+            page.wait_for_function("window.study.scene.status === 'finished'", timeout=EVENT_MS)
+            # the questionnaire after the trial: the session ends only once it is answered
+            page.wait_for_selector("#tlx", state="visible", timeout=EVENT_MS)
+            assert proc.poll() is None
+            for k, v in answers.items():
+                page.evaluate(f"document.getElementById('tlx-{k}').value = {v}")
+            page.click("#tlxsubmit")
+            out = proc.communicate(timeout=EVENT_MS / 1000)[0]
+            browser.close()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    tlx = [json.loads(line) for line in Path(f"{db}.p.tlx.jsonl").read_text().splitlines()]
+    assert [(t["trial"], t["name"], t["scores"]) for t in tlx] == [(1, "left", answers)]
+    assert tlx[0]["raw_tlx"] == pytest.approx(200 / 6, abs=1e-12)  # (40+65+20+15+55+5) / 6
+    c = sqlite3.connect(db)
+    assert [r[0] for r in c.execute("SELECT heading FROM trial_cues ORDER BY k")] == [
+        HEADING[(-1, 0)], HEADING[(0, 1)]]
+    peaks = [r[0] for r in c.execute("SELECT peak_n FROM trial_pushes ORDER BY k")]
+    assert peaks == pytest.approx([60 * 0.65 / 0.85] * 2, rel=1e-6)
+    cal = [json.loads(line) for line in Path(f"{db}.p.calibration.jsonl").read_text()
+           .splitlines()]
+    assert len(cal) == 1 and cal[0]["trial"] == 1 and cal[0]["device"] == "fake pad"
+    assert cal[0]["rest"] == pytest.approx(list(rest), abs=1e-12)
+    assert cal[0]["reach"] == pytest.approx(reach, abs=1e-12)

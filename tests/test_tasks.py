@@ -58,7 +58,7 @@ class CarryConformance(test_utils.EnvironmentTestMixin, unittest.TestCase):
 
 @pytest.mark.parametrize("name,kwargs,sub", [
     ("navigate", {"delta_t": 1, "t_max": 4, "physics": "legacy"}, 1250),  # 2.5 s steps
-    ("navigate", {"delta_t": 1, "t_max": 4}, 2050),  # the default physics: 4.1 s steps
+    ("navigate", {"delta_t": 1, "t_max": 4}, 1700),  # the default physics: Physics.step_s 3.4 s
     ("navigate_control", {"delta_t": 1}, 10),
 ])
 def test_time_is_honest(name, kwargs, sub):
@@ -300,7 +300,7 @@ def test_gymnasium_env_passes_check_env(env_id):
                    queries=20, t_max=4, render_mode="rgb_array", width=64, height=48,
                    time_limit=1.0 if control else None)
     if control:  # the default physics' base: v_max
-        v = Physics().v_max
+        v = Physics().drive.v_max
         assert env.action_space == gym.spaces.Box(-v, v, (2,), np.float32)
     else:
         assert env.action_space == gym.spaces.Discrete(9)

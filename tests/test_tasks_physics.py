@@ -75,11 +75,11 @@ def test_realistic_sensing_noisy_at_rest_and_cue_detected():
     passed = {"sensor": "realistic", "noise_deg": 0}
     env = load("navigate", delta_t=4, t_max=5, seed=2, physics=passed, **SMALL)
     legacy = load("navigate", delta_t=4, t_max=5, seed=2, physics="legacy", **SMALL)
-    assert env.task.template.physics == Physics(**passed).to_json()
+    assert env.task.template.physics == Physics.of(**passed).to_json()
     ts = env.reset()
     legacy.reset()
     b = env.task.base
-    assert env.task.runner.spec.physics == Physics(**passed).to_json()  # stored with the row
+    assert env.task.runner.spec.physics == Physics.of(**passed).to_json()  # stored with the row
     assert isinstance(b.detector, FilteredCueDetector)
     assert np.hypot(*b.faulty.bias[:2]) == pytest.approx(6.0, abs=0.05)
     push = env.task.body.last_push
@@ -135,7 +135,7 @@ def test_bad_physics_is_one_line_naming_the_field(name, physics, extra, msg):
 def test_physics_forms_store_the_same_json():
     """A ``Physics``, a dict of its fields and its JSON give the same stored string; "" and
     "legacy" the legacy physics; nothing given, the defaults (as every door's)."""
-    ph = Physics(sensor="ft300s", base="diffdrive", peak_n=30.0)
+    ph = Physics.of(sensor="ft300s", base="diffdrive", peak_n=30.0)
     given = [ph, {"sensor": "ft300s", "base": "diffdrive", "peak_n": 30.0}, ph.to_json()]
     assert {load("navigate", physics=g, **SMALL).task.template.physics
             for g in given} == {ph.to_json()}
@@ -194,7 +194,7 @@ def test_control_rate_physical_base_and_gym_pass_physics():
     g = gym.make("pathpref/NavigateControl-v0", physics={"v_max": 0.5}, time_limit=0.2,
                  **SMALL)
     assert g.action_space == gym.spaces.Box(-0.5, 0.5, (2,), np.float32)
-    assert g.unwrapped._env.task.template.physics == Physics(v_max=0.5).to_json()
+    assert g.unwrapped._env.task.template.physics == Physics.of(v_max=0.5).to_json()
     g.close()
 
 

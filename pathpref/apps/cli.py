@@ -101,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the human's preference: the map's (the paper's protocol, "
                         "default) or consistent with its goal (goals the preference leads "
                         "to; every polytope's preference then leads to the goal)")
+        sp.add_argument("--push-rule", default="", metavar="RULE",
+                        help="when the human pushes: every --delta-t steps (default, '') or "
+                        "only when needed, 'corrective delay=D miss=M' (reaction delay D "
+                        "steps, misses a need with probability M; needs --delta-t 1)")
         sp.add_argument("--queries", action=RangeAction, limits="queries", default=None,
                         help="POMCP queries per decision (default: the preset's, 5000)")
         sp.add_argument("--t-max", action=RangeAction, limits="t_max", default=None,
@@ -166,8 +170,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="results database (SQLite); episodes already in it are skipped")
     ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
                     help="grid world or the MuJoCo base with force cues")
-    ev.add_argument("--task", default="navigate", choices=["navigate", "carry"],
-                    help="navigate, or carry (arm on the base; needs --sim mujoco)")
+    ev.add_argument("--robot", "--task", dest="task", default="navigate",
+                    choices=["navigate", "carry"],
+                    help="which robot: navigate (the base), or carry (arm on the base; needs "
+                    "--sim mujoco); --task is its older name")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
@@ -221,8 +227,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "blended, goal_known, oracle)")
     rd.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5,
                     help="decision steps between the human's pushes")
-    rd.add_argument("--task", default="navigate", choices=["navigate", "carry"],
-                    help="navigate (base) or carry (arm on the base, mink IK)")
+    rd.add_argument("--robot", "--task", dest="task", default="navigate",
+                    choices=["navigate", "carry"],
+                    help="which robot: navigate (base) or carry (arm on the base, mink IK); "
+                    "--task is its older name")
     rd.add_argument("--out", default=None, help="video file (.mp4)")
     rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
     rd.add_argument("--size", default=None, metavar="WxH",
@@ -268,6 +276,13 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument("--resume", action="store_true",
                     help="continue a participant's trials (the unfinished one runs again)")
     sr.set_defaults(func=c.cmd_study_run)
+    se = stsub.add_parser("export", help="a participant's trials as a tidy CSV folder and "
+                          "one MCAP file per trial (docs/study_export.md)")
+    se.add_argument("db", help="results database holding study trials")
+    se.add_argument("--participant", required=True, help="the participant's id")
+    se.add_argument("--out", required=True, help="folder; the files go to OUT/PARTICIPANT/")
+    se.add_argument("--no-mcap", action="store_true", help="CSV only (no mcap package needed)")
+    se.set_defaults(func=c.cmd_study_export)
 
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")
     rpl.add_argument("db", help="results database holding study trials")

@@ -97,7 +97,7 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
 # --- db -------------------------------------------------------------------------------------
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
     """``pathpref db upgrade``: migrate a results database to the current schema."""
-    from ..experiments.migrate import upgrade_database
+    from ..experiments.migrate import recompute_homotopy, upgrade_database
 
     remap = {}
     for item in args.map or []:
@@ -112,6 +112,11 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
         print(f"upgraded {args.db} from schema {r['from']} to {r['to']}: {r['episodes']} episodes, "
               f"{r['steps']} steps ({r['merged']} duplicate rows of one map under two paths "
               f"merged); the old file is {r['backup']}")
+    h = recompute_homotopy(args.db, remap)
+    if h["recomputed"] or h["left"]:
+        print(f"homotopy_success filled in for {h['recomputed']} older episodes from their "
+              f"stored steps; {h['left']} left NULL (not measured: their map does not load "
+              "as stored; point it with --map OLD=NEW)")
     return 0
 
 
@@ -133,6 +138,9 @@ def cmd_db_salvage(args: argparse.Namespace) -> int:
     print(f"saved {r['episodes']} episodes and {r['steps']} step rows of {args.db} into "
           f"{args.out}; lost {about}{r['episodes_lost']} episodes ({r['incomplete']} with "
           f"missing step rows) and {about}{r['steps_lost']} step rows")
+    if r["study"]:
+        print(f"saved {r['trials']} study trials ({r['trial_rows']} rows of the study "
+              f"tables); lost {about}{r['trials_lost']} trials (rows missing or unreadable)")
     return 0
 
 
@@ -149,6 +157,7 @@ def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
         "preset": args.preset,
         "time_budget_ms": args.time_budget_ms or 0.0,
         "human": args.human,
+        "push_rule": args.push_rule,
         "queries": args.queries,
         "t_max": args.t_max if args.t_max is not None else cached_map(map_name).t_max,
         "normalize": args.likelihood == "normalized",
@@ -180,7 +189,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     check_model_size_early(args.map, args.goals)
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
-                        seed=args.seed, n_goals=args.goals, sim=args.sim, task=args.task,
+                        seed=args.seed, n_goals=args.goals, sim=args.sim, robot=args.task,
                         physics=physics_json(args, args.sim),
                         **_common_episode_args(args, args.map))
     cleanup = _new_database_guard(args.db)
@@ -225,24 +234,40 @@ def cmd_report(args: argparse.Namespace) -> int:
     trials = load_trials(args.db)
     if trials:
         print(study_tables(trials) + ("\n" if recs else ""))
-        if not recs:
-            return 0
-    if not recs:
+    elif not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
-    print(markdown_tables(recs))
-    both = side_by_side(recs)
-    if both:
-        print("\n" + both)
-    reading = physical_tables(recs)
-    if reading:
-        print("\n" + reading)
-    atomic_output(csv_path, lambda p: write_csv(recs, p))
-    print(f"\nwrote {csv_path}")
-    if args.figure:
-        from ..viz.plots import success_figure
+    if recs:
+        print(markdown_tables(recs))
+        both = side_by_side(recs)
+        if both:
+            print("\n" + both)
+        reading = physical_tables(recs)
+        if reading:
+            print("\n" + reading)
+        atomic_output(csv_path, lambda p: write_csv(recs, p))
+        print(f"\nwrote {csv_path}")
+        if args.figure:
+            from ..viz.plots import success_figure
 
-        atomic_output(args.figure, lambda p: success_figure(recs, p))
-        print(f"wrote {args.figure}")
+            atomic_output(args.figure, lambda p: success_figure(recs, p))
+            print(f"wrote {args.figure}")
+    if trials:  # a database of episodes and trials: the study's files get a -study suffix
+        from ..experiments.report import study_records
+        from ..viz.plots import study_figure
+
+        srecs = study_records(trials)
+
+        def beside(path: str | Path) -> Path:
+            path = Path(path)
+            return path if not recs else path.with_name(f"{path.stem}-study{path.suffix}")
+
+        study_csv = beside(csv_path)
+        atomic_output(study_csv, lambda p: write_csv(srecs, p))
+        print(("" if recs else "\n") + f"wrote {study_csv}")
+        if args.figure:
+            fig = beside(args.figure)
+            atomic_output(fig, lambda p: study_figure(srecs, p))
+            print(f"wrote {fig}")
     return 0
 
 
@@ -338,7 +363,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
-                              sim="mujoco", task=args.task,
+                              sim="mujoco", robot=args.task,
                               physics=physics_json(args, "mujoco"), **common)
     spec.validate()
     # temporary files made exclusively (mkstemp) beside the outputs, moved on success
@@ -372,7 +397,7 @@ def cmd_interact(args: argparse.Namespace) -> int:
 def cmd_study_run(args: argparse.Namespace) -> int:
     """``pathpref study run``: a participant's trials through the browser, the viewer or a
     push script, recorded in ``--db`` (:mod:`pathpref.study`)."""
-    from ..study.conduct import check_participant, run_study
+    from ..study.conduct import Session, check_participant
     from ..study.plan import load_study
 
     study = load_study(args.study)
@@ -380,26 +405,50 @@ def cmd_study_run(args: argparse.Namespace) -> int:
     check_database(args.db)
     if not 0 <= args.port <= 65535:
         raise ConfigError(f"--port must be an integer in 0..65535, got {args.port}")
+    script = None
     if args.script:
-        from ..study.script import PushScript, ScriptedFrontEnd
+        from ..study.script import PushScript
 
-        front = ScriptedFrontEnd(PushScript.load(args.script))
-        print(f"scripted participant {args.participant}: pushes from {args.script} "
-              "(no screen; faster than real time)", flush=True)
-    elif args.ui == "viewer":
-        os.environ.setdefault("MUJOCO_GL", "glfw")
-        from ..study.viewer import ViewerFrontEnd
+        script = PushScript.load(args.script)
+        script.check_names(study)
+    # every refusal (lock, existing participant, study file) before a page is served
+    session = Session(study, args.participant, args.db, resume=args.resume)
+    try:
+        if script is not None:
+            from ..study.script import ScriptedFrontEnd
 
-        front = ViewerFrontEnd()
-    else:
-        from ..study.server import BrowserFrontEnd
+            front = ScriptedFrontEnd(script)
+            print(f"scripted participant {args.participant}: pushes from {args.script} "
+                  "(no screen; faster than real time)", flush=True)
+        elif args.ui == "viewer":
+            os.environ.setdefault("MUJOCO_GL", "glfw")
+            from ..study.viewer import ViewerFrontEnd
 
-        front = BrowserFrontEnd(host=args.host, port=args.port)
-        print(f"open {front.url} in a browser (Ctrl-C to stop)", flush=True)
-    rows = run_study(study, args.participant, args.db, front, resume=args.resume,
-                     log=lambda m: print(m, flush=True))
+            front = ViewerFrontEnd()
+        else:
+            from ..study.server import BrowserFrontEnd
+
+            front = BrowserFrontEnd(host=args.host, port=args.port)
+            print(f"open {front.url} in a browser (Ctrl-C to stop)", flush=True)
+    except BaseException:
+        session.close()
+        raise
+    rows = session.run(front, log=lambda m: print(m, flush=True))
     ok = sum(r["success"] or 0 for r in rows)
     print(f"{args.participant}: {len(rows)} trial(s) recorded in {args.db}, {ok} successful")
+    return 0
+
+
+def cmd_study_export(args: argparse.Namespace) -> int:
+    """``pathpref study export``: a participant's trials as CSV and MCAP files."""
+    from ..study.conduct import check_participant
+    from ..study.export import export_participant
+
+    check_participant(args.participant)
+    check_database(args.db, "database", must_exist=True)
+    counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap)
+    folder = Path(args.out) / args.participant
+    print(f"wrote {folder}: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
     return 0
 
 

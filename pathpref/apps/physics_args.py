@@ -4,16 +4,17 @@ Each field of :class:`~pathpref.episode.physics.Physics` is a flag named after i
 (``sensor_noise_n`` -> ``--sensor-noise-n``; ``use_strength`` is ``--use-strength``).
 ``--physics legacy`` asks for the legacy physics of rows written before the field existed
 (ideal sensor, the original base); otherwise a MuJoCo episode runs with ``Physics()`` and the
-flags given. A flag with ``--sim grid`` or with ``--physics legacy`` is refused; values are
-checked by :class:`Physics` (one line naming the field and its range).
+flags given. With ``--sim grid`` only the human's flags apply (``--gamma-h``: a grid episode
+has a human but no sensing chain or drive); a physical flag there, or any flag with ``--physics
+legacy``, is refused; values are checked by :class:`Physics` (one line naming the field and
+its range).
 """
 
 from __future__ import annotations
 
 import argparse
-from dataclasses import fields
 
-from ..episode.physics import CHOICES, RANGES, Physics, flag
+from ..episode.physics import CHOICES, FIELDS, RANGES, Physics, flag, grid_human
 from ..errors import ConfigError
 
 
@@ -23,26 +24,34 @@ def physics_options(sp: argparse.ArgumentParser) -> None:
     g.add_argument("--physics", choices=["default", "legacy"], default="default",
                    help="default: realistic sensing and the physical base, with the flags "
                    "below; legacy: the ideal sensor and original base of old results")
-    base = Physics()
-    for f in fields(Physics):
-        default = getattr(base, f.name)
-        if f.name == "use_strength":
-            g.add_argument(flag(f.name), action="store_true", default=None,
+    defaults = Physics().flat()
+    for name in FIELDS:
+        default = defaults[name]
+        if name == "use_strength":
+            g.add_argument(flag(name), action="store_true", default=None,
                            help="weigh a cue by its push's strength in the belief update")
-        elif f.name in CHOICES:
-            g.add_argument(flag(f.name), choices=CHOICES[f.name], default=None,
+        elif name in CHOICES:
+            g.add_argument(flag(name), choices=CHOICES[name], default=None,
                            help=f"default {default}")
         else:
-            lo, hi = RANGES[f.name]
-            g.add_argument(flag(f.name), type=float, default=None, metavar="X",
+            lo, hi = RANGES[name]
+            g.add_argument(flag(name), type=float, default=None, metavar="X",
                            help=f"{lo:g}..{hi:g}, default {default:g}")
 
 
 def physics_json(args: argparse.Namespace, sim: str) -> str:
-    """The ``physics`` string of the episodes ``args`` ask for (``""``: legacy or grid)."""
-    given = {f.name: getattr(args, f.name) for f in fields(Physics)
-             if getattr(args, f.name, None) is not None}
+    """The ``physics`` string of the episodes ``args`` ask for (``""``: legacy, or the grid's
+    default human; a grid episode's human settings otherwise)."""
+    given = {name: getattr(args, name) for name in FIELDS
+             if getattr(args, name, None) is not None}
     mode = getattr(args, "physics", "default")
+    if sim == "grid" and mode != "legacy":
+        physical = [k for k in given if FIELDS[k][0] != "human"]
+        if physical:
+            raise ConfigError(f"{flag(physical[0])} is a physical parameter: it needs --sim "
+                              f"mujoco (a grid episode takes only the human's flags, e.g. "
+                              f"--gamma-h)")
+        return grid_human(Physics.of(**given).to_json()) if given else ""
     if sim != "mujoco" or mode == "legacy":
         if given:
             name = next(iter(given))
@@ -50,4 +59,4 @@ def physics_json(args: argparse.Namespace, sim: str) -> str:
             raise ConfigError(f"{flag(name)} is a physical parameter: it needs --sim mujoco "
                               f"without --physics legacy (got {why})")
         return ""
-    return Physics(**given).to_json()
+    return Physics.of(**given).to_json()

@@ -28,7 +28,13 @@ class Felt:
     (:meth:`~pathpref.episode.runner.EpisodeRunner.observe`): the ``cell`` it was felt in, its
     ``heading`` (0..7), when it was first felt and when it was read (``t_felt``, ``t_cue``:
     simulated s) and its force profile (``peak_n`` in N, ``impulse`` in N s, world x-y,
-    ``duration_s``); a grid body's cue has no force (None)."""
+    ``duration_s``); a grid body's cue has no force (None).
+
+    A sustained push (guidance, :mod:`.physics`) is also read while it lasts: ``partial``
+    records of a cue under way, and its final record, carry ``evidence`` ``(angle, weight)``:
+    the direction (radians) of the force felt since the last record and the share of one
+    observation it is worth; the belief takes them as force directions instead of the
+    heading. A partial record is not a cue: it neither counts nor sets the next heading."""
 
     cell: int
     heading: int
@@ -37,6 +43,8 @@ class Felt:
     peak_n: float | None = None
     impulse: tuple[float, float] | None = None
     duration_s: float | None = None
+    evidence: tuple[float, float] | None = None
+    partial: bool = False
 
     @property
     def angle(self) -> float | None:
@@ -144,7 +152,7 @@ def simulator_rng(spec: EpisodeSpec) -> np.random.Generator:
 
 def make_body(spec: EpisodeSpec, world: World) -> Body:
     """The body ``spec.sim`` for an episode of ``spec`` on ``world``."""
-    return body_class(spec.sim, spec.task)(world, spec, simulator_rng(spec))
+    return body_class(spec.sim, spec.robot)(world, spec, simulator_rng(spec))
 
 
 register_body("grid", GridBody)

@@ -1,36 +1,63 @@
-"""Every physical parameter of a MuJoCo episode in one value: :class:`Physics`.
+"""The physical parameters of an episode as three typed values: the robot's sensing chain
+(:class:`Sensing`), the simulated human (:class:`HumanModel`) and the base's drive
+(:class:`Drive`), composed in :class:`Physics`.
 
-An :class:`~.spec.EpisodeSpec` stores it as canonical JSON in ``physics``; the empty string is
+An :class:`~.spec.EpisodeSpec` holds them typed (``spec.physical``, ``spec.human_model``) and
+serialises them once, as canonical flat JSON in ``physics``, for its key; the empty string is
 the *legacy* physics every row written before this field existed ran with (ideal sensor, one
 30 N / 0.3 s half-sine push at each input step while the base stands, the original base and
 ``carry`` controllers), so old rows replay bit for bit. This module only describes and checks
 the parameters (the episode layer never imports the simulator); the simulator package acts on
 them. ``docs/physics.md`` gives the sources of the defaults.
 
-Groups (field prefixes):
+A grid episode has no sensing chain and no drive, but it has a human: its ``physics`` is the
+canonical JSON of a :class:`HumanModel` alone when the human is not the default (so
+``gamma_h`` works in grid episodes), else empty.
 
-* sensing: ``sensor`` preset (``ideal``, ``ft300s``, ``realistic``) and optional fault
-  overrides ``sensor_noise_n``, ``sensor_bias_n``, ``sensor_drift_n`` (negative: the preset's);
+Groups (the flat field names are the JSON keys and the ``--`` flags):
+
+* sensing (:class:`Sensing`): ``sensor`` preset (``ideal``, ``ft300s``, ``realistic``) and
+  optional fault overrides ``sensor_noise_n``, ``sensor_bias_n``, ``sensor_drift_n`` (negative:
+  the preset's);
 * detection: ``on_n``, ``on_s``, ``off_n``, ``off_s`` (hysteresis thresholds);
-* the human: ``timing`` (``decision``: at input steps, at rest, as in the paper; ``interval``:
-  every ``interval_s`` with uniform jitter ``+-jitter`` of it, at any moment of motion;
-  ``rate``: a Poisson process of mean interval ``interval_s``; ``corrective``: after a
-  reaction time, when the robot starts a move the human finds wrong, with probability
-  ``p_correct``, or a right one, with ``p_needless``); ``interval_s`` 0 means ``delta_t``
-  seconds (one nominal second per decision step); push strength log-normal with median
-  ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n, peak_max_n]``;
-  duration log-normal with median ``duration_s`` and spread ``duration_spread``, clipped to
-  ``[0.1, duration_max_s]``; ``shape`` ``half_sine`` or ``bell``; angle noise ``noise_deg``;
-  the human's rationality ``gamma_h`` (SPEC 4); ``strength_confidence`` ``c``: the human
-  pushes harder when surer, median strength ``peak_n exp(c (q - 1/2))`` with ``q`` the drawn
-  heading's probability over the most likely one's (0: strength independent of the heading);
-  whether the robot weighs a cue by its strength (``use_strength``: the likelihood to the power
-  ``clip(F / peak_n, 0.5, 2)``);
-* the base: ``base`` (``holonomic`` or ``diffdrive``), ``v_max`` (m/s) and ``a_max`` (m/s^2)
+* the human (:class:`HumanModel`): ``timing`` (``decision``: at input steps, at rest, as in the
+  paper; ``interval``: every ``interval_s`` with uniform jitter ``+-jitter`` of it, at any
+  moment of motion; ``rate``: a Poisson process of mean interval ``interval_s``; ``corrective``:
+  after a reaction time, when the robot starts a move the human finds wrong, with probability
+  ``p_correct``, or a right one, with ``p_needless``; ``guidance``: Bajcsy et al.'s sustained
+  corrections, at the ``interval`` times the human holds the handle for a log-normal time of
+  median ``hold_s`` while the base drives, the base complies and the belief is updated online
+  from the force's direction, below); ``interval_s`` 0 means ``delta_t``
+  decision steps of :meth:`Physics.step_s` seconds (the one rule); push strength log-normal with
+  median ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n,
+  peak_max_n]``; duration log-normal with median ``duration_s`` and spread ``duration_spread``,
+  clipped to ``[0.1, duration_max_s]``; ``shape`` ``half_sine`` or ``bell``; angle noise
+  ``noise_deg``; the human's rationality ``gamma_h`` (SPEC 4); ``strength_confidence`` ``c``:
+  the human pushes harder when surer, median strength ``peak_n exp(c (q - 1/2))`` with ``q`` the
+  drawn heading's probability over the most likely one's (0: strength independent of the
+  heading);
+* the robot's reading of a cue (in :class:`Sensing`): whether it weighs a cue by its strength
+  (``use_strength``: the likelihood to the power ``clip(F / peak_n, 0.5, 2)``);
+* the base (:class:`Drive`): ``base`` (``holonomic`` or ``diffdrive``; the attribute
+  ``Drive.kind``), ``v_max`` (m/s) and ``a_max`` (m/s^2)
   the controller plans with (defaults: the Clearpath Ridgeback's velocity limit, 1.0 m/s, and
   0.8 m/s^2, inside its 1.0 m/s^2 acceleration limit because 120 N moves its 135 kg at
   0.89 m/s^2 at most), ``force_limit_n`` (actuator force limit per axis, N),
-  ``admittance_b`` (N s/m, how the base yields while a cue is under way).
+  ``admittance_b`` (N s/m, how the base yields while a cue is under way), ``mass_kg`` (the
+  whole base) and ``friction_n`` (the floor's Coulomb resistance to sliding, per axis, N);
+  ``admittance_m`` (kg): the guided base's admittance ``M dv/dt + b v = F_hat``, ``v`` added to
+  its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017).
+
+**Guidance** (``timing = guidance``): every ``GUIDANCE_PERIOD_S`` of a push under way the
+robot updates its belief with the direction ``theta`` of the force felt over that period, by
+the continuous likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h, kappa)``
+(``kappa = DIRECTION_KAPPA``) to the power ``period / GUIDANCE_EVIDENCE_S`` (a push held for
+the default median 2 s is one observation, delivered while it lasts; a longer one is more, up
+to ``GUIDANCE_MAX_EVIDENCE``: the robot's model, whatever the simulated human's ``hold_s``);
+the cue's heading is the next decision's input, as for a tap.
+  The drive must deliver what the controller plans: ``a_max <= (force_limit_n - friction_n) /
+  mass_kg`` and ``v_max`` within the velocity servos' range (``DRIVE_V_MAX``); other
+  combinations are refused with one line.
 """
 
 from __future__ import annotations
@@ -38,12 +65,12 @@ from __future__ import annotations
 import json
 import math
 import numbers
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 
 from ..errors import ConfigError
 
 SENSORS = ("ideal", "ft300s", "realistic")
-TIMINGS = ("decision", "interval", "rate", "corrective")
+TIMINGS = ("decision", "interval", "rate", "corrective", "guidance")
 SHAPES = ("half_sine", "bell")
 BASES = ("holonomic", "diffdrive")
 
@@ -59,8 +86,9 @@ RANGES: dict[str, tuple[float, float]] = {
     "peak_max_n": (1.0, 300.0),
     "duration_s": (0.05, 10.0), "duration_spread": (1.0, 5.0), "duration_max_s": (0.1, 10.0),
     "noise_deg": (0.0, 90.0), "gamma_h": (0.01, 100.0), "strength_confidence": (0.0, 3.0),
-    "v_max": (0.05, 3.0), "a_max": (0.1, 10.0), "force_limit_n": (1.0, 2000.0),
-    "admittance_b": (5.0, 2000.0),
+    "v_max": (0.05, 1.5), "a_max": (0.1, 10.0), "force_limit_n": (1.0, 2000.0),
+    "admittance_b": (5.0, 2000.0), "mass_kg": (20.0, 1000.0), "friction_n": (0.0, 500.0),
+    "hold_s": (0.5, 10.0), "admittance_m": (1.0, 500.0),
 }
 #: the overrides that may be left at "the preset's" (stored as -1)
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
@@ -78,6 +106,27 @@ def flag(name: str) -> str:
     return "--" + name.replace("_", "-")
 
 
+#: how long after a push ends the detector may still release its cue (s)
+RELEASE_WINDOW_S = 0.4
+#: what a move is given beyond the drive's profile to settle on its target (s; the
+#: differential drive's turn included)
+SETTLE_S = 0.5
+#: the velocity servos' command range (m/s, ``ctrlrange`` of the physical base's drive)
+DRIVE_V_MAX = 1.5
+#: fields added after rows were stored: left out of the canonical JSON at their default, so
+#: the keys of stored episodes are unchanged
+QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0}
+#: the robot's model of how far a push's direction strays from the heading the human chose:
+#: von Mises concentration ``1 / sigma^2`` for the human model's default 10 degrees
+#: (:meth:`~pathpref.inference.belief.Belief.update_direction`)
+DIRECTION_KAPPA = 1.0 / math.radians(10.0) ** 2
+#: how long a sustained push is held to count as one observation (s; the robot's model)
+GUIDANCE_EVIDENCE_S = QUIET_DEFAULTS["hold_s"]
+#: the most evidence one sustained push gives (in observations), however long it lasts
+GUIDANCE_MAX_EVIDENCE = 2.0
+#: how often a sustained push's direction updates the belief while it lasts (s)
+GUIDANCE_PERIOD_S = 0.1
+
 #: metres per grid unit of every physical scene (the MuJoCo bodies, the tasks, the studies, the
 #: rerun recordings): one home for the scale
 CELL_SIZE_M = 0.5
@@ -87,11 +136,40 @@ CELL_SIZE_M = 0.5
 DETECTOR = {"on_n": 8.0, "on_s": 0.025, "off_n": 4.0, "off_s": 0.05}
 
 
+def _check(obj) -> None:
+    """One line naming the field and its allowed range or values for any bad setting of a
+    group (its flat names)."""
+    for f in fields(obj):
+        v = getattr(obj, f.name)
+        name = FLAT_OF.get(f.name, f.name)
+        if name in CHOICES:
+            if v not in CHOICES[name]:
+                raise ConfigError(f"physics {name} ({flag(name)}) must be one of "
+                                  f"{', '.join(CHOICES[name])}, got {v!r}")
+        elif name == "use_strength":
+            if not isinstance(v, bool):
+                raise ConfigError(f"physics use_strength (--use-strength) must be true or "
+                                  f"false, got {v!r}")
+        else:
+            lo, hi = RANGES[name]
+            try:  # an integer of hundreds of digits does not convert to a float
+                ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and \
+                    math.isfinite(v) and (lo <= v <= hi or
+                                          (name in PRESET_DEFAULT and v == -1.0))
+            except OverflowError:
+                ok = False
+            if not ok:
+                extra = " (or -1: the preset's)" if name in PRESET_DEFAULT else ""
+                shown = repr(v) if len(repr(v)) <= 40 else repr(v)[:37] + "..."
+                raise ConfigError(f"physics {name} ({flag(name)}) must be a number in "
+                                  f"{lo:g}..{hi:g}{extra}, got {shown}")
+
+
 @dataclass(frozen=True)
-class Physics:
-    """The physical parameters of a MuJoCo episode (module docstring). Defaults: realistic
-    sensing, pushes at input steps drawn from the literature's distributions, the holonomic
-    base at the limits of a Clearpath Ridgeback (``docs/physics.md``)."""
+class Sensing:
+    """The robot's sensing chain: the force sensor (preset and fault overrides, -1: the
+    preset's), the push detector's hysteresis thresholds (:data:`DETECTOR`) and whether the
+    belief weighs a cue by its strength."""
 
     sensor: str = "realistic"
     sensor_noise_n: float = -1.0
@@ -101,6 +179,26 @@ class Physics:
     on_s: float = DETECTOR["on_s"]
     off_n: float = DETECTOR["off_n"]
     off_s: float = DETECTOR["off_s"]
+    use_strength: bool = False
+
+    def __post_init__(self) -> None:
+        _check(self)
+        if self.off_n >= self.on_n:
+            raise ConfigError(f"physics off_n must be below on_n ({self.on_n:g} N), got "
+                              f"{self.off_n:g}")
+
+    @property
+    def detector(self) -> dict[str, float]:
+        """The detector's thresholds (the keyword arguments of the cue detectors)."""
+        return {"on_n": self.on_n, "on_s": self.on_s, "off_n": self.off_n, "off_s": self.off_s}
+
+
+@dataclass(frozen=True)
+class HumanModel:
+    """The simulated human: when it pushes (``timing`` and its parameters), how (strength,
+    duration and shape distributions, angle noise) and how rationally it chooses the heading
+    (``gamma_h``, SPEC 4; also the grid episodes' human). Module docstring for each field."""
+
     timing: str = "decision"
     interval_s: float = 0.0
     jitter: float = 0.5
@@ -117,64 +215,126 @@ class Physics:
     shape: str = "half_sine"
     noise_deg: float = 10.0
     gamma_h: float = 1.5
-    use_strength: bool = False
     strength_confidence: float = 0.0
-    base: str = "holonomic"
+    #: ``guidance`` timing: the median of how long the human holds the handle (s)
+    hold_s: float = QUIET_DEFAULTS["hold_s"]
+
+    def __post_init__(self) -> None:
+        _check(self)
+        if self.peak_min_n > self.peak_max_n:
+            raise ConfigError(f"physics peak_min_n must be at most peak_max_n "
+                              f"({self.peak_max_n:g} N), got {self.peak_min_n:g}")
+
+    def to_json(self) -> str:
+        """Canonical JSON (sorted keys): a grid episode's ``physics``."""
+        return json.dumps(asdict(self), sort_keys=True, separators=(",", ":"))
+
+
+@dataclass(frozen=True)
+class Drive:
+    """The base's drive: ``kind`` (flat name ``base``: ``holonomic`` or ``diffdrive``), the
+    limits its controller plans with, its actuators' force limit, how it yields, its mass and
+    the floor's friction (module docstring)."""
+
+    kind: str = "holonomic"
     v_max: float = 1.0
     a_max: float = 0.8
     force_limit_n: float = 120.0
     admittance_b: float = 80.0
+    mass_kg: float = QUIET_DEFAULTS["mass_kg"]
+    friction_n: float = QUIET_DEFAULTS["friction_n"]
+    #: the admittance's virtual mass while guided (kg; ``guidance`` timing)
+    admittance_m: float = QUIET_DEFAULTS["admittance_m"]
 
     def __post_init__(self) -> None:
-        self.validate()
+        _check(self)
+        if self.friction_n >= self.force_limit_n:
+            raise ConfigError(f"physics friction_n must be below force_limit_n "
+                              f"({self.force_limit_n:g} N): the drive could not move the base, "
+                              f"got {self.friction_n:g}")
+        reach = (self.force_limit_n - self.friction_n) / self.mass_kg
+        if self.a_max > reach:
+            raise ConfigError(f"physics a_max ({flag('a_max')}) must be at most {reach:.3g} "
+                              f"m/s^2, what {self.force_limit_n:g} N less {self.friction_n:g} N "
+                              f"of friction gives {self.mass_kg:g} kg; got {self.a_max:g} "
+                              f"(lower --a-max or raise --force-limit-n)")
 
-    def validate(self) -> None:
-        """One line naming the field and its allowed range or values for any bad setting."""
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name in CHOICES:
-                if v not in CHOICES[f.name]:
-                    raise ConfigError(f"physics {f.name} ({flag(f.name)}) must be one of "
-                                      f"{', '.join(CHOICES[f.name])}, got {v!r}")
-            elif f.name == "use_strength":
-                if not isinstance(v, bool):
-                    raise ConfigError(f"physics use_strength (--use-strength) must be true or "
-                                      f"false, got {v!r}")
-            else:
-                lo, hi = RANGES[f.name]
-                try:  # an integer of hundreds of digits does not convert to a float
-                    ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and \
-                        math.isfinite(v) and (lo <= v <= hi or
-                                              (f.name in PRESET_DEFAULT and v == -1.0))
-                except OverflowError:
-                    ok = False
-                if not ok:
-                    extra = " (or -1: the preset's)" if f.name in PRESET_DEFAULT else ""
-                    shown = repr(v) if len(repr(v)) <= 40 else repr(v)[:37] + "..."
-                    raise ConfigError(f"physics {f.name} ({flag(f.name)}) must be a number in "
-                                      f"{lo:g}..{hi:g}"
-                                      f"{extra}, got {shown}")
-        if self.off_n >= self.on_n:
-            raise ConfigError(f"physics off_n must be below on_n ({self.on_n:g} N), got "
-                              f"{self.off_n:g}")
-        if self.peak_min_n > self.peak_max_n:
-            raise ConfigError(f"physics peak_min_n must be at most peak_max_n "
-                              f"({self.peak_max_n:g} N), got {self.peak_min_n:g}")
-        if self.force_limit_n <= self.on_n:
+
+#: the group of every flat field name: name -> (group attribute of :class:`Physics`, its
+#: attribute in the group)
+GROUPS = {"sensing": Sensing, "human": HumanModel, "drive": Drive}
+FLAT_OF = {"kind": "base"}  # a group attribute whose flat name differs
+FIELDS: dict[str, tuple[str, str]] = {
+    FLAT_OF.get(f.name, f.name): (group, f.name)
+    for group, cls in GROUPS.items() for f in fields(cls)}
+
+
+@dataclass(frozen=True, init=False)
+class Physics:
+    """The physical parameters of a MuJoCo episode (module docstring): the sensing chain, the
+    simulated human and the base's drive. Defaults: realistic sensing, pushes at input steps
+    drawn from the literature's distributions, the holonomic base at the limits of a Clearpath
+    Ridgeback (``docs/physics.md``). Built from the groups, from flat field names
+    (``Physics(sensor="ideal", base="diffdrive")``, :meth:`of`) or both (the flat names then
+    set fields of the groups given)."""
+
+    sensing: Sensing = field(default_factory=Sensing)
+    human: HumanModel = field(default_factory=HumanModel)
+    drive: Drive = field(default_factory=Drive)
+
+    def __init__(self, sensing: Sensing | None = None, human: HumanModel | None = None,
+                 drive: Drive | None = None, **flat) -> None:
+        given = {"sensing": sensing, "human": human, "drive": drive}
+        parts: dict[str, dict] = {name: {} for name in GROUPS}
+        for k, v in flat.items():
+            if k not in FIELDS:
+                raise ConfigError(f"physics has unknown field '{k}'; known: "
+                                  f"{', '.join(sorted(FIELDS))}")
+            group, attr = FIELDS[k]
+            parts[group][attr] = v
+        for name, cls in GROUPS.items():
+            value = given[name]
+            if value is None:
+                value = cls(**parts[name])
+            elif parts[name]:
+                value = replace(value, **parts[name])
+            object.__setattr__(self, name, value)
+        self.__post_init__()
+
+    def __post_init__(self) -> None:
+        for name, cls in GROUPS.items():
+            if not isinstance(getattr(self, name), cls):
+                raise ConfigError(f"physics {name} must be a {cls.__name__}, got "
+                                  f"{type(getattr(self, name)).__name__}")
+        if self.human.timing == "guidance" and self.drive.kind != "holonomic":
+            raise ConfigError("physics timing guidance needs base holonomic (the guided base "
+                              "yields in every direction); use --base holonomic")
+        if self.drive.force_limit_n <= self.sensing.on_n:
             raise ConfigError(f"physics force_limit_n must be above the detector's on_n "
-                              f"({self.on_n:g} N): the base could not feel a push it cannot "
-                              f"resist, got {self.force_limit_n:g}")
-
-    def to_json(self) -> str:
-        """Canonical JSON (sorted keys): the spec's ``physics`` string and key part."""
-        return json.dumps(asdict(self), sort_keys=True, separators=(",", ":"))
+                              f"({self.sensing.on_n:g} N): the base could not feel a push it "
+                              f"cannot resist, got {self.drive.force_limit_n:g}")
 
     @classmethod
-    def from_json(cls, text: str) -> Physics | None:
-        """The parameters of a spec's ``physics`` string; None for ``""`` (legacy). Unknown
-        fields or bad values are a ConfigError naming the field."""
-        if text == "":
-            return None
+    def of(cls, **flat) -> Physics:
+        """The parameters with the flat fields ``flat`` set (``Physics.of(sensor="ideal",
+        base="diffdrive")``); an unknown name is a ConfigError listing the known ones."""
+        return cls(**flat)
+
+    def flat(self) -> dict:
+        """Every field by its flat name (the JSON keys and flags)."""
+        return {k: getattr(getattr(self, g), a) for k, (g, a) in FIELDS.items()}
+
+    def to_json(self) -> str:
+        """Canonical flat JSON (sorted keys; the fields of ``QUIET_DEFAULTS`` only when not at
+        their default): the spec's ``physics`` string and key part."""
+        d = {k: v for k, v in self.flat().items()
+             if k not in QUIET_DEFAULTS or v != QUIET_DEFAULTS[k]}
+        return json.dumps(d, sort_keys=True, separators=(",", ":"))
+
+    @staticmethod
+    def parse(text: str) -> dict:
+        """The flat fields of a ``physics`` JSON string (no defaults filled in); a ConfigError
+        names what is wrong."""
         try:
             raw = json.loads(text)
         except (TypeError, ValueError) as e:
@@ -183,20 +343,23 @@ class Physics:
             raise ConfigError(TOO_DEEP) from None
         if not isinstance(raw, dict):
             raise ConfigError("physics must be a JSON object of the physical parameters")
-        known = {f.name for f in fields(cls)}
-        unknown = sorted(set(raw) - known)
-        if unknown:
-            raise ConfigError(f"physics has unknown field '{unknown[0]}'; known: "
-                              f"{', '.join(sorted(known))}")
         for k, v in raw.items():  # the fields are flat: a list or object is refused here
             if isinstance(v, dict | list):
                 raise ConfigError(f"physics {k} must be a number, a string or true/false, "
                                   f"got a JSON {'object' if isinstance(v, dict) else 'list'}")
-        return cls(**raw)
+        return raw
+
+    @classmethod
+    def from_json(cls, text: str) -> Physics | None:
+        """The parameters of a spec's ``physics`` string; None for ``""`` (legacy). Unknown
+        fields or bad values are a ConfigError naming the field."""
+        if text == "":
+            return None
+        return cls.of(**cls.parse(text))
 
     @classmethod
     def coerce(cls, value) -> str:
-        """The spec string of a Python API argument: a :class:`Physics`, a dict of its
+        """The spec string of a Python API argument: a :class:`Physics`, a dict of its flat
         fields, its JSON; None: the defaults (``Physics()``, as every door's); ``"legacy"``
         (or ``""``): the legacy physics, only by name."""
         if value is None:
@@ -219,10 +382,45 @@ class Physics:
         raise ConfigError(f"physics must be a Physics, a dict of its fields, JSON or None, "
                           f"got {type(value).__name__}")
 
-    def check_episode(self, t_max: int) -> None:
-        """Settings that contradict the episode: a push that cannot fit (the longest push
-        against the episode's nominal length, one second per decision step)."""
-        longest = self.duration_max_s
-        if longest >= t_max:
-            raise ConfigError(f"physics duration_max_s must be below the episode's length "
-                              f"({t_max} decision steps of about 1 s), got {longest:g}")
+    def move_s(self, cell_size: float = CELL_SIZE_M) -> float:
+        """The drive's rest-to-rest time across one cell diagonally, ``d = sqrt(2) cell``, at
+        its trapezoid profile: ``d / v + v / a`` when ``d >= v^2 / a`` (it reaches ``v_max``),
+        else ``2 sqrt(d / a)``."""
+        d, v, a = math.sqrt(2.0) * cell_size, self.drive.v_max, self.drive.a_max
+        return d / v + v / a if d >= v * v / a else 2.0 * math.sqrt(d / a)
+
+    def push_window_s(self) -> float:
+        """The longest a push phase lasts: the longest push and its release window."""
+        return self.human.duration_max_s + RELEASE_WINDOW_S
+
+    def step_s(self, cell_size: float = CELL_SIZE_M) -> float:
+        """**The one rule for how long a decision step lasts** (simulated seconds): a move
+        (:meth:`move_s` plus ``SETTLE_S``) after the longest push phase
+        (:meth:`push_window_s`), rounded up to 0.1 s. Every door uses it: the dm_control
+        tasks' step (``control_timestep``), the simulated human's pushes (``interval_s = 0``
+        means ``delta_t`` steps of it), the base's move time limit (:meth:`move_limit_s`).
+        A ``--sim mujoco`` decision ends when the base has settled, so it lasts at most this
+        (default physics: 3.4 s; a diagonal move 1.9 s, a straight one 1.6 s)."""
+        raw = self.move_s(cell_size) + SETTLE_S + self.push_window_s()
+        return math.ceil(10.0 * raw - 1e-9) / 10.0
+
+    def move_limit_s(self, cell_size: float = CELL_SIZE_M) -> float:
+        """The longest a move may take: the step less its push phase (:meth:`step_s`)."""
+        return self.step_s(cell_size) - self.push_window_s()
+
+
+def grid_human(text: str) -> str:
+    """A grid episode's canonical ``physics``: ``""`` for the default human, else the
+    :class:`HumanModel`'s JSON. Sensing or drive fields are refused (a grid body has
+    neither) with the fix."""
+    if text == "":
+        return ""
+    raw = Physics.parse(text)
+    physical = sorted(k for k in raw if k in FIELDS and FIELDS[k][0] != "human")
+    default = Physics().flat()
+    moved = [k for k in physical if raw[k] != default[k]]
+    if moved:
+        raise ConfigError(f"physics {moved[0]} ({flag(moved[0])}) needs a physical body: add "
+                          f"--sim mujoco (a grid episode takes only the human's settings)")
+    human = Physics.of(**{k: v for k, v in raw.items() if k not in physical}).human
+    return "" if human == HumanModel() else human.to_json()

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 from .instances import Instance
@@ -13,7 +13,10 @@ from .spec import EpisodeSpec
 @dataclass
 class StepLog:
     """One decision step: the robot's cell after it, the action, the observed heading (-1:
-    none) and the belief's ``P(true goal)`` and goal entropy (nats)."""
+    none), the belief's ``P(true goal)`` and goal entropy (nats), and ``is_intervention``: 1
+    when the human pushed at this cell right after this step (row 0: before step 1), else 0
+    (the rows of an episode sum to its ``inputs``); None (stored NULL: not measured) for a
+    body that gives the pushes itself, at times of its own (``EpisodeRunner.continuous``)."""
 
     t: int
     x: int
@@ -22,12 +25,16 @@ class StepLog:
     heading: int
     p_true_goal: float
     goal_entropy: float
+    is_intervention: int | None = 0
 
 
 @dataclass
 class EpisodeResult:
     """An episode's outcome. Success = goal reached within ``T_max``, no preference violation
-    (a polytope left by a face other than ``p_v``), and the episode ran (``status == "ok"``)."""
+    (a polytope left by a face other than ``p_v``), and the episode ran (``status == "ok"``).
+    ``homotopic``: the robot's path (start to goal) goes the same way round every obstacle as
+    the human's route (:func:`~pathpref.geometry.following.human_route`, judged by
+    :func:`~pathpref.geometry.homotopy.same_class`); set when the goal is reached."""
 
     spec: EpisodeSpec
     instance: Instance
@@ -42,6 +49,7 @@ class EpisodeResult:
     reason: str = ""
     log: list[StepLog] = field(default_factory=list)
     metrics: dict[str, float] = field(default_factory=dict)
+    homotopic: bool = False
 
     @property
     def pref_followed(self) -> bool:
@@ -53,10 +61,17 @@ class EpisodeResult:
         """Goal reached, preference followed, episode ran to its end."""
         return self.goal_reached and self.pref_followed and self.status == "ok"
 
+    @property
+    def homotopy_success(self) -> bool:
+        """Goal reached in the human route's homotopy class (winding numbers round every
+        obstacle, :mod:`pathpref.geometry.homotopy`), episode ran to its end; reported
+        beside the strict :attr:`success`, which stays the headline."""
+        return self.goal_reached and self.homotopic and self.status == "ok"
+
 
 def result_row(res: EpisodeResult) -> dict[str, Any]:
     """Flat dictionary of an episode for the results store."""
-    d = asdict(res.spec)
+    d = res.spec.stored()
     inst = res.instance
     return {
         **d,
@@ -70,6 +85,7 @@ def result_row(res: EpisodeResult) -> dict[str, Any]:
         "goal_reached": int(res.goal_reached),
         "pref_followed": int(res.pref_followed),
         "success": int(res.success),
+        "homotopy_success": int(res.homotopy_success),
         "steps": res.steps,
         "inputs": res.inputs,
         "violations": res.violations,

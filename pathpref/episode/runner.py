@@ -2,13 +2,17 @@
 
 Step ``t = 1..T_max``: when ``(t - 1) mod Delta_T == 0`` the simulated human gives a heading at the
 robot's cell and the robot updates its belief with what it observed; the policy acts; the robot
-moves. Standing on a wrong candidate rules it out; reaching the true goal ends the episode.
-Success = goal reached within ``T_max`` AND every polytope change followed the human's
-preference (a polytope where the human has no preference, ``-1``, accepts any exit).
+moves. The corrective human (``spec.push_rule``, :mod:`.corrective`) pushes instead only after
+the steps that call for it. Standing on a wrong candidate rules it out; reaching the true goal
+ends the episode. Success = goal reached within ``T_max`` AND every polytope change followed the
+human's preference (a polytope where the human has no preference, ``-1``, accepts any exit).
+Homotopy success, reported beside it = goal reached AND the robot's path goes the same way
+round every obstacle as the human's route (:mod:`pathpref.geometry.homotopy`).
 
 The robot's :class:`~.body.Body` (``spec.sim``) turns the human's heading into what the robot
 observes and a chosen move into the cell it reaches. Seeds: ``run_seed`` spawns three streams
-(human, policy, body noise), so the human's draws do not depend on the simulator.
+(human, policy, body noise), so the human's draws do not depend on the simulator; the
+corrective human's misses draw from a fourth (:func:`.corrective.miss_stream`).
 """
 
 from __future__ import annotations
@@ -20,13 +24,15 @@ import numpy as np
 
 from ..errors import ConfigError, EpisodeError
 from ..geometry.grid import STAY
+from ..geometry.homotopy import route_homotopic
 from ..geometry.world import World
 from ..inference.human import ObservationModel, SimulatedHuman
 from ..planning.policies import PolicyContext, make_policy
 from .body import Body, Felt, make_body
 from .cache import cached_model, cached_world
+from .corrective import CorrectiveHuman, miss_stream, parse_push_rule
 from .instances import episode_instance, human_preference
-from .physics import Physics
+from .physics import DIRECTION_KAPPA
 from .results import EpisodeResult, StepLog
 from .spec import EpisodeSpec
 
@@ -88,10 +94,18 @@ class EpisodeRunner:
                             rng=np.random.default_rng(policy_seq), true_goal=inst.true_goal,
                             true_preference=self.pref)
         self.policy = make_policy(spec.method, ctx)
-        self.physics = physics = Physics.from_json(spec.physics)
-        human_model = model if physics is None or physics.gamma_h == model.gamma else \
-            ObservationModel(world, model.tables, physics.gamma_h, model.normalize)
+        self.physics = spec.physical
+        gamma_h = spec.human_model.gamma_h  # the human's rationality, any body (grid too)
+        human_model = model if gamma_h == model.gamma else \
+            ObservationModel(world, model.tables, gamma_h, model.normalize)
         self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
+        rule = parse_push_rule(spec.push_rule)
+        if rule is not None and spec.sim != "grid":
+            raise ConfigError(f"push_rule {spec.push_rule!r} is the grid's corrective human; "
+                              "use --sim grid (or the periodic human, push_rule '')")
+        #: the corrective human (None: the periodic one)
+        self.corrective = None if rule is None else CorrectiveHuman(
+            rule, world, self.pref, inst.goal_cell, miss_stream(spec.run_seed))
         self.body = body if body is not None else make_body(spec, world)
         self.body.connect(self.observe)  # the one door of what the robot feels
         #: the body gives the human's inputs at times of its own (pushes at any time)
@@ -103,6 +117,8 @@ class EpisodeRunner:
         })
         self.goal_index = {g: k for k, g in enumerate(inst.goals)}
         self.cell = inst.start
+        #: the last step's move (cell before, action, cell after; None before step 1)
+        self.last_move: tuple[int, int, int] | None = None
         self.last_crossing: tuple[int, int] | None = None
         self.t = 0
         self.pending_heading: int | None = None
@@ -140,7 +156,8 @@ class EpisodeRunner:
         x, y = self.world.cells[self.cell]
         self.result.log.append(StepLog(self.t, int(x), int(y), action, heading,
                                        float(p[self.instance.true_goal]),
-                                       float(self.policy.belief.goal_entropy())))
+                                       float(self.policy.belief.goal_entropy()),
+                                       None if self.continuous else 0))
 
     def _human_phase(self) -> None:
         """Before step t+1: the human gives an input when one is due (a body that took the
@@ -148,7 +165,13 @@ class EpisodeRunner:
         if self.continuous:
             self.result.inputs = self.body.inputs_given()
             return
-        if self.done or self.t % self.spec.delta_t != 0:
+        if self.done:
+            return
+        if self.corrective is not None:
+            if self.last_move is None or not self.corrective.pushes_after(self.t,
+                                                                           *self.last_move):
+                return
+        elif self.t % self.spec.delta_t != 0:
             return
         self.give_input()
 
@@ -161,6 +184,8 @@ class EpisodeRunner:
         or None when the push was missed."""
         intended = self.human.sample(self.cell, self.human_rng)
         self.result.inputs += 1
+        if self.result.log:
+            self.result.log[-1].is_intervention = 1
         self.pending_heading = None
         self.body.push(intended)
 
@@ -172,7 +197,14 @@ class EpisodeRunner:
         over (a task's physics runs on to the end of its step)."""
         if self.done:
             return
-        self.policy.observe(felt.cell, felt.heading, self._weight(felt.peak_n))
+        if felt.evidence is not None:  # a sustained push, read as it lasts (Felt)
+            angle, weight = felt.evidence
+            if weight > 0:
+                self.policy.observe_direction(felt.cell, angle, DIRECTION_KAPPA, weight)
+        else:
+            self.policy.observe(felt.cell, felt.heading, self._weight(felt.peak_n))
+        if felt.partial:
+            return
         self.pending_heading = felt.heading
         if self.continuous:
             self.result.inputs = self.body.inputs_given()
@@ -181,9 +213,9 @@ class EpisodeRunner:
         """How confident an observation is: with ``use_strength``, its push's peak force over
         the human model's median strength, clipped to 0.5..2 (a firm push is a confident one);
         else 1."""
-        if self.physics is None or not self.physics.use_strength or strength is None:
+        if self.physics is None or not self.physics.sensing.use_strength or strength is None:
             return 1.0
-        return float(np.clip(strength / self.physics.peak_n, 0.5, 2.0))
+        return float(np.clip(strength / self.physics.human.peak_n, 0.5, 2.0))
 
     @_quiet_numerics
     def start_step(self, action: int | None = None) -> tuple[int, int | None]:
@@ -232,6 +264,7 @@ class EpisodeRunner:
         body's move, a control-rate task at every cell change."""
         before = self.cell
         self.cell = cell
+        self.last_move = (before, int(action), cell)
         self._score(before, cell)
         self.t += 1
         self.result.steps = self.t
@@ -245,8 +278,16 @@ class EpisodeRunner:
         if k is not None:
             if k == self.instance.true_goal:
                 self.result.goal_reached = True
+                self.result.homotopic = self._homotopic(cell)
             else:
                 self.policy.rule_out(k)
+
+    def _homotopic(self, goal: int) -> bool:
+        """Whether the robot's path (the logged cells, then ``goal``) goes the same way round
+        every obstacle as the human's route from the start to ``goal``
+        (:func:`~pathpref.geometry.homotopy.route_homotopic`)."""
+        path = [(s.x, s.y) for s in self.result.log] + [tuple(self.world.cells[goal])]
+        return route_homotopic(self.world, self.pref, self.instance.start, goal, path)
 
     def _score(self, before: int, after: int) -> None:
         """The success rule on the move ``before -> after``: leaving ``v`` toward anything but

@@ -4,15 +4,16 @@ from __future__ import annotations
 
 import math
 import numbers
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from typing import Any
 
 from ..errors import ConfigError, PathprefError
 from ..geometry.maps import MAX_T_MAX
 from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS, Preset, get_preset
 from .cache import cached_map
+from .corrective import parse_push_rule
 from .instances import HUMANS, seed_for
-from .physics import Physics
+from .physics import HumanModel, Physics, grid_human
 
 #: the documented range of every number a user gives (command line and Python API):
 #: name -> (lowest, highest, whole number); checked by :func:`check_number`
@@ -30,6 +31,8 @@ LIMITS: dict[str, tuple[float, float, bool]] = {
     "time_budget_ms": (1e-3, 1e7, False),
     "episode_timeout": (1, 1e6, False),  # or 0: none (the API takes any 0..1e6)
 }
+#: fields stored (key, database columns) under an older name: field -> stored name
+STORED_NAMES = {"robot": "task"}
 #: most episodes one sweep may hold (the product of its sizes, checked before building specs)
 MAX_EPISODES = 10**7
 
@@ -106,7 +109,9 @@ class EpisodeSpec:
     coupling: bool | None = None
     sim: str = "grid"
     fixed: str = ""  # JSON of the pinned instance, "" for a sampled one
-    task: str = "navigate"
+    #: which robot a physical body is: the plain base (``navigate``) or the arm on the base
+    #: carrying a tray (``carry``); stored (key, database column) as ``task``, its old name
+    robot: str = "navigate"
     ucb_c: float | None = None
     #: robust search's wall-time budget per decision (0: the query count only)
     time_budget_ms: float = 0.0
@@ -117,12 +122,18 @@ class EpisodeSpec:
     #: the physical parameters of a MuJoCo episode: canonical JSON of :class:`.physics.Physics`,
     #: or "" for the legacy physics of rows written before the field (left out of the key then,
     #: so their keys are unchanged). None: the defaults for a physical body (``Physics()``,
-    #: realistic sensing), nothing for the grid; the legacy physics only by name ("legacy")
+    #: realistic sensing), nothing for the grid; the legacy physics only by name ("legacy").
+    #: A grid episode takes the human's settings only (``gamma_h`` ...; physics.grid_human).
+    #: Parsed once into ``physical`` and ``human_model`` (typed, not fields)
     physics: str | None = None
     #: the path-preference belief's prior: "independent" (the paper's) or "routes"
     #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
     #: of episodes stored before the field existed (all independent) stay as they were
     prior: str | None = None
+    #: when the human pushes: "" every delta_t steps (the paper's), or the corrective human's
+    #: rule ``corrective delay=D miss=M`` (:mod:`.corrective`; delta_t 1); left out of the key
+    #: when "", so the keys stored before the field existed stay as they were
+    push_rule: str = ""
     #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
     timeout_s: float = field(default=0.0, compare=False)
 
@@ -137,12 +148,35 @@ class EpisodeSpec:
                                Physics().to_json())
         elif self.physics == "legacy":
             object.__setattr__(self, "physics", "")
+        elif isinstance(self.physics, Physics | dict):
+            object.__setattr__(self, "physics", Physics.coerce(self.physics))
+        self._type_physics()
         preset = PRESETS.get(self.preset)  # an unknown name is reported by validate()
         for name in ("queries", "ucb_c", "coupling", "prior"):
             if getattr(self, name) is None:
                 object.__setattr__(self, name,
                                    getattr(preset, name) if preset else
                                    getattr(PRESETS["paper"], name))
+
+    def _type_physics(self) -> None:
+        """Parse ``physics`` once into the typed values ``physical`` (a :class:`Physics`, None
+        for the grid and the legacy physics) and ``human_model`` (the simulated human of any
+        body); a grid episode's ``physics`` is made canonical (:func:`grid_human`). A bad
+        value leaves both None for :meth:`validate` to name."""
+        physical, human = None, None
+        if isinstance(self.physics, str) and isinstance(self.sim, str):
+            try:
+                if self.sim == "grid":
+                    object.__setattr__(self, "physics", grid_human(self.physics))
+                    human = (HumanModel() if self.physics == "" else
+                             Physics.of(**Physics.parse(self.physics)).human)
+                else:
+                    physical = Physics.from_json(self.physics)
+                    human = HumanModel() if physical is None else physical.human
+            except PathprefError:
+                pass
+        object.__setattr__(self, "physical", physical)
+        object.__setattr__(self, "human_model", human)
 
     @classmethod
     def single(cls, map: str, method: str, delta_t: int = 5, seed: int = 0, instance: int = 0,
@@ -153,6 +187,19 @@ class EpisodeSpec:
         return cls(map=map, method=method, delta_t=int(delta_t), instance=instance, run=run,
                    instance_seed=seed_for(seed, instance),
                    run_seed=seed_for(seed, instance, run), **fields)
+
+    def stored(self) -> dict[str, Any]:
+        """The fields by their stored names (the database columns; :data:`STORED_NAMES`)."""
+        d = asdict(self)
+        for name, old in STORED_NAMES.items():
+            d[old] = d.pop(name)
+        return d
+
+    @classmethod
+    def field_names(cls) -> dict[str, str]:
+        """Every field's stored name -> its name (the timeout is not stored)."""
+        return {STORED_NAMES.get(f.name, f.name): f.name for f in fields(cls)
+                if f.name != "timeout_s"}
 
     def planner(self) -> Preset:
         """The preset with this episode's overrides: every setting a policy reads."""
@@ -169,13 +216,15 @@ class EpisodeSpec:
         """The episode's identity: every field but the map's path and the timeout, plus the
         map's content hash (so an edited map runs new episodes and the same map under another
         path reuses them)."""
-        d = asdict(self)
+        d = self.stored()
         d.pop("timeout_s")
         if d["physics"] == "":
             d.pop("physics")
         d.pop("map")
         if d["prior"] == "independent":
             d.pop("prior")
+        if d["push_rule"] == "":
+            d.pop("push_rule")
         d["map_hash"] = self.map_hash
         return "|".join(f"{k}={d[k]}" for k in sorted(d))
 
@@ -201,7 +250,7 @@ class EpisodeSpec:
         if self.time_budget_ms != 0:
             check_limit("--time-budget-ms", self.time_budget_ms, "time_budget_ms")
         for option, value in (("map", self.map), ("method", self.method),
-                              ("preset", self.preset), ("sim", self.sim), ("task", self.task),
+                              ("preset", self.preset), ("sim", self.sim), ("robot", self.robot),
                               ("fixed", self.fixed), ("physics", self.physics)):
             if not isinstance(value, str):
                 raise ConfigError(f"{option} must be a string, got {_show(value)}")
@@ -210,12 +259,16 @@ class EpisodeSpec:
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")
-        physics = Physics.from_json(self.physics)
+        rule = parse_push_rule(self.push_rule)
+        if rule is not None and rule.text != self.push_rule:
+            raise ConfigError(f"push_rule {self.push_rule!r}: write it {rule.text!r}")
+        if rule is not None and self.delta_t != 1:
+            raise ConfigError("--push-rule corrective watches every step: use --delta-t 1")
+        if self.human_model is None:  # the parse failed: name why
+            grid_human(self.physics) if self.sim == "grid" else Physics.from_json(self.physics)
+        physics = self.physical
         if physics is not None:
-            if self.sim == "grid":
-                raise ConfigError("physics settings need a physical body: add --sim mujoco")
-            physics.check_episode(self.t_max)
-            if physics.base == "diffdrive" and self.task == "carry":
+            if physics.drive.kind == "diffdrive" and self.robot == "carry":
                 raise ConfigError("physics base diffdrive runs the navigate task only (the "
                                   "arm is mounted on the holonomic base); use base holonomic")
         if self.time_budget_ms > 0 and preset.search != "robust":

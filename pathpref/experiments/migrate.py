@@ -9,10 +9,21 @@ schema lacks take the values that reproduce the old behaviour), and writes a new
 every episode and step.
 Rows of one map stored under two paths become one episode when everything else agrees; the row
 kept is the first successful one. The old file is kept beside the new one as
-``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 -> 4 only
-adds the ``physics`` and ``prior`` columns (empty in old rows: the legacy physics and the
-independent prior they ran with) and the (empty) study tables of :mod:`.trials`, in place;
-every row and key stays as it was.
+``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 or 4 -> 5
+only adds columns, in place: ``physics``, ``prior`` and ``push_rule`` (empty in old rows: the
+legacy physics, the independent prior and the periodic human they ran with), the
+``homotopy_success`` of each episode and the ``is_intervention`` of each step (NULL in old
+rows: not measured), and to a schema 3 file the (empty) study tables of :mod:`.trials`; every
+row and key stays as it was. A schema 2 file's rows get these columns empty too.
+
+**homotopy** (:func:`recompute_homotopy`, run by ``pathpref db upgrade`` after the schema is
+current) fills the NULL ``homotopy_success`` of old rows where it follows from what is stored,
+without running anything: 0 for an episode that did not reach the goal or did not run; for
+one that did, the class test of the stored step cells against the human's route, once the
+row's map loads with its stored content hash and its instance, drawn again from its seeds,
+has the stored start, candidates and true goal. Any other row stays NULL (its map moved:
+``--map OLD=NEW``). ``is_intervention`` is not recomputed (which steps had a push is not
+stored in old rows; the periodic human's are every ``Delta_T``, but a NULL stays honest).
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -22,13 +33,18 @@ has one per time step ``0..steps``, a failed one none) or which step rows belong
 **salvage** (:func:`salvage_database`) copies every episode that reads back whole, with its step
 rows, into a new database; rows on damaged pages are read around (one rowid range at a time,
 then row by row), and an episode with a missing step row is left out, so a rerun of the sweep
-redoes exactly what was lost.
+redoes exactly what was lost. The study tables (schema 4) are salvaged the same way: a trial is
+kept, with every row of its tables, when its ``trials`` row reads back and its rows are whole
+(:func:`_whole_trials`); a trial missing rows is left out whole and counted lost (``study run
+--resume`` on the new database runs that trial again, the participant's other trials stay).
+The study rows are read into memory as the episodes are (a salvage is a one-off repair).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import os
 import sqlite3
 import tempfile
@@ -37,21 +53,25 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
-from ..episode import EpisodeSpec, cached_map
+from ..episode import EpisodeSpec, cached_map, cached_world
+from ..episode.instances import episode_instance, human_preference
 from ..errors import ConfigError, PathprefError
+from ..geometry.homotopy import route_homotopic
 from .store import (
     ADDITIVE,
     EPISODE_COLUMNS,
     SCHEMA_VERSION,
+    STEP_COLUMNS,
     UPGRADABLE,
     ResultStore,
     damaged,
     inspect_results_file,
     open_readonly,
     require_sqlite_file,
+    row_spec,
     schema_version,
 )
-from .trials import has_study_tables
+from .trials import STUDY_TABLE_NAMES, has_study_tables
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
@@ -76,8 +96,8 @@ def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
 
 def _new_spec(row: dict[str, Any], map_paths: dict[str, str]) -> EpisodeSpec:
     """The current spec of an old row (missing fields default; the map possibly re-pointed)."""
-    names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
-    fields = {k: row[k] for k in names if k in row and row[k] is not None}
+    fields = {name: row[stored] for stored, name in EpisodeSpec.field_names().items()
+              if stored in row and row[stored] is not None}
     fields["map"] = map_paths.get(row["map"], row["map"])
     fields.setdefault("prior", "independent")  # rows before schema 4 ran with the paper's prior
     fields.setdefault("physics", "")  # ... and the legacy physics
@@ -102,7 +122,7 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     if version == SCHEMA_VERSION:
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
                 "backup": None}
-    if version in ADDITIVE:  # a column and the study tables added in place: no row changes
+    if version in ADDITIVE:  # columns (and the study tables) added in place: no row changes
         ResultStore(path).close()
         return {"from": version, "to": SCHEMA_VERSION, "episodes": len(rows), "merged": 0,
                 "steps": len(steps), "backup": "(none: tables added in place)"}
@@ -118,7 +138,7 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
         if key in kept:
             continue
         new_key[row["key"]] = key
-        kept[key] = {**row, **dataclasses.asdict(spec), "key": key, "map_hash": spec.map_hash}
+        kept[key] = {**row, **spec.stored(), "key": key, "map_hash": spec.map_hash}
     backup = path.with_name(path.name + f".schema{version}.bak")
     if backup.exists():
         raise ConfigError(f"{backup} exists; move it away before upgrading {path}")
@@ -130,12 +150,58 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
             "merged": len(rows) - len(kept), "backup": str(backup)}
 
 
+def _stored_homotopy(store: ResultStore, row: dict[str, Any], map_paths: dict[str, str]
+                     ) -> int | None:
+    """The ``homotopy_success`` of a stored episode from its row and step rows (module
+    docstring, **homotopy**); None when it cannot be known."""
+    if row["status"] != "ok" or not row["goal_reached"]:
+        return 0
+    spec = dataclasses.replace(row_spec(row), map=map_paths.get(row["map"], row["map"]))
+    try:
+        world = cached_world(spec.map)
+        if world.spec.content_hash != row["map_hash"]:
+            return None
+        inst, free_goal = episode_instance(world, spec.fixed, spec.instance_seed, spec.n_goals,
+                                           spec.human, spec.t_max)
+    except PathprefError:
+        return None
+    cells = world.cells
+    if (json.dumps(cells[inst.start].tolist()) != row["start"]
+            or json.dumps(cells[list(inst.goals)].tolist()) != row["goals"]
+            or inst.true_goal != row["true_goal"]):
+        return None
+    path = [(s["x"], s["y"]) for s in store.steps(row["key"])]
+    if len(path) != row["steps"] + 1 or list(path[-1]) != cells[inst.goal_cell].tolist():
+        return None
+    pref = human_preference(world, inst, free_goal, spec.human)
+    return int(route_homotopic(world, pref, inst.start, inst.goal_cell, path))
+
+
+def recompute_homotopy(path: str | Path, map_paths: dict[str, str] | None = None
+                       ) -> dict[str, int]:
+    """Fill the NULL ``homotopy_success`` of the finished episodes of ``path`` where the
+    stored rows determine it (module docstring, **homotopy**); the numbers filled and left."""
+    map_paths = map_paths or {}
+    with ResultStore(path) as store:
+        rows = store.episodes("WHERE homotopy_success IS NULL AND status != 'running'")
+        filled = []
+        for row in rows:
+            value = _stored_homotopy(store, row, map_paths)
+            if value is not None:
+                filled.append((value, row["key"]))
+        with store.conn:
+            store.conn.executemany("UPDATE episodes SET homotopy_success = ? WHERE key = ? "
+                                   "AND homotopy_success IS NULL", filled)
+    return {"recomputed": len(filled), "left": len(rows) - len(filled)}
+
+
 @contextlib.contextmanager
-def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple]
-                  ) -> Iterator[str]:
-    """A new pathpref database holding ``episodes`` and ``steps``, written to a temporary file
-    in the folder of ``beside`` (rollback journal, no side file) for the caller to move into
-    place; whatever is left of it afterwards is removed."""
+def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple],
+                  study: dict[str, list[tuple]] | None = None) -> Iterator[str]:
+    """A new pathpref database holding ``episodes`` and ``steps`` (and the study tables'
+    ``study[table]`` rows), written to a temporary file in the folder of ``beside`` (rollback
+    journal, no side file) for the caller to move into place; whatever is left of it afterwards
+    is removed."""
     fd, tmp = tempfile.mkstemp(dir=beside.parent, prefix=f".{beside.stem}.", suffix=".new")
     os.close(fd)
     os.unlink(tmp)  # ResultStore creates the file itself
@@ -146,7 +212,14 @@ def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[
             store.conn.executemany(
                 f"INSERT INTO episodes ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
                 [[_plain(r.get(c)) for c in cols] for r in episodes])
-            store.conn.executemany("INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)", steps)
+            width = len(STEP_COLUMNS)  # older files' steps lack the last columns: NULL
+            store.conn.executemany(
+                f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
+                [(*s, *(None,) * (width - len(s))) for s in steps])
+            for table, rows in (study or {}).items():
+                if rows:
+                    store.conn.executemany(
+                        f"INSERT INTO {table} VALUES ({', '.join('?' * len(rows[0]))})", rows)
         store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
         store.conn.execute("PRAGMA journal_mode=DELETE")
         store.close()
@@ -228,6 +301,37 @@ def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]]
     keys = {e["key"] for e in episodes}
     orphans = sum(len(t) for k, t in ts.items() if k not in keys)
     return whole, broken, orphans
+
+
+def _whole_trials(tables: dict[str, list[dict[str, Any]]]) -> tuple[set[tuple], int]:
+    """The ``(participant, trial)`` of the study trials whose rows are whole, and the number
+    of trials left out. Whole: the ``trials`` row reads back; ``trial_steps`` has ``t = 0..n``
+    (``n = steps`` for a finished trial), ``trial_forces`` and ``trial_beliefs`` have
+    ``k = 0..m`` for some ``m``, and a finished trial has ``k = 0..pushes-1`` pushes and
+    ``k = 0..cues-1`` cues. An unfinished trial (``study run --resume`` runs it again) needs
+    only gap-free rows."""
+    seq: dict[tuple[str, tuple], list[int]] = defaultdict(list)
+    for table in ("trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs"):
+        col = "t" if table == "trial_steps" else "k"
+        for r in tables[table]:
+            seq[(table, (r["participant"], r["trial"]))].append(r[col])
+    whole: set[tuple] = set()
+    broken = 0
+    for r in tables["trials"]:
+        key = (r["participant"], r["trial"])
+        got = {t: sorted(seq.get((t, key), [])) for t in (
+            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs")}
+        ok = all(v == list(range(len(v))) for v in got.values())
+        if r["status"] == "done":
+            ok = ok and (len(got["trial_steps"]) == (r["steps"] or 0) + 1
+                         and len(got["trial_pushes"]) == r["pushes"]
+                         and len(got["trial_cues"]) == r["cues"]
+                         and bool(got["trial_forces"]) and bool(got["trial_beliefs"]))
+        if ok and key not in whole:
+            whole.add(key)
+        else:
+            broken += 1
+    return whole, broken
 
 
 def check_database(path: str | Path) -> dict[str, Any]:
@@ -333,6 +437,8 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
                                   "databases")
             episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
             steps, steps_lost, exact_s = _read_table(ro, "steps")
+            study = ({t: _read_table(ro, t) for t in STUDY_TABLE_NAMES}
+                     if has_study_tables(ro) else None)
         finally:
             ro.close()
     except sqlite3.DatabaseError as e:
@@ -340,9 +446,21 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
                           ) from None
     whole, broken, orphans = _whole_episodes(episodes, steps)
     kept = [tuple(s.values()) for s in steps if s["key"] in whole]
-    with _new_database(out, whole.values(), kept) as tmp:
+    trials = trial_rows = trials_lost = 0
+    study_rows: dict[str, list[tuple]] = {}
+    if study is not None:
+        good, broken_trials = _whole_trials({t: v[0] for t, v in study.items()})
+        study_rows = {t: [tuple(r.values()) for r in v[0]
+                          if (r["participant"], r["trial"]) in good] for t, v in study.items()}
+        trials, trial_rows = len(good), sum(len(v) for v in study_rows.values())
+        # a trial whose `trials` row did not read back is lost too (its other rows go with it)
+        trials_lost = broken_trials + study["trials"][1]
+        exact_e = exact_e and study["trials"][2]
+    with _new_database(out, whole.values(), kept, study_rows) as tmp:
         os.replace(tmp, out)
-    return {"episodes": len(whole), "steps": len(kept),
+    return {"episodes": len(whole), "steps": len(kept), "trials": trials,
+            "trial_rows": trial_rows, "trials_lost": trials_lost,
+            "study": study is not None,
             "episodes_lost": episodes_lost + len(broken),
             "steps_lost": steps_lost + len(steps) - len(kept), "incomplete": len(broken),
             "unreadable": episodes_lost, "orphans": orphans,

@@ -7,6 +7,12 @@ is in ``n`` and counts against the success, goal and preference rates, so 9 succ
 rows of which 3 failed read 0.38, never 9/21 = 0.43. Every record and every table says how many
 rows failed. ``exclude_failed=True`` (``pathpref report --exclude-failed``) leaves them out of
 the rates instead, still counted.
+
+Beside the strict success (the paper's headline) every record gives the homotopy-level success
+(goal reached in the human route's homotopy class, :mod:`pathpref.geometry.homotopy`) with its
+interval, over the rows that measured it (rows written before schema 5 hold NULL: not
+measured, and are left out of that rate only), and the pushes per episode: the mean of the
+rows' ``inputs`` over the episodes that ran, and over the successful ones.
 """
 
 from __future__ import annotations
@@ -93,8 +99,13 @@ def variant(r: dict[str, Any], physics: bool = True) -> str:
         parts.append(f"{r['n_goals']} goals")
     if (r.get("human") or "map") != "map":
         parts.append(f"{r['human']} human")
-    if physics and r.get("sim", "grid") != "grid":
+    if r.get("push_rule"):
+        parts.append(f"{r['push_rule']} pushes")
+    grid = r.get("sim", "grid") == "grid"
+    if physics and not grid:
         parts.append(physics_label(r.get("physics")))
+    elif grid and r.get("physics"):  # a grid episode's human model (not the default one)
+        parts.append(physics_label(r["physics"]).replace("physics", "human model", 1))
     return ", ".join(parts)
 
 
@@ -133,9 +144,30 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
             "pref_rate": sum(r["pref_followed"] for r in ok) / n if n else float("nan"),
             "instances": len({r["instance_seed"] for r in counted}),
             "failed_excluded": bool(exclude_failed),
+            **homotopy_summary(counted),
+            **push_summary(ok),
             **physical_summary(ok),
         })
     return out
+
+
+def homotopy_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """The homotopy-level success of ``rows`` (the rows a rate counts): its rate and 95%
+    Wilson interval over the ``homotopy_n`` rows that measured it (``homotopy_success`` not
+    NULL; a failed row holds 0); None and ``(0, 1)`` when none did."""
+    measured = [r for r in rows if r.get("homotopy_success") is not None]
+    n, k = len(measured), sum(r["homotopy_success"] for r in measured)
+    lo, hi = wilson(k, n)
+    return {"homotopy_n": n, "homotopy_rate": k / n if n else None,
+            "homotopy_ci_low": lo, "homotopy_ci_high": hi}
+
+
+def push_summary(ok: list[dict[str, Any]]) -> dict[str, Any]:
+    """Pushes per episode (the mean of ``inputs``) over the episodes that ran (``ok``), and
+    over the successful ones; None without such episodes."""
+    won = [r["inputs"] for r in ok if r["success"]]
+    return {"pushes_per_episode": sum(r["inputs"] for r in ok) / len(ok) if ok else None,
+            "pushes_per_success": sum(won) / len(won) if won else None}
 
 
 #: per-episode metrics of a physical body that a cell sums (:func:`physical_summary`)
@@ -224,7 +256,8 @@ def _find(recs: list[dict[str, Any]], meth: str, dt: int) -> dict[str, Any] | No
 
 
 def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> str:
-    """Markdown: one table per (map, sim, variant), methods x Delta_T, rate [95% CI]."""
+    """Markdown: one table per (map, sim, variant), methods x Delta_T, rate [95% CI]; under
+    it the homotopy-level success [95% CI] and the pushes per episode of the same cells."""
     blocks = []
     keys = sorted({(r["map"], r["sim"], r["variant"]) for r in records})
     for m, sim, var in keys:
@@ -243,6 +276,17 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                     + (f" ({r['failed']} failed)" if r["failed"] else ""))
 
         lines = _grid(title, recs, rate)
+
+        def homotopy(meth, d, recs=recs) -> str:
+            r = _find(recs, meth, d)
+            if r is None:
+                return "–"
+            rate = ("not measured" if not r["homotopy_n"] else
+                    f"{r['homotopy_rate']:.2f} [{r['homotopy_ci_low']:.2f}, "
+                    f"{r['homotopy_ci_high']:.2f}]")
+            pushes = r["pushes_per_episode"]
+            return rate + ("" if pushes is None else f"; {pushes:.1f} pushes")
+
         if with_paper and m == "simple" and sim == "grid":
             lines += ["", "Paper (Table I, Map 1):", "",
                       "| method | " + " | ".join(f"ΔT={d}" for d in dts) + " |",
@@ -252,6 +296,8 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                     vals = [TABLE_I[meth].get(d) for d in dts]
                     lines.append(f"| {METHOD_LABEL[meth]} | " + " | ".join(
                         "–" if v is None else f"{v:.2f}" for v in vals) + " |")
+        lines += [""] + _grid(f"**{m}**, homotopy-level success [95% CI]; pushes per episode",
+                              recs, homotopy)
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)
 
@@ -332,15 +378,21 @@ def mean_interval(values: list[float], z_level: float = 0.975) -> tuple[float, f
 
 
 def load_trials(db: str | Path) -> list[dict[str, Any]]:
-    """Every finished study trial of ``db`` (none when it has no study tables)."""
+    """Every finished study trial of ``db`` (none when it has no study tables), each with
+    ``push_peak_n``: the mean peak force of its pushes (N; None without a push)."""
     from .trials import has_study_tables, read_rows
 
     with ResultStore(db, create=False) as store:
         try:
             if not has_study_tables(store.conn):
                 return []
-            return read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
+            rows = read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
                              "participant, trial")
+            peaks = {(p, k): v for p, k, v in store.conn.execute(
+                "SELECT participant, trial, avg(peak_n) FROM trial_pushes "
+                "GROUP BY participant, trial")}
+            return [r | {"push_peak_n": peaks.get((r["participant"], r["trial"]))}
+                    for r in rows]
         except sqlite3.DatabaseError as e:
             raise ConfigError(f"cannot read trials from {db}: {e} (the file is damaged)"
                               ) from None
@@ -354,31 +406,82 @@ def condition_label(row: dict[str, Any]) -> str:
     return ", ".join([row["method"], *(f"{k}={v}" for k, v in sorted(labels.items()))])
 
 
-def study_tables(trials: list[dict[str, Any]]) -> str:
-    """Markdown: per participant and per condition, success rate [95% Wilson], and the means
-    [95% t interval] of time (s; a timed-out trial counts its full time), pushes and effort
-    (integral of |F| dt, N s)."""
-    def fmt(v: tuple[float, float, float], digits: int = 1) -> str:
-        m, lo, hi = v
-        if math.isnan(lo):
-            return f"{m:.{digits}f}"
-        return f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+#: fewer values than this get a mean and no interval (a t interval at n = 2 spans
+#: 12.7 standard deviations either side: effort 58.5 [-684.7, 801.7] N s)
+MIN_INTERVAL_N = 3
 
-    def table(title: str, key) -> list[str]:
+
+def range_interval(values: list[float], low: float = 0.0, high: float = math.inf
+                   ) -> tuple[float, float, float]:
+    """Mean and 95% interval of a quantity that lies in ``[low, high]`` (time, pushes and
+    effort: ``[0, inf)``): the Student-t interval (:func:`mean_interval`) clipped to the range,
+    so it never claims an impossible value (no negative effort); with fewer than
+    :data:`MIN_INTERVAL_N` values, no interval ``(nan, nan)`` (shown as ``n < 3``). Clipping
+    keeps the t interval's coverage for every mean inside the range (the dropped part held
+    no possible mean)."""
+    m, lo, hi = mean_interval(values)
+    if len(values) < MIN_INTERVAL_N:
+        return m, float("nan"), float("nan")
+    return m, max(low, lo), min(high, hi)
+
+
+def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One record per participant and per condition (``by``: ``participant`` or
+    ``condition``): trials ``n``; success rate and the share of trials *on route* (no
+    violation of the route's preference), each with its 95% Wilson interval; the means of
+    time (s; a timed-out trial counts its full time), pushes and effort (integral of |F| dt,
+    N s), and of the trials' mean peak push force (N, ``push_peak_n``; over the trials with a
+    push), with :func:`range_interval` (``nan`` when fewer than 3 values)."""
+    out = []
+    for by, key in (("participant", lambda r: r["participant"]),
+                    ("condition", condition_label)):
         groups: dict[str, list[dict]] = defaultdict(list)
         for r in trials:
             groups[key(r)].append(r)
-        lines = [f"**{title}**", "", f"| {title.split()[-1]} | n | success | time (s) | "
-                 "pushes | effort (N s) |", "|---|---|---|---|---|---|"]
         for g, rs in sorted(groups.items()):
+            n = len(rs)
             k = sum(r["success"] for r in rs)
-            lo, hi = wilson(k, len(rs))
-            lines.append(
-                f"| {g} | {len(rs)} | {k / len(rs):.2f} [{lo:.2f}, {hi:.2f}] | "
-                f"{fmt(mean_interval([r['time_s'] for r in rs]))} | "
-                f"{fmt(mean_interval([float(r['pushes']) for r in rs]))} | "
-                f"{fmt(mean_interval([r['effort_ns'] for r in rs]))} |")
-        return lines
+            on = sum((r["violations"] or 0) == 0 for r in rs)
+            rec = {"by": by, "group": g, "n": n, "success_rate": k / n}
+            rec["ci_low"], rec["ci_high"] = wilson(k, n)
+            rec["on_route"] = on / n
+            rec["on_route_low"], rec["on_route_high"] = wilson(on, n)
+            for col in ("time_s", "pushes", "effort_ns", "push_peak_n"):
+                vals = [float(r[col]) for r in rs if r.get(col) is not None]
+                m, lo, hi = range_interval(vals) if vals else (math.nan,) * 3
+                rec[col], rec[f"{col}_low"], rec[f"{col}_high"] = m, lo, hi
+            out.append(rec)
+    return out
 
-    return "\n".join(table("Study trials per participant", lambda r: r["participant"]) + [""]
-                     + table("Study trials per condition", condition_label))
+
+def study_tables(trials: list[dict[str, Any]]) -> str:
+    """Markdown of :func:`study_records`: per participant and per condition, success rate
+    [95% Wilson], the means [95% t interval clipped to the quantity's range; ``n < 3``: none]
+    of time, pushes and effort, the share of trials on route [95% Wilson] and the mean peak
+    push force."""
+    def fmt(m: float, lo: float, hi: float, digits: int = 1) -> str:
+        if math.isnan(m):
+            return "-"
+        if math.isnan(lo):
+            return f"{m:.{digits}f} (n < {MIN_INTERVAL_N})"
+        return f"{m:.{digits}f} [{lo:.{digits}f}, {hi:.{digits}f}]"
+
+    recs = study_records(trials)
+    lines: list[str] = []
+    for by, title in (("participant", "Study trials per participant"),
+                      ("condition", "Study trials per condition")):
+        if lines:
+            lines.append("")
+        lines += [f"**{title}**", "", f"| {by} | n | success | time (s) | pushes | "
+                  "effort (N s) | on route | peak push (N) |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in (r for r in recs if r["by"] == by):
+            lines.append(
+                f"| {r['group']} | {r['n']} | {r['success_rate']:.2f} [{r['ci_low']:.2f}, "
+                f"{r['ci_high']:.2f}] | "
+                + " | ".join(fmt(r[c], r[f"{c}_low"], r[f"{c}_high"])
+                             for c in ("time_s", "pushes", "effort_ns"))
+                + f" | {r['on_route']:.2f} [{r['on_route_low']:.2f}, "
+                f"{r['on_route_high']:.2f}] | "
+                + fmt(r["push_peak_n"], r["push_peak_n_low"], r["push_peak_n_high"]) + " |")
+    return "\n".join(lines)

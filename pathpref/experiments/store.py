@@ -44,14 +44,21 @@ from .trials import STUDY_TABLE_NAMES, create_study_tables, study_sql
 #: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the physical
 #: parameters of each episode (``physics``, JSON; "" = the legacy physics of older rows), the
 #: belief's preference prior (``prior``; empty = the independent one older rows ran with) and
-#: the study tables (trials with people, :mod:`.trials`)
-SCHEMA_VERSION = 4
+#: the study tables (trials with people, :mod:`.trials`); 5: ``homotopy_success`` per episode,
+#: the human's push rule (``push_rule``; empty = the periodic human of older rows) and
+#: ``is_intervention`` per step
+SCHEMA_VERSION = 5
 UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: older schemas whose tables are a subset of this one's: read as they are; opened for writing
-#: (a sweep, a study or 'db upgrade'), the missing columns (empty: the legacy physics and the
-#: independent prior the rows ran with, keys unchanged) and the study tables are added in place
-#: and the version set to 4 (so every stored episode reads and replays as before)
-ADDITIVE = (3,)
+#: (a sweep, a study or 'db upgrade'), the missing columns and the study tables are added in
+#: place and the version set to 5, so every stored episode reads and replays as before. The
+#: added columns of the old rows stay NULL: the legacy physics, the independent prior and the
+#: periodic human they ran with (keys unchanged), and ``homotopy_success`` and
+#: ``is_intervention`` *not measured* (reports count them over the rows that have them;
+#: 'pathpref db upgrade' fills ``homotopy_success`` from the stored steps where it can)
+ADDITIVE = (3, 4)
+#: the first schema with the study tables
+STUDY_SCHEMA = 4
 
 EPISODE_COLUMNS = {
     "key": "TEXT PRIMARY KEY",
@@ -65,13 +72,28 @@ EPISODE_COLUMNS = {
     "success": "INTEGER", "steps": "INTEGER", "inputs": "INTEGER", "violations": "INTEGER",
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
     "human": "TEXT", "back_crossings": "INTEGER", "physics": "TEXT",
-    "prior": "TEXT",
+    "prior": "TEXT", "homotopy_success": "INTEGER", "push_rule": "TEXT",
+}
+#: the columns of the steps table (the last added by schema 5) and its primary key
+STEP_COLUMNS = {
+    "key": "TEXT", "t": "INTEGER", "x": "INTEGER", "y": "INTEGER", "action": "INTEGER",
+    "heading": "INTEGER", "p_true_goal": "REAL", "goal_entropy": "REAL",
+    "is_intervention": "INTEGER",
 }
 
 #: The CREATE statements of pathpref's tables (``episodes`` takes its column list).
 META_SQL = "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)"
-STEPS_SQL = ("CREATE TABLE steps (key TEXT, t INTEGER, x INTEGER, y INTEGER, action INTEGER, "
-             "heading INTEGER, p_true_goal REAL, goal_entropy REAL, PRIMARY KEY (key, t))")
+
+
+def steps_sql(columns: Iterable[str] = STEP_COLUMNS) -> str:
+    """The ``CREATE TABLE steps`` statement with ``columns`` (all of them by default), as
+    SQLite stores it, also after ``ALTER TABLE steps ADD COLUMN`` (new columns go before the
+    primary key)."""
+    return (f"CREATE TABLE steps ({', '.join(f'{c} {STEP_COLUMNS[c]}' for c in columns)}, "
+            "PRIMARY KEY (key, t))")
+
+
+STEPS_SQL = steps_sql()
 BASE_TABLES = ("meta", "episodes", "steps")  # schema 3
 TABLES = BASE_TABLES + STUDY_TABLE_NAMES
 
@@ -167,7 +189,11 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")]
     if not set(columns) <= set(EPISODE_COLUMNS):
         raise foreign(f"episodes has columns {sorted(set(columns) - set(EPISODE_COLUMNS))}")
-    sqls = [("meta", META_SQL), ("steps", STEPS_SQL), ("episodes", episodes_sql(columns))]
+    step_columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(steps)")]
+    if not set(step_columns) <= set(STEP_COLUMNS):
+        raise foreign(f"steps has columns {sorted(set(step_columns) - set(STEP_COLUMNS))}")
+    sqls = [("meta", META_SQL), ("steps", steps_sql(step_columns)),
+            ("episodes", episodes_sql(columns))]
     sqls += [(t, study_sql(t)) for t in tables if t in STUDY_TABLE_NAMES]
     for t, sql in sqls:
         if objects[("table", t)][2:] != (t, sql):
@@ -176,11 +202,13 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     if row is None or not str(row[0]).isdigit():
         raise foreign("it has no schema version")
     version = int(row[0])
-    if version == SCHEMA_VERSION and not study or study and version in (*UPGRADABLE,
-                                                                         *ADDITIVE):
+    known = (*UPGRADABLE, *ADDITIVE, SCHEMA_VERSION)  # any other version is incompatible
+    if version in known and (version >= STUDY_SCHEMA) != study:
         raise foreign(f"schema {version} {'with' if study else 'without'} the study tables")
-    if version == SCHEMA_VERSION and columns != list(EPISODE_COLUMNS):
-        lacking = [c for c in EPISODE_COLUMNS if c not in columns]
+    if version == SCHEMA_VERSION and (columns != list(EPISODE_COLUMNS)
+                                      or step_columns != list(STEP_COLUMNS)):
+        lacking = [c for c in (*EPISODE_COLUMNS, *STEP_COLUMNS)
+                   if c not in columns and c not in step_columns]
         raise ConfigError(
             f"{path} was written by a development version of pathpref (schema "
             f"{SCHEMA_VERSION} without the columns {', '.join(lacking)}); use a new --db path")
@@ -260,15 +288,18 @@ ROW_RULES = {
     "delta_t": "count", "queries": "count", "t_max": "count", "instance_seed": "seed",
     "ucb_c": "number",
     "normalize": "flag", "coupling": "flag", "success": "flag", "goal_reached": "flag",
-    "pref_followed": "flag",
+    "pref_followed": "flag", "homotopy_success": "flag or NULL",
 }
 _RULE_TEXT = {"text": "a string", "count": "an integer >= 1", "seed": "an integer >= 0",
-              "number": "a finite number", "flag": "0 or 1"}
+              "number": "a finite number", "flag": "0 or 1",
+              "flag or NULL": "0, 1 or NULL (not measured)"}
 
 
 def _breaks_rule(value: Any, rule: str) -> bool:
     if rule == "text":
         return not isinstance(value, str)
+    if rule == "flag or NULL":
+        return value is not None and _breaks_rule(value, "flag")
     if rule == "number":
         return not (isinstance(value, int | float) and math.isfinite(value))
     if not isinstance(value, int):
@@ -300,6 +331,9 @@ def check_episode_rows(rows: Iterable[dict[str, Any]], path: str | Path) -> None
             raise ConfigError(f"{path}: {where} has success = {row['success']} but "
                               f"goal_reached = {row['goal_reached']} and pref_followed = "
                               f"{row.get('pref_followed')}; {fix}")
+        if row.get("homotopy_success") == 1 and row.get("goal_reached") == 0:
+            raise ConfigError(f"{path}: {where} has homotopy_success = 1 but goal_reached = 0; "
+                              f"{fix}")
 
 
 def check_stored_rows(conn: sqlite3.Connection, path: str | Path) -> None:
@@ -424,18 +458,22 @@ class ResultStore:
             create_study_tables(c)
 
     def _complete_schema(self) -> None:
-        """Bring an :data:`ADDITIVE` (schema 3) file to this schema: add the ``prior`` column
-        (NULL in the old rows: the independent prior) and the study tables."""
+        """Bring an :data:`ADDITIVE` (schema 3 or 4) file to this schema: add the missing
+        episode and step columns (NULL in the old rows, see :data:`ADDITIVE`) and, to a schema
+        3 file, the study tables."""
         c = self.conn
         row = c.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
-        if int(row[0]) not in ADDITIVE:
+        version = int(row[0])
+        if version not in ADDITIVE:
             return
-        columns = [r[1] for r in c.execute("PRAGMA table_xinfo(episodes)")]
         with c:
-            for name, kind in EPISODE_COLUMNS.items():
-                if name not in columns:
-                    c.execute(f"ALTER TABLE episodes ADD COLUMN {name} {kind}")
-            create_study_tables(c)
+            for table, wanted in (("episodes", EPISODE_COLUMNS), ("steps", STEP_COLUMNS)):
+                have = [r[1] for r in c.execute(f"PRAGMA table_xinfo({table})")]
+                for name, kind in wanted.items():
+                    if name not in have:
+                        c.execute(f"ALTER TABLE {table} ADD COLUMN {name} {kind}")
+            if version < STUDY_SCHEMA:
+                create_study_tables(c)
             c.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
                       (str(SCHEMA_VERSION),))
 
@@ -528,9 +566,10 @@ class ResultStore:
             vals,
         )
         self.conn.executemany(
-            "INSERT INTO steps VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
-            [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
-             for s in res.log],
+            f"INSERT INTO steps ({', '.join(STEP_COLUMNS)}) "
+            f"VALUES ({', '.join('?' for _ in STEP_COLUMNS)})",
+            [(key, s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy,
+              s.is_intervention) for s in res.log],
         )
 
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
@@ -568,10 +607,11 @@ class ResultStore:
 
 def row_spec(row: dict[str, Any]) -> EpisodeSpec:
     """The :class:`EpisodeSpec` of a stored row: ``run_episode(row_spec(row))`` replays it."""
-    names = {f.name for f in dataclasses.fields(EpisodeSpec)} - {"timeout_s"}
-    spec = {k: row.get(k) for k in names}
-    # rows before schema 4: the independent prior and the legacy physics they ran with
+    spec = {name: row.get(stored) for stored, name in EpisodeSpec.field_names().items()}
+    # rows before schema 4: the independent prior and the legacy physics they ran with;
+    # before schema 5: the periodic human
     spec["prior"] = spec["prior"] or "independent"
     spec["physics"] = spec["physics"] or ""
+    spec["push_rule"] = spec["push_rule"] or ""
     spec["normalize"], spec["coupling"] = bool(spec["normalize"]), bool(spec["coupling"])
     return EpisodeSpec(**spec)

@@ -56,7 +56,7 @@ def sweep_specs(map_name: str, methods: list[str], delta_ts: list[int], instance
                     s.validate()
                     specs.append(s)
     if specs:
-        body_class(specs[0].sim, specs[0].task)  # the body exists and offers the task
+        body_class(specs[0].sim, specs[0].robot)  # the body exists and offers the task
     return specs
 
 
@@ -64,7 +64,7 @@ def check_specs(specs: list[EpisodeSpec]) -> None:
     """Fail fast (before any work) on a bad body, map, preference or instance in the sweep."""
     seen: set[tuple] = set()
     for s in specs:
-        body_class(s.sim, s.task)
+        body_class(s.sim, s.robot)
         sig = (s.map, s.instance_seed, s.n_goals, s.fixed)
         if sig in seen:
             continue

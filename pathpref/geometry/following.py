@@ -13,6 +13,7 @@ import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
 
+from .grid import STAY
 from .world import World
 
 
@@ -28,6 +29,59 @@ def preference_following_distance(world: World, pref: np.ndarray, goal: int) -> 
     # reversed graph: an edge t -> s for every allowed move s -> t, so one search from the goal
     rev = csr_matrix((m.cost.ravel()[ok], (dst[ok], src[ok])), shape=(n, n))
     return dijkstra(rev, directed=True, indices=goal)
+
+
+def preferred_move(world: World, pref: np.ndarray, togo: np.ndarray, cell: int) -> int:
+    """The move along the preference from ``cell``: among the moves not blocked that leave
+    ``v = v(cell)`` only toward ``pref[v]`` (any when ``pref[v] < 0``), the one minimising
+    ``c(cell, a) + togo[next(cell, a)]`` (the lowest index among equals), ``togo`` being
+    :func:`preference_following_distance` to the goal; ``STAY`` when every such score is
+    infinite. The ``oracle`` acts by it and :func:`preference_route` walks it."""
+    m = world.motion
+    poly = world.cell_polytope
+    v, w = poly[cell], poly[m.next_cell[cell]]
+    p = pref[v]
+    allowed = ~m.blocked[cell] & ((w == v) | (p < 0) | (w == p))
+    score = np.where(allowed, m.cost[cell] + togo[m.next_cell[cell]], np.inf)
+    if not np.isfinite(score).any():
+        return STAY
+    return int(np.argmin(score))
+
+
+def preference_route(world: World, pref: np.ndarray, start: int, goal: int) -> list[int]:
+    """The cells of the shortest path from ``start`` to ``goal`` that leaves each polytope
+    ``v`` only toward ``pref[v]``: :func:`preferred_move` from ``start`` until ``goal``
+    (the oracle's path); ``[]`` when the preference does not lead from ``start`` to ``goal``.
+
+    ``togo`` decreases by the move's cost (at least 1) at every move of the walk, so it ends
+    at the goal within ``togo[start] <= n_cells * sqrt(2)`` moves; the walk is bounded by
+    ``n_cells`` moves all the same (a RuntimeError past it would be a bug here)."""
+    togo = preference_following_distance(world, pref, goal)
+    if not np.isfinite(togo[start]):
+        return []
+    route = [int(start)]
+    for _ in range(world.n_cells):
+        if route[-1] == goal:
+            return route
+        a = preferred_move(world, pref, togo, route[-1])
+        if a == STAY:
+            break
+        route.append(int(world.motion.next_cell[route[-1], a]))
+    if route[-1] == goal:
+        return route
+    raise RuntimeError("preference_route: the walk along a finite togo did not reach the goal")
+
+
+def human_route(world: World, pref: np.ndarray, start: int, goal: int) -> list[int]:
+    """The human's route from ``start`` to ``goal`` under the preference ``pref``:
+    :func:`preference_route` with ``pref``, or, when ``pref`` does not lead there, with its
+    completion :func:`consistent_preference` for the goal's polytope (the fewest departures
+    from ``pref``); ``[]`` when the goal cannot be reached from the start at all."""
+    route = preference_route(world, pref, start, goal)
+    if route:
+        return route
+    q = consistent_preference(world, pref, int(world.cell_polytope[goal]))[0]
+    return preference_route(world, q, start, goal)
 
 
 def consistent_preference(world: World, pref: np.ndarray, goal_polytope: int

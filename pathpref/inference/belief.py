@@ -23,6 +23,7 @@ from abc import ABC, abstractmethod
 
 import numpy as np
 
+from ..geometry.grid import ACTION_ANGLES
 from .human import ObservationModel
 
 COUPLING_FLOOR = 1e-6
@@ -33,6 +34,13 @@ ROW_FLOOR = 1e-280
 #: a row whose largest entry falls below this (relative to its table's largest) is rescaled on
 #: its own (:meth:`PreferenceBelief._multiply`)
 ROW_RESCALE = 1e-100
+
+
+def direction_weights(angle: float, kappa: float) -> np.ndarray:
+    """``(8,)`` von Mises weights ``exp(kappa (cos(theta - mu_h) - 1))`` of a force direction
+    ``theta`` (radians) for the eight headings' directions ``mu_h`` (the density up to its
+    normaliser, which no hypothesis sees; the largest weight is at most 1)."""
+    return np.exp(kappa * (np.cos(angle - ACTION_ANGLES) - 1.0))
 
 
 def entropy(p: np.ndarray) -> float:
@@ -59,6 +67,20 @@ class Belief(ABC):
         """Condition on the human's heading ``heading`` (0..7) given at free cell ``cell``;
         ``weight`` tempers the likelihood, ``P(h | .)^weight`` (1: the plain update; above 1
         a more confident observation, below 1 a less confident one)."""
+
+    def update_direction(self, cell: int, angle: float, kappa: float,
+                         weight: float = 1.0) -> None:
+        """Condition on a force direction ``angle`` (radians) felt at ``cell``: the continuous
+        likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h, kappa)`` (the
+        human picks a heading by the model, then pushes along it with von Mises spread
+        ``kappa``) to the power ``weight`` (the share of one observation this sample carries:
+        online updates during a sustained push). ``kappa -> inf`` at ``mu_h`` is
+        :meth:`update` with ``h``; ``kappa = 0`` is no evidence."""
+        self._update_mixture(cell, direction_weights(angle, kappa), weight)
+
+    @abstractmethod
+    def _update_mixture(self, cell: int, a: np.ndarray, weight: float) -> None:
+        """Multiply by ``(sum_h a_h P(h | s, .))^weight``."""
 
     @abstractmethod
     def rule_out(self, goal_index: int) -> None:
@@ -100,6 +122,10 @@ class GoalBelief(Belief):
         (likelihood to the power ``weight``)."""
         log_lik = np.log(self.model.goal_likelihood[cell, heading])
         self.log_w = self.log_w + (log_lik if weight == 1.0 else weight * log_lik)
+
+    def _update_mixture(self, cell: int, a: np.ndarray, weight: float) -> None:
+        with np.errstate(divide="ignore"):
+            self.log_w = self.log_w + weight * np.log(a @ self.model.goal_likelihood[cell])
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
@@ -185,6 +211,11 @@ class PreferenceBelief(Belief):
         v = int(self.cell_polytope[cell])
         lik = self.model.likelihood[cell, heading, :, : self.degree[v]]
         self._multiply(v, lik if weight == 1.0 else lik ** weight)
+
+    def _update_mixture(self, cell: int, a: np.ndarray, weight: float) -> None:
+        v = int(self.cell_polytope[cell])
+        lik = np.tensordot(a, self.model.likelihood[cell, :, :, : self.degree[v]], axes=1)
+        self._multiply(v, lik ** weight)
 
     def enter(self, v_from: int, v_to: int) -> None:
         """Tell the belief that the robot moved from polytope ``v_from`` into ``v_to``.

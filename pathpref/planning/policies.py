@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..geometry.following import preference_following_distance
+from ..geometry.following import preference_following_distance, preferred_move
 from ..geometry.grid import STAY
 from ..geometry.world import World
 from ..inference.belief import Belief, GoalBelief, PreferenceBelief
@@ -79,6 +79,11 @@ class Policy(ABC):
             self.belief.update(cell, heading)
         else:
             self.belief.update(cell, heading, weight)
+
+    def observe_direction(self, cell: int, angle: float, kappa: float, weight: float) -> None:
+        """A force direction ``angle`` felt at ``cell`` (a sample of a sustained push):
+        :meth:`Belief.update_direction`."""
+        self.belief.update_direction(cell, angle, kappa, weight)
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
@@ -183,16 +188,10 @@ class OraclePolicy(Policy):
 
     def act(self, t: int, cell: int, heading: int | None) -> int:
         """Follow the preference-respecting shortest path (see class docstring)."""
-        m = self.ctx.world.motion
-        allowed = ~m.blocked[cell]
-        field = self.dist
         if np.isfinite(self.togo[cell]):  # follow the preference: leave v only toward p_v
-            field = self.togo
-            poly = self.ctx.world.cell_polytope
-            v, w = poly[cell], poly[m.next_cell[cell]]
-            p = self.ctx.true_preference[v]
-            allowed &= (w == v) | (p < 0) | (w == p)
-        score = np.where(allowed, m.cost[cell] + field[m.next_cell[cell]], np.inf)
+            return preferred_move(self.ctx.world, self.ctx.true_preference, self.togo, cell)
+        m = self.ctx.world.motion
+        score = np.where(~m.blocked[cell], m.cost[cell] + self.dist[m.next_cell[cell]], np.inf)
         if not np.isfinite(score).any():
             return STAY
         return int(np.argmin(score))

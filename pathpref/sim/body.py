@@ -40,8 +40,6 @@ from .mobile_base import MobileBase
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, Scene, build_scene
 
-#: how long a standing robot waits before its next decision when pushes come at any time (s)
-HOLD_S = 0.5
 
 @lru_cache(maxsize=8)
 def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigate",
@@ -69,12 +67,12 @@ class MujocoBody(Body):
                  scene: Scene | None = None, data=None, base: MobileBase | None = None):
         self.world = world
         self.rng = rng
-        self.physics = physics = Physics.from_json(getattr(spec, "physics", ""))
+        self.physics = physics = spec.physical
         self.delta_t = int(spec.delta_t)
         if base is None:
             params = None if physics is None else base_params(physics)
-            scene = scene or scene_for(world, cell_size, spec.task, params)
-            base = build_base(scene, spec.task, physics, rng, profile=profile, data=data)
+            scene = scene or scene_for(world, cell_size, spec.robot, params)
+            base = build_base(scene, spec.robot, physics, rng, profile=profile, data=data)
         self.scene = base.scene
         self.base: MobileBase = base
         self.profile = self.base.profile
@@ -91,11 +89,15 @@ class MujocoBody(Body):
         """Take the human over when the physics' timing is not ``decision`` (pushes at any
         time, :mod:`.pushing_human`); the human's own stream is a child of the body's."""
         self.probs = probs
-        if self.physics is None or self.physics.timing == "decision":
+        if self.physics is None or self.physics.human.timing == "decision":
             return False
-        self.base.enable_pushes_any_time(self.physics.admittance_b)
-        self.human = PushingHuman(self.physics, self.rng.spawn(1)[0], self.delta_t,
-                                  heading_at, probs)
+        drive = self.physics.drive
+        if self.physics.human.timing == "guidance":
+            self.base.enable_guidance(drive.admittance_m, drive.admittance_b)
+        else:
+            self.base.enable_pushes_any_time(drive.admittance_b)
+        self.human = PushingHuman(self.physics.human, self.rng.spawn(1)[0], self.delta_t,
+                                  heading_at, probs, self.physics.step_s(self.scene.cell_size))
         self.human.attach(self.base)
         return True
 
@@ -129,7 +131,7 @@ class MujocoBody(Body):
         strength and duration drawn from the physics' human model (:func:`sample_profile`),
         then the profile's angle noise, all from the body's stream."""
         profile = self.profile if self.physics is None else \
-            sample_profile(self.physics, self.rng, self._confidence(heading))
+            sample_profile(self.physics.human, self.rng, self._confidence(heading))
         return HumanPush.sample(heading, float(self.base.data.time), profile, self.rng)
 
     def push(self, heading: int) -> None:
@@ -189,7 +191,11 @@ class MujocoBody(Body):
         return out
 
     def move(self, action: int) -> int:
-        """Drive to the grid neighbour of SPEC 3; the cell the base ends in."""
+        """Drive to the grid neighbour of SPEC 3; the cell the base ends in. When the human
+        pushes on a clock of its own (pushes at any time) a decision step lasts the one rule's
+        ``Physics.step_s`` (the base holds its target for the rest of it), so ``delta_t`` steps
+        are ``delta_t`` of the human's nominal steps, as in the dm_control tasks; a cue ends
+        it early (the planner replans)."""
         target = self.cell if action == STAY else int(self.world.motion.next_cell[self.cell,
                                                                                   action])
         if self.human is None:
@@ -197,10 +203,11 @@ class MujocoBody(Body):
             return self.cell
         self.cell = self.base.cell
         self.human.robot_moves(self.cell, None if target == self.cell else action)
+        step = self.physics.step_s(self.scene.cell_size)
         if target == self.cell:
-            self.cell = self.base.hold(HOLD_S)
+            self.cell = self.base.hold(step)
         else:
-            self.cell = self.base.move_to(target)
+            self.cell = self.base.move_to(target, min_s=step)
         return self.cell
 
 
@@ -218,14 +225,15 @@ def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.
     kwargs: dict = {} if controller is None else {"controller": controller}
     if physics is not None:
         kwargs = {**sensing_kwargs(physics, rng), "controller": controller or
-                  ProfiledController(v_max=physics.v_max, a_max=physics.a_max)}
+                  ProfiledController(v_max=physics.drive.v_max, a_max=physics.drive.a_max,
+                                     time_limit_s=physics.move_limit_s(scene.cell_size))}
     if task == "carry":
         from .arm import ArmBase
 
         if physics is not None:
             kwargs["physical"] = True
         base: MobileBase = ArmBase(scene, profile=profile, data=data, **kwargs)
-    elif physics is not None and physics.base == "diffdrive":
+    elif physics is not None and physics.drive.kind == "diffdrive":
         base = DiffDriveBase(scene, profile=profile, data=data, **kwargs)
     else:
         base = MobileBase(scene, profile=profile, data=data, **kwargs)
@@ -234,8 +242,11 @@ def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.
 
 
 def base_params(physics: Physics) -> BaseParams:
-    """The physical base of ``physics`` (kind and actuator force limit)."""
-    return BaseParams(kind=physics.base, force_limit_n=physics.force_limit_n)
+    """The physical base of ``physics``'s drive (kind, mass, floor friction, actuator force
+    limit)."""
+    d = physics.drive
+    return BaseParams(kind=d.kind, mass_kg=d.mass_kg, force_limit_n=d.force_limit_n,
+                      friction_n=d.friction_n)
 
 
 def sensing_kwargs(physics: Physics, rng: np.random.Generator) -> dict:
@@ -245,14 +256,12 @@ def sensing_kwargs(physics: Physics, rng: np.random.Generator) -> dict:
 
     from .sensing import SensorModel
 
-    model = getattr(SensorModel, physics.sensor)()
-    over = {k: v for k, v in (("noise_n", physics.sensor_noise_n),
-                              ("bias_n", physics.sensor_bias_n),
-                              ("drift_n_per_sqrt_s", physics.sensor_drift_n)) if v >= 0}
+    s = physics.sensing
+    model = getattr(SensorModel, s.sensor)()
+    over = {k: v for k, v in (("noise_n", s.sensor_noise_n), ("bias_n", s.sensor_bias_n),
+                              ("drift_n_per_sqrt_s", s.sensor_drift_n)) if v >= 0}
     model = replace(model, **over)
-    detector = {"on_n": physics.on_n, "on_s": physics.on_s, "off_n": physics.off_n,
-                "off_s": physics.off_s}
-    return {"sensor_model": model, "rng": rng, "detector": detector}
+    return {"sensor_model": model, "rng": rng, "detector": s.detector}
 
 
 register_body("mujoco", MujocoBody)

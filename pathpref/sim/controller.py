@@ -106,7 +106,7 @@ class ProfiledController(TrackingController):
         """The velocity the profile wants now, before the acceleration limit."""
         return np.array(self.goal_xy(pos[0], pos[1], target[0], target[1]))
 
-    def _ramp(self, gx: float, gy: float, dt: float) -> tuple[float, float]:
+    def ramp_xy(self, gx: float, gy: float, dt: float) -> tuple[float, float]:
         """:meth:`ramp` on floats; the new command."""
         step = self.a_max * dt
         last = self.last
@@ -121,10 +121,10 @@ class ProfiledController(TrackingController):
 
     def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
         """Move the last command toward ``goal`` by at most ``a_max dt``; the new command."""
-        return np.array(self._ramp(float(goal[0]), float(goal[1]),
+        return np.array(self.ramp_xy(float(goal[0]), float(goal[1]),
                                    self.dt if dt is None else dt))
 
     def command(self, pos: np.ndarray, yaw: float, target: np.ndarray) -> np.ndarray:
         """Actuator controls ``(vx, vy, wz)`` within the limits."""
-        vx, vy = self._ramp(*self.goal_xy(pos[0], pos[1], target[0], target[1]), self.dt)
+        vx, vy = self.ramp_xy(*self.goal_xy(pos[0], pos[1], target[0], target[1]), self.dt)
         return np.array([vx, vy, -self.k_yaw * yaw])

@@ -28,8 +28,8 @@ from __future__ import annotations
 
 import math
 
-#: how long after a push ends the detector may still release its cue (s)
-RELEASE_WINDOW_S = 0.4
+from ..episode.physics import RELEASE_WINDOW_S
+
 MOVE, PUSH, HOLD = "move", "push", "hold"
 
 

@@ -4,7 +4,9 @@ When an input is due, the human draws a heading from the Boltzmann model (SPEC 4
 noise ``N(0, sigma)``, and pushes the handle horizontally with a half-sine force
 ``F(t) = F_peak sin(pi t / T)`` for ``0 <= t <= T`` (defaults: 30 N, 0.3 s, sigma 10 degrees),
 or a bell ``F(t) = 16 F_peak s^2 (1 - s)^2``, ``s = t / T`` (the speed profile of a
-minimum-jerk reach, Flash and Hogan 1985: smooth onset and release, peak at the middle).
+minimum-jerk reach, Flash and Hogan 1985: smooth onset and release, peak at the middle), or a
+``plateau``: a sustained push (guidance), raised-cosine ramps of ``r = min(0.2 s, T / 2)`` up
+and down around a constant ``F_peak``.
 ``xfrc_applied`` is not cleared by MuJoCo, so :meth:`HumanPush.apply` writes it every substep.
 """
 
@@ -21,7 +23,7 @@ from ..geometry.grid import ACTION_ANGLES
 @dataclass(frozen=True)
 class PushProfile:
     """Shape of a push: peak force (N), duration (s), heading noise (degrees, 1 sigma) and
-    ``shape`` (``half_sine`` or ``bell``)."""
+    ``shape`` (``half_sine``, ``bell`` or ``plateau``)."""
 
     peak_n: float = 30.0
     duration_s: float = 0.3
@@ -33,8 +35,9 @@ class PushProfile:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0 or (name != "noise_deg" and v == 0):
                 raise ConfigError(f"push {name} must be a positive finite number, got {v}")
-        if self.shape not in ("half_sine", "bell"):
-            raise ConfigError(f"push shape must be half_sine or bell, got {self.shape!r}")
+        if self.shape not in ("half_sine", "bell", "plateau"):
+            raise ConfigError(f"push shape must be half_sine, bell or plateau, got "
+                              f"{self.shape!r}")
 
     def magnitude(self, t: float) -> float:
         """Force magnitude at time ``t`` since the push began (half-sine or bell)."""
@@ -43,6 +46,11 @@ class PushProfile:
         if self.shape == "bell":
             s = t / self.duration_s
             return float(16.0 * self.peak_n * s * s * (1.0 - s) * (1.0 - s))
+        if self.shape == "plateau":
+            r = min(0.2, 0.5 * self.duration_s)
+            edge = min(t, self.duration_s - t)
+            return float(self.peak_n * (0.5 - 0.5 * np.cos(np.pi * edge / r)) if edge < r
+                         else self.peak_n)
         return float(self.peak_n * np.sin(np.pi * t / self.duration_s))
 
 

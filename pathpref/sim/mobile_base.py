@@ -20,14 +20,20 @@ into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (
 velocity command ``F_hat / b``), and a cue ends a move or a hold (:attr:`stop_on_cue`) so that
 the planner replans from the new belief instead of finishing the move.
 
-Sensing: by default the detector reads the raw force sensor (:class:`HandleSensor`, ideal: no
-noise, no bias; the handle's own inertia is in it, as MuJoCo computes it). With a
-``sensor_model`` that is not ideal (:class:`~pathpref.sim.sensing.SensorModel`) the sensor has
-faults drawn from a child of the ``rng`` given (the body's generator: ``rng.spawn`` draws
-nothing from it), the robot zeroes it at every :meth:`MobileBase.reset` and estimates the push
-with :class:`~pathpref.sim.estimator.ForceEstimator` (bias tracking at rest, inertial
-compensation from its own joint velocities), and detects with
-:class:`~pathpref.sim.cue_detector.FilteredCueDetector`. ``docs/sensing.md`` has the figures.
+**Guidance** (:meth:`MobileBase.enable_guidance`; Bajcsy et al. 2017): pushes act at any
+time; the admittance velocity ``v_a`` of ``M dv_a/dt + b v_a = F_hat`` moves the base's
+target (``dp_target/dt = v_a``: the push deforms the planned motion and the base keeps the
+deformation, it does not spring back) and is added to the tracking command as its feedforward;
+``v_a`` decays (time constant ``M / b``) once the push is released; every ``GUIDANCE_PERIOD_S`` of a
+cue under way a *partial* :class:`~pathpref.episode.body.Felt` carries the direction of the
+force felt over that period and its share of one observation (``period / GUIDANCE_EVIDENCE_S``,
+at most ``GUIDANCE_MAX_EVIDENCE`` per cue) to the listener; the cue's final record carries the
+rest (:mod:`pathpref.episode.physics`, "Guidance").
+
+The base is three parts: the base itself (its joints, controller, decision step, pushes and
+cue stream: this module), its sensing chain (:class:`~.sensing_chain.SensingChain`: sensor,
+faults, estimator, detector; :attr:`MobileBase.sensing`) and its measurements
+(:class:`~.measurements.Measurements`, on when :attr:`MobileBase.measure`).
 """
 
 from __future__ import annotations
@@ -39,14 +45,18 @@ import mujoco
 import numpy as np
 
 from ..episode.body import Felt
+from ..episode.physics import GUIDANCE_EVIDENCE_S, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..errors import ConfigError, EpisodeError
+from ..geometry.grid import heading_to_action
 from .controller import ProfiledController, TrackingController
-from .cue_detector import Cue, CueDetector, FilteredCueDetector
+from .cue_detector import Cue, CueDetector
 from .decision import DecisionStep
 from .estimator import EstimatorConfig, ForceEstimator
 from .force_cue import HumanPush, PushProfile
+from .measurements import Measurements
 from .scene import Scene
 from .sensing import FaultySensor, HandleSensor, SensorModel
+from .sensing_chain import SensingChain
 
 #: the admittance's spring (N/m): a yielding base gives way 0.1 m to 30 N
 ADMITTANCE_K = 400.0
@@ -59,7 +69,8 @@ class MobileBase:
     actuators (``vx``, ``vy``, ``wz``) addressed by name; the pushed body is the ``handle``.
 
     ``sensor_model`` (default: the ideal raw sensor) with ``rng`` (required when the model has
-    faults) and ``estimator`` settings choose how the robot senses (module docstring)."""
+    faults), ``estimator`` and ``detector`` settings make its sensing chain
+    (:class:`~.sensing_chain.SensingChain`)."""
 
     #: the base's actuators, in the order of :meth:`_base_command`'s result
     ACTUATORS = ("vx", "vy", "wz")
@@ -85,12 +96,11 @@ class MobileBase:
         self._zero_q, self._zero_v = np.zeros(m.nq), np.zeros(m.nv)
         self._float_for: TrackingController | None = None  # the controller _can_float judged
         self._float_control = False
-        self.sensor = HandleSensor(self.model)
         #: the body a human pushes and the sensor feels (the handle; the arm's tray)
         self.pushed_body = int(self.model.body("handle").id)
         self.dt = float(self.model.opt.timestep)
-        self.detector_settings: dict = dict(detector or {})
-        self.detector = CueDetector(self.dt, **self._plain_settings())
+        #: sensor -> (faults, estimator) -> detector
+        self.sensing = SensingChain(m, self.dt, sensor_model, rng, estimator, detector)
         self.on_substep: list[Callable[[MobileBase, HumanPush | None], None]] = []
         self.pre_substep: list[Callable[[MobileBase], None]] = []
         #: pushes that act when their time comes (pushes at any time); expired ones are dropped
@@ -107,51 +117,92 @@ class MobileBase:
         self.stop_on_cue = False
         #: pushes at any time are on (:meth:`enable_pushes_any_time`)
         self.any_time = False
+        #: guidance admittance ``(M, b)`` (:meth:`enable_guidance`; None: off) and its state
+        self.guidance: tuple[float, float] | None = None
+        self.v_admit = np.zeros(2)
+        self._evidence = np.zeros(2)  # the impulse since the last evidence record (N s)
+        self._evidence_s = 0.0  # its duration (s)
+        self._evidence_given = 0.0  # the evidence the cue under way has given (observations)
         self._onset: tuple[float, int] | None = None
         self._anchor: np.ndarray | None = None
-        #: measure the base's acceleration and forces (episodes with physical parameters)
+        #: measure the base (:mod:`.measurements`; episodes with physical parameters)
         self.measure = False
-        self._v_prev, self._t_prev = np.zeros(2), 0.0
-        self.peak_accel = 0.0  # m/s^2, while no push acts (the controller's own)
-        self.peak_accel_pushed = 0.0  # m/s^2, over all steps
-        self.peak_force = 0.0  # N, the largest push estimate
-        self._f_measured: np.ndarray | None = None  # the estimate peak_force last saw
-        #: contacts with an obstacle or a wall begun (a step with one after a step without)
-        self.collisions = 0
-        self._touching = False
-        self._static = np.array([self.model.geom(i).name.startswith(("obstacle_", "wall_"))
-                                 for i in range(self.model.ngeom)], dtype=bool)
+        self.measurements = Measurements(m, self.dt)
         self.target = np.zeros(2)
         #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
         #: simulated push is active
         self.external_forces = False
-        #: the sensor's faults; None (or ideal) reads the raw sensor exactly as before
-        self.sensor_model = None if sensor_model is None or sensor_model.is_ideal \
-            else sensor_model
-        self.estimator_config = estimator or EstimatorConfig()
-        self.faulty: FaultySensor | None = None
-        self.estimator: ForceEstimator | None = None
-        #: the push estimate the detector was last fed (N, world frame)
-        self.force_estimate = np.zeros(2)
-        if self.sensor_model is not None:
-            if not isinstance(rng, np.random.Generator):
-                raise ConfigError("a sensor model with faults needs the body's numpy "
-                                  "Generator (rng=...)")
-            self._sensor_rng = rng.spawn(1)[0]
-            self.detector = FilteredCueDetector(self.dt, **self.detector_settings)
 
-    def _plain_settings(self) -> dict:
-        """The detector settings the unfiltered :class:`CueDetector` takes."""
-        keep = ("on_n", "on_s", "off_n", "off_s", "split", "turn_deg")
-        return {k: v for k, v in self.detector_settings.items() if k in keep}
+    # the sensing chain's parts, as the base's callers read them
+    @property
+    def sensor(self) -> HandleSensor:
+        """The force sensor the chain reads."""
+        return self.sensing.sensor
+
+    @sensor.setter
+    def sensor(self, sensor: HandleSensor) -> None:
+        self.sensing.sensor = sensor
+
+    @property
+    def detector(self) -> CueDetector:
+        """The chain's push detector."""
+        return self.sensing.detector
+
+    @property
+    def sensor_model(self) -> SensorModel | None:
+        """The sensor's faults (None: the ideal raw sensor)."""
+        return self.sensing.sensor_model
+
+    @property
+    def faulty(self) -> FaultySensor | None:
+        """The faulty sensor (None with the ideal one)."""
+        return self.sensing.faulty
+
+    @property
+    def estimator(self) -> ForceEstimator | None:
+        """The push estimator (None with the ideal sensor)."""
+        return self.sensing.estimator
+
+    @property
+    def estimator_config(self) -> EstimatorConfig:
+        """The estimator's settings."""
+        return self.sensing.estimator_config
+
+    @property
+    def force_estimate(self) -> np.ndarray:
+        """The push estimate the detector was last fed (N, world frame)."""
+        return self.sensing.force_estimate
+
+    @property
+    def peak_accel(self) -> float:
+        """The controller's own peak acceleration (m/s^2; :mod:`.measurements`)."""
+        return self.measurements.peak_accel
+
+    @property
+    def peak_accel_pushed(self) -> float:
+        """The peak acceleration over every step (m/s^2; :mod:`.measurements`)."""
+        return self.measurements.peak_accel_pushed
+
+    @property
+    def peak_force(self) -> float:
+        """The largest push estimate (N; :mod:`.measurements`)."""
+        return self.measurements.peak_force
 
     def enable_pushes_any_time(self, admittance_b: float = 80.0) -> None:
         """Pushes at any time (module docstring): the splitting detector, admittance ``b``
         (N s/m: a 30 N push moves the yielding base at 0.375 m/s), stop on a cue."""
-        self.detector_settings["split"] = True
-        self.detector.split = True
+        self.sensing.split_pushes()
         self.admittance_b = float(admittance_b)
         self.stop_on_cue = True
+        self.any_time = True
+
+    def enable_guidance(self, mass: float, damping: float) -> None:
+        """Guidance (module docstring): pushes at any time, the splitting detector, the
+        admittance ``M dv/dt + b v = F_hat`` (``mass`` kg, ``damping`` N s/m) added to the
+        tracking command, the belief updated while a push lasts; moves are not stopped by a
+        cue (the push deforms them)."""
+        self.sensing.split_pushes()
+        self.guidance = (float(mass), float(damping))
         self.any_time = True
 
     # --- state ---------------------------------------------------------------------------
@@ -163,47 +214,13 @@ class MobileBase:
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
         self._reset_control()
-        self._v_prev, self._t_prev = np.zeros(2), float(self.data.time)
 
     def _reset_sensing(self) -> None:
-        """Reset the detector; with a faulty sensor, (re)build the sensing chain for the
-        current sensor and pushed body and zero the sensor at rest (``tare_s`` of readings)."""
-        self.detector.reset()
+        """Forget the pushes and cues, reset the sensing chain (zeroing a faulty sensor at
+        rest) and the measurements."""
         self.pushes, self.felt, self._onset = [], [], None
-        if self.sensor_model is None:
-            return
-        if self.faulty is None or self.faulty.sensor is not self.sensor:
-            self.faulty = FaultySensor(self.model, self.sensor, self.pushed_body,
-                                       self.sensor_model, self._sensor_rng)
-            mass = self.faulty.mass + self.sensor_model.extra_mass_kg
-            self.estimator = ForceEstimator(self.model, self.pushed_body, mass,
-                                            self.estimator_config)
-        self.faulty.restart()
-        # a view of the sensor site's rotation (MjData's buffers stay put): no copy per step
-        self._rotation = self.data.site_xmat[self.sensor.site].reshape(3, 3)
-        self.estimator.quiet = 0.0
-        self.estimator.mark(self.data)
-        n = int(round(self.estimator_config.tare_s / self.faulty.period))
-        if n > 0:
-            readings = [self.faulty.read_still(self.data) for _ in range(n)]
-            self.estimator.tare(readings, self.sensor.rotation(self.data))
-        self.faulty.restart()
-
-    def sense(self) -> np.ndarray:
-        """The push estimate of this physics step (N, world frame): the raw sensor by
-        default, else the faulty sensor through the estimator."""
-        d = self.data
-        if self.sensor_model is None:
-            self.force_estimate = self.sensor.force_xy(d)
-            return self.force_estimate
-        if self.faulty is None:
-            self._reset_sensing()
-        idle = not self.detector.active and self.detector._above == 0.0
-        faulty = self.faulty
-        reading = faulty.read(d)
-        self.force_estimate = self.estimator.update(reading, self._rotation, d, idle,
-                                                    faulty.fresh, faulty.window_s)
-        return self.force_estimate
+        self.sensing.reset(self.data, self.pushed_body)
+        self.measurements.reset(float(self.data.time))
 
     def _planar_views(self) -> tuple[np.ndarray, np.ndarray]:
         """Views of the planar position and velocity in ``MjData`` (its buffers stay put; the
@@ -255,57 +272,21 @@ class MobileBase:
         if not (math.isfinite(d.qpos.dot(self._zero_q)) and
                 math.isfinite(d.qvel.dot(self._zero_v))):
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
-        if self.sensor_model is None:
-            f = self.sensor.force_xy(d)
-            if self.any_time:
-                self.force_estimate = f
-            cue = self.detector.update(f)
-        else:
-            cue = self.detector.update(self.sense(), at_rest=self.estimator.at_rest)
+        cue = self.sensing.read(d)
         self._track_onset(cue)
         if self.measure:
-            self._measure(push)
+            t = d.time
+            pushed = self.yielding() or any(
+                p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
+                for p in [*self.pushes, *([push] if push is not None else [])])
+            self.measurements.update(d, self._vxy_adr, pushed, self.sensing.force_estimate)
         for hook in self.on_substep:
             hook(self, push)
         return cue
 
-    def _measure(self, push: HumanPush | None) -> None:
-        """The base's acceleration (finite difference of its planar velocity) and the push
-        estimate's peak; a step with a push acting counts only toward ``peak_accel_pushed``."""
-        d = self.data
-        t, qvel, (ivx, ivy) = d.time, d.qvel, self._vxy_adr
-        vx, vy = float(qvel[ivx]), float(qvel[ivy])
-        # over the time since the last measurement (a caller, e.g. dm_control's environment
-        # step, may step the physics without :meth:`substep`)
-        a = math.hypot(vx - self._v_prev[0], vy - self._v_prev[1]) / \
-            max(t - self._t_prev, self.dt)
-        self._v_prev, self._t_prev = (vx, vy), t
-        if a > self.peak_accel_pushed:
-            self.peak_accel_pushed = a
-        if a > self.peak_accel:
-            pushed = any(p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
-                         for p in [*self.pushes, *([push] if push is not None else [])])
-            if not pushed and not self.yielding():
-                self.peak_accel = a
-        f = self.force_estimate if self.any_time or self.sensor_model is not None else \
-            self.sensor.force_xy(d)
-        if f is not self._f_measured:  # the estimator holds its estimate between samples
-            self._f_measured = f
-            self.peak_force = max(self.peak_force, math.hypot(f[0], f[1]))
-        n = d.ncon
-        touching = n > 0 and bool(self._static[d.contact.geom[:n]].any())
-        if touching and not self._touching:
-            self.collisions += 1
-        self._touching = touching
-
     def physical_metrics(self) -> dict[str, float]:
-        """The measurements of :meth:`_measure` (empty unless :attr:`measure`)."""
-        if not self.measure:
-            return {}
-        return {"base_peak_accel": self.peak_accel,
-                "base_peak_accel_pushed": self.peak_accel_pushed,
-                "peak_push_estimate_n": self.peak_force,
-                "collisions": float(self.collisions)}
+        """The base's measurements (:mod:`.measurements`; empty unless :attr:`measure`)."""
+        return self.measurements.metrics() if self.measure else {}
 
     def _apply_pushes(self, push: HumanPush | None) -> None:
         """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
@@ -324,13 +305,19 @@ class MobileBase:
     def _track_onset(self, cue: Cue | None) -> None:
         """Note where and when the cue under way was first felt; an ended cue becomes a
         :class:`~pathpref.episode.body.Felt` record of the stream (module docstring)."""
-        det = self.detector
-        under_way = det.active or det._above > 0.0
+        under_way = self.sensing.under_way
+        if self.guidance is not None and (under_way or cue is not None):
+            self._evidence += self.sensing.force_estimate * self.dt
+            self._evidence_s += self.dt
+            if cue is None and self._evidence_s >= GUIDANCE_PERIOD_S - 1e-9:
+                self._give_evidence()
         if cue is not None:
             t = float(self.data.time)
             t0, cell = self._onset if self._onset is not None else (t, self.cell)
             felt = Felt(cell, cue.heading, t0, t, float(cue.peak_n),
-                        (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s))
+                        (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s),
+                        evidence=None if self.guidance is None else self._take_evidence())
+            self._evidence_given = 0.0  # the next cue has its own evidence
             self.felt.append(felt)
             self._onset = (t, self.cell) if under_way else None
             if self.listener is not None:
@@ -341,10 +328,31 @@ class MobileBase:
         elif self._onset is not None:
             self._onset = None
 
+    def _take_evidence(self) -> tuple[float, float]:
+        """The direction of the force felt since the last evidence record and its weight
+        (module docstring); starts the next period (a cue's total is capped)."""
+        e = self._evidence
+        weight = min(self._evidence_s / GUIDANCE_EVIDENCE_S,
+                     GUIDANCE_MAX_EVIDENCE - self._evidence_given)
+        angle = math.atan2(float(e[1]), float(e[0]))
+        self._evidence_given += max(weight, 0.0)
+        self._evidence[:], self._evidence_s = 0.0, 0.0
+        return angle, max(weight, 0.0)
+
+    def _give_evidence(self) -> None:
+        """A partial record of the cue under way (guidance) to the listener, at the cell the
+        base is in: not a cue, not in :attr:`felt`."""
+        t = float(self.data.time)
+        t0 = self._onset[0] if self._onset is not None else t
+        e = (float(self._evidence[0]), float(self._evidence[1]))
+        angle, weight = self._take_evidence()
+        if self.listener is not None:
+            self.listener(Felt(self.cell, heading_to_action(angle), t0, t, None, e, t - t0,
+                               evidence=(angle, weight), partial=True))
+
     def yielding(self) -> bool:
         """Whether the base yields to a push now (admittance on and a cue under way)."""
-        return self.admittance_b is not None and (self.detector.active
-                                                  or self.detector._above > 0.0)
+        return self.admittance_b is not None and self.sensing.under_way
 
     def _control(self) -> None:
         """Actuator commands for this physics step (the base's tracking controller). A
@@ -354,12 +362,14 @@ class MobileBase:
         d = self.data
         if self._float_for is not self.controller:
             self._float_control = self._can_float()
-        if self._float_control and not self.yielding():
+        if self.guidance is not None:
+            self._admit()
+        if self._float_control and self.guidance is None and not self.yielding():
             self._anchor = None
             c, q, ctrl, (ix, iy, iyaw), (a0, a1, a2) = \
                 self.controller, d.qpos, d.ctrl, self._float_adr, self._float_act
             target = self.target
-            vx, vy = c._ramp(*c.goal_xy(q[ix], q[iy], target[0], target[1]), c.dt)
+            vx, vy = c.ramp_xy(*c.goal_xy(q[ix], q[iy], target[0], target[1]), c.dt)
             ctrl[a0], ctrl[a1], ctrl[a2] = vx, vy, -c.k_yaw * q[iyaw]
             return
         d.ctrl[self.actuators] = self._base_command()
@@ -385,9 +395,20 @@ class MobileBase:
         pos = d.qpos[self.xy]
         if not self.yielding():
             self._anchor = None
-            return self.controller.command(pos, d.qpos[self.yaw], self.target)
+            command = self.controller.command(pos, d.qpos[self.yaw], self.target)
+            if self.guidance is not None:
+                command[:2] += self.v_admit
+            return command
         v = self.controller.ramp(self.admittance_velocity())
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
+
+    def _admit(self) -> None:
+        """One step of the guidance admittance ``v += dt (F_hat - b v) / M`` (explicit Euler;
+        stable for ``dt < 2 M / b``: 0.5 s for the defaults against the 2 ms step) and of the
+        target it deforms, ``p_target += dt v``."""
+        mass, damping = self.guidance
+        self.v_admit += self.dt * (self.sensing.force_estimate - damping * self.v_admit) / mass
+        self.target = self.target + self.dt * self.v_admit
 
     def admittance_velocity(self) -> np.ndarray:
         """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
@@ -405,6 +426,8 @@ class MobileBase:
     def _reset_control(self) -> None:
         """A standing base: no yield under way, the controller's state cleared."""
         self._anchor = None
+        self.v_admit[:] = 0.0
+        self._evidence[:], self._evidence_s, self._evidence_given = 0.0, 0.0, 0.0
         self.controller.reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:

@@ -1,6 +1,6 @@
 """A simulated human who pushes like a person: strength, duration and shape drawn from
 distributions, timing not locked to the robot's decisions, and an option to intervene when the
-robot heads the wrong way (:class:`~pathpref.episode.physics.Physics` holds the settings,
+robot heads the wrong way (:class:`~pathpref.episode.physics.HumanModel` holds the settings,
 ``docs/physics.md`` their sources).
 
 * **Strength and duration** (:func:`sample_profile`): log-normal, ``F = F_med s_F^z`` and
@@ -30,24 +30,26 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..episode.physics import Physics
+from ..episode.physics import HumanModel
 from .force_cue import HumanPush, PushProfile
 
-#: nominal seconds per decision step: ``interval_s = 0`` means ``delta_t`` of them
-STEP_S = 1.0
 
-
-def sample_profile(physics: Physics, rng: np.random.Generator,
+def sample_profile(human: HumanModel, rng: np.random.Generator,
                    confidence: float = 1.0) -> PushProfile:
     """One push's profile: log-normal strength and duration (module docstring); with
     ``strength_confidence`` ``c > 0`` the median strength is ``F_med exp(c (q - 1/2))`` for a
     heading the human gives with confidence ``q`` (its probability over the most likely
     heading's): a firm push is a confident one."""
-    p = physics
+    p = human
     median = p.peak_n if p.strength_confidence == 0 else \
         p.peak_n * float(np.exp(p.strength_confidence * (confidence - 0.5)))
     peak = median * p.peak_spread ** rng.standard_normal()
     dur = p.duration_s * p.duration_spread ** rng.standard_normal()
+    if p.timing == "guidance":  # a sustained push: held for a log-normal time, median hold_s
+        hold = p.hold_s * p.duration_spread ** rng.standard_normal()
+        return PushProfile(peak_n=float(np.clip(peak, p.peak_min_n, p.peak_max_n)),
+                           duration_s=float(np.clip(hold, 0.5, 10.0)), noise_deg=p.noise_deg,
+                           shape="plateau")
     return PushProfile(peak_n=float(np.clip(peak, p.peak_min_n, p.peak_max_n)),
                        duration_s=float(np.clip(dur, 0.1, p.duration_max_s)),
                        noise_deg=p.noise_deg, shape=p.shape)
@@ -58,14 +60,16 @@ class PushingHuman:
 
     ``heading_at(cell)`` draws the human's heading at a cell; ``probs(cell)`` gives the
     human's heading distribution there (for ``corrective``); ``delta_t`` sets the default
-    interval. Attach with :meth:`attach`; tell it of each move with :meth:`robot_moves`."""
+    interval (``delta_t`` decision steps of ``step_s`` seconds: the one rule,
+    :meth:`~pathpref.episode.physics.Physics.step_s`). Attach with :meth:`attach`; tell it of
+    each move with :meth:`robot_moves`."""
 
-    def __init__(self, physics: Physics, rng: np.random.Generator, delta_t: int,
+    def __init__(self, human: HumanModel, rng: np.random.Generator, delta_t: int,
                  heading_at: Callable[[int], int],
-                 probs: Callable[[int], np.ndarray] | None = None):
-        self.physics, self.rng = physics, rng
+                 probs: Callable[[int], np.ndarray] | None = None, step_s: float = 1.0):
+        self.model, self.rng = human, rng
         self.heading_at, self.probs = heading_at, probs
-        self.interval = physics.interval_s if physics.interval_s > 0 else delta_t * STEP_S
+        self.interval = human.interval_s if human.interval_s > 0 else delta_t * step_s
         self.next_t: float | None = None
         self.given: list[HumanPush] = []
         self.recent: deque[bool] = deque(maxlen=5)
@@ -75,13 +79,13 @@ class PushingHuman:
         self.base = base
         base.pre_substep.append(self)
         t = float(base.data.time)
-        if self.physics.timing in ("interval", "rate"):
+        if self.model.timing in ("interval", "rate", "guidance"):
             # the first push when the mission starts (after a reaction time), as the paper's
             # protocol gives an input before the first move; then at the human's own times
-            self.next_t = t + self.physics.reaction_s
+            self.next_t = t + self.model.reaction_s
 
     def _gap(self) -> float:
-        p = self.physics
+        p = self.model
         if p.timing == "rate":
             return float(self.rng.exponential(self.interval))
         return float(self.interval * (1.0 + p.jitter * self.rng.uniform(-1.0, 1.0)))
@@ -89,7 +93,7 @@ class PushingHuman:
     def robot_moves(self, cell: int, heading: int | None) -> None:
         """The robot starts a move from ``cell`` toward ``heading`` (None: it stays). In
         ``corrective`` timing the human may react (module docstring)."""
-        p = self.physics
+        p = self.model
         if p.timing != "corrective" or heading is None or self.probs is None:
             return
         q = self.probs(cell)
@@ -109,8 +113,8 @@ class PushingHuman:
         heading = self.heading_at(base.cell)
         q = 1.0 if self.probs is None else float(self.probs(base.cell)[heading] /
                                                    self.probs(base.cell).max())
-        push = HumanPush.sample(heading, t, sample_profile(self.physics, self.rng, q),
+        push = HumanPush.sample(heading, t, sample_profile(self.model, self.rng, q),
                                 self.rng)
         base.pushes.append(push)
         self.given.append(push)
-        self.next_t = None if self.physics.timing == "corrective" else t + self._gap()
+        self.next_t = None if self.model.timing == "corrective" else t + self._gap()

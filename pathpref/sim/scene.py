@@ -73,13 +73,16 @@ class BaseParams:
     ``diffdrive``; ``mass_kg`` of the whole base (Clearpath Ridgeback: 135 kg, datasheet
     figure recalled, not verified here); ``force_limit_n`` per drive axis; ``kv`` the velocity
     servo's gain (N s/m; 3000 gives the 135 kg base a 45 ms time constant, stiff like a geared
-    wheel drive). ``docs/physics.md`` has the figures."""
+    wheel drive); ``friction_n`` the floor's Coulomb resistance to sliding per planar axis (N,
+    MuJoCo's ``frictionloss`` on the slide joints: the drive must exceed it to move the base).
+    ``docs/physics.md`` has the figures."""
 
     kind: str = "holonomic"
     mass_kg: float = 135.0
     force_limit_n: float = 120.0
     kv: float = 3000.0
     grip_n: float = 2000.0  # diffdrive: the wheels' lateral grip (N), a velocity servo at 0
+    friction_n: float = 0.0
 
 
 def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
@@ -94,6 +97,9 @@ def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
     r = float(geom.size[0])
     spin = 0.5 * base.mass_kg * r * r  # the cylinder's yaw inertia (kg m^2)
     names = {a.name: a for a in spec.actuators}
+    if base.friction_n > 0:
+        for j in ("slide_x", "slide_y"):
+            spec.joint(j).frictionloss = base.friction_n
     if base.kind == "diffdrive":
         body.add_site(name="drive_site", pos=[0.0, 0.0, 0.0])
         for old in ("vx", "vy"):

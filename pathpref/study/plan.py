@@ -25,6 +25,9 @@ Per trial (a field missing from a trial is taken from ``defaults``):
 * ``condition``: labels (strings) for the analysis; ``"belief": "hidden"`` hides the robot's
   goal probabilities from the participant (shown otherwise).
 
+``questionnaire``: ``"nasa-tlx"`` has the browser ask the NASA-TLX (six 0..100 scales) after
+every trial; the answers are recorded per participant (:mod:`.conduct`).
+
 ``order``: ``fixed`` (file order for everyone) or ``latin``: a balanced Latin square (Williams
 design). Row ``r`` of ``n`` trials is ``r, r+1, r+n-1, r+2, r+n-2, ...`` (mod n); with an odd
 ``n`` the ``n`` mirrored rows are added. The participant's row is the SHA-256 of the participant
@@ -110,6 +113,8 @@ class Study:
     seed: int
     trials: tuple[Trial, ...]
     hash: str
+    #: ``"nasa-tlx"``: the browser asks the NASA-TLX after every trial (None: no questionnaire)
+    questionnaire: str | None = None
 
     def order_for(self, participant: str) -> list[Trial]:
         """The participant's trials in order (module docstring)."""
@@ -187,11 +192,11 @@ def _trial(i: int, raw: Any, defaults: dict[str, Any], folder: Path) -> Trial:
                           f"{str(t['preset'])[:40]!r}")
     q = t["queries"] if t["queries"] is not None else PRESETS[t["preset"]].queries
     if not isinstance(q, int) or isinstance(q, bool) or not 1 <= q <= 100_000:
-        raise ConfigError(f"{where}.queries must be a whole number in 1..100000, got {q!r}")
+        raise ConfigError(f"{where}.queries must be a whole number in 1..100000, got {str(q)[:40]}")
     lim = t["time_limit_s"]
     if not isinstance(lim, int | float) or isinstance(lim, bool) or not 1 <= lim <= 3600:
         raise ConfigError(f"{where}.time_limit_s must be a number of seconds in 1..3600, got "
-                          f"{lim!r}")
+                          f"{str(lim)[:40]}")
     start = _cell(t["start"], f"{where}.start")
     goal = _cell(t["goal"], f"{where}.goal")
     s, g = _free(world, start, f"{where}.start"), _free(world, goal, f"{where}.goal")
@@ -249,16 +254,21 @@ def parse_study(raw: Any, path: str = "<study>", folder: Path | None = None) -> 
     folder = folder or Path(".")
     if not isinstance(raw, dict):
         raise ConfigError(f"{path}: a study file is an object with 'trials'")
-    unknown = sorted(set(raw) - {"name", "order", "seed", "defaults", "trials"})
+    unknown = sorted(set(raw) - {"name", "order", "seed", "defaults", "trials",
+                                 "questionnaire"})
     if unknown:
         raise ConfigError(f"{path}: '{unknown[0]}' is not a study field; fields: name, order, "
-                          "seed, defaults, trials")
+                          "seed, defaults, trials, questionnaire")
+    questionnaire = raw.get("questionnaire")
+    if questionnaire not in (None, "nasa-tlx"):
+        raise ConfigError(f"questionnaire must be nasa-tlx (or left out), got "
+                          f"{str(questionnaire)[:40]!r}")
     order = raw.get("order", "fixed")
     if order not in ("fixed", "latin"):
         raise ConfigError(f"order must be fixed or latin, got {str(order)[:40]!r}")
     seed = raw.get("seed", 0)
     if not isinstance(seed, int) or isinstance(seed, bool) or not 0 <= seed < 2**63:
-        raise ConfigError(f"seed must be a whole number in 0..2^63-1, got {seed!r}")
+        raise ConfigError(f"seed must be a whole number in 0..2^63-1, got {str(seed)[:40]}")
     defaults = raw.get("defaults", {})
     if not isinstance(defaults, dict):
         raise ConfigError("defaults must be an object of trial fields")
@@ -277,7 +287,7 @@ def parse_study(raw: Any, path: str = "<study>", folder: Path | None = None) -> 
     name = raw.get("name", Path(path).stem)
     if not isinstance(name, str):
         raise ConfigError("name must be a string")
-    return Study(str(path), name, order, seed, parsed, digest)
+    return Study(str(path), name, order, seed, parsed, digest, questionnaire)
 
 
 def load_study(path: str | Path) -> Study:
@@ -294,4 +304,6 @@ def load_study(path: str | Path) -> Study:
     except (ValueError, UnicodeDecodeError) as e:
         raise ConfigError(f"{p} is not valid {p.suffix[1:].upper()}: "
                           f"{str(e).splitlines()[0]}") from None
+    except RecursionError:
+        raise ConfigError(f"{p} is nested too deeply to be a study file") from None
     return parse_study(raw, str(p), p.parent)

@@ -8,6 +8,18 @@ and library versions the replay reproduces the trial step for step (checked agai
 recorded ``trial_steps``, and reported). Re-running beats drawing stored states because the
 database then needs no per-frame robot state, and the video shows the physics itself (the
 base yielding to the push, the arrow of the applied force, the goals tinted by the belief).
+
+**Verified.** Before rendering, the trial row's ``pushes`` and ``effort_ns`` must be what its
+``trial_forces`` give (a push a maximal run of steps above
+:data:`~.record.PUSH_ON_N`; effort the sum of ``|F| dt``, to 1e-9 relative), and the
+``trial_pushes`` and ``trial_cues`` tables must hold that many rows; after the run, the
+replay's outcome (``success``/``timeout``), step count and cue count must equal the row's and
+its trial time the row's ``time_s`` (to 1e-6 s). A row changed after the trial (a timeout
+relabelled a success) is refused with one line naming the column, and no video is kept.
+
+**Bounded memory.** Frames go to the encoder as they are drawn
+(:class:`~pathpref.sim.render.VideoWriter`); nothing holds the frames of a trial (a 3600 s
+trial is 90000 frames).
 """
 
 from __future__ import annotations
@@ -20,9 +32,10 @@ import numpy as np
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import has_study_tables, read_rows
-from ..sim.render import Overlay, RolloutRenderer, write_video
-from ..viz.video import belief_rgba, compose
+from ..sim.render import Overlay, RolloutRenderer, VideoWriter
+from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
 from .plan import Trial
+from .record import PUSH_ON_N
 from .session import TrialRunner
 
 VIDEO_FPS = 25
@@ -44,6 +57,61 @@ class RecordedPushes:
 def load_recorded_trial(db: str | Path, participant: str, trial: int
                         ) -> tuple[Trial, int, np.ndarray, list[tuple[int, int, int]]]:
     """The trial (as run), its seed, its per-step forces and its recorded ``(t, x, y)``."""
+    t, seed, forces, steps, _ = load_trial(db, participant, trial)
+    return t, seed, forces, steps
+
+
+def forces_summary(forces: np.ndarray, dt: float) -> tuple[int, float]:
+    """Pushes (maximal runs of steps with ``|F| > PUSH_ON_N``) and effort ``sum |F| dt``
+    (N s) of per-step forces, as :class:`~.record.TrialRecorder` counts them."""
+    n = np.hypot(forces[:, 0], forces[:, 1]) if len(forces) else np.zeros(0)
+    on = n > PUSH_ON_N
+    starts = int(on[0]) + int(np.count_nonzero(on[1:] & ~on[:-1])) if len(on) else 0
+    return starts, float(n.sum() * dt)
+
+
+def verify_row(row: dict, forces: np.ndarray, dt: float) -> None:
+    """The row's push count and effort agree with its forces (``dt`` the physics step) and
+    its tables (``row["rows_pushes"]``, ``row["rows_cues"]``: module docstring); else one line
+    naming the column."""
+    n_pushes, n_cues = row["rows_pushes"], row["rows_cues"]
+    pushes, effort = forces_summary(forces, dt)
+    where = f"trial {row['trial']} of {row['participant']!r}"
+    if row["pushes"] != pushes or n_pushes != pushes:
+        raise ConfigError(f"{where}: trials.pushes is {row['pushes']} and trial_pushes has "
+                          f"{n_pushes} rows, but its recorded forces make {pushes} pushes; "
+                          "the rows were changed after the trial: not replayed")
+    if not abs((row["effort_ns"] or 0.0) - effort) <= 1e-9 * max(1.0, abs(effort)):
+        raise ConfigError(f"{where}: trials.effort_ns is {row['effort_ns']}, but its recorded "
+                          f"forces give {effort:.6g} N s; the rows were changed after the "
+                          "trial: not replayed")
+    if row["cues"] != n_cues:
+        raise ConfigError(f"{where}: trials.cues is {row['cues']} but trial_cues has {n_cues} "
+                          "rows; the rows were changed after the trial: not replayed")
+
+
+def verify_outcome(row: dict, runner: TrialRunner) -> None:
+    """The replay ends as the row says (module docstring); else one line naming the column."""
+    res = runner.result
+    got = {"outcome": "success" if res.goal_reached else "timeout",
+           "success": int(res.goal_reached), "steps": res.steps, "cues": len(runner.cues)}
+    for col, v in got.items():
+        if row[col] != v:
+            raise ConfigError(
+                f"trial {row['trial']} of {row['participant']!r}: trials.{col} is "
+                f"{row[col]!r} but the replay gives {v!r}; the row was changed after the "
+                "trial: no video written")
+    if not abs(row["time_s"] - runner.time_s) <= 1e-6:
+        raise ConfigError(
+            f"trial {row['trial']} of {row['participant']!r}: trials.time_s is "
+            f"{row['time_s']} but the replay ends at {runner.time_s:.6f} s; the row was "
+            "changed after the trial: no video written")
+
+
+def load_trial(db: str | Path, participant: str, trial: int
+               ) -> tuple[Trial, int, np.ndarray, list[tuple[int, int, int]], dict]:
+    """:func:`load_recorded_trial` and the trial's row (with the row counts of its
+    ``trial_pushes`` and ``trial_cues``: ``rows_pushes``, ``rows_cues``)."""
     with ResultStore(db, create=False) as store:
         c = store.conn
         if not has_study_tables(c):
@@ -67,6 +135,9 @@ def load_recorded_trial(db: str | Path, participant: str, trial: int
         steps = [(s["t"], s["x"], s["y"]) for s in read_rows(
             c, "trial_steps", "WHERE participant = ? AND trial = ? ORDER BY t",
             (participant, trial))]
+        n_pushes, n_cues = (c.execute(
+            f"SELECT count(*) FROM {t} WHERE participant = ? AND trial = ?",
+            (participant, trial)).fetchone()[0] for t in ("trial_pushes", "trial_cues"))
 
     def cells(key: str) -> tuple:
         return tuple(tuple(c) for c in json.loads(r[key]))
@@ -76,19 +147,21 @@ def load_recorded_trial(db: str | Path, participant: str, trial: int
               goal=tuple(json.loads(r["goal"])), candidates=cells("candidates"),
               route=cells("route"), time_limit_s=r["time_limit_s"],
               condition=json.loads(r["condition"] or "{}"))
-    return t, int(r["seed"]), forces, steps
+    return t, int(r["seed"]), forces, steps, r | {"rows_pushes": n_pushes, "rows_cues": n_cues}
 
 
 def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
                  width: int = 960, height: int = 540) -> int:
     """Render trial ``trial`` of ``participant`` to ``out`` (MP4, real time); the number of
-    frames. A replay that departs from the recorded steps is a ConfigError naming the step."""
-    spec, seed, forces, recorded = load_recorded_trial(db, participant, trial)
+    frames. A replay that departs from the recorded steps, or a row that does not hold what
+    the replay gives, is a ConfigError naming the step or column (module docstring)."""
+    spec, seed, forces, recorded, row = load_trial(db, participant, trial)
     runner = TrialRunner(spec, seed, RecordedPushes(forces))
     base, world = runner.base, runner.world
+    verify_row(row, forces, float(base.model.opt.timestep))
     renderer = RolloutRenderer(base.scene, width, height)
     every = max(1, int(round(1.0 / VIDEO_FPS / base.dt)))
-    frames: list[np.ndarray] = []
+    video = VideoWriter(out, VIDEO_FPS, sample_every=VIDEO_FPS)
     goals = np.array(spec.candidates)
     route = np.array(spec.route)
     polygons = world.arrangement.polygons
@@ -104,7 +177,20 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
                     push_origin=b.data.xpos[b.pushed_body].copy(),
                     push_force=np.array([*runner.body.applied, 0.0]), route=route)
         top, persp = renderer.views(b.data, o)
-        frames.append(compose(top, persp, None, width, height))
+        panel = None
+        if renderer.column >= 16 and height - renderer.persp_h >= 16:
+            f = float(np.hypot(*runner.body.applied))
+            cue = runner.cues[-1] if runner.cues and runner.time_s - runner.cues[-1][0] <= 1.0 \
+                else None
+            panel = info_panel(renderer.column, height - renderer.persp_h, PanelInfo(
+                title=f"{participant} trial {trial}: {spec.name} ({spec.method})",
+                step=runner.t, t_max=runner.spec.t_max, sim_time=runner.time_s,
+                belief=runner.policy.belief.goal_marginal(), true_goal=spec.goal_index,
+                pushes=len(runner.cues), push_n=f if f > PUSH_ON_N else None,
+                cue_heading=None if cue is None else int(cue[2].heading),
+                extra=[f"time limit {spec.time_limit_s:g} s",
+                       f"recorded: {row['outcome']} in {row['time_s']:.1f} s"]))
+        video.append(compose(top, persp, panel, width, height))
 
     def departs(at: int) -> ConfigError:
         return ConfigError(f"the replay departs from the recording at decision step {at} "
@@ -112,14 +198,23 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
 
     base.on_substep.append(hook)
     try:
-        while not runner.done:
-            runner.decide()
-            s = runner.result.log[-1]
-            if s.t >= len(recorded) or recorded[s.t] != (s.t, s.x, s.y):
-                raise departs(s.t)
-    finally:
-        renderer.close()
-    if len(runner.result.log) != len(recorded):
-        raise departs(len(runner.result.log))
-    write_video(frames, out, VIDEO_FPS)
-    return len(frames)
+        try:
+            while not runner.done:
+                runner.decide()
+                s = runner.result.log[-1]
+                if s.t >= len(recorded) or recorded[s.t] != (s.t, s.x, s.y):
+                    raise departs(s.t)
+            if len(runner.result.log) != len(recorded):
+                raise departs(len(runner.result.log))
+            verify_outcome(row, runner)
+        finally:
+            renderer.close()
+    except BaseException:
+        try:
+            video.close()
+        except (OSError, ConfigError):
+            pass
+        Path(out).unlink(missing_ok=True)
+        raise
+    video.close()
+    return video.frames

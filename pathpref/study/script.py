@@ -11,17 +11,23 @@ the force (N, world x-y; capped like a person's at 60 N), ``duration`` its lengt
 (0.05..10). ``trials`` gives the pushes of the trials it names; ``pushes`` those of every
 other trial. At each physics step the script sends ``push`` when a push starts and
 ``release`` when it ends.
+
+A simulated gamepad: ``"gamepad": {"rest": [x, y], "reach": r}`` (a calibration as the page
+would send it) makes the script calibrate once, before its first trial, and send each push as
+the stick axes that give its force under that calibration
+(:func:`~.controls.stick_axes`), and each release as the stick back at rest.
 """
 
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..errors import ConfigError
-from .controls import Controls
+from .controls import Controls, StickCalibration, finite_number, stick_axes
 
 
 def _pushes(raw: Any, where: str) -> list[tuple[float, float, float, float]]:
@@ -33,8 +39,7 @@ def _pushes(raw: Any, where: str) -> list[tuple[float, float, float, float]]:
         if not isinstance(p, dict) or set(p) != {"t", "fx", "fy", "duration"}:
             raise ConfigError(f"{w} must be an object with exactly t, fx, fy, duration")
         vals = [p[n] for n in ("t", "fx", "fy", "duration")]
-        if not all(isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
-                   for v in vals):
+        if not all(finite_number(v) for v in vals):
             raise ConfigError(f"{w}: t, fx, fy and duration must be finite numbers")
         t, fx, fy, d = map(float, vals)
         if not 0 <= t <= 3600:
@@ -54,8 +59,18 @@ class PushScript:
     """A validated push file (module docstring)."""
 
     def __init__(self, raw: Any, path: str = "<script>"):
-        if not isinstance(raw, dict) or not raw or set(raw) - {"pushes", "trials"}:
-            raise ConfigError(f"{path}: a push file is an object with 'pushes' and/or 'trials'")
+        if not isinstance(raw, dict) or not raw or set(raw) - {"pushes", "trials", "gamepad"}:
+            raise ConfigError(f"{path}: a push file is an object with 'pushes' and/or 'trials' "
+                              "(and optionally 'gamepad')")
+        self.gamepad: StickCalibration | None = None
+        if "gamepad" in raw:
+            pad = raw["gamepad"]
+            cal = (StickCalibration.parse({**pad, "device": "simulated gamepad"})
+                   if isinstance(pad, dict) and set(pad) <= {"rest", "reach"} else
+                   "an object with rest [x, y] and reach")
+            if isinstance(cal, str):
+                raise ConfigError(f"{path}: gamepad: {cal}")
+            self.gamepad = cal
         self.default = _pushes(raw.get("pushes", []), "pushes")
         named = raw.get("trials", {})
         if not isinstance(named, dict):
@@ -71,7 +86,17 @@ class PushScript:
             raise ConfigError(f"cannot read push file {path}: {e.strerror}") from None
         except ValueError as e:
             raise ConfigError(f"{path} is not valid JSON: {e}") from None
+        except RecursionError:
+            raise ConfigError(f"{path} is nested too deeply to be a push file") from None
         return cls(raw, str(path))
+
+    def check_names(self, study) -> None:
+        """Every trial the file names is a trial of ``study`` (one line naming it if not)."""
+        have = {t.name for t in study.trials}
+        for name in self.named:
+            if name not in have:
+                raise ConfigError(f"push file trials.{str(name)[:40]}: the study has no trial "
+                                  f"of that name; its trials: {', '.join(sorted(have))[:200]}")
 
     def for_trial(self, name: str) -> list[tuple[float, float, float, float]]:
         """The pushes ``(t, fx, fy, duration)`` of the trial ``name``."""
@@ -82,9 +107,11 @@ class ScriptedParticipant:
     """Plays one trial's pushes into ``controls`` at their simulated times: call it once per
     physics step with the trial time (a hook of the trial's physics)."""
 
-    def __init__(self, controls: Controls, pushes: list[tuple[float, float, float, float]]):
+    def __init__(self, controls: Controls, pushes: list[tuple[float, float, float, float]],
+                 gamepad: StickCalibration | None = None):
         self.controls = controls
         self.pushes = pushes
+        self.gamepad = gamepad
         self.k = 0
         self.active = False
 
@@ -93,13 +120,22 @@ class ScriptedParticipant:
         if self.active:
             t0, _, _, d = self.pushes[self.k]
             if t >= t0 + d:
-                self.controls.handle('{"type": "release"}')
+                self.controls.handle(self._message(0.0, 0.0))
                 self.active = False
                 self.k += 1
         if not self.active and self.k < len(self.pushes) and t >= self.pushes[self.k][0]:
             _, fx, fy, _ = self.pushes[self.k]
-            self.controls.handle(json.dumps({"type": "push", "fx": fx, "fy": fy}))
+            self.controls.handle(self._message(fx, fy))
             self.active = True
+
+    def _message(self, fx: float, fy: float) -> str:
+        """The message of force ``(fx, fy)`` (zero: a release): a push, or the stick's axes."""
+        if self.gamepad is not None:
+            ax, ay = stick_axes(np.array([fx, fy]), self.gamepad)
+            return json.dumps({"type": "stick", "ax": ax, "ay": ay})
+        if fx == 0.0 and fy == 0.0:
+            return '{"type": "release"}'
+        return json.dumps({"type": "push", "fx": fx, "fy": fy})
 
 
 class ScriptedFrontEnd:
@@ -120,8 +156,13 @@ class ScriptedFrontEnd:
     def begin_trial(self, position: int, total: int, runner) -> None:
         """Start at once; play the trial's pushes at their simulated times."""
         self.controls.reset()
+        pad = self.script.gamepad
+        if pad is not None and self.controls.calibration is None:  # the calibration step
+            self.controls.handle(json.dumps({"type": "calibrate", "rest": list(pad.rest),
+                                             "reach": pad.reach, "device": pad.device}))
         self.controls.handle('{"type": "start"}')
-        player = ScriptedParticipant(self.controls, self.script.for_trial(runner.trial.name))
+        player = ScriptedParticipant(self.controls, self.script.for_trial(runner.trial.name),
+                                     pad)
         runner.base.on_substep.append(lambda base, push: player.tick(runner.time_s))
 
     def after_decision(self, runner) -> None:

@@ -40,6 +40,37 @@ def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
     plt.close(fig)
 
 
+def study_figure(records: list[dict[str, Any]], out: str | Path) -> None:
+    """Per condition (the ``condition`` records of
+    :func:`pathpref.experiments.report.study_records`): success rate and the share on route
+    with 95% Wilson intervals, and mean effort with its range-clipped 95% t interval (a bare
+    point where ``n < 3`` gives none)."""
+    import math
+
+    recs = [r for r in records if r["by"] == "condition"]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8), squeeze=False)
+    x = list(range(len(recs)))
+    for ax, (col, label) in zip(axes[0], (("success_rate", "success rate"),
+                                          ("on_route", "share of trials on route"),
+                                          ("effort_ns", "effort (N s)")), strict=True):
+        lo_key, hi_key = (("ci_low", "ci_high") if col == "success_rate"
+                          else (f"{col}_low", f"{col}_high"))
+        for i, r in enumerate(recs):
+            m, lo, hi = r[col], r[lo_key], r[hi_key]
+            err = None if math.isnan(lo) else [[max(0.0, m - lo)], [max(0.0, hi - m)]]
+            ax.errorbar([i], [m], yerr=err, marker="o", capsize=4, color="#1e6edc")
+        ax.set_xticks(x, [f"{r['group']}\n(n = {r['n']})" for r in recs], fontsize=7)
+        ax.set_ylabel(label)
+        if col != "effort_ns":
+            ax.set_ylim(0, 1.02)
+        else:
+            ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out, dpi=130)
+    plt.close(fig)
+
+
 def budget_figure(points: list[dict[str, Any]], out: str | Path) -> None:
     """Success rate with 95% CI against the planning-time budget per decision (log scale), one
     line per method, a panel per map; each point a dict with ``map``, ``budget_ms``,

@@ -295,8 +295,8 @@ def physical_base(world, task: str = "navigate", sensor: str = "realistic",
     from ...episode import Physics
     from ...sim.body import MujocoBody
 
-    ph = Physics(sensor=sensor, base=kind)
-    spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", task=task,
+    ph = Physics.of(sensor=sensor, base=kind)
+    spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", robot=task,
                               physics=ph.to_json())
     spec = dataclasses.replace(spec, map=world.name)
     return MujocoBody(world, spec, np.random.default_rng(seed)).base
@@ -609,7 +609,7 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
                 accel.append(res.metrics["base_peak_accel"])
         spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
                                   sim="mujoco", t_max=30,
-                                  physics=Physics(base="diffdrive",
+                                  physics=Physics.of(base="diffdrive",
                                                   timing="interval").to_json())
         accel_dd.append(run_episode(spec).metrics["base_peak_accel"])
     from ...sim.estimator import EstimatorConfig
@@ -680,14 +680,14 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
     tilts, pens, times, legacy_pens, tips = [], [], [], [], []
     for i in range(2 if quick else 5):
         spec = EpisodeSpec.single("simple", "path_preference", 3, seed=13, instance=i,
-                                  sim="mujoco", task="carry")
+                                  sim="mujoco", robot="carry")
         t = time.perf_counter()
         res = run_episode(spec)
         times.append(time.perf_counter() - t)
         tilts.append(res.metrics["tilt_rms_deg"])
         legacy_pens.append(res.metrics["max_penetration_mm"])
         phys = run_episode(EpisodeSpec.single("simple", "path_preference", 3, seed=13,
-                                              instance=i, sim="mujoco", task="carry",
+                                              instance=i, sim="mujoco", robot="carry",
                                               physics=Physics().to_json()))
         pens.append(phys.metrics["max_penetration_mm"])  # every physics step
         tips.append(phys.metrics["tip_margin"])

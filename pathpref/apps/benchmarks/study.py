@@ -16,13 +16,24 @@ PUSH_N, PUSH_S, GAP_S = 35.0, 0.4, 1.2
 DIRECTIONS = [(-1, 0), (0, 1), (1, 0), (0, -1)]
 
 
-def _client(url: str, n: int, out: dict) -> None:
-    """Start the trial, then push ``n`` times; per push, the seconds from sending the release
+def _client(url: str, origin: str, n: int, out: dict) -> None:
+    """Start the trial, then push ``n`` times as the page does (the push repeated every
+    0.1 s while held, ``alive`` every 0.25 s); per push, the seconds from sending the release
     to receiving the first state whose cue count includes it."""
     from websockets.sync.client import connect
 
     lat: list[float] = []
-    with connect(url) as ws:
+    with connect(url, origin=origin) as ws:
+        stop = threading.Event()
+
+        def alive() -> None:
+            while not stop.wait(0.25):
+                try:
+                    ws.send('{"type": "alive"}')
+                except Exception:  # noqa: BLE001 - the server closed at the study's end
+                    return
+
+        threading.Thread(target=alive, daemon=True).start()
         cues = 0
         for status in ("waiting", "running"):  # press Start when the page would show it
             while True:
@@ -33,8 +44,11 @@ def _client(url: str, n: int, out: dict) -> None:
                 ws.send('{"type": "start"}')
         for k in range(n):
             dx, dy = DIRECTIONS[k % len(DIRECTIONS)]
-            ws.send(json.dumps({"type": "push", "fx": PUSH_N * dx, "fy": PUSH_N * dy}))
-            time.sleep(PUSH_S)
+            push = json.dumps({"type": "push", "fx": PUSH_N * dx, "fy": PUSH_N * dy})
+            end = time.perf_counter() + PUSH_S
+            while time.perf_counter() < end:
+                ws.send(push)
+                time.sleep(min(0.1, max(0.0, end - time.perf_counter())))
             ws.send('{"type": "release"}')
             t0 = time.perf_counter()
             while time.perf_counter() - t0 < 3:
@@ -44,7 +58,14 @@ def _client(url: str, n: int, out: dict) -> None:
                     cues = m["cues"]
                     break
             time.sleep(GAP_S)
-    out["latencies_ms"] = lat
+        out["latencies_ms"] = lat
+        # stay until the trial ends: without its page the trial would pause
+        end = time.perf_counter() + 120
+        while time.perf_counter() < end:
+            m = json.loads(ws.recv(timeout=120))
+            if m["type"] == "scene" and m["status"] == "finished":
+                break
+        stop.set()
 
 
 def bench_study(quick: bool = False) -> dict[str, Any]:
@@ -62,8 +83,9 @@ def bench_study(quick: bool = False) -> dict[str, Any]:
         "time_limit_s": 2 + n * (PUSH_S + GAP_S + 0.5), "queries": 300}]})
     front = BrowserFrontEnd(port=0)
     out: dict = {}
-    client = threading.Thread(target=_client, args=(f"ws://127.0.0.1:{front.port}/ws", n, out),
-                              daemon=True)
+    client = threading.Thread(target=_client, args=(
+        f"ws://127.0.0.1:{front.port}/ws?token={front.token}", f"http://127.0.0.1:{front.port}",
+        n, out), daemon=True)
     client.start()
     with tempfile.TemporaryDirectory() as tmp:
         run_study(study, "bench", Path(tmp) / "bench.sqlite", front, log=lambda m: None)

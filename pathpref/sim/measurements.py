@@ -1,0 +1,93 @@
+"""What a physical episode measures of its base, one physics step at a time.
+
+* ``base_peak_accel``: the largest planar acceleration ``|v_t - v_{t-1}| / (t - t_prev)``
+  (m/s^2) over steps with no push acting (within 0.1 s after one) and the base not yielding:
+  the controller's own; ``base_peak_accel_pushed``: over every step;
+* ``peak_push_estimate_n``: the largest push estimate ``|F_hat|`` the detector was fed;
+* contact safety with the static world (obstacles and walls, geoms named ``obstacle_*`` and
+  ``wall_*``): ``collisions`` (contacts begun: a step with one after a step without),
+  ``contact_impact_speed`` (m/s, the base's planar speed at the step before a contact
+  began, the largest), ``contact_peak_force_n`` (the largest normal force of a contact, N, from
+  ``mj_contactForce``) and ``contact_penetration_mm`` (the deepest penetration, ``-dist`` of a
+  contact, mm).
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+
+class Measurements:
+    """The measurements of one base (module docstring); :meth:`update` after each physics
+    step, :meth:`metrics` at the end of the episode."""
+
+    def __init__(self, model: mujoco.MjModel, dt: float):
+        self.model, self.dt = model, dt
+        self._static = np.array([model.geom(i).name.startswith(("obstacle_", "wall_"))
+                                 for i in range(model.ngeom)], dtype=bool)
+        self._wrench = np.zeros(6)
+        self.reset(0.0)
+
+    def reset(self, t: float) -> None:
+        """Start measuring at simulated time ``t`` with the base at rest."""
+        self._v_prev, self._t_prev = (0.0, 0.0), float(t)
+        self.peak_accel = 0.0
+        self.peak_accel_pushed = 0.0
+        self.peak_force = 0.0
+        self._f_measured: np.ndarray | None = None
+        self.collisions = 0
+        self._touching = False
+        self.impact_speed = 0.0
+        self.contact_force = 0.0
+        self.penetration = 0.0
+
+    def update(self, data: mujoco.MjData, vxy_adr: tuple[int, int], pushed: bool,
+               force: np.ndarray) -> None:
+        """One physics step: the base's planar velocity at ``vxy_adr`` in ``qvel``, whether a
+        push acts (or the base yields: its acceleration is then not the controller's) and the
+        push estimate ``force``."""
+        t, qvel = data.time, data.qvel
+        vx, vy = float(qvel[vxy_adr[0]]), float(qvel[vxy_adr[1]])
+        before = math.hypot(*self._v_prev)  # the speed a contact begun now met
+        # over the time since the last measurement (a caller, e.g. dm_control's environment
+        # step, may step the physics without the base's substep)
+        a = math.hypot(vx - self._v_prev[0], vy - self._v_prev[1]) / \
+            max(t - self._t_prev, self.dt)
+        self._v_prev, self._t_prev = (vx, vy), t
+        if a > self.peak_accel_pushed:
+            self.peak_accel_pushed = a
+        if a > self.peak_accel and not pushed:
+            self.peak_accel = a
+        if force is not self._f_measured:  # the estimator holds its estimate between samples
+            self._f_measured = force
+            self.peak_force = max(self.peak_force, math.hypot(force[0], force[1]))
+        n = data.ncon
+        touching = False
+        if n > 0:
+            geoms = data.contact.geom[:n]
+            hits = np.flatnonzero(self._static[geoms].any(axis=1))
+            if len(hits):
+                touching = True
+                for i in hits:
+                    i = int(i)
+                    mujoco.mj_contactForce(self.model, data, i, self._wrench)
+                    self.contact_force = max(self.contact_force, abs(float(self._wrench[0])))
+                    self.penetration = max(self.penetration,
+                                           -1000.0 * float(data.contact.dist[i]))
+        if touching and not self._touching:
+            self.collisions += 1
+            self.impact_speed = max(self.impact_speed, before)
+        self._touching = touching
+
+    def metrics(self) -> dict[str, float]:
+        """The episode's measurements by name (module docstring)."""
+        return {"base_peak_accel": self.peak_accel,
+                "base_peak_accel_pushed": self.peak_accel_pushed,
+                "peak_push_estimate_n": self.peak_force,
+                "collisions": float(self.collisions),
+                "contact_impact_speed": self.impact_speed,
+                "contact_peak_force_n": self.contact_force,
+                "contact_penetration_mm": self.penetration}

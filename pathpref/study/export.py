@@ -1,0 +1,188 @@
+"""``pathpref study export``: a participant's recorded trials as files other tools read.
+
+Into ``OUT/PARTICIPANT/``:
+
+* a tidy CSV folder (one observation per row, one table per file, a header row, ``participant``
+  and ``trial`` in every row): ``trials.csv`` (the trial rows as stored), ``steps.csv``,
+  ``forces.csv`` (every control step, 2 ms), ``pushes.csv``, ``cues.csv`` and ``beliefs.csv``
+  (long form: one row per belief update *and goal candidate*: ``k, time_s, cause, goal,
+  goal_x, goal_y, p``);
+* per trial, ``trial-KK.mcap`` (MCAP, JSON messages with JSON Schemas, zstd chunks), readable
+  by the ``mcap`` Python reader and Foxglove:
+
+  - ``/force/applied`` and ``/force/sensed``: a wrench (``geometry_msgs/WrenchStamped``'s
+    layout: ``force`` and ``torque`` vectors, N and N m, frame ``world``) per recorded control
+    step, at the recorded rate (every row of ``trial_forces``);
+  - ``/pushes``, ``/cues``: one message per push and per cue (their rows' fields);
+  - ``/belief``: the goal probabilities after every update, with the candidates' cells;
+  - ``/pose``: ``foxglove.PoseInFrame`` of the base at every decision step: the centre of the
+    cell it stood on, ``(cell - 0.5) * cell_size`` m with the scene's default cell size
+    (:data:`pathpref.sim.scene.CELL_SIZE_M`; the continuous pose is not stored).
+
+  Log times are the trial's start (``started_utc``, whole seconds) plus the row's ``time_s``,
+  in nanoseconds since the Unix epoch.
+
+Rows are read from the database a chunk at a time and written as they come (no table is held
+in memory), so a 3600 s trial (1.8 million force rows) exports in bounded memory.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from datetime import datetime
+from pathlib import Path
+
+from ..errors import ConfigError
+from ..experiments.store import ResultStore
+from ..experiments.trials import STUDY_TABLES, has_study_tables
+from ..sim.scene import CELL_SIZE_M
+
+CHUNK_ROWS = 4096
+VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
+TIME = {"type": "object", "properties": {"sec": {"type": "integer"},
+                                         "nsec": {"type": "integer"}}}
+WRENCH_SCHEMA = {"title": "pathpref.WrenchStamped", "type": "object", "properties": {
+    "timestamp": TIME, "frame_id": {"type": "string"}, "force": VEC3, "torque": VEC3}}
+POSE_SCHEMA = {"title": "foxglove.PoseInFrame", "type": "object", "properties": {
+    "timestamp": TIME, "frame_id": {"type": "string"}, "pose": {"type": "object", "properties": {
+        "position": VEC3, "orientation": {"type": "object", "properties": {
+            k: {"type": "number"} for k in "xyzw"}}}}}}
+
+
+def _row_schema(title: str, table: str) -> dict:
+    cols = next(c for t, c, _ in STUDY_TABLES if t == table)
+    kinds = {"REAL": "number", "INTEGER": "integer", "TEXT": "string"}
+    return {"title": title, "type": "object",
+            "properties": {c: {"type": kinds[ty]} for c, ty in cols}}
+
+
+def _rows(conn, table: str, participant: str, trial: int | None, order: str):
+    """The rows of ``table`` for the participant (and trial), a chunk at a time."""
+    where = "WHERE participant = ?" + (" AND trial = ?" if trial is not None else "")
+    cur = conn.execute(f"SELECT * FROM {table} {where} ORDER BY {order}",
+                       (participant,) if trial is None else (participant, trial))
+    names = [d[0] for d in cur.description]
+    while True:
+        chunk = cur.fetchmany(CHUNK_ROWS)
+        if not chunk:
+            return
+        for r in chunk:
+            yield dict(zip(names, r, strict=True))
+
+
+def _stamp(t0_ns: int, time_s: float) -> tuple[int, dict]:
+    ns = t0_ns + int(round(time_s * 1e9))
+    return ns, {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
+
+
+def write_mcap(conn, participant: str, trial: dict, out: Path) -> dict[str, int]:
+    """One trial (its ``trials`` row ``trial``) as an MCAP file (module docstring); the
+    number of messages per topic."""
+    try:
+        from mcap.writer import Writer
+    except ImportError:
+        raise ConfigError("MCAP export needs the mcap package: pip install "
+                          "'pathpref[export]' (or pass --no-mcap)") from None
+    k = trial["trial"]
+    t0 = int(datetime.fromisoformat(trial["started_utc"]).timestamp()) * 1_000_000_000
+    counts: dict[str, int] = {}
+    with open(out, "wb") as f:
+        w = Writer(f)
+        w.start(profile="", library="pathpref")
+
+        def channel(topic: str, schema: dict) -> int:
+            sid = w.register_schema(schema["title"], "jsonschema",
+                                    json.dumps(schema).encode())
+            counts[topic] = 0
+            return w.register_channel(topic, "json", sid)
+
+        def put(cid: int, topic: str, time_s: float, msg: dict) -> None:
+            ns, _ = _stamp(t0, time_s)
+            w.add_message(cid, log_time=ns, publish_time=ns,
+                          data=json.dumps(msg).encode(), sequence=counts[topic])
+            counts[topic] += 1
+
+        applied = channel("/force/applied", WRENCH_SCHEMA)
+        sensed = channel("/force/sensed", WRENCH_SCHEMA)
+        zero = {"x": 0.0, "y": 0.0, "z": 0.0}
+        for r in _rows(conn, "trial_forces", participant, k, "k"):
+            _, ts = _stamp(t0, r["time_s"])
+            for cid, topic, fx, fy in ((applied, "/force/applied", r["fx"], r["fy"]),
+                                       (sensed, "/force/sensed", r["sensed_fx"],
+                                        r["sensed_fy"])):
+                put(cid, topic, r["time_s"], {"timestamp": ts, "frame_id": "world",
+                                              "force": {"x": fx, "y": fy, "z": 0.0},
+                                              "torque": zero})
+        for table, topic in (("trial_pushes", "/pushes"), ("trial_cues", "/cues")):
+            cid = channel(topic, _row_schema(f"pathpref.{table}", table))
+            for r in _rows(conn, table, participant, k, "k"):
+                put(cid, topic, r["t_start"] if table == "trial_pushes" else r["time_s"], r)
+        cands = json.loads(trial["candidates"])
+        cid = channel("/belief", {"title": "pathpref.Belief", "type": "object", "properties": {
+            "cause": {"type": "string"}, "p": {"type": "array", "items": {"type": "number"}},
+            "candidates": {"type": "array"}}})
+        for r in _rows(conn, "trial_beliefs", participant, k, "k"):
+            put(cid, "/belief", r["time_s"], {"cause": r["cause"],
+                                              "p": json.loads(r["goals"]),
+                                              "candidates": cands})
+        cid = channel("/pose", POSE_SCHEMA)
+        for r in _rows(conn, "trial_steps", participant, k, "t"):
+            _, ts = _stamp(t0, r["time_s"])
+            put(cid, "/pose", r["time_s"], {
+                "timestamp": ts, "frame_id": "world", "pose": {
+                    "position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
+                                 "y": (r["y"] - 0.5) * CELL_SIZE_M, "z": 0.0},
+                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}})
+        w.finish()
+    return counts
+
+
+def _write_csv(path: Path, header: list[str], rows) -> int:
+    n = 0
+    with open(path, "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(header)
+        for r in rows:
+            out.writerow(r)
+            n += 1
+    return n
+
+
+def export_participant(db: str | Path, participant: str, out: str | Path,
+                       mcap: bool = True) -> dict[str, int]:
+    """Write ``participant``'s trials of ``db`` into ``out/participant/`` (module docstring);
+    the number of rows per CSV file and of MCAP files."""
+    folder = Path(out) / participant
+    with ResultStore(db, create=False) as store:
+        c = store.conn
+        if not has_study_tables(c):
+            raise ConfigError(f"{db} holds no study trials")
+        trials = list(_rows(c, "trials", participant, None, "trial"))
+        if not trials:
+            raise ConfigError(f"{db} has no trials of participant {participant!r}")
+        folder.mkdir(parents=True, exist_ok=True)
+        counts: dict[str, int] = {}
+        for table, order in (("trials", "trial"), ("trial_steps", "trial, t"),
+                             ("trial_forces", "trial, k"), ("trial_pushes", "trial, k"),
+                             ("trial_cues", "trial, k")):
+            cols = [col for col, _ in next(c for t, c, _ in STUDY_TABLES if t == table)]
+            name = "trials.csv" if table == "trials" else table[6:] + ".csv"
+            counts[name] = _write_csv(folder / name, cols, (
+                [r[col] for col in cols] for r in _rows(c, table, participant, None, order)))
+        cands = {t["trial"]: json.loads(t["candidates"]) for t in trials}
+
+        def beliefs():
+            for r in _rows(c, "trial_beliefs", participant, None, "trial, k"):
+                for g, p in enumerate(json.loads(r["goals"])):
+                    x, y = cands[r["trial"]][g]
+                    yield [participant, r["trial"], r["k"], r["time_s"], r["cause"], g, x, y, p]
+
+        counts["beliefs.csv"] = _write_csv(folder / "beliefs.csv", [
+            "participant", "trial", "k", "time_s", "cause", "goal", "goal_x", "goal_y", "p"],
+            beliefs())
+        if mcap:
+            for t in trials:
+                write_mcap(c, participant, t, folder / f"trial-{t['trial']:02d}.mcap")
+            counts["mcap"] = len(trials)
+    return counts

@@ -1,0 +1,203 @@
+"""What a lab takes away from a study: MCAP and tidy CSV exports (read back with the ``mcap``
+reader and ``csv``), a replay that refuses a changed row, ``db salvage`` keeping the study
+tables."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from pathpref.apps.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDY = ROOT / "examples" / "study_demo.json"
+PUSHES = ROOT / "examples" / "pushes_demo.json"
+
+
+@pytest.fixture(scope="module")
+def demo_db(tmp_path_factory):
+    db = tmp_path_factory.mktemp("export") / "study.sqlite"
+    assert main(["study", "run", str(STUDY), "--participant", "demo", "--db", str(db),
+                 "--script", str(PUSHES)]) == 0
+    return db
+
+
+def rows(db, q, *params):
+    return sqlite3.connect(db).execute(q, params).fetchall()
+
+
+def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path, capsys):
+    """Every trial_forces row is one /force/applied and one /force/sensed wrench, in order,
+    with the recorded values (JSON floats round-trip exactly) 2 ms apart; every push, cue,
+    belief update and decision step is a message."""
+    from mcap.reader import make_reader
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    assert f"wrote {out / 'demo'}" in capsys.readouterr().out
+    for k in (1, 2):
+        with open(out / "demo" / f"trial-{k:02d}.mcap", "rb") as f:
+            reader = make_reader(f)
+            topics: dict[str, list] = {}
+            for schema, channel, message in reader.iter_messages():
+                assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
+                topics.setdefault(channel.topic, []).append(
+                    (message.log_time, json.loads(message.data)))
+        forces = rows(demo_db, "SELECT time_s, fx, fy, sensed_fx, sensed_fy FROM trial_forces "
+                      "WHERE trial = ? ORDER BY k", k)
+        applied, sensed = topics["/force/applied"], topics["/force/sensed"]
+        assert len(applied) == len(sensed) == len(forces) > 1000
+        assert [(m["force"]["x"], m["force"]["y"]) for _, m in applied] == [
+            (f[1], f[2]) for f in forces]
+        assert [(m["force"]["x"], m["force"]["y"]) for _, m in sensed] == [
+            (f[3], f[4]) for f in forces]
+        gaps = {b[0] - a[0] for a, b in zip(applied[:-1], applied[1:])}
+        assert gaps <= {1_999_999, 2_000_000, 2_000_001}  # 2 ms (rounded to the nanosecond)
+        for topic, table in (("/pushes", "trial_pushes"), ("/cues", "trial_cues"),
+                             ("/belief", "trial_beliefs"), ("/pose", "trial_steps")):
+            n = rows(demo_db, f"SELECT count(*) FROM {table} WHERE trial = ?", k)[0][0]
+            assert len(topics.get(topic, [])) == n, topic
+        peaks = [r[0] for r in rows(demo_db, "SELECT peak_n FROM trial_pushes WHERE trial = ? "
+                                    "ORDER BY k", k)]
+        assert [m["peak_n"] for _, m in topics["/pushes"]] == peaks
+        x, y = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = ? AND t = 0", k)[0]
+        pos = topics["/pose"][0][1]["pose"]["position"]
+        assert (pos["x"], pos["y"]) == ((x - 0.5) * 0.5, (y - 0.5) * 0.5)  # 0.5 m cells
+
+
+def test_tidy_csv_folder(demo_db, tmp_path):
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(tmp_path), "--no-mcap"]) == 0
+    folder = tmp_path / "demo"
+    assert sorted(p.name for p in folder.iterdir()) == [
+        "beliefs.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv", "trials.csv"]
+
+    def read(name):
+        with open(folder / name, newline="") as f:
+            return list(csv.DictReader(f))
+
+    forces = read("forces.csv")
+    assert len(forces) == rows(demo_db, "SELECT count(*) FROM trial_forces")[0][0]
+    assert {r["participant"] for r in forces} == {"demo"}
+    trials = read("trials.csv")
+    assert [(r["trial"], r["outcome"]) for r in trials] == [
+        (str(a), b) for a, b in rows(demo_db, "SELECT trial, outcome FROM trials ORDER BY "
+                                     "trial")]
+    beliefs = read("beliefs.csv")
+    stored = rows(demo_db, "SELECT trial, k, goals FROM trial_beliefs ORDER BY trial, k")
+    assert len(beliefs) == sum(len(json.loads(g)) for _, _, g in stored)  # 3 goals each
+    first = [r for r in beliefs if r["trial"] == "1" and r["k"] == "0"]
+    assert [(r["goal_x"], r["goal_y"]) for r in first] == [("2", "9"), ("5", "9"), ("9", "9")]
+    assert [float(r["p"]) for r in first] == json.loads(stored[0][2])
+
+
+def test_export_of_an_unknown_participant_is_one_line(demo_db, tmp_path, capsys):
+    assert main(["study", "export", str(demo_db), "--participant", "nobody", "--out",
+                 str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no trials of participant 'nobody'" in err
+
+
+@pytest.mark.parametrize("change, column", [
+    ("UPDATE trials SET outcome = 'success', success = 1 WHERE trial = 1", None),
+    ("UPDATE trials SET pushes = pushes + 1 WHERE trial = 1", "pushes"),
+    ("UPDATE trials SET effort_ns = effort_ns * 1.01 WHERE trial = 1", "effort_ns"),
+    ("DELETE FROM trial_cues WHERE trial = 1 AND k = 0", "cues"),
+    ("UPDATE trials SET time_s = time_s + 0.5 WHERE trial = 1", "time_s"),
+])
+def test_replay_refuses_a_changed_row(demo_db, tmp_path, capsys, change, column):
+    """A timed-out trial relabelled a success (or a success relabelled a timeout), a push
+    added, effort inflated, a cue row removed, the time changed: one line naming the column,
+    exit 2, no video."""
+    db = tmp_path / "t.sqlite"
+    shutil.copy(demo_db, db)
+    outcome = rows(db, "SELECT outcome FROM trials WHERE trial = 1")[0][0]
+    if column is None:  # relabel to the other outcome
+        change = ("UPDATE trials SET outcome = 'timeout', success = 0 WHERE trial = 1"
+                  if outcome == "success" else change)
+        column = "outcome"
+    with sqlite3.connect(db) as c:
+        c.execute(change)
+    out = tmp_path / "t.mp4"
+    assert main(["replay", str(db), "--participant", "demo", "--trial", "1", "--out",
+                 str(out), "--width", "32", "--height", "24"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"trials.{column} is" in err, err
+    assert not out.exists()
+
+
+def test_replay_streams_frames_and_holds_no_list(demo_db, tmp_path, monkeypatch):
+    """Frames go to the encoder one at a time: the encoder never holds more than the frame it
+    is given (the replay keeps no frame list; counted, not timed)."""
+    from pathpref.sim import render
+    from pathpref.study import replay
+
+    seen = {"n": 0, "ids": set()}
+    real = render.VideoWriter.append
+
+    def append(self, frame):
+        seen["n"] += 1
+        seen["ids"].add(id(frame))
+        real(self, frame)
+
+    monkeypatch.setattr(render.VideoWriter, "append", append)
+    n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "v.mp4", 32, 24)
+    time_s = rows(demo_db, "SELECT time_s FROM trials WHERE trial = 1")[0][0]
+    assert n == seen["n"] and abs(n - time_s * 25) <= 2
+    # a frame list would keep every frame alive: distinct ids for all; streamed frames are
+    # freed and their memory reused, so ids repeat
+    assert len(seen["ids"]) < n
+
+
+def test_salvage_keeps_the_study_tables(demo_db, tmp_path, capsys):
+    """An intact study database salvages whole (every row of every study table); a trial that
+    lost a row is left out whole and counted."""
+    from pathpref.experiments.trials import STUDY_TABLE_NAMES
+
+    out = tmp_path / "saved.sqlite"
+    assert main(["db", "salvage", str(demo_db), str(out)]) == 0
+    assert "saved 2 study trials" in capsys.readouterr().out
+    for t in STUDY_TABLE_NAMES:
+        q = f"SELECT * FROM {t} ORDER BY participant, trial"
+        assert rows(out, q) == rows(demo_db, q), t
+    broken = tmp_path / "broken.sqlite"
+    shutil.copy(demo_db, broken)
+    with sqlite3.connect(broken) as c:
+        c.execute("DELETE FROM trial_pushes WHERE trial = 2 AND k = 1")
+    out2 = tmp_path / "saved2.sqlite"
+    assert main(["db", "salvage", str(broken), str(out2)]) == 0
+    said = capsys.readouterr().out
+    assert "saved 1 study trials" in said and "lost 1 trials" in said
+    assert rows(out2, "SELECT trial FROM trials") == [(1,)]
+    assert rows(out2, "SELECT count(*) FROM trial_forces WHERE trial = 2") == [(0,)]
+    q = "SELECT * FROM trial_forces ORDER BY k"
+    assert rows(out2, q) == rows(demo_db, "SELECT * FROM trial_forces WHERE trial = 1 "
+                                 "ORDER BY k")
+
+
+def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
+    """The replay's frames carry the info panel (it was blank): the trial, the step, the
+    belief and the recorded outcome, on every frame."""
+    from pathpref.study import replay
+
+    infos = []
+    real = replay.info_panel
+
+    def spy(w, h, info):
+        infos.append(info)
+        return real(w, h, info)
+
+    monkeypatch.setattr(replay, "info_panel", spy)
+    n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "p.mp4", 320, 180)
+    assert len(infos) == n > 0
+    outcome, time_s, cues = rows(demo_db, "SELECT outcome, time_s, cues FROM trials WHERE "
+                                 "trial = 1")[0]
+    assert infos[0].title.startswith("demo trial 1: ")
+    assert f"recorded: {outcome} in {time_s:.1f} s" in infos[-1].extra
+    assert infos[-1].pushes == cues and abs(float(infos[-1].belief.sum()) - 1.0) < 1e-9
