@@ -221,7 +221,6 @@ class ArmBase(MobileBase):
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
         self._reset_control()
-        self._v_prev, self._t_prev = np.zeros(2), float(self.data.time)
         self._k = 0
         self.tilts = []
         self.deepest = 0.0
