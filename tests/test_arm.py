@@ -180,3 +180,17 @@ def test_tray_collides_with_walls_and_base_not_with_its_arm():
     assert walls and links
     assert all(collide(plate, g) for g in [*walls, m.geom("base_geom").id])
     assert not any(collide(plate, g) for g in links)
+
+
+def test_carry_with_pushes_at_any_time_runs():
+    """A physical carry episode whose human pushes on a clock of its own (``timing``
+    ``interval``): the body's decision step asks the arm for a move of at least
+    ``Physics.step_s`` (``move_to(cell, min_s=...)``, which the arm refused before); pushes
+    are felt and the tray stays level."""
+    from pathpref.episode import Physics, run_episode
+
+    spec = EpisodeSpec.single("simple", "path_preference", 3, seed=13, instance=0,
+                              sim="mujoco", robot="carry", t_max=4,
+                              physics=Physics(timing="interval").to_json())
+    res = run_episode(spec)
+    assert res.inputs > 0 and res.metrics["tilt_max_deg"] < 10.0

@@ -310,9 +310,10 @@ class ArmBase(MobileBase):
         return Jp.T @ f + Jr.T @ moment + POSTURE_STIFFNESS * (
             self.q_kin - d.qpos[self.arm_qpos])
 
-    def move_to(self, cell: int) -> int:
-        """Drive to ``cell`` (:meth:`MobileBase.move_to`), then record the penetration."""
-        reached = super().move_to(cell)
+    def move_to(self, cell: int, min_s: float = 0.0) -> int:
+        """Drive to ``cell`` for at least ``min_s`` (:meth:`MobileBase.move_to`), then record
+        the penetration."""
+        reached = super().move_to(cell, min_s)
         if not self.physical:  # physical mode measures at every physics step
             self.deepest = max(self.deepest, self.max_penetration())
         return reached
