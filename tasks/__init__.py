@@ -67,6 +67,12 @@ class Environment(control.Environment):
             self._task.check_action(action)
         return super().step(action)
 
+    @property
+    def episode_metrics(self) -> dict[str, float | bool]:
+        """The current episode's metrics (``task.episode_metrics()``: ``success``, ``pushes``,
+        ``violations``, ``return``, ...); final once a time step is ``last()``."""
+        return self._task.episode_metrics()
+
 
 def _task_args(cls) -> list[str]:
     names = []

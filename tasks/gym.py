@@ -120,10 +120,10 @@ class PathprefEnv(gym.Env):
         return self._obs(ts), float(ts.reward), terminated, truncated, self._info()
 
     def _info(self) -> dict[str, Any]:
-        r = self._env.task.runner
-        return {"goal_reached": bool(r.result.goal_reached), "violations": r.result.violations,
-                "t": r.t, "p_true_goal": float(r.policy.belief.goal_marginal()
-                                                [r.instance.true_goal])}
+        """The episode's metrics so far (final at the last step; ``Navigate.episode_metrics``:
+        ``success``, ``goal_reached``, ``violations``, ``pushes``, ``cues_felt``, ``return``,
+        ...) and ``t``, the decisions (cell changes at control rate) taken."""
+        return {**self._env.task.episode_metrics(), "t": self._env.task.runner.t}
 
     def render(self):
         """The top camera as an ``(height, width, 3)`` uint8 image (``rgb_array``)."""

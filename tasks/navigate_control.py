@@ -153,6 +153,7 @@ class NavigateControl(Navigate):
         else:
             self.base.substep()
         self.filter.update()
+        self.interaction.update()
 
     def _push_over(self) -> None:
         """The push phase ended: note how it was read (no hold: the agent drives)."""
@@ -190,6 +191,7 @@ class NavigateControl(Navigate):
         # the base's controller (the arm's IK target in carry_control)
         self.command.hold(a, float(self.base.data.qpos[self.base.yaw]))
         self._reward = 0.0
+        self.interaction.start()
         if (self.base.decision.phase != PUSH
                 and float(self.base.data.time) >= self._next_push - 1e-9
                 and not self.runner.done and not self.runner.continuous):
