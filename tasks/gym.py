@@ -35,12 +35,13 @@ from gymnasium import spaces
 from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
 
+from .registry import BUILTIN_TASKS, gym_id, gym_ids
+
 #: the largest render size asked for at all (the scene's offscreen buffer may allow less)
 MAX_RENDER = 8192
 
-#: gymnasium id -> dm_control task name
-IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/NavigateControl-v0": "navigate_control",
-       "pathpref/Carry-v0": "carry", "pathpref/CarryControl-v0": "carry_control"}
+#: gymnasium id -> built-in dm_control task name (derived: :func:`pathpref_tasks.gym_id`)
+IDS = {gym_id(name): name for name in BUILTIN_TASKS}
 
 
 def box(spec) -> spaces.Box:
@@ -137,7 +138,9 @@ class PathprefEnv(gym.Env):
 
 
 def register_envs() -> None:
-    """Register the ids of :data:`IDS` with Gymnasium (idempotent)."""
-    for env_id, task in IDS.items():
+    """Register the id of every task (:func:`pathpref_tasks.registry.gym_ids`: the built-in
+    ones and other packages') with Gymnasium (idempotent; call again after installing a
+    package of tasks)."""
+    for env_id, task in gym_ids().items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=PathprefEnv, kwargs={"task": task})

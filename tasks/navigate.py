@@ -60,6 +60,7 @@ from __future__ import annotations
 import collections
 import math
 import numbers
+import os
 from dataclasses import asdict
 from typing import Any
 
@@ -74,7 +75,7 @@ from pathpref.episode.spec import check_limit, check_number
 from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.arrangement import check_arrangement_size
 from pathpref.geometry.grid import STAY
-from pathpref.geometry.maps import MapSpec, parse_map
+from pathpref.geometry.maps import BUILTIN_MAPS, MapSpec, parse_map
 from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
 from pathpref.sim.body import base_params, build_base, scene_for
@@ -99,8 +100,9 @@ MOVE_LIMIT_S = TrackingController().time_limit_s
 
 
 def task_world(map: Any, force: bool = False) -> tuple[World, str]:
-    """The world of ``map`` (name, path, dictionary or MapSpec) and the name its episodes
-    carry; a dictionary's world is built directly (no file), a name's is cached."""
+    """The world of ``map`` (name, path, dictionary or MapSpec, or the name of another
+    package's map: :mod:`.registry`) and the name its episodes carry; a dictionary's world is
+    built directly (no file), a name's is cached."""
     if isinstance(map, dict | MapSpec):
         spec = map if isinstance(map, MapSpec) else parse_map(map)
         check_arrangement_size(spec, force)
@@ -108,6 +110,17 @@ def task_world(map: Any, force: bool = False) -> tuple[World, str]:
     if not isinstance(map, str):
         raise ConfigError(f"map must be a built-in name, a JSON path or a map dictionary, got "
                           f"{type(map).__name__}")
+    if map not in BUILTIN_MAPS and not os.path.exists(map):
+        from .registry import entry_point_map  # another package's map (entry points)
+
+        given = entry_point_map(map)
+        if given is not None:
+            if isinstance(given, str | os.PathLike):
+                given = os.fspath(given)
+                if given in BUILTIN_MAPS or not os.path.exists(given):
+                    raise ConfigError(f"map entry point {map!r} must give a map dictionary, "
+                                      f"a MapSpec or an existing JSON path, got {given!r}")
+            return task_world(given, force)
     check_arrangement_size(cached_map(map), force)
     return cached_world(map), map
 

@@ -214,9 +214,10 @@ class NavigateControl(Navigate):
         self._reward = self._step_reward(before, cell, a)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
-        """The base velocity ``(vx, vy)`` in m/s, each within ``+-v_max``."""
-        return specs.BoundedArray(shape=(2,), dtype=np.float64, minimum=-self.v_max,
-                                  maximum=self.v_max, name="base_velocity")
+        """The base velocity ``(vx, vy)`` in m/s, each within ``+-v_max`` (bounds of the
+        action's shape, as the suite's specs have them)."""
+        return specs.BoundedArray(shape=(2,), dtype=np.float64, minimum=np.full(2, -self.v_max),
+                                  maximum=np.full(2, self.v_max), name="base_velocity")
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
         """Navigate's observations plus the base's velocity."""
