@@ -85,6 +85,7 @@ from pathpref.sim.force_cue import HumanPush, PushProfile
 from pathpref.sim.mobile_base import MobileBase
 from pathpref.sim.scene import Scene
 
+from .drawing import TaskDrawing
 from .stage import ForceFilter, Physics, StagedBody, StepInteraction
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
@@ -241,6 +242,7 @@ class Navigate(base.Task):
         self.runner = EpisodeRunner(spec, self.world, self.body)
         #: what the robot felt since the last observation (the observations of the step)
         self.interaction = StepInteraction(self.base)
+        physics.drawing = TaskDrawing(self)  # the task in every render
         self.base.decision.hold(until_cue=False)
         physics.substep = self.substep
         if self.decides:

@@ -32,6 +32,24 @@ class Physics(dm_mujoco.Physics):
     physics step (module docstring); without one it is dm_control's plain ``mj_step``."""
 
     substep: Callable[[], None] | None = None
+    #: the task drawn into every render (:class:`~.drawing.TaskDrawing`, a callable of an
+    #: ``MjvScene``); None draws the physics only
+    drawing: Callable[[object], None] | None = None
+
+    def render(self, *args, scene_callback=None, **kwargs) -> np.ndarray:
+        """dm_control's ``render`` with the task drawn into the scene (:attr:`drawing`, before
+        the caller's own ``scene_callback``); depth and segmentation images show the physics
+        only."""
+        drawing = self.drawing
+        if drawing is not None and not (kwargs.get("depth") or kwargs.get("segmentation")):
+            given = scene_callback
+
+            def scene_callback(physics, scn):
+                drawing(scn)
+                if given is not None:
+                    given(physics, scn)
+
+        return super().render(*args, scene_callback=scene_callback, **kwargs)
 
     def step(self, nstep: int = 1) -> None:
         """Advance ``nstep`` physics steps (each through the task's ``substep``)."""

@@ -1,0 +1,89 @@
+"""The task drawn in every standard render (``physics.render``, Gymnasium ``rgb_array``, the
+dm_control viewer's scene camera): goals, polytopes, the preferred route, the push while it
+acts and the cue read."""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+from pathpref_tasks import load  # noqa: E402
+from pathpref_tasks import viewer as task_viewer  # noqa: E402
+
+KW = {"map": "simple", "method": "path_preference", "delta_t": 1, "seed": 5, "queries": 20}
+
+
+def red(img: np.ndarray) -> int:
+    """Pixels of the push arrow's red (0.95, 0.1, 0.1): nothing else in the scene is."""
+    r, g, b = (img[..., k].astype(int) for k in range(3))
+    return int(((r > 180) & (g < 70) & (b < 70)).sum())
+
+
+def green(img: np.ndarray) -> int:
+    """Pixels of the cue arrow's green (0.1, 0.85, 0.3)."""
+    r, g, b = (img[..., k].astype(int) for k in range(3))
+    return int(((g > 150) & (r < 90) & (b < 130)).sum())
+
+
+def _until(env, cond, limit: int = 400):
+    for _ in range(limit):  # bounded: the first push starts at t = 0 and lasts < 2 s
+        env.step(env.task.policy_action())
+        if cond():
+            return
+    raise AssertionError("condition not reached")
+
+
+def test_physics_render_draws_the_push_and_the_cue():
+    """While the human's push acts the top view has the red arrow, and without the drawing
+    it has none; after the cue is read (within 2 s) the green arrow; the drawn frame differs
+    from the plain one (goal discs, outlines, arrows)."""
+    env = load("navigate_control", **KW)
+    env.reset()
+    task = env.task
+    _until(env, lambda: task.body.last_push is not None
+           and task.body.last_push.active(float(task.base.data.time))
+           and np.linalg.norm(task.body.last_push.force(float(task.base.data.time))) > 15)
+    drawn = env.physics.render(240, 240, camera_id="top")
+    drawing, env.physics.drawing = env.physics.drawing, None
+    plain = env.physics.render(240, 240, camera_id="top")
+    env.physics.drawing = drawing
+    assert red(drawn) > 20 and red(plain) == 0
+    assert green(plain) == 0
+    assert np.abs(drawn.astype(int) - plain.astype(int)).sum(axis=2).astype(bool).mean() > 0.02
+    _until(env, lambda: bool(task.base.felt))
+    assert green(env.physics.render(240, 240, camera_id="top")) > 20
+    # depth images are the physics' only (no overlay geoms in them)
+    assert env.physics.render(48, 48, camera_id="top", depth=True).shape == (48, 48)
+
+
+def test_gymnasium_rgb_array_is_the_drawn_view():
+    """``render()`` of ``rgb_array`` is the drawn top view, pixel for pixel."""
+    gym = pytest.importorskip("gymnasium")
+    env = gym.make("pathpref_tasks:pathpref/Navigate-v0", render_mode="rgb_array", width=160,
+                   height=120, **{**KW, "t_max": 3})
+    env.reset(seed=5)
+    frame = env.render()
+    physics = env.unwrapped._env.physics
+    assert np.array_equal(frame, physics.render(120, 160, camera_id="top"))
+    physics.drawing = None
+    assert not np.array_equal(frame, physics.render(120, 160, camera_id="top"))
+    env.close()
+
+
+def test_viewer_scene_camera_gets_the_task_geoms():
+    """The dm_control viewer's scene camera with :func:`pathpref_tasks.viewer.scene_callback`
+    (no window: the scene is built, not shown) has at least one geom per goal and per
+    preferred transition more than without it."""
+    from dm_control.viewer import renderer
+
+    env = load("navigate", **{**KW, "t_max": 3})
+    env.reset()
+    cams = [renderer.SceneCamera(env.physics.model, env.physics.data,
+                                 renderer.RenderSettings(), scene_callback=cb)
+            for cb in (None, task_viewer.scene_callback(lambda: env))]
+    plain, drawn = (c.render().ngeom for c in cams)
+    r = env.task.runner
+    assert drawn - plain >= len(r.instance.goals) + int((r.pref >= 0).sum())
