@@ -5,6 +5,7 @@ acts and the cue read."""
 from __future__ import annotations
 
 import os
+import sys
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -87,3 +88,56 @@ def test_viewer_scene_camera_gets_the_task_geoms():
     plain, drawn = (c.render().ngeom for c in cams)
     r = env.task.runner
     assert drawn - plain >= len(r.instance.goals) + int((r.pref >= 0).sum())
+
+
+POLICIES = '''
+import numpy as np
+
+CALLS = []
+
+
+def east(time_step):
+    """Drive east at 0.3 m/s; note each time step's position."""
+    CALLS.append(np.asarray(time_step.observation["position"]).copy())
+    return np.array([0.3, 0.0])
+
+
+NOT_CALLABLE = 3
+'''
+
+
+def test_render_films_any_policy(tmp_path, monkeypatch, capsys):
+    """``pathpref render --policy module:function`` drives a control-rate task with the
+    callable (called once per control step with the dm_env time step), writes a video of
+    the drawn top view (25 fps at speed 2: one frame per 0.08 s of simulated time, plus the
+    first) and prints the episode's metrics; bad policies are one line."""
+    import imageio.v2 as imageio
+
+    from pathpref.apps.cli import main
+
+    (tmp_path / "my_policies.py").write_text(POLICIES)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    out = tmp_path / "east.mp4"
+    base = ["render", "--map", "simple", "--method", "compliant", "--delta-t", "1",
+            "--t-max", "3", "--width", "160", "--height", "120", "--task",
+            "navigate_control", "--out", str(out)]
+    assert main([*base, "--policy", "my_policies:east", "--no-progress"]) == 0
+    import my_policies
+
+    text = capsys.readouterr().out
+    assert "my_policies:east on navigate_control simple: success" in text
+    n_steps = len(my_policies.CALLS)
+    assert n_steps >= 2 and my_policies.CALLS[-1][0] > my_policies.CALLS[0][0]  # it drove east
+    frames = imageio.mimread(out)
+    # control steps of 0.02 s: n_steps steps (the last call's step included) = n_steps * 0.02 s
+    assert abs(len(frames) - (1 + n_steps * 0.02 / 0.08)) <= 1
+    assert frames[0].shape == (120, 160, 3)
+    for bad, msg in (("my_policies", "--policy must be module:function"),
+                     ("my_policies:missing", "has no 'missing'"),
+                     ("my_policies:NOT_CALLABLE", "is not callable"),
+                     ("no_such_module_29:f", "cannot import module")):
+        out.unlink(missing_ok=True)
+        assert main([*base, "--policy", bad]) == 2
+        err = capsys.readouterr().err
+        assert msg in err and err.count("\n") == 1 and not out.exists()
+    sys.modules.pop("my_policies", None)
