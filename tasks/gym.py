@@ -52,6 +52,18 @@ def box(spec) -> spaces.Box:
                       shape=spec.shape, dtype=np.float64)
 
 
+def gym_observation(space: spaces.Dict, observation) -> dict[str, np.ndarray]:
+    """A dm_env observation as the Gymnasium one of ``space``: float64 arrays of the spaces'
+    shapes, within their bounds (an agent trained through Gymnasium reads a dm_env time step
+    through this, e.g. to be filmed by ``pathpref render --policy``)."""
+    out = {}
+    for k, v in observation.items():
+        box_k = space[k]
+        out[k] = np.clip(np.asarray(v, dtype=np.float64).reshape(box_k.shape), box_k.low,
+                         box_k.high)
+    return out
+
+
 class PathprefEnv(gym.Env):
     """A dm_control task of :mod:`pathpref_tasks` behind the Gymnasium API (module docstring)."""
 
@@ -90,12 +102,7 @@ class PathprefEnv(gym.Env):
                                   f"offscreen buffer, 1..{most}), got {value}")
 
     def _obs(self, ts) -> dict[str, np.ndarray]:
-        out = {}
-        for k, v in ts.observation.items():
-            space = self.observation_space[k]
-            out[k] = np.clip(np.asarray(v, dtype=np.float64).reshape(space.shape), space.low,
-                             space.high)
-        return out
+        return gym_observation(self.observation_space, ts.observation)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode: the first of ``load(seed=seed)`` when a seed is given, else the

@@ -46,14 +46,17 @@ def load_policy(text: str) -> Callable[[Any], Any]:
 
 def film_policy(task: str, policy: Callable[[Any], Any], out: str | Path, width: int,
                 height: int, task_kwargs: dict, speed: float = 2.0,
-                max_steps: int = MAX_STEPS) -> tuple[dict, int]:
-    """Run one episode of ``task`` with ``policy`` and write its video to ``out``; the
+                max_steps: int = MAX_STEPS, environment_kwargs: dict | None = None,
+                time_limit: float | None = None) -> tuple[dict, int]:
+    """Run one episode of ``task`` (``pathpref_tasks.load(task, task_kwargs,
+    environment_kwargs, time_limit)``) with ``policy`` and write its video to ``out``; the
     episode's metrics (``env.episode_metrics``) and the number of frames."""
     from pathpref_tasks import load  # imports MuJoCo: MUJOCO_GL is set by then
 
     from ..sim.render import VideoWriter
 
-    env = load(task, task_kwargs=task_kwargs)
+    env = load(task, task_kwargs=task_kwargs, environment_kwargs=environment_kwargs,
+               time_limit=time_limit)
     physics = env.physics
     vis = physics.model.vis.global_
     vis.offwidth, vis.offheight = max(vis.offwidth, width), max(vis.offheight, height)
