@@ -308,6 +308,12 @@ def build_parser() -> argparse.ArgumentParser:
     force_option(b)
     b.set_defaults(func=c.cmd_bench)
 
+    ex = sub.add_parser("examples", help="copy the examples (tutorial, PPO training, "
+                        "example maps) into a folder")
+    ex.add_argument("dest", help="folder to copy them into (made when missing; no file in it "
+                    "is overwritten)")
+    ex.set_defaults(func=c.cmd_examples)
+
     d = sub.add_parser("demo", help="the main job: run the demo and write its outputs")
     d.add_argument("--out", default="out", help="output folder")
     d.add_argument("--seed", action=RangeAction, limits="seed", default=0,

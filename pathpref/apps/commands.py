@@ -411,6 +411,16 @@ def _film_policy(args: argparse.Namespace, out, rerun, width: int, height: int,
     return 0
 
 
+def cmd_examples(args: argparse.Namespace) -> int:
+    """``pathpref examples DEST``: copy the examples out (:mod:`.examples`)."""
+    from .examples import copy_examples
+
+    written = copy_examples(args.dest)
+    print(f"copied {len(written)} example files into {args.dest}; start with "
+          f"python {Path(args.dest) / 'tutorial.py'} --tiny")
+    return 0
+
+
 def cmd_interact(args: argparse.Namespace) -> int:
     """``pathpref interact``: push the robot yourself in the MuJoCo viewer."""
     os.environ.setdefault("MUJOCO_GL", "glfw")  # the viewer needs a windowing backend
