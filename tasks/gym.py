@@ -128,10 +128,12 @@ class PathprefEnv(gym.Env):
         return self._obs(ts), float(ts.reward), terminated, truncated, self._info()
 
     def _info(self) -> dict[str, Any]:
-        """The episode's metrics so far (final at the last step; ``Navigate.episode_metrics``:
-        ``success``, ``goal_reached``, ``violations``, ``pushes``, ``cues_felt``, ``return``,
-        ...) and ``t``, the decisions (cell changes at control rate) taken."""
-        return {**self._env.task.episode_metrics(), "t": self._env.task.runner.t}
+        """The episode's metrics so far (``Navigate.episode_metrics``: ``success``,
+        ``goal_reached``, ``violations``, ``pushes``, ``cues_felt``, ``return``, ...; the
+        body's measurements at the last step only) and ``t``, the decisions (cell changes
+        at control rate) taken."""
+        task = self._env.task
+        return {**task.episode_metrics(body=self._over), "t": task.runner.t}
 
     def render(self):
         """The top camera as an ``(height, width, 3)`` uint8 image (``rgb_array``)."""

@@ -371,17 +371,19 @@ class Navigate(base.Task):
         obs.update(self.interaction.observation())
         return obs
 
-    def episode_metrics(self) -> dict[str, float | bool]:
+    def episode_metrics(self, body: bool = True) -> dict[str, float | bool]:
         """The episode so far (final once the episode is over): ``success`` (goal reached
         without a violation), ``goal_reached``, ``violations``, ``back_crossings``,
         ``steps`` (decisions, or cell changes at control rate), ``pushes`` (the human's
         inputs), ``cues_felt`` (cues the detector gave), ``sim_time_s``, ``p_true_goal``
-        (the belief's probability of the true goal), ``return`` (sum of rewards) and the
-        body's measurements (:meth:`pathpref.sim.body.MujocoBody.metrics`: with physics the
-        cue metrics ``pushes_missed``, ``pushes_misread``, ..., ``collisions``)."""
+        (the belief's probability of the true goal), ``return`` (sum of rewards) and, with
+        ``body``, the body's measurements (:meth:`pathpref.sim.body.MujocoBody.metrics`:
+        with physics the cue metrics ``pushes_missed``, ``pushes_misread``, ...,
+        ``collisions``; the arm's tilt; they go over the episode's physics steps, so a
+        Gymnasium ``info`` has them at the episode's last step only)."""
         r = self.runner
         res = r.result
-        out: dict[str, float | bool] = dict(self.body.metrics())
+        out: dict[str, float | bool] = dict(self.body.metrics()) if body else {}
         out.update({
             "success": bool(res.success), "goal_reached": bool(res.goal_reached),
             "violations": int(res.violations), "back_crossings": int(res.back_crossings),

@@ -92,7 +92,8 @@ def test_control_rate_push_felt_in_the_step_its_cue_ends():
 
 @pytest.mark.parametrize("env_id", ["pathpref/Navigate-v0", "pathpref/NavigateControl-v0"])
 def test_gymnasium_info_carries_the_episode_metrics(env_id):
-    """Every ``info`` has the metrics; the last one's equal the dm_env environment's
+    """Every ``info`` has the metrics (the body's measurements only the last one's, which
+    go over every physics step); the last one's equal the dm_env environment's
     ``episode_metrics``; ``return`` is the sum of the rewards; ``success`` is the rule."""
     gym = pytest.importorskip("gymnasium")
     control = "Control" in env_id
@@ -100,12 +101,14 @@ def test_gymnasium_info_carries_the_episode_metrics(env_id):
                    queries=20, t_max=4, time_limit=1.0 if control else None)
     _, info = env.reset(seed=2)
     assert info["pushes"] == (0 if control else 1) and info["return"] == 0.0
+    assert "pushes_missed" not in info  # the body's measurements: at the last step
     total, done = 0.0, False
     while not done:
         _, r, term, trunc, info = env.step(np.zeros(2, np.float32) if control else 8)
         total += r
         done = term or trunc
     assert info == {**env.unwrapped._env.episode_metrics, "t": info["t"]}
+    assert "pushes_missed" in info  # the default physics: the cue metrics
     assert math.isclose(info["return"], total, rel_tol=1e-12, abs_tol=1e-12)
     assert info["success"] == (info["goal_reached"] and info["violations"] == 0)
     for k in ("pushes", "cues_felt", "violations", "steps", "back_crossings"):
