@@ -49,7 +49,7 @@ from pathpref.episode.spec import check_number  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 
 from .navigate_control import CONTROL_TIMESTEP, CONTROL_TIMESTEPS  # noqa: E402
-from .registry import BUILTIN_TASKS, all_tasks, gym_id  # noqa: E402
+from .registry import BUILTIN_TASKS, all_tasks, gym_id, task_class, task_names  # noqa: E402
 from .stage import Physics  # noqa: E402
 
 #: the built-in tasks, name -> task class (every task, other packages' too: :func:`all_tasks`)
@@ -104,10 +104,10 @@ def _task_args(cls) -> list[str]:
 def load(name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
          time_limit: float | None = None, **kwargs: Any) -> control.Environment:
     """The dm_control environment of task ``name`` (module docstring)."""
-    tasks = all_tasks()
-    if name not in tasks:
-        raise ConfigError(f"unknown task {name!r}; choose one of {', '.join(tasks)}")
-    cls = tasks[name]
+    names = task_names()
+    if name not in names:
+        raise ConfigError(f"unknown task {name!r}; choose one of {', '.join(names)}")
+    cls = task_class(name)
     for what, given in (("task_kwargs", task_kwargs), ("environment_kwargs",
                                                         environment_kwargs)):
         if given is not None and not isinstance(given, Mapping):
@@ -159,4 +159,4 @@ except ImportError:  # pragma: no cover - gymnasium not installed
 else:
     register_envs()
 
-__all__ = ["TASKS", "all_tasks", "gym_id", "load"]
+__all__ = ["TASKS", "all_tasks", "gym_id", "load", "task_names"]

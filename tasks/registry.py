@@ -19,9 +19,11 @@ task::
 
 Entry points are read at each look-up (``importlib.metadata``: a package installed after
 ``import pathpref_tasks`` is seen; Gymnasium ids are registered by
-:func:`pathpref_tasks.gym.register_envs`, at import and when called again). A name that
-clashes with a built-in one, or an entry point that is not a task, is a one-line
-:class:`~pathpref.errors.ConfigError`.
+:func:`pathpref_tasks.gym.register_envs`, at import and when called again, by name only:
+another package's code is imported when its task is loaded). Built-in names come first (a
+map or task of the same name is not used; :func:`all_tasks` refuses such a task); an entry
+point that fails to load or is not a task is a one-line :class:`~pathpref.errors.ConfigError`
+when it is asked for.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ from importlib.metadata import entry_points
 from typing import Any
 
 from pathpref.errors import ConfigError
-from pathpref.geometry.maps import BUILTIN_MAPS
 
 from .carry import Carry, CarryControl
 from .navigate import Navigate
@@ -56,28 +57,44 @@ def _entries(group: str) -> dict[str, Any]:
     return {ep.name: ep for ep in entry_points(group=group)}
 
 
+def task_names() -> list[str]:
+    """The names of every task: the built-in ones, then those of :data:`TASK_GROUP` (nothing
+    of another package is imported; a name clashing with a built-in one is left out here and
+    refused by :func:`all_tasks`)."""
+    return [*BUILTIN_TASKS, *(n for n in _entries(TASK_GROUP) if n not in BUILTIN_TASKS)]
+
+
+def task_class(name: str) -> type[Navigate]:
+    """The class of task ``name``: built-in, else the entry point's, loaded and checked (a
+    one-line ConfigError when it fails to load or is not a task; KeyError when unknown)."""
+    if name in BUILTIN_TASKS:
+        return BUILTIN_TASKS[name]
+    ep = _entries(TASK_GROUP)[name]
+    try:
+        cls = ep.load()
+    except Exception as e:  # noqa: BLE001 - any import failure of another package
+        raise ConfigError(f"entry point {name!r} of group {TASK_GROUP} ({ep.value}) "
+                          f"failed to load: {type(e).__name__}: {e}") from None
+    if not (isinstance(cls, type) and issubclass(cls, Navigate)):
+        raise ConfigError(f"entry point {name!r} of group {TASK_GROUP} ({ep.value}) must "
+                          f"name a subclass of pathpref_tasks.navigate.Navigate")
+    return cls
+
+
 def all_tasks() -> dict[str, type[Navigate]]:
-    """Every task: the built-in ones, then those of :data:`TASK_GROUP` (module docstring)."""
-    out = dict(BUILTIN_TASKS)
+    """Every task by name (module docstring), every entry point loaded and checked; an entry
+    point clashing with a built-in name is a one-line ConfigError."""
     for name, ep in _entries(TASK_GROUP).items():
         if name in BUILTIN_TASKS:
             raise ConfigError(f"entry point {name!r} of group {TASK_GROUP} ({ep.value}) "
                               f"clashes with a built-in task; rename it in its package")
-        try:
-            cls = ep.load()
-        except Exception as e:  # noqa: BLE001 - any import failure of another package
-            raise ConfigError(f"entry point {name!r} of group {TASK_GROUP} ({ep.value}) "
-                              f"failed to load: {type(e).__name__}: {e}") from None
-        if not (isinstance(cls, type) and issubclass(cls, Navigate)):
-            raise ConfigError(f"entry point {name!r} of group {TASK_GROUP} ({ep.value}) must "
-                              f"name a subclass of pathpref_tasks.navigate.Navigate")
-        out[name] = cls
-    return out
+    return {name: task_class(name) for name in task_names()}
 
 
 def gym_ids() -> dict[str, str]:
-    """Gymnasium id -> task name, for every task of :func:`all_tasks`."""
-    return {gym_id(name): name for name in all_tasks()}
+    """Gymnasium id -> task name, for every task of :func:`task_names` (the classes are
+    loaded when an id is made)."""
+    return {gym_id(name): name for name in task_names()}
 
 
 def entry_point_map(name: str) -> Any | None:
@@ -86,9 +103,6 @@ def entry_point_map(name: str) -> Any | None:
     ep = _entries(MAP_GROUP).get(name)
     if ep is None:
         return None
-    if name in BUILTIN_MAPS:
-        raise ConfigError(f"entry point {name!r} of group {MAP_GROUP} ({ep.value}) clashes "
-                          f"with a built-in map; rename it in its package")
     try:
         value = ep.load()
         return value() if callable(value) else value

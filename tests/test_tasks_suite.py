@@ -191,13 +191,20 @@ def test_a_package_registers_a_task_and_a_map(example_package):
 
 
 def test_bad_entry_points_are_one_line_errors(example_package):
-    """A task entry point naming something that is not a task, or clashing with a built-in
-    name, and a map clashing with a built-in map: one line naming the entry point."""
+    """A task entry point naming something that is not a task (refused when it is loaded,
+    not when another task is), or clashing with a built-in name, and a map failing to load:
+    one line naming the entry point; a map clashing with a built-in one is not used."""
+    gym = pytest.importorskip("gymnasium")
+    from pathpref_tasks.gym import register_envs
+
     ep = example_package / "entry_points.txt"
     ep.write_text("[pathpref.tasks]\nbroken = pathpref_example_tasks:NOT_A_TASK\n")
     with pytest.raises(ConfigError, match=r"entry point 'broken' .* subclass of") as e:
-        load("navigate", **SMALL)
+        load("broken", **SMALL)
     assert "\n" not in str(e.value)
+    assert load("navigate", **SMALL).task.world.spec.name == "simple"  # others still load
+    register_envs()  # the id is registered without importing the package's task
+    assert "pathpref/Broken-v0" in gym.registry
     ep.write_text("[pathpref.tasks]\nnavigate = pathpref_example_tasks:Patrol\n")
     with pytest.raises(ConfigError, match="clashes with a built-in task"):
         all_tasks()

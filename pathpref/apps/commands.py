@@ -393,11 +393,11 @@ def _film_policy(args: argparse.Namespace, out, rerun, width: int, height: int,
     if out is None or rerun is not None:
         raise ConfigError("--policy films a video: give --out video.mp4 (no --rerun)")
     policy = load_policy(args.policy)
-    from pathpref_tasks import all_tasks
+    from pathpref_tasks import task_names
 
-    if args.task not in all_tasks():
+    if args.task not in task_names():
         raise ConfigError(f"--task must be a task of pathpref_tasks: "
-                          f"{', '.join(all_tasks())}; got {args.task!r}")
+                          f"{', '.join(task_names())}; got {args.task!r}")
     kwargs = {"map": args.map, "method": args.method, "delta_t": args.delta_t,
               "seed": args.seed, "preset": common["preset"], "queries": common["queries"],
               "t_max": common["t_max"], "coupling": common["coupling"], "force": args.force,
