@@ -141,3 +141,26 @@ def test_render_films_any_policy(tmp_path, monkeypatch, capsys):
         err = capsys.readouterr().err
         assert msg in err and err.count("\n") == 1 and not out.exists()
     sys.modules.pop("my_policies", None)
+
+
+def test_filming_stops_at_max_steps(tmp_path):
+    """The filming loop is bounded: with ``max_steps`` 3 the policy is called 3 times (the
+    episode not over), and the video has the first frame and one per 0.08 s of the 3 steps'
+    12.3 s (decision steps of 4.1 s, the default physics)."""
+    import imageio.v2 as imageio
+
+    from pathpref.apps.film import film_policy
+
+    calls = []
+
+    def stay(ts):
+        calls.append(ts.step_type)
+        return 8
+
+    metrics, frames = film_policy("navigate", stay, tmp_path / "v.mp4", 64, 48,
+                                  {**KW, "t_max": 10}, max_steps=3)
+    assert len(calls) == 3 and metrics["steps"] == 3 and not metrics["goal_reached"]
+    assert frames == len(imageio.mimread(tmp_path / "v.mp4"))
+    # the first frame (the state after reset), then one per 40 physics steps of 2 ms
+    # (0.08 s) of the 3 steps: 3 * 4.1 s = 6150 physics steps, 153 frames
+    assert frames == 1 + 6150 // 40
