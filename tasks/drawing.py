@@ -107,7 +107,9 @@ class TaskDrawing:
                     true_goal=r.instance.true_goal, polygons=self.polygons,
                     current=int(t.world.cell_polytope[b.cell]), preference=self.preference,
                     robot_xy=b.position.copy())
-        pushes = [p for p in (t.body.last_push, *b.pushes) if p is not None and p.active(now)]
+        acting = {id(p): p for p in (t.body.last_push, *b.pushes)
+                  if p is not None and p.active(now)}  # each push once
+        pushes = list(acting.values())
         if pushes:
             o.push_origin = b.data.xpos[b.pushed_body].copy()
             o.push_force = np.sum([p.force(now) for p in pushes], axis=0)

@@ -4,9 +4,9 @@ viewer's convention; a trained agent's wrapper, e.g. ``examples/train_ppo.py``'s
 from the drawn top view (:mod:`pathpref_tasks.drawing`: goals by belief, polytopes, the
 preferred route, pushes and cues).
 
-A frame is rendered every ``speed / VIDEO_FPS`` s of simulated time (every physics step's
-hook counts), so a decision step of 4.1 s is 2.05 s of video at ``speed`` 2 and a push is
-seen as it happens.
+The first frame is the state after ``reset``; then a frame is rendered every
+``speed / VIDEO_FPS`` s of simulated time (a hook on every physics step of the base), so a
+decision step of 4.1 s is 2.05 s of video at ``speed`` 2 and a push is seen as it happens.
 """
 
 from __future__ import annotations
