@@ -60,13 +60,17 @@ ENVIRONMENT_KWARGS = ("control_timestep", "flat_observation", "legacy_step")
 
 class Environment(control.Environment):
     """dm_control's ``control.Environment``; an action outside the spec is refused before
-    dm_control runs (a one-line ConfigError raised from here, not from inside dm_control)."""
+    dm_control runs (a one-line ConfigError raised from here, not from inside dm_control);
+    each step's reward is added to the task's ``episode_return``."""
 
     def step(self, action):
         """Check ``action`` against the task's spec, then dm_control's ``step``."""
         if not self._reset_next_step:
             self._task.check_action(action)
-        return super().step(action)
+        ts = super().step(action)
+        if ts.reward is not None:  # None on the first step of a new episode
+            self._task.episode_return += float(ts.reward)
+        return ts
 
     def observation_spec(self):
         """The task's specs; with ``flat_observation`` the one flat array's, its bounds the

@@ -237,7 +237,7 @@ class Navigate(base.Task):
         self.body = StagedBody(self.world, spec, rng, self.base, self._start_push)
         self.filter = ForceFilter(self.base)
         self._reward = 0.0
-        #: the sum of the episode's rewards (the first, in ``reset``, is none)
+        #: the sum of the episode's rewards (the Environment adds each step's)
         self.episode_return = 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
         #: what the robot felt since the last observation (the observations of the step)
@@ -394,9 +394,7 @@ class Navigate(base.Task):
         return out
 
     def get_reward(self, physics: Physics) -> float:
-        """The reward of the last step (:meth:`_step_reward`); summed in
-        :attr:`episode_return`."""
-        self.episode_return += float(self._reward)
+        """The reward of the last step (:meth:`_step_reward`)."""
         return float(self._reward)
 
     def get_termination(self, physics: Physics):
