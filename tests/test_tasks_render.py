@@ -145,8 +145,8 @@ def test_render_films_any_policy(tmp_path, monkeypatch, capsys):
 
 def test_filming_stops_at_max_steps(tmp_path):
     """The filming loop is bounded: with ``max_steps`` 3 the policy is called 3 times (the
-    episode not over), and the video has the first frame and one per 0.08 s of the 3 steps'
-    12.3 s (decision steps of 4.1 s, the default physics)."""
+    episode not over), and the video has the first frame and one per 0.08 s of the 3 steps
+    (decision steps of ``decision_s``, the default physics')."""
     import imageio.v2 as imageio
 
     from pathpref.apps.film import film_policy
@@ -162,5 +162,7 @@ def test_filming_stops_at_max_steps(tmp_path):
     assert len(calls) == 3 and metrics["steps"] == 3 and not metrics["goal_reached"]
     assert frames == len(imageio.mimread(tmp_path / "v.mp4"))
     # the first frame (the state after reset), then one per 40 physics steps of 2 ms
-    # (0.08 s) of the 3 steps: 3 * 4.1 s = 6150 physics steps, 153 frames
-    assert frames == 1 + 6150 // 40
+    # (0.08 s) of the 3 decision steps (3 * n_sub_steps physics steps)
+    task = load("navigate", **{**KW, "t_max": 10}).task
+    assert task.dt == 0.002
+    assert frames == 1 + 3 * task.n_sub_steps // 40

@@ -365,7 +365,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if getattr(args, "policy", None) is not None:
         return _film_policy(args, out, rerun, width, height, common)
     if args.task not in ("navigate", "carry"):
-        raise ConfigError(f"--task must be navigate or carry for the method's own rollout "
+        raise ConfigError(f"--robot must be navigate or carry for the method's own rollout "
                           f"(any task of pathpref_tasks with --policy), got {args.task!r}")
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
                               sim="mujoco", robot=args.task,
@@ -396,7 +396,7 @@ def _film_policy(args: argparse.Namespace, out, rerun, width: int, height: int,
     from pathpref_tasks import task_names
 
     if args.task not in task_names():
-        raise ConfigError(f"--task must be a task of pathpref_tasks: "
+        raise ConfigError(f"--robot must be a task of pathpref_tasks: "
                           f"{', '.join(task_names())}; got {args.task!r}")
     kwargs = {"map": args.map, "method": args.method, "delta_t": args.delta_t,
               "seed": args.seed, "preset": common["preset"], "queries": common["queries"],
