@@ -8,17 +8,17 @@ way ``dm_control.suite.load`` loads the suite's::
     while not ts.last():
         ts = env.step(env.task.policy_action())   # or any agent's action
 
-Tasks (:data:`TASKS`): ``navigate`` (one step = one decision of ``decision_s`` physics seconds;
-actions 0..8), ``navigate_control`` (control rate, 20 Hz by default; the agent commands the
-base's velocity while the simulated human pushes), ``carry`` (a Jaco arm on the base
-carries a tray; pushes on the tray; decision steps) and ``carry_control`` (the arm at control
-rate). ``task_kwargs`` go to the task (map,
-method, delta_t, seed, preset, queries, t_max, n_goals, coupling, force, decision_s, physics;
-push_period_s at control rate), ``environment_kwargs`` to ``control.Environment``
-(``control_timestep`` at control rate, ``flat_observation``), ``time_limit`` (s) caps an
-episode. Task arguments may also be given as keywords (``load("navigate", map="office")``).
-Unknown names and bad values are one-line :class:`~pathpref.errors.ConfigError` s (a
-``ValueError``).
+Tasks (:data:`TASKS`; with other packages' tasks :func:`all_tasks`, :mod:`.registry`):
+``navigate`` (one step = one decision of ``decision_s`` physics seconds; actions 0..8),
+``navigate_control`` (control rate, 50 Hz by default; the agent commands the base's velocity
+while the simulated human pushes), ``carry`` (a Jaco arm on the base carries a tray; pushes on
+the tray; decision steps) and ``carry_control`` (the arm at control rate). ``task_kwargs`` go to
+the task (map, method, delta_t, seed, preset, queries, t_max, n_goals, coupling, force,
+decision_s, physics; push_period_s at control rate), ``environment_kwargs`` to
+``control.Environment`` (``control_timestep`` at control rate, ``flat_observation``),
+``time_limit`` (s) caps an episode. Task arguments may also be given as keywords
+(``load("navigate", map="office")``). Unknown names and bad values are one-line
+:class:`~pathpref.errors.ConfigError` s (a ``ValueError``).
 
 ``physics`` sets every physical parameter (:class:`pathpref.episode.Physics`, a dict of its
 fields or its JSON; ``docs/physics.md`` section 7): ``load("navigate", physics={"sensor":
@@ -31,6 +31,7 @@ original base and controllers), exactly as before the argument.
 
 from __future__ import annotations
 
+import collections
 import inspect
 import math
 import os
@@ -39,39 +40,65 @@ from typing import Any
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
+import numpy as np  # noqa: E402
 from dm_control.mujoco.wrapper import core  # noqa: E402
 from dm_control.rl import control  # noqa: E402
+from dm_env import specs  # noqa: E402
 
 from pathpref.episode.spec import check_number  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
 
-from .carry import Carry, CarryControl  # noqa: E402
-from .navigate import Navigate  # noqa: E402
-from .navigate_control import CONTROL_TIMESTEP, CONTROL_TIMESTEPS, NavigateControl  # noqa: E402
+from .navigate_control import CONTROL_TIMESTEP, CONTROL_TIMESTEPS  # noqa: E402
+from .registry import BUILTIN_TASKS, all_tasks, gym_id, task_class, task_names  # noqa: E402
 from .stage import Physics  # noqa: E402
 
-#: task name -> task class
-TASKS = {"navigate": Navigate, "navigate_control": NavigateControl, "carry": Carry,
-         "carry_control": CarryControl}
+#: the built-in tasks, name -> task class (every task, other packages' too: :func:`all_tasks`)
+TASKS = BUILTIN_TASKS
 #: environment_kwargs the tasks accept
 ENVIRONMENT_KWARGS = ("control_timestep", "flat_observation", "legacy_step")
 
 
 class Environment(control.Environment):
     """dm_control's ``control.Environment``; an action outside the spec is refused before
-    dm_control runs (a one-line ConfigError raised from here, not from inside dm_control)."""
+    dm_control runs (a one-line ConfigError raised from here, not from inside dm_control);
+    each step's reward is added to the task's ``episode_return``."""
 
     def step(self, action):
         """Check ``action`` against the task's spec, then dm_control's ``step``."""
         if not self._reset_next_step:
             self._task.check_action(action)
-        return super().step(action)
+        ts = super().step(action)
+        if ts.reward is not None:  # None on the first step of a new episode
+            self._task.episode_return += float(ts.reward)
+        return ts
+
+    def observation_spec(self):
+        """The task's specs; with ``flat_observation`` the one flat array's, its bounds the
+        task's bounds concatenated in observation order (dm_control returns the task's
+        unflattened specs then, which the flat observations do not match)."""
+        spec = super().observation_spec()
+        if not self._flat_observation:
+            return spec
+        lo = [np.broadcast_to(getattr(s, "minimum", -np.inf), s.shape).ravel()
+              for s in spec.values()]
+        hi = [np.broadcast_to(getattr(s, "maximum", np.inf), s.shape).ravel()
+              for s in spec.values()]
+        n = sum(int(np.prod(s.shape)) for s in spec.values())
+        key = control.FLAT_OBSERVATION_KEY
+        return collections.OrderedDict([(key, specs.BoundedArray(
+            (n,), np.float64, np.concatenate(lo), np.concatenate(hi), name=key))])
+
+    @property
+    def episode_metrics(self) -> dict[str, float | bool]:
+        """The current episode's metrics (``task.episode_metrics()``: ``success``, ``pushes``,
+        ``violations``, ``return``, ...); final once a time step is ``last()``."""
+        return self._task.episode_metrics()
 
 
 def _task_args(cls) -> list[str]:
     names = []
-    for c in cls.__mro__:
-        if c.__init__ is object.__init__ or not c.__module__.startswith(__name__):
+    for c in cls.__mro__:  # the task classes' own (not dm_control's base.Task's)
+        if c.__init__ is object.__init__ or c.__module__.startswith("dm_control"):
             continue
         names += [p for p in inspect.signature(c.__init__).parameters
                   if p not in ("self", "kwargs", "task") and p not in names]
@@ -81,9 +108,10 @@ def _task_args(cls) -> list[str]:
 def load(name: str, task_kwargs: dict | None = None, environment_kwargs: dict | None = None,
          time_limit: float | None = None, **kwargs: Any) -> control.Environment:
     """The dm_control environment of task ``name`` (module docstring)."""
-    if name not in TASKS:
-        raise ConfigError(f"unknown task {name!r}; choose one of {', '.join(TASKS)}")
-    cls = TASKS[name]
+    names = task_names()
+    if name not in names:
+        raise ConfigError(f"unknown task {name!r}; choose one of {', '.join(names)}")
+    cls = task_class(name)
     for what, given in (("task_kwargs", task_kwargs), ("environment_kwargs",
                                                         environment_kwargs)):
         if given is not None and not isinstance(given, Mapping):
@@ -135,4 +163,4 @@ except ImportError:  # pragma: no cover - gymnasium not installed
 else:
     register_envs()
 
-__all__ = ["TASKS", "load"]
+__all__ = ["TASKS", "all_tasks", "gym_id", "load", "task_names"]

@@ -35,12 +35,13 @@ from gymnasium import spaces
 from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
 
+from .registry import BUILTIN_TASKS, gym_id, gym_ids
+
 #: the largest render size asked for at all (the scene's offscreen buffer may allow less)
 MAX_RENDER = 8192
 
-#: gymnasium id -> dm_control task name
-IDS = {"pathpref/Navigate-v0": "navigate", "pathpref/NavigateControl-v0": "navigate_control",
-       "pathpref/Carry-v0": "carry", "pathpref/CarryControl-v0": "carry_control"}
+#: gymnasium id -> built-in dm_control task name (derived: :func:`pathpref_tasks.gym_id`)
+IDS = {gym_id(name): name for name in BUILTIN_TASKS}
 
 
 def box(spec) -> spaces.Box:
@@ -49,6 +50,18 @@ def box(spec) -> spaces.Box:
     return spaces.Box(np.broadcast_to(np.asarray(lo, np.float64), spec.shape).copy(),
                       np.broadcast_to(np.asarray(hi, np.float64), spec.shape).copy(),
                       shape=spec.shape, dtype=np.float64)
+
+
+def gym_observation(space: spaces.Dict, observation) -> dict[str, np.ndarray]:
+    """A dm_env observation as the Gymnasium one of ``space``: float64 arrays of the spaces'
+    shapes, within their bounds (an agent trained through Gymnasium reads a dm_env time step
+    through this, e.g. to be filmed by ``pathpref render --policy``)."""
+    out = {}
+    for k, v in observation.items():
+        box_k = space[k]
+        out[k] = np.clip(np.asarray(v, dtype=np.float64).reshape(box_k.shape), box_k.low,
+                         box_k.high)
+    return out
 
 
 class PathprefEnv(gym.Env):
@@ -89,12 +102,7 @@ class PathprefEnv(gym.Env):
                                   f"offscreen buffer, 1..{most}), got {value}")
 
     def _obs(self, ts) -> dict[str, np.ndarray]:
-        out = {}
-        for k, v in ts.observation.items():
-            space = self.observation_space[k]
-            out[k] = np.clip(np.asarray(v, dtype=np.float64).reshape(space.shape), space.low,
-                             space.high)
-        return out
+        return gym_observation(self.observation_space, ts.observation)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode: the first of ``load(seed=seed)`` when a seed is given, else the
@@ -120,10 +128,12 @@ class PathprefEnv(gym.Env):
         return self._obs(ts), float(ts.reward), terminated, truncated, self._info()
 
     def _info(self) -> dict[str, Any]:
-        r = self._env.task.runner
-        return {"goal_reached": bool(r.result.goal_reached), "violations": r.result.violations,
-                "t": r.t, "p_true_goal": float(r.policy.belief.goal_marginal()
-                                                [r.instance.true_goal])}
+        """The episode's metrics so far (``Navigate.episode_metrics``: ``success``,
+        ``goal_reached``, ``violations``, ``pushes``, ``cues_felt``, ``return``, ...; the
+        body's measurements at the last step only) and ``t``, the decisions (cell changes
+        at control rate) taken."""
+        task = self._env.task
+        return {**task.episode_metrics(body=self._over), "t": task.runner.t}
 
     def render(self):
         """The top camera as an ``(height, width, 3)`` uint8 image (``rgb_array``)."""
@@ -137,7 +147,9 @@ class PathprefEnv(gym.Env):
 
 
 def register_envs() -> None:
-    """Register the ids of :data:`IDS` with Gymnasium (idempotent)."""
-    for env_id, task in IDS.items():
+    """Register the id of every task (:func:`pathpref_tasks.registry.gym_ids`: the built-in
+    ones and other packages') with Gymnasium (idempotent; call again after installing a
+    package of tasks)."""
+    for env_id, task in gym_ids().items():
         if env_id not in gym.registry:
             gym.register(id=env_id, entry_point=PathprefEnv, kwargs={"task": task})

@@ -22,7 +22,14 @@ The episode's first push happens in ``reset`` (physics time runs there too). Obs
 the base's position (m), its cell, the heading detected for the coming step (one-hot over 8
 headings, zero when none), the filtered force (N, world frame, low-pass with tau = 0.05 s),
 whether the detector is active, the goal belief, the candidates' cells, the current polytope
-and the joint entropy ``H(g, p_v)``. Bounded observations are ``BoundedArray`` s.
+and the joint entropy ``H(g, p_v)``; and what the robot felt *during* the step
+(:class:`~.stage.StepInteraction`), not an end-of-step snapshot: ``push_felt`` (peak N,
+cos and sin of its direction, duration s of the strongest cue read), ``cues_felt`` (cues read
+per heading) and ``detector_active_s``. Bounded observations are ``BoundedArray`` s.
+
+Episode metrics (``success``, ``pushes``, ``violations``, ``cues_felt``, ``return``, ...:
+:meth:`Navigate.episode_metrics`) are the environment's ``env.episode_metrics`` (final at the
+last time step) and every Gymnasium ``info``.
 
 Reward: :func:`pathpref.planning.pomdp.transition_reward` (the paper's, SPEC 6, the one rule
 the POMDP uses) with the human's true preference. The episode ends at the goal (discount 0) or
@@ -53,6 +60,7 @@ from __future__ import annotations
 import collections
 import math
 import numbers
+import os
 from dataclasses import asdict
 from typing import Any
 
@@ -67,7 +75,7 @@ from pathpref.episode.spec import check_limit, check_number
 from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.arrangement import check_arrangement_size
 from pathpref.geometry.grid import STAY
-from pathpref.geometry.maps import MapSpec, parse_map
+from pathpref.geometry.maps import BUILTIN_MAPS, MapSpec, parse_map
 from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
 from pathpref.sim.body import base_params, build_base, scene_for
@@ -77,7 +85,8 @@ from pathpref.sim.force_cue import HumanPush, PushProfile
 from pathpref.sim.mobile_base import MobileBase
 from pathpref.sim.scene import Scene
 
-from .stage import ForceFilter, Physics, StagedBody
+from .drawing import TaskDrawing
+from .stage import ForceFilter, Physics, StagedBody, StepInteraction
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
@@ -92,8 +101,9 @@ MOVE_LIMIT_S = TrackingController().time_limit_s
 
 
 def task_world(map: Any, force: bool = False) -> tuple[World, str]:
-    """The world of ``map`` (name, path, dictionary or MapSpec) and the name its episodes
-    carry; a dictionary's world is built directly (no file), a name's is cached."""
+    """The world of ``map`` (name, path, dictionary or MapSpec, or the name of another
+    package's map: :mod:`.registry`) and the name its episodes carry; a dictionary's world is
+    built directly (no file), a name's is cached."""
     if isinstance(map, dict | MapSpec):
         spec = map if isinstance(map, MapSpec) else parse_map(map)
         check_arrangement_size(spec, force)
@@ -101,6 +111,17 @@ def task_world(map: Any, force: bool = False) -> tuple[World, str]:
     if not isinstance(map, str):
         raise ConfigError(f"map must be a built-in name, a JSON path or a map dictionary, got "
                           f"{type(map).__name__}")
+    if map not in BUILTIN_MAPS and not os.path.exists(map):
+        from .registry import entry_point_map  # another package's map (entry points)
+
+        given = entry_point_map(map)
+        if given is not None:
+            if isinstance(given, str | os.PathLike):
+                given = os.fspath(given)
+                if given in BUILTIN_MAPS or not os.path.exists(given):
+                    raise ConfigError(f"map entry point {map!r} must give a map dictionary, "
+                                      f"a MapSpec or an existing JSON path, got {given!r}")
+            return task_world(given, force)
     check_arrangement_size(cached_map(map), force)
     return cached_world(map), map
 
@@ -216,7 +237,12 @@ class Navigate(base.Task):
         self.body = StagedBody(self.world, spec, rng, self.base, self._start_push)
         self.filter = ForceFilter(self.base)
         self._reward = 0.0
+        #: the sum of the episode's rewards (the Environment adds each step's)
+        self.episode_return = 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
+        #: what the robot felt since the last observation (the observations of the step)
+        self.interaction = StepInteraction(self.base)
+        physics.drawing = TaskDrawing(self)  # the task in every render
         self.base.decision.hold(until_cue=False)
         physics.substep = self.substep
         if self.decides:
@@ -250,6 +276,7 @@ class Navigate(base.Task):
             elif phase == MOVE:
                 self._arrive()
         self.filter.update()
+        self.interaction.update()
 
     def check_action(self, action) -> int:
         """``action`` as 0..8 (:func:`parse_action`)."""
@@ -263,6 +290,7 @@ class Navigate(base.Task):
         target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])
         self.base.decision.move(target, self.move_limit_s)
         self._reward = 0.0
+        self.interaction.start()
         if self.body.human is not None:  # the corrective human watches the move begin
             self.body.human.robot_moves(cell, None if target == cell else self._action)
 
@@ -308,7 +336,20 @@ class Navigate(base.Task):
             ("goal_cells", bounded((G, 2), 1.0, side, "goal_cells")),
             ("polytope", bounded((1,), 0.0, self.world.n_polytopes - 1.0, "polytope")),
             ("entropy", bounded((1,), 0.0, h_max, "entropy")),
+            *self.interaction_spec().items(),
         ])
+
+    def interaction_spec(self) -> dict[str, specs.Array]:
+        """The specs of the step's interaction (:class:`~.stage.StepInteraction`): a step
+        observes at most ``max(decision_s, push window)`` of physics (the first observation
+        includes the push played in ``reset``), so at most that many seconds of an active
+        detector and one cue per physics step of it."""
+        span = max(self.decision_s, self.push_window_s)
+        return {
+            "push_felt": specs.Array((4,), np.float64, name="push_felt"),
+            "cues_felt": bounded((8,), 0.0, float(math.ceil(span / self.dt)), "cues_felt"),
+            "detector_active_s": bounded((1,), 0.0, span, "detector_active_s"),
+        }
 
     def get_observation(self, physics: Physics) -> collections.OrderedDict:
         """The observations of the module docstring."""
@@ -327,7 +368,30 @@ class Navigate(base.Task):
         obs["goal_cells"] = self.world.cells[list(r.instance.goals)].astype(np.float64)
         obs["polytope"] = np.array([v], dtype=np.float64)
         obs["entropy"] = np.array([r.policy.belief.joint_entropy(v)])
+        obs.update(self.interaction.observation())
         return obs
+
+    def episode_metrics(self, body: bool = True) -> dict[str, float | bool]:
+        """The episode so far (final once the episode is over): ``success`` (goal reached
+        without a violation), ``goal_reached``, ``violations``, ``back_crossings``,
+        ``steps`` (decisions, or cell changes at control rate), ``pushes`` (the human's
+        inputs), ``cues_felt`` (cues the detector gave), ``sim_time_s``, ``p_true_goal``
+        (the belief's probability of the true goal), ``return`` (sum of rewards) and, with
+        ``body``, the body's measurements (:meth:`pathpref.sim.body.MujocoBody.metrics`:
+        with physics the cue metrics ``pushes_missed``, ``pushes_misread``, ...,
+        ``collisions``; the arm's tilt; they go over the episode's physics steps, so a
+        Gymnasium ``info`` has them at the episode's last step only)."""
+        r = self.runner
+        res = r.result
+        out: dict[str, float | bool] = dict(self.body.metrics()) if body else {}
+        out.update({
+            "success": bool(res.success), "goal_reached": bool(res.goal_reached),
+            "violations": int(res.violations), "back_crossings": int(res.back_crossings),
+            "steps": int(res.steps), "pushes": int(res.inputs),
+            "cues_felt": int(len(self.base.felt)), "sim_time_s": float(self.base.data.time),
+            "p_true_goal": float(r.policy.belief.goal_marginal()[r.instance.true_goal]),
+            "return": float(self.episode_return)})
+        return out
 
     def get_reward(self, physics: Physics) -> float:
         """The reward of the last step (:meth:`_step_reward`)."""

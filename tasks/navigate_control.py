@@ -153,6 +153,7 @@ class NavigateControl(Navigate):
         else:
             self.base.substep()
         self.filter.update()
+        self.interaction.update()
 
     def _push_over(self) -> None:
         """The push phase ended: note how it was read (no hold: the agent drives)."""
@@ -190,6 +191,7 @@ class NavigateControl(Navigate):
         # the base's controller (the arm's IK target in carry_control)
         self.command.hold(a, float(self.base.data.qpos[self.base.yaw]))
         self._reward = 0.0
+        self.interaction.start()
         if (self.base.decision.phase != PUSH
                 and float(self.base.data.time) >= self._next_push - 1e-9
                 and not self.runner.done and not self.runner.continuous):
@@ -212,9 +214,10 @@ class NavigateControl(Navigate):
         self._reward = self._step_reward(before, cell, a)
 
     def action_spec(self, physics: Physics) -> specs.BoundedArray:
-        """The base velocity ``(vx, vy)`` in m/s, each within ``+-v_max``."""
-        return specs.BoundedArray(shape=(2,), dtype=np.float64, minimum=-self.v_max,
-                                  maximum=self.v_max, name="base_velocity")
+        """The base velocity ``(vx, vy)`` in m/s, each within ``+-v_max`` (bounds of the
+        action's shape, as the suite's specs have them)."""
+        return specs.BoundedArray(shape=(2,), dtype=np.float64, minimum=np.full(2, -self.v_max),
+                                  maximum=np.full(2, self.v_max), name="base_velocity")
 
     def observation_spec(self, physics: Physics) -> collections.OrderedDict:
         """Navigate's observations plus the base's velocity."""

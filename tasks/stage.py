@@ -13,6 +13,7 @@ time an environment step advances is exactly ``control_timestep()``.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -31,6 +32,24 @@ class Physics(dm_mujoco.Physics):
     physics step (module docstring); without one it is dm_control's plain ``mj_step``."""
 
     substep: Callable[[], None] | None = None
+    #: the task drawn into every render (:class:`~.drawing.TaskDrawing`, a callable of an
+    #: ``MjvScene``); None draws the physics only
+    drawing: Callable[[object], None] | None = None
+
+    def render(self, *args, scene_callback=None, **kwargs) -> np.ndarray:
+        """dm_control's ``render`` with the task drawn into the scene (:attr:`drawing`, before
+        the caller's own ``scene_callback``); depth and segmentation images show the physics
+        only."""
+        drawing = self.drawing
+        if drawing is not None and not (kwargs.get("depth") or kwargs.get("segmentation")):
+            given = scene_callback
+
+            def scene_callback(physics, scn):
+                drawing(scn)
+                if given is not None:
+                    given(physics, scn)
+
+        return super().render(*args, scene_callback=scene_callback, **kwargs)
 
     def step(self, nstep: int = 1) -> None:
         """Advance ``nstep`` physics steps (each through the task's ``substep``)."""
@@ -97,3 +116,52 @@ class ForceFilter:
         if raw is None:
             raw = -(self._R @ self._reading) if b.sensor_model is None else b.force_estimate
         self.f += self.alpha * (raw - self.f)
+
+
+class StepInteraction:
+    """What the robot felt during one environment step (since the last observation), the
+    observations that carry the step's interaction instead of an end-of-step snapshot:
+
+    * ``push_felt`` = ``(peak_n, cos a, sin a, duration_s)`` of the strongest cue the
+      detector read during the step (a :class:`~pathpref.episode.body.Felt` record of
+      ``base.felt``: its peak force in N, its impulse's direction ``a`` in the world frame
+      and how long the push lasted in s); zeros when none was read;
+    * ``cues_felt``: the number of cues read during the step, per detected heading (0..7:
+      N, NE, ..., NW);
+    * ``detector_active_s``: physics seconds of the step during which the detector was
+      active (a cue under way), ``dt`` per physics step it was.
+
+    :meth:`start` begins a step, :meth:`update` follows every physics step."""
+
+    def __init__(self, base: MobileBase):
+        self.base = base
+        self._from = len(base.felt)
+        self.active_s = 0.0
+
+    def start(self) -> None:
+        """A new environment step: forget what the previous one felt."""
+        self._from = len(self.base.felt)
+        self.active_s = 0.0
+
+    def update(self) -> None:
+        """After a physics step: count it when the detector is active."""
+        if self.base.detector.active:
+            self.active_s += self.base.dt
+
+    def felt(self) -> list:
+        """The cue records read since :meth:`start` (all of them after a sensing reset)."""
+        felt = self.base.felt
+        return felt[self._from:] if len(felt) >= self._from else list(felt)
+
+    def observation(self) -> dict[str, np.ndarray]:
+        """``push_felt``, ``cues_felt`` and ``detector_active_s`` (class docstring)."""
+        felt = self.felt()
+        push, counts = np.zeros(4), np.zeros(8)
+        for f in felt:
+            counts[f.heading] += 1.0
+        strongest = max(felt, key=lambda f: f.peak_n or 0.0, default=None)
+        if strongest is not None and strongest.peak_n is not None:
+            a = strongest.angle
+            push[:] = (strongest.peak_n, math.cos(a), math.sin(a), strongest.duration_s or 0.0)
+        return {"push_felt": push, "cues_felt": counts,
+                "detector_active_s": np.array([self.active_s])}

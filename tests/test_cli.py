@@ -279,3 +279,29 @@ def test_version(capsys):
     assert e.value.code == 0
     assert capsys.readouterr().out.strip() == f"pathpref {pathpref.__version__}"
     assert pathpref.__version__ == "0.2.0"
+
+
+def test_examples_are_copied_out_and_never_overwritten(tmp_path, capsys):
+    """``pathpref examples DEST`` (source checkout) copies examples/*.py, *.json and
+    maps/*.json byte for byte; a second copy into the same folder is one line and writes
+    nothing; a file as DEST is one line."""
+    from pathlib import Path
+
+    from pathpref.apps.cli import main
+
+    root = Path(__file__).resolve().parents[1] / "examples"
+    want = sorted(p.relative_to(root).as_posix() for p in [*root.glob("*.py"),
+                  *root.glob("*.json"), *root.glob("maps/*.json")] if p.name != "__init__.py")
+    dest = tmp_path / "ex"
+    assert main(["examples", str(dest)]) == 0
+    got = sorted(p.relative_to(dest).as_posix() for p in dest.rglob("*") if p.is_file())
+    assert got == want and "maps/hall.json" in got
+    assert all((dest / f).read_bytes() == (root / f).read_bytes() for f in got)
+    capsys.readouterr()
+    (dest / "tutorial.py").write_text("# mine\n")
+    assert main(["examples", str(dest)]) == 2
+    err = capsys.readouterr().err
+    assert "exists already" in err and err.count("\n") == 1
+    assert (dest / "tutorial.py").read_text() == "# mine\n"
+    assert main(["examples", str(dest / "tutorial.py")]) == 2
+    assert "is a file" in capsys.readouterr().err

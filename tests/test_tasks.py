@@ -10,7 +10,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 from dm_env import test_utils  # noqa: E402
-from pathpref_tasks import load  # noqa: E402
+from pathpref_tasks import TASKS, gym_id, load  # noqa: E402
 
 from pathpref.episode import Physics  # noqa: E402
 from pathpref.errors import ConfigError  # noqa: E402
@@ -286,8 +286,7 @@ def test_action_spec_is_discrete():
     spec.validate(np.int32(8))
 
 
-@pytest.mark.parametrize("env_id", ["pathpref/Navigate-v0", "pathpref/NavigateControl-v0",
-                                    "pathpref/Carry-v0", "pathpref/CarryControl-v0"])
+@pytest.mark.parametrize("env_id", sorted(gym_id(name) for name in TASKS))
 def test_gymnasium_env_passes_check_env(env_id):
     """Registered ids, Discrete(9) or Box(2) actions, bounded boxes where the dm_env spec is
     bounded, the env checker (seeding determinism included), rendering, a clear error when

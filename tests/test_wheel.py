@@ -67,3 +67,27 @@ def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
                         "--json"], cwd=elsewhere, env=env, capture_output=True, text=True,
                        timeout=300)
     assert r.returncode == 0 and '"polytopes": 73' in r.stdout, r.stderr
+
+
+def test_wheel_ships_the_examples(wheel, tmp_path):
+    """The examples and example maps are in the wheel (``pathpref.examples``), and the
+    installed ``pathpref examples DEST`` copies exactly the source tree's example files."""
+    names = set(zipfile.ZipFile(wheel).namelist())
+    src = sorted(p.relative_to(ROOT / "examples").as_posix()
+                 for p in [*(ROOT / "examples").glob("*"), *(ROOT / "examples").glob("maps/*")]
+                 if p.suffix in (".py", ".json") and p.name != "__init__.py")
+    assert "tutorial.py" in src and "maps/hall.json" in src and "train_ppo.py" in src
+    for rel in src:
+        assert f"pathpref/examples/{rel}" in names, rel
+    target = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
+                    str(target), str(wheel)], check=True, timeout=300)
+    env = {**os.environ, "PYTHONPATH": str(target), "MUJOCO_GL": "disable"}
+    dest = tmp_path / "copied"
+    r = subprocess.run([sys.executable, "-m", "pathpref", "examples", str(dest)],
+                       capture_output=True, text=True, env=env, timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    got = sorted(p.relative_to(dest).as_posix() for p in dest.rglob("*") if p.is_file())
+    assert got == src
+    for rel in src:
+        assert (dest / rel).read_bytes() == (ROOT / "examples" / rel).read_bytes(), rel

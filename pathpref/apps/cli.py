@@ -228,9 +228,13 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5,
                     help="decision steps between the human's pushes")
     rd.add_argument("--robot", "--task", dest="task", default="navigate",
-                    choices=["navigate", "carry"],
                     help="which robot: navigate (base) or carry (arm on the base, mink IK); "
-                    "--task is its older name")
+                    "with --policy any task of pathpref_tasks (navigate_control, "
+                    "carry_control, ...); --task is its older name")
+    rd.add_argument("--policy", default=None, metavar="MODULE:FUNCTION",
+                    help="film this policy instead of the method's own moves: a callable of "
+                    "a dm_env TimeStep returning the task's action (the method still keeps "
+                    "the robot's belief drawn in the video)")
     rd.add_argument("--out", default=None, help="video file (.mp4)")
     rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
     rd.add_argument("--size", default=None, metavar="WxH",
@@ -303,6 +307,12 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--no-physics", action="store_true", help="skip the MuJoCo figures")
     force_option(b)
     b.set_defaults(func=c.cmd_bench)
+
+    ex = sub.add_parser("examples", help="copy the examples (tutorial, PPO training, "
+                        "example maps) into a folder")
+    ex.add_argument("dest", help="folder to copy them into (made when missing; no file in it "
+                    "is overwritten)")
+    ex.set_defaults(func=c.cmd_examples)
 
     d = sub.add_parser("demo", help="the main job: run the demo and write its outputs")
     d.add_argument("--out", default="out", help="output folder")

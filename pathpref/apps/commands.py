@@ -362,6 +362,11 @@ def cmd_render(args: argparse.Namespace) -> int:
                           f"H x H), got {width}x{height}")
     load_world_checked(args.map, args.force)
     common = _common_episode_args(args, args.map)
+    if getattr(args, "policy", None) is not None:
+        return _film_policy(args, out, rerun, width, height, common)
+    if args.task not in ("navigate", "carry"):
+        raise ConfigError(f"--robot must be navigate or carry for the method's own rollout "
+                          f"(any task of pathpref_tasks with --policy), got {args.task!r}")
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
                               sim="mujoco", robot=args.task,
                               physics=physics_json(args, "mujoco"), **common)
@@ -377,6 +382,42 @@ def cmd_render(args: argparse.Namespace) -> int:
     for path in (out, args.rerun):
         if path:
             print(f"wrote {path}")
+    return 0
+
+
+def _film_policy(args: argparse.Namespace, out, rerun, width: int, height: int,
+                 common: dict) -> int:
+    """``pathpref render --policy``: one episode of a task driven by the given policy."""
+    from .film import film_policy, load_policy
+
+    if out is None or rerun is not None:
+        raise ConfigError("--policy films a video: give --out video.mp4 (no --rerun)")
+    policy = load_policy(args.policy)
+    from pathpref_tasks import task_names
+
+    if args.task not in task_names():
+        raise ConfigError(f"--robot must be a task of pathpref_tasks: "
+                          f"{', '.join(task_names())}; got {args.task!r}")
+    kwargs = {"map": args.map, "method": args.method, "delta_t": args.delta_t,
+              "seed": args.seed, "preset": common["preset"], "queries": common["queries"],
+              "t_max": common["t_max"], "coupling": common["coupling"], "force": args.force,
+              "physics": physics_json(args, "mujoco")}
+    with staged_outputs([out, None]) as (tmp_video, _):
+        metrics, frames = film_policy(args.task, policy, tmp_video, width, height, kwargs)
+    print(f"{args.policy} on {args.task} {args.map}: success {metrics['success']}, goal "
+          f"reached {metrics['goal_reached']}, {metrics['violations']} violations, "
+          f"{metrics['steps']} steps, {metrics['pushes']} pushes; {frames} frames")
+    print(f"wrote {out}")
+    return 0
+
+
+def cmd_examples(args: argparse.Namespace) -> int:
+    """``pathpref examples DEST``: copy the examples out (:mod:`.examples`)."""
+    from .examples import copy_examples
+
+    written = copy_examples(args.dest)
+    print(f"copied {len(written)} example files into {args.dest}; start with "
+          f"python {Path(args.dest) / 'tutorial.py'} --tiny")
     return 0
 
 

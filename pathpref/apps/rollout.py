@@ -23,7 +23,7 @@ from ..errors import ConfigError
 from ..geometry.world import World
 from ..sim.body import MujocoBody
 from ..sim.render import Overlay, PushTrace, RolloutRenderer, VideoWriter, applied_push
-from ..viz.mapdraw import polytope_centres
+from ..viz.mapdraw import preference_arrows
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
 
 VIDEO_FPS = 25
@@ -60,18 +60,6 @@ class Recording:
     frames: int
     video: Path | None
     rerun: Path | None
-
-
-def preference_arrows(world: World, pref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The human's preferred transitions ``v -> p_v`` as arrows (grid units) from 20 % to 80 %
-    of the way between the polytopes' centres."""
-    c = polytope_centres(world) + 0.5  # centres of cells -> grid coordinates
-    out = []
-    for v, w in enumerate(np.asarray(pref)):
-        if w >= 0:
-            a, b = c[v], c[int(w)]
-            out.append((a + 0.2 * (b - a), a + 0.8 * (b - a)))
-    return out
 
 
 class FrameMaker:

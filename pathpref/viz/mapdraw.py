@@ -31,6 +31,18 @@ def polytope_centres(world: World) -> np.ndarray:
                      for v in range(arr.n_polytopes)])
 
 
+def preference_arrows(world: World, pref: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The human's preferred transitions ``v -> p_v`` as arrows (grid units) from 20 % to 80 %
+    of the way between the polytopes' centres."""
+    c = polytope_centres(world) + 0.5  # centres of cells -> grid coordinates
+    out = []
+    for v, w in enumerate(np.asarray(pref)):
+        if w >= 0:
+            a, b = c[v], c[int(w)]
+            out.append((a + 0.2 * (b - a), a + 0.8 * (b - a)))
+    return out
+
+
 def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = True,
              show_preference: bool = True, cell_values: np.ndarray | None = None):
     """Draw ``world`` on ``ax`` (a new figure when None) and return the axes.
