@@ -194,3 +194,20 @@ def test_carry_with_pushes_at_any_time_runs():
                               physics=Physics(timing="interval").to_json())
     res = run_episode(spec)
     assert res.inputs > 0 and res.metrics["tilt_max_deg"] < 10.0
+
+
+def test_arm_stiffness_is_a_physical_parameter():
+    """``arm_stiffness`` reaches the physical arm through the body; the default leaves the
+    stored JSON (and so every key) as before."""
+    import json
+
+    import numpy as np
+
+    from pathpref.episode import Physics
+    from pathpref.episode.cache import cached_world
+    from pathpref.sim.body import MujocoBody
+
+    assert "arm_stiffness" not in json.loads(Physics().to_json())
+    spec = carry_spec(0, physics=Physics(arm_stiffness=2500.0, sensor="ideal").to_json())
+    body = MujocoBody(cached_world("simple"), spec, np.random.default_rng(0))
+    assert body.base.stiffness == 2500.0

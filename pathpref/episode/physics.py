@@ -88,7 +88,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "noise_deg": (0.0, 90.0), "gamma_h": (0.01, 100.0), "strength_confidence": (0.0, 3.0),
     "v_max": (0.05, 1.5), "a_max": (0.1, 10.0), "force_limit_n": (1.0, 2000.0),
     "admittance_b": (5.0, 2000.0), "mass_kg": (20.0, 1000.0), "friction_n": (0.0, 500.0),
-    "hold_s": (0.5, 10.0), "admittance_m": (1.0, 500.0),
+    "hold_s": (0.5, 10.0), "admittance_m": (1.0, 500.0), "arm_stiffness": (100.0, 20000.0),
 }
 #: the overrides that may be left at "the preset's" (stored as -1)
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
@@ -115,7 +115,8 @@ SETTLE_S = 0.5
 DRIVE_V_MAX = 1.5
 #: fields added after rows were stored: left out of the canonical JSON at their default, so
 #: the keys of stored episodes are unchanged
-QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0}
+QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0,
+                  "arm_stiffness": 1000.0}
 #: the robot's model of how far a push's direction strays from the heading the human chose:
 #: von Mises concentration ``1 / sigma^2`` for the human model's default 10 degrees
 #: (:meth:`~pathpref.inference.belief.Belief.update_direction`)
@@ -245,6 +246,8 @@ class Drive:
     friction_n: float = QUIET_DEFAULTS["friction_n"]
     #: the admittance's virtual mass while guided (kg; ``guidance`` timing)
     admittance_m: float = QUIET_DEFAULTS["admittance_m"]
+    #: the carry arm's end-effector (tray) stiffness (N/m: 30 N deflects it about 25 mm)
+    arm_stiffness: float = QUIET_DEFAULTS["arm_stiffness"]
 
     def __post_init__(self) -> None:
         _check(self)

@@ -67,7 +67,7 @@ import mink
 import mujoco
 import numpy as np
 
-from ..episode.physics import CELL_SIZE_M
+from ..episode.physics import CELL_SIZE_M, QUIET_DEFAULTS
 from ..errors import EpisodeError
 from ..geometry.world import World
 from .mobile_base import MobileBase
@@ -88,7 +88,7 @@ ARM_GAINS = [(120.0, 10.0)] * 3 + [(250.0, 12.0)] * 3
 #: the physical arm's end-effector impedance (module docstring, "Compliant arm"): translational
 #: stiffness (N/m: 30 N deflects the tray 30 mm), rotational stiffness (N m/rad), and the
 #: dampings (N s/m, N m s/rad) added to the servos' joint damping
-TRAY_STIFFNESS = 1000.0
+TRAY_STIFFNESS = QUIET_DEFAULTS["arm_stiffness"]  # the Physics field arm_stiffness
 TRAY_ROT_STIFFNESS = 60.0
 TRAY_DAMPING = 40.0
 TRAY_ROT_DAMPING = 2.0

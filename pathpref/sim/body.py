@@ -232,6 +232,7 @@ def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.
 
         if physics is not None:
             kwargs["physical"] = True
+            kwargs["stiffness"] = physics.drive.arm_stiffness
         base: MobileBase = ArmBase(scene, profile=profile, data=data, **kwargs)
     elif physics is not None and physics.drive.kind == "diffdrive":
         base = DiffDriveBase(scene, profile=profile, data=data, **kwargs)
