@@ -86,6 +86,7 @@ from pathpref.sim.mobile_base import MobileBase
 from pathpref.sim.scene import Scene
 
 from .drawing import TaskDrawing
+from .plugins import entry_point_map
 from .stage import ForceFilter, Physics, StagedBody, StepInteraction
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
@@ -112,8 +113,6 @@ def task_world(map: Any, force: bool = False) -> tuple[World, str]:
         raise ConfigError(f"map must be a built-in name, a JSON path or a map dictionary, got "
                           f"{type(map).__name__}")
     if map not in BUILTIN_MAPS and not os.path.exists(map):
-        from .registry import entry_point_map  # another package's map (entry points)
-
         given = entry_point_map(map)
         if given is not None:
             if isinstance(given, str | os.PathLike):

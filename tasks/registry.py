@@ -28,19 +28,14 @@ when it is asked for.
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
-from typing import Any
-
 from pathpref.errors import ConfigError
 
 from .carry import Carry, CarryControl
 from .navigate import Navigate
 from .navigate_control import NavigateControl
+from .plugins import MAP_GROUP, TASK_GROUP, entries, entry_point_map
 
-#: the entry-point group of tasks other packages provide
-TASK_GROUP = "pathpref.tasks"
-#: the entry-point group of maps other packages provide
-MAP_GROUP = "pathpref.maps"
+__all__ = ["MAP_GROUP", "TASK_GROUP", "entry_point_map"]
 
 #: the built-in tasks: name -> task class
 BUILTIN_TASKS: dict[str, type[Navigate]] = {
@@ -53,15 +48,11 @@ def gym_id(name: str) -> str:
     return "pathpref/" + "".join(w[:1].upper() + w[1:] for w in name.split("_")) + "-v0"
 
 
-def _entries(group: str) -> dict[str, Any]:
-    return {ep.name: ep for ep in entry_points(group=group)}
-
-
 def task_names() -> list[str]:
     """The names of every task: the built-in ones, then those of :data:`TASK_GROUP` (nothing
     of another package is imported; a name clashing with a built-in one is left out here and
     refused by :func:`all_tasks`)."""
-    return [*BUILTIN_TASKS, *(n for n in _entries(TASK_GROUP) if n not in BUILTIN_TASKS)]
+    return [*BUILTIN_TASKS, *(n for n in entries(TASK_GROUP) if n not in BUILTIN_TASKS)]
 
 
 def task_class(name: str) -> type[Navigate]:
@@ -69,7 +60,7 @@ def task_class(name: str) -> type[Navigate]:
     one-line ConfigError when it fails to load or is not a task; KeyError when unknown)."""
     if name in BUILTIN_TASKS:
         return BUILTIN_TASKS[name]
-    ep = _entries(TASK_GROUP)[name]
+    ep = entries(TASK_GROUP)[name]
     try:
         cls = ep.load()
     except Exception as e:  # noqa: BLE001 - any import failure of another package
@@ -84,7 +75,7 @@ def task_class(name: str) -> type[Navigate]:
 def all_tasks() -> dict[str, type[Navigate]]:
     """Every task by name (module docstring), every entry point loaded and checked; an entry
     point clashing with a built-in name is a one-line ConfigError."""
-    for name, ep in _entries(TASK_GROUP).items():
+    for name, ep in entries(TASK_GROUP).items():
         if name in BUILTIN_TASKS:
             raise ConfigError(f"entry point {name!r} of group {TASK_GROUP} ({ep.value}) "
                               f"clashes with a built-in task; rename it in its package")
@@ -95,17 +86,3 @@ def gym_ids() -> dict[str, str]:
     """Gymnasium id -> task name, for every task of :func:`task_names` (the classes are
     loaded when an id is made)."""
     return {gym_id(name): name for name in task_names()}
-
-
-def entry_point_map(name: str) -> Any | None:
-    """The map of entry point ``name`` in :data:`MAP_GROUP` (a callable's result), or None
-    when no package provides one."""
-    ep = _entries(MAP_GROUP).get(name)
-    if ep is None:
-        return None
-    try:
-        value = ep.load()
-        return value() if callable(value) else value
-    except Exception as e:  # noqa: BLE001 - any failure of another package's code
-        raise ConfigError(f"entry point {name!r} of group {MAP_GROUP} ({ep.value}) failed to "
-                          f"load: {type(e).__name__}: {e}") from None
