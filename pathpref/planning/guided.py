@@ -5,12 +5,15 @@ Same tree and observation model as the paper's search (:mod:`.pomcp`); what it o
 its root states come from and how it searches differ.
 
 0. **Root states.** Under the route prior (:mod:`pathpref.inference.routes`, the ``robust``
-   preset's) each simulation starts from one of :data:`~.pomcp.TREE_POOL` particles
-   ``(g, theta)`` drawn exactly from the posterior before the search (:func:`tree_pool`:
-   Wilson's algorithm, compiled); a full tree per particle judges every crossing of a
-   simulation by one preference that leads to ``g`` (1). (Drawing a fresh tree in every
-   simulation is exact too, but a random walk to the goal's polytope costs ~400 steps on
-   ``classroom``: 4x the search.)
+   preset's) each simulation starts from one of ``m`` particles ``(g, theta)`` drawn exactly
+   from the posterior before the search (:func:`tree_pool`: Wilson's algorithm, compiled); a
+   full tree per particle judges every crossing of a simulation by one preference that leads
+   to ``g`` (1). (Drawing a fresh tree in every simulation is exact too, but a random walk to
+   the goal's polytope costs ~400 steps on ``classroom``: 4x the search.) The rule
+   (:meth:`~.pomcp.POMCP._pool`): ``m = min(TREE_POOL, ceil(queries / SIMS_PER_TREE))``
+   (at least ``SIMS_PER_TREE`` simulations per particle on average), and the pool is drawn
+   only when the belief has changed since the last one (goal marginal or walk rows not
+   equal): between pushes the decisions reuse it.
    Under the independent prior, ``g ~ P(g | o)`` and each ``p_v ~ P(p_v | g, o)`` are drawn
    lazily per simulation, as in the paper's search.
 1. **Success reward.** A simulation earns ``R_g gamma^(L-1) rho^n`` when it reaches the sampled
