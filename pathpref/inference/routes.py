@@ -105,8 +105,9 @@ class RouteBelief(PreferenceBelief):
     observed polytopes ``S`` and the unobserved ones ``U`` (module docstring, "Stable
     arithmetic"): ``det ~L_g = det L_UU * det(L_S^chain)``, the first from an LU of the
     uniform-weight block ``L_UU`` (factorised once per goal polytope; a push in a new
-    polytope updates it, :meth:`_Split.extend`), the second and every marginal of an observed polytope by the GTH
-    elimination of :mod:`.chains` on ``S``. Cached until the next update.
+    polytope updates it, :meth:`_Split.extend`), the second and every marginal of an
+    observed polytope by the GTH elimination of :mod:`.chains` on ``S``. Cached until the
+    next update.
 
     Args:
         model: likelihood tables for the world and goal set.
