@@ -93,6 +93,8 @@ from ..inference.chains import draw_observed_exits
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
 EPS_RANDOM = 0.1
+#: the stamp of a preference slot set before the simulation (:func:`_theta`)
+FIXED = -2
 
 
 @nb.njit(cache=True)
@@ -106,8 +108,10 @@ def _clock():
 def _theta(v, gi, q, nbr, pref_cdf, theta, stamp):
     """Slot ``k`` of the preferred neighbour of ``v`` in simulation ``q``, drawn lazily from
     ``P(p_v | g)`` (cumulative ``pref_cdf[gi, v]``) under the independent prior; under the route
-    prior every slot was set at the start of the simulation (:func:`tree_pool`)."""
-    if stamp[v] != q:
+    prior every slot was set at the start of the simulation (:func:`tree_pool`): ``theta`` is
+    then the particle's row of the pool and ``stamp`` all :data:`FIXED` (nothing drawn or
+    copied per simulation)."""
+    if stamp[v] != q and stamp[v] != FIXED:
         stamp[v] = q
         theta[v] = sample_slot(v, gi, nbr, pref_cdf)
     return theta[v]
@@ -339,6 +343,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     P = nbr.shape[0]
     theta = -np.ones(P, np.int64)
     stamp = -np.ones(P, np.int64)
+    fixed = np.full(P, FIXED, np.int64)
     made_q = -np.ones(P, np.int64)
     tree = pool_g.shape[0] > 0
     told_q = -np.ones(P, np.int64)
@@ -363,8 +368,8 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
         if tree:  # a particle of the route-prior posterior (tree_pool)
             j = np.random.randint(pool_g.shape[0])
             gi = pool_g[j]
-            theta[:] = pool_theta[j]
-            stamp[:] = q
+            theta = pool_theta[j]  # read only: _theta draws nothing under a FIXED stamp
+            stamp = fixed
         else:
             gi = sample_index(goal_cdf)
         s = s0
