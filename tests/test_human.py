@@ -84,3 +84,25 @@ def test_simulated_human_frequencies(simple, fig4):
     counts = np.bincount([human.sample(s, rng) for _ in range(n)], minlength=8)
     p = human.probs(s)
     assert np.abs(counts / n - p).max() < 4 * np.sqrt(0.25 / n)
+
+
+@pytest.mark.parametrize("first", ["likelihood", "goal_likelihood"])
+def test_normalised_model_keeps_one_full_table(simple, first):
+    """A normalised model does not keep the ``(n, 8, G, K)`` excess once its likelihood is
+    built (whichever table is asked for first), and its tables equal the Boltzmann model
+    recomputed from :func:`cost_excess` exactly (same arithmetic)."""
+    from pathpref.inference.human import boltzmann, cost_excess
+
+    goals = np.random.default_rng(0).choice(simple.n_cells, size=6, replace=False)
+    model = ObservationModel.build(simple, goals)
+    lik = getattr(model, first)
+    other = model.goal_likelihood if first == "likelihood" else model.likelihood
+    delta, delta_u = cost_excess(simple, model.tables)
+    if first == "likelihood":
+        assert "_delta" not in model.__dict__
+        lik, glik = lik, other
+    else:
+        lik, glik = other, lik
+    assert np.array_equal(lik, boltzmann(delta, GAMMA_H, True))
+    assert np.array_equal(glik, boltzmann(delta_u, GAMMA_H, True))
+    assert model.heading_probs is model.likelihood

@@ -107,9 +107,10 @@ def _cost_excess_rows(world: World, tables: CostTables, nbr_all: np.ndarray, sl:
 
 def boltzmann(delta: np.ndarray, gamma: float, normalize: bool) -> np.ndarray:
     """``exp(-gamma Delta)``, normalised over the heading axis (axis 1) when asked."""
-    lik = np.exp(-gamma * delta)
+    lik = np.multiply(delta, -gamma)  # in place from here: one table-sized array
+    np.exp(lik, out=lik)
     if normalize:
-        lik = lik / lik.sum(axis=1, keepdims=True)
+        lik /= lik.sum(axis=1, keepdims=True)
     return lik
 
 
@@ -152,13 +153,23 @@ class ObservationModel:
 
     @cached_property
     def likelihood(self) -> np.ndarray:
-        """``(n, 8, G, K)`` ``P(heading | s, g, p_v(s) = N(v)[k])`` (SPEC 4)."""
-        return boltzmann(self._delta[0], self.gamma, self.normalize)
+        """``(n, 8, G, K)`` ``P(heading | s, g, p_v(s) = N(v)[k])`` (SPEC 4).
+
+        Normalised, the excess ``Delta`` it is computed from is not kept (nothing else reads
+        it: :attr:`heading_probs` is this table), so the model holds one ``(n, 8, G, K)``
+        array, not two; only the goal-only excess is kept for :attr:`goal_likelihood`."""
+        if not self.normalize or "_delta" in self.__dict__:
+            return boltzmann(self._delta[0], self.gamma, self.normalize)
+        delta, delta_u = cost_excess(self.world, self.tables)
+        self.__dict__["_delta_u"] = delta_u
+        return boltzmann(delta, self.gamma, True)
 
     @cached_property
     def goal_likelihood(self) -> np.ndarray:
         """``(n, 8, G)`` ``P(heading | s, g)`` of the unconstrained human (goal-only baseline)."""
-        return boltzmann(self._delta[1], self.gamma, self.normalize)
+        delta_u = self.__dict__.get("_delta_u")
+        return boltzmann(self._delta[1] if delta_u is None else delta_u, self.gamma,
+                         self.normalize)
 
     @cached_property
     def heading_probs(self) -> np.ndarray:
