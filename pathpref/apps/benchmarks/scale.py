@@ -12,6 +12,7 @@ import numpy as np
 from ...episode import EpisodeSpec, run_episode, sample_instance
 from ...geometry.maps import load_map
 from ...geometry.world import World
+from ...planning.pomdp import DEFAULT_PRESET
 
 
 # --- scale: Ray, big maps -------------------------------------------------------------------
@@ -108,9 +109,9 @@ def bench_scale(queries: int = 1000) -> dict[str, Any]:
     """Large-map figures: the 200 x 200 floor plan's setup time and peak memory and the route
     prior's update on it (:func:`.maps.bench_route_update`; fresh process), one
     path-preference episode on it per preset (``paper``, ``robust``: CPU seconds and peak RSS
-    with the likelihood tables, each in a fresh process; ``map_200_episode_s`` and
-    ``map_200_episode_peak_mb`` are the paper preset's), and the 40 x 40 rotated maps'
-    reachable fraction."""
+    with the likelihood tables, each in a fresh process; ``map_200_episode_s``, its steps,
+    goal and ``map_200_episode_peak_mb`` are the default preset's, as ``EpisodeSpec`` runs it),
+    and the 40 x 40 rotated maps' reachable fraction."""
     import json
     import subprocess
     import sys
@@ -130,7 +131,7 @@ def bench_scale(queries: int = 1000) -> dict[str, Any]:
                 f"_episode_child({preset!r}, {int(queries)})")
         ep = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True,
                                        text=True, check=True).stdout.splitlines()[-1])
-        if preset == "paper":  # the keys as they were: the paper preset, wall time
+        if preset == DEFAULT_PRESET:  # the keys as they were: the default preset, wall time
             res["map_200_episode_s"] = ep["wall_s"]
             res["map_200_episode_steps"] = ep["steps"]
             res["map_200_episode_goal_reached"] = ep["goal_reached"]
