@@ -9,8 +9,8 @@ alike). Two measurements (issue 28):
 * ``route``: the route prior's update on a map (``simple``, ``classroom``, ``map_200``): CPU
   ms of ``update`` + ``goal_marginal`` per push, 40 pushes at random cells (10 candidates).
 
-    python scripts/robust_scale.py episode --before 4569e9a --preset robust
-    python scripts/robust_scale.py route --before 4569e9a --map map_200 --rounds 2
+    python scripts/robust_scale.py episode --before 4569e9a --preset robust --warmup 0
+    python scripts/robust_scale.py route --before 4569e9a --map classroom --rounds 3
 
 The older tree is ``git archive``-d into a temporary directory and put first on
 ``PYTHONPATH``.
@@ -74,6 +74,10 @@ def child_route(name: str, pushes: int) -> dict:
     rng = np.random.default_rng(0)
     model = ObservationModel.build(world, rng.choice(world.n_cells, size=10, replace=False))
     model.likelihood  # noqa: B018 - build the tables outside the timing
+    warm = RouteBelief(model)  # compile (or load) the chain kernels outside the timing
+    for c in rng.integers(0, world.n_cells, size=3).tolist():
+        warm.update(c, 0)
+        warm.goal_marginal()
     belief = RouteBelief(model)
     belief.goal_marginal()
     out, pg = [], None
@@ -96,6 +100,8 @@ def main() -> None:
     ap.add_argument("--preset", default="robust")
     ap.add_argument("--map", default="map_200")
     ap.add_argument("--pushes", type=int, default=40)
+    ap.add_argument("--warmup", type=int, default=1,
+                    help="uncounted first rounds (the archived tree compiles its kernels)")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     a = ap.parse_args()
     if a.child:
@@ -108,7 +114,7 @@ def main() -> None:
         archive = subprocess.run(["git", "-C", str(ROOT), "archive", a.before, "pathpref"],
                                  capture_output=True, check=True).stdout
         subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
-        for _ in range(a.rounds):
+        for i in range(a.warmup + a.rounds):
             for name in ("before", "after"):
                 env = dict(os.environ, PYTHONPATH=tmp if name == "before" else str(ROOT))
                 res = subprocess.run([sys.executable, __file__, a.what, "--before", a.before,
@@ -116,8 +122,10 @@ def main() -> None:
                                       str(a.pushes), "--child"], env=env, cwd=tmp,
                                      capture_output=True, text=True, check=True)
                 d = json.loads(res.stdout.strip().splitlines()[-1])
-                runs[name].append(d)
-                print(name, json.dumps({k: v for k, v in d.items() if k != "goal_marginal"}),
+                if i >= a.warmup:
+                    runs[name].append(d)
+                shown = {k: v for k, v in d.items() if k != "goal_marginal"}
+                print(name if i >= a.warmup else f"({name}, warm-up)", json.dumps(shown),
                       flush=True)
     med = {k: statistics.median(r[key] for r in v) for k, v in runs.items()}
     print(f"{a.what} ({a.preset if a.what == 'episode' else a.map}): {key} {med['before']:.3g} "
