@@ -135,15 +135,18 @@ class RouteBelief(PreferenceBelief):
 
     def _split(self, r: int, S: tuple) -> _Split:
         """The unobserved block of ``r``'s minor for observed set ``S`` (cached; the oldest of
-        more than 64 is dropped). A new ``S`` that contains the last one of ``r`` is reached
-        from it by :meth:`_Split.extend`, one polytope at a time (no new factorisation); any
-        other is factorised afresh."""
+        more than two per goal polytope is dropped: the observed set only grows, so an older
+        one is rarely asked for again). A new ``S`` that contains the last one of ``r`` is
+        reached from it by :meth:`_Split.extend`, one polytope at a time (no new
+        factorisation); any other is factorised afresh."""
         key = (r, S)
         sp_ = self._splits.get(key)
+        last = self._last_split.get(r)
+        if sp_ is None and last is not None and last.S == S:
+            sp_ = last
         if sp_ is None:
-            if len(self._splits) >= 64:
+            while len(self._splits) >= max(2, 2 * len(self._minors)):
                 self._splits.pop(next(iter(self._splits)))
-            last = self._last_split.get(r)
             if last is not None and len(last.S) < len(S) and set(last.S) <= set(S):
                 sp_ = last
                 for v in sorted(set(S) - set(last.S)):
