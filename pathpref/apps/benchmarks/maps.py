@@ -106,7 +106,8 @@ def bench_route_update(model: ObservationModel, pushes: int = 40, seed: int = 0
 def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
     """First-decision POMCP time: 5000 queries at depth T_max, median over random instances.
     The robust search is timed from the robust preset's belief after one push (the route
-    prior: the posterior's solve and the 512 Wilson particles are in the time)."""
+    prior: the posterior's solve and the Wilson particles, :meth:`POMCP.pool_size`, are in
+    the time)."""
     preset = get_preset("paper")
     robust = get_preset("robust")
     depth = world.spec.t_max
