@@ -143,3 +143,24 @@ def test_rotated_obstacles():
             pts = p0 + np.linspace(0, 1, 21)[:, None] * (p1 - p0)
             for o in obs:
                 assert not (pts @ o.A.T - o.b < -1e-9).all(axis=1).any()
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 100])
+def test_sign_vectors_chunked_equal_one_block(chunk, monkeypatch):
+    """The cells' sign vectors computed ``SIGN_CHUNK`` cells at a time (chunks of 1, 7 and 100
+    cells on a 40 x 40 map with 32 rotated obstacles, 1045 polytopes) give the same
+    arrangement as one block over all cells: the same polytope of every cell, the same sign
+    vectors and facet rows."""
+    from pathpref.geometry import arrangement
+    from pathpref.geometry.generate import random_floor_plan
+    from pathpref.geometry.maps import load_map
+
+    spec = load_map(random_floor_plan(40, 40, 32, seed=1))
+    monkeypatch.setattr(arrangement, "SIGN_CHUNK", 10**9)
+    whole = arrangement.build_arrangement(spec)
+    monkeypatch.setattr(arrangement, "SIGN_CHUNK", chunk)
+    part = arrangement.build_arrangement(spec)
+    assert len(whole.signs) == 1045
+    assert np.array_equal(part.cell_polytope, whole.cell_polytope)
+    assert np.array_equal(part.signs, whole.signs) and part.signs.dtype == bool
+    assert all(np.array_equal(a, b) for a, b in zip(part.rows, whole.rows, strict=True))

@@ -181,7 +181,7 @@ def test_bench_json_keys():
     res = json.loads(p.stdout)
     m = res["maps"]["simple"]
     for k in ("arrangement_build_s", "belief_update_ms", "pomcp_decision_ms",
-              "pomcp_queries_per_s"):
+              "pomcp_queries_per_s", "route_update_ms"):
         assert m[k] > 0
     ph = res["physics"]
     assert ph["cue_sector_accuracy_no_noise"] == 1.0 and ph["cue_sector_accuracy"] >= 0.9

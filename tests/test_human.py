@@ -84,3 +84,29 @@ def test_simulated_human_frequencies(simple, fig4):
     counts = np.bincount([human.sample(s, rng) for _ in range(n)], minlength=8)
     p = human.probs(s)
     assert np.abs(counts / n - p).max() < 4 * np.sqrt(0.25 / n)
+
+
+@pytest.mark.parametrize("first", ["likelihood", "goal_likelihood"])
+@pytest.mark.parametrize("chunk", [7, 2048])
+def test_normalised_model_keeps_one_full_table(simple, first, chunk, monkeypatch):
+    """A normalised model does not keep the ``(n, 8, G, K)`` excess once its likelihood is
+    built (whichever table is asked for first), and its tables, built a block of 7 cells or
+    all cells at a time, equal the Boltzmann model of the whole :func:`cost_excess` exactly
+    (same arithmetic)."""
+    from pathpref.inference import human
+    from pathpref.inference.human import boltzmann, cost_excess
+
+    goals = np.random.default_rng(0).choice(simple.n_cells, size=6, replace=False)
+    model = ObservationModel.build(simple, goals)
+    monkeypatch.setattr(human, "EXCESS_CHUNK", chunk)
+    lik = getattr(model, first)
+    other = model.goal_likelihood if first == "likelihood" else model.likelihood
+    delta, delta_u = cost_excess(simple, model.tables, chunk=10**6)
+    if first == "likelihood":
+        assert "_delta" not in model.__dict__
+        lik, glik = lik, other
+    else:
+        lik, glik = other, lik
+    assert np.array_equal(lik, boltzmann(delta, GAMMA_H, True))
+    assert np.array_equal(glik, boltzmann(delta_u, GAMMA_H, True))
+    assert model.heading_probs is model.likelihood

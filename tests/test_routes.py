@@ -412,3 +412,114 @@ def test_observed_first_walk_stage_gives_up_with_one_line(simple):
         planner._observed_first(belief, np.zeros(4, np.int64), planner.preference_cdf(belief),
                                 0, 0)
     assert "\n" not in str(e.value)
+
+
+def _fresh(model, pushes):
+    """A belief holding ``pushes`` whose unobserved blocks are all factorised afresh."""
+    belief = RouteBelief(model)
+    for s, h in pushes:
+        belief.update(s, h)
+    belief._last_split.clear()  # no split to extend from: every (r, S) is factorised
+    return belief
+
+
+@pytest.mark.parametrize("factor", ["dense", "sparse"])
+def test_updated_posterior_equals_fresh_factorisation(factor, monkeypatch):
+    """80 pushes, one at a time, on a 104-polytope floor plan: the posterior reached by
+    rank-one updates of the unobserved block (:meth:`routes._Split.extend`, refactorised
+    every 7 removals here to cross several factors) equals a fresh factorisation of every
+    block, goal marginal and every preference marginal (observed and unobserved polytopes)
+    within 1e-9 absolute (probabilities; measured differences <= 2e-14), and so do the chain's
+    first-entry distributions and ``log det L_UU``."""
+    if factor == "sparse":
+        monkeypatch.setattr(routes, "DENSE_MAX", 0)
+    monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    world = load_world(random_floor_plan(20, 16, 3, 6, seed=4, size_range=(1.5, 4.0)))
+    assert world.n_polytopes == 104
+    rng = np.random.default_rng(5)
+    goals = rng.choice(world.n_cells, size=4, replace=False)
+    model = ObservationModel.build(world, goals, normalize=True)
+    belief = RouteBelief(model)
+    pushes = []
+    for i in range(80):
+        s, h = int(rng.integers(world.n_cells)), int(rng.integers(8))
+        pushes.append((s, h))
+        belief.update(s, h)
+        belief.goal_marginal()  # one polytope more per split (when the push is in a new one)
+        if i % 20 != 19:
+            continue
+        fresh = _fresh(model, pushes)
+        assert np.allclose(belief.goal_marginal(), fresh.goal_marginal(), rtol=0, atol=1e-9)
+        for g in range(len(goals)):
+            a, b = belief.observed_chain(g), fresh.observed_chain(g)
+            assert a.states == b.states
+            assert np.allclose(a.heads, b.heads, rtol=0, atol=1e-9)
+            assert np.isclose(a.split.logdet_u, b.split.logdet_u, rtol=1e-10)
+        for v in range(world.n_polytopes):
+            assert np.allclose(belief.preference_given_goal(v), fresh.preference_given_goal(v),
+                               rtol=0, atol=1e-9), (i, v)
+    # the updates did run: 30+ polytopes observed, blocks from several factors
+    assert len(belief.observed_polytopes()) >= 30
+    assert any(len(sp_.block.removed) for sp_ in belief._last_split.values())
+
+
+def test_block_without_rows_inverts_the_principal_submatrix():
+    """:class:`routes._Block`: after removing rows one at a time, and from a block that is not
+    the last of its shared buffer (a fork), a column of the block's inverse equals the column
+    of the inverted principal submatrix (numpy's inverse, 1e-12 relative)."""
+    rng = np.random.default_rng(0)
+    n = 12
+    adj = np.triu(rng.random((n, n)) < 0.4, 1)
+    adj = (adj | adj.T).astype(float)
+    A = np.diag(adj.sum(axis=1) + 1.0) - adj  # a symmetric M-matrix (one exit per row)
+    blk = routes._Block(routes._DenseLU(A), n)
+
+    def check(b, keep):
+        inv = np.linalg.inv(A[np.ix_(keep, keep)])
+        for j, i in enumerate(keep):
+            col, _ = b.column(i)
+            assert np.allclose(col[keep], inv[:, j], rtol=1e-12, atol=1e-14)
+
+    b1 = blk.without(3, blk.column(3)[1])
+    b2 = b1.without(7, b1.column(7)[1])
+    fork = b1.without(0, b1.column(0)[1])  # b1 is no longer its buffer's last: a copy
+    check(b2, [i for i in range(n) if i not in (3, 7)])
+    check(fork, [i for i in range(n) if i not in (3, 0)])
+    check(b1, [i for i in range(n) if i != 3])
+
+
+def test_root_pool_is_reused_while_the_belief_is_unchanged(simple):
+    """The robust search draws its root particles again only when the goal marginal or a walk
+    row has changed: two decisions with no push in between share one pool; a push, or a
+    candidate ruled out, draws a new one. Pool size ``ceil(queries / 32)`` up to 128."""
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    goals = np.random.default_rng(4).choice(simple.n_cells, size=5, replace=False)
+    model = ObservationModel.build(simple, goals, normalize=True)
+    belief = RouteBelief(model)
+    robust = get_preset("robust").path_preference
+    assert [POMCP(simple, goals, robust, queries=q, tables=model.tables).pool_size()
+            for q in (5000, 4096, 4095, 1000, 33, 1)] == [128, 128, 128, 32, 2, 1]
+    planner = POMCP(simple, goals, robust, queries=500, tables=model.tables)
+    start = int(np.flatnonzero(~np.isin(np.arange(simple.n_cells), goals))[0])
+    pool = []
+    real = planner._pool
+
+    def spy(*a):
+        out = real(*a)
+        pool.append(out)
+        return out
+
+    planner._pool = spy
+    planner.search(start, belief, 30, 0)
+    planner.search(start, belief, 30, 1)
+    assert planner.pools_drawn == 1 and pool[1][1] is pool[0][1] and len(pool[0][0]) == 16
+    belief.update(start, 2)
+    planner.search(start, belief, 30, 2)
+    assert planner.pools_drawn == 2
+    planner.search(start, belief, 30, 3)
+    assert planner.pools_drawn == 2
+    belief.rule_out(1)
+    planner.search(start, belief, 30, 4)
+    assert planner.pools_drawn == 3 and not np.any(pool[-1][0] == 1)

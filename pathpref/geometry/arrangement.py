@@ -26,6 +26,8 @@ from .maps import MapSpec, cell_pair, free_cell_mask
 from .polygon import facet_rows, h_polygon
 
 SIDE_EPS = 1e-9
+#: free cells per block of the sign computation in :func:`build_arrangement`
+SIGN_CHUNK = 4096
 #: free cells x lines above which a map is refused before any allocation (the sign-vector table
 #: has one byte per pair; temporaries take a few times that)
 MAX_CELL_LINES = 400_000_000
@@ -164,16 +166,21 @@ def build_arrangement(spec: MapSpec) -> Arrangement:
     cell_index = -np.ones((spec.width, spec.height), dtype=int)
     cell_index[xs, ys] = np.arange(len(cells))
     centres = cells - 0.5
-    side = centres @ normals.T - offsets > SIDE_EPS  # (n, m)
+    # each cell's sign vector (which side of every line its centre lies on), bit-packed: rows
+    # of bytes group the cells the same way and sort far faster; computed SIGN_CHUNK cells
+    # at a time, so the float temporaries are SIGN_CHUNK x m, not n x m (~17 bytes a pair)
+    packed = np.empty((len(cells), -(-len(normals) // 8)), dtype=np.uint8)
+    for lo in range(0, len(cells), SIGN_CHUNK):
+        side = centres[lo: lo + SIGN_CHUNK] @ normals.T - offsets > SIDE_EPS
+        packed[lo: lo + SIGN_CHUNK] = np.packbits(side, axis=1)
     # group cells by sign vector; number groups by their first cell
-    packed = np.packbits(side, axis=1)  # rows of bytes: the same groups, far faster to sort
     _, first, inverse = np.unique(packed, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.ravel()
     order = np.argsort(first)
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
     cell_polytope = rank[inverse]
-    signs = side[first[order]]
+    signs = np.unpackbits(packed[first[order]], axis=1, count=len(normals)).astype(bool)
     As, bs, rows, polys = [], [], [], []
     for v in range(len(signs)):
         flip = np.where(signs[v], -1.0, 1.0)

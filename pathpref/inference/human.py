@@ -38,9 +38,11 @@ BLOCK_PENALTY = 4.0
 #: likelihood tables larger than this are refused before allocation (bytes; the excess, the
 #: likelihood and the goal-only tables are held together)
 MAX_TABLE_BYTES = 6 * 2**30
+#: cells per block of the excess (:func:`cost_excess`, :attr:`ObservationModel.likelihood`)
+EXCESS_CHUNK = 2048
 
 
-def cost_excess(world: World, tables: CostTables, chunk: int = 2048
+def cost_excess(world: World, tables: CostTables, chunk: int | None = None
                 ) -> tuple[np.ndarray, np.ndarray]:
     """``Delta`` with preference ``(n, 8, G, K)`` and goal-only ``(n, 8, G)`` (see module doc).
 
@@ -51,13 +53,23 @@ def cost_excess(world: World, tables: CostTables, chunk: int = 2048
     stay small on large maps.
     """
     n, G = world.n_cells, len(tables.goals)
-    nbr_all = world.graph.neighbor_table()
-    delta = np.empty((n, 8, G, nbr_all.shape[1]))
+    K = world.graph.neighbor_table().shape[1]
+    delta = np.empty((n, 8, G, K))
     delta_u = np.empty((n, 8, G))
+    for sl, d, du in _cost_excess_chunks(world, tables, chunk):
+        delta[sl], delta_u[sl] = d, du
+    return delta, delta_u
+
+
+def _cost_excess_chunks(world: World, tables: CostTables, chunk: int | None = None):
+    """:func:`cost_excess` ``chunk`` (:data:`EXCESS_CHUNK` when None) cells at a time: yields
+    ``(cells slice, Delta rows, goal-only Delta rows)``."""
+    n = world.n_cells
+    chunk = EXCESS_CHUNK if chunk is None else chunk
+    nbr_all = world.graph.neighbor_table()
     for lo in range(0, n, chunk):
         sl = slice(lo, min(lo + chunk, n))
-        delta[sl], delta_u[sl] = _cost_excess_rows(world, tables, nbr_all, sl)
-    return delta, delta_u
+        yield (sl, *_cost_excess_rows(world, tables, nbr_all, sl))
 
 
 def _cost_excess_rows(world: World, tables: CostTables, nbr_all: np.ndarray, sl: slice
@@ -107,9 +119,10 @@ def _cost_excess_rows(world: World, tables: CostTables, nbr_all: np.ndarray, sl:
 
 def boltzmann(delta: np.ndarray, gamma: float, normalize: bool) -> np.ndarray:
     """``exp(-gamma Delta)``, normalised over the heading axis (axis 1) when asked."""
-    lik = np.exp(-gamma * delta)
+    lik = np.multiply(delta, -gamma)  # in place from here: one table-sized array
+    np.exp(lik, out=lik)
     if normalize:
-        lik = lik / lik.sum(axis=1, keepdims=True)
+        lik /= lik.sum(axis=1, keepdims=True)
     return lik
 
 
@@ -152,13 +165,31 @@ class ObservationModel:
 
     @cached_property
     def likelihood(self) -> np.ndarray:
-        """``(n, 8, G, K)`` ``P(heading | s, g, p_v(s) = N(v)[k])`` (SPEC 4)."""
-        return boltzmann(self._delta[0], self.gamma, self.normalize)
+        """``(n, 8, G, K)`` ``P(heading | s, g, p_v(s) = N(v)[k])`` (SPEC 4).
+
+        Normalised, the excess ``Delta`` it is computed from is neither kept nor held whole
+        (nothing else reads it: :attr:`heading_probs` is this table), so building it needs
+        one ``(n, 8, G, K)`` array, not three; only the goal-only excess is kept for
+        :attr:`goal_likelihood`."""
+        if not self.normalize or "_delta" in self.__dict__:
+            return boltzmann(self._delta[0], self.gamma, self.normalize)
+        # built a block of cells at a time (each cell's row is normalised on its own): the
+        # excess is never held whole
+        n, G, K = self.world.n_cells, len(self.goals), self.world.graph.neighbor_table().shape[1]
+        lik = np.empty((n, 8, G, K))
+        delta_u = np.empty((n, 8, G))
+        for sl, d, du in _cost_excess_chunks(self.world, self.tables):
+            lik[sl] = boltzmann(d, self.gamma, True)
+            delta_u[sl] = du
+        self.__dict__["_delta_u"] = delta_u
+        return lik
 
     @cached_property
     def goal_likelihood(self) -> np.ndarray:
         """``(n, 8, G)`` ``P(heading | s, g)`` of the unconstrained human (goal-only baseline)."""
-        return boltzmann(self._delta[1], self.gamma, self.normalize)
+        delta_u = self.__dict__.get("_delta_u")
+        return boltzmann(self._delta[1] if delta_u is None else delta_u, self.gamma,
+                         self.normalize)
 
     @cached_property
     def heading_probs(self) -> np.ndarray:

@@ -43,8 +43,10 @@ component is split into the observed set ``S`` and the rest ``U``::
 
     det ~L_g = det L_UU * det(L_UU's Schur complement on S),
 
-``L_UU`` the uniform-weight block (well conditioned; an LU, cached per ``(r, S)`` since the
-evidence does not enter it) and the Schur complement the Laplacian of the walk watched on
+``L_UU`` the uniform-weight block (well conditioned; the evidence does not enter it, so it
+changes only when a push falls in a polytope not yet observed, and then loses that polytope's
+row and column: ``det`` times ``[L_UU^-1]_vv`` and a rank-one correction of the solves, no new
+factorisation, :meth:`_Split.extend`) and the Schur complement the Laplacian of the walk watched on
 ``S`` (weights ``W(x, y)`` to ``S`` and ``r`` plus ``W(x, u) H(u, .)`` through unobserved
 ``u``, ``H = L_UU^-1 B`` the first-entry distribution), whose determinant and absorption
 probabilities the GTH elimination of :mod:`.chains` computes with no subtraction. The
@@ -61,7 +63,7 @@ import warnings
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import LinAlgWarning, lu_factor, lu_solve
+from scipy.linalg import LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
 from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
@@ -70,6 +72,10 @@ from .human import ObservationModel
 
 #: unobserved blocks up to this many rows are factorised densely (:func:`_factor`)
 DENSE_MAX = 400
+#: a split's block is factorised afresh after this many polytopes were observed since its
+#: factor (:meth:`_Split.extend`; the low-rank correction costs ``O(|U| REFACTOR_AFTER)`` per
+#: solve)
+REFACTOR_AFTER = 64
 
 
 def components(neighbors: list[np.ndarray]) -> np.ndarray:
@@ -98,9 +104,10 @@ class RouteBelief(PreferenceBelief):
     per goal ``g`` with polytope ``r``, by splitting ``r``'s component (without ``r``) into the
     observed polytopes ``S`` and the unobserved ones ``U`` (module docstring, "Stable
     arithmetic"): ``det ~L_g = det L_UU * det(L_S^chain)``, the first from an LU of the
-    uniform-weight block ``L_UU`` (cached per ``(r, S)``: it changes only when a new polytope
-    is observed), the second and every marginal of an observed polytope by the GTH
-    elimination of :mod:`.chains` on ``S``. Cached until the next update.
+    uniform-weight block ``L_UU`` (factorised once per goal polytope; a push in a new
+    polytope updates it, :meth:`_Split.extend`), the second and every marginal of an
+    observed polytope by the GTH elimination of :mod:`.chains` on ``S``. Cached until the
+    next update.
 
     Args:
         model: likelihood tables for the world and goal set.
@@ -116,6 +123,7 @@ class RouteBelief(PreferenceBelief):
         self._minors = {int(r): _Minor(self.neighbors, self.component, int(r))
                         for r in np.unique(self.goal_polytope)}
         self._splits: dict[tuple, _Split] = {}
+        self._last_split: dict[int, _Split] = {}  # per root: the split asked for last
         self._cache: list | None = None
         # log det ~L_g(1): the number of arborescences, the prior's normaliser
         self._log_trees = np.array([self._split(int(r), ()).logdet_u
@@ -127,13 +135,26 @@ class RouteBelief(PreferenceBelief):
 
     def _split(self, r: int, S: tuple) -> _Split:
         """The unobserved block of ``r``'s minor for observed set ``S`` (cached; the oldest of
-        more than 64 is dropped)."""
+        more than two per goal polytope is dropped: the observed set only grows, so an older
+        one is rarely asked for again). A new ``S`` that contains the last one of ``r`` is
+        reached from it by :meth:`_Split.extend`, one polytope at a time (no new
+        factorisation); any other is factorised afresh."""
         key = (r, S)
         sp_ = self._splits.get(key)
+        last = self._last_split.get(r)
+        if sp_ is None and last is not None and last.S == S:
+            sp_ = last
         if sp_ is None:
-            if len(self._splits) >= 64:
+            while len(self._splits) >= max(2, 2 * len(self._minors)):
                 self._splits.pop(next(iter(self._splits)))
-            sp_ = self._splits[key] = _Split(self._minors[r], self.neighbors, S)
+            if last is not None and len(last.S) < len(S) and set(last.S) <= set(S):
+                sp_ = last
+                for v in sorted(set(S) - set(last.S)):
+                    sp_ = sp_.extend(v, self.neighbors)
+            else:
+                sp_ = _Split(self._minors[r], self.neighbors, S)
+            self._splits[key] = sp_
+        self._last_split[r] = sp_
         return sp_
 
     def observed_chain(self, g: int) -> _Chain:
@@ -234,11 +255,17 @@ class _Split:
     first-entry distributions (harmonic measure) ``H = L_UU^-1 B`` of the walk from each
     unobserved polytope into ``S`` (columns ``0..k-1``) or ``r`` (column ``k``); ``heads[i,
     s]``: that distribution for the head of slot ``s`` of ``S[i]`` (a unit vector when the
-    head is in ``S`` or is ``r``)."""
+    head is in ``S`` or is ``r``).
+
+    Built from a factorisation of ``L_UU`` (this constructor) or from the split of ``S``
+    without one polytope (:meth:`extend`, a push in a polytope not yet observed), whose
+    ``L_UU`` is then held as an earlier factor and a low-rank correction (:class:`_Block`)."""
 
     def __init__(self, minor: _Minor, neighbors: list[np.ndarray], S: tuple):
         k = len(S)
         P = len(neighbors)
+        self.minor = minor
+        self.S = S
         state = -np.ones(P, dtype=np.int64)  # S[i] -> i, the root -> k, else -1
         state[np.array(S, dtype=np.int64)] = np.arange(k)
         state[minor.root] = k
@@ -248,7 +275,7 @@ class _Split:
         u_index[unobserved] = np.arange(n)
         self.state = state
         self.n = n
-        self.lu = None
+        self.block = None
         H = np.zeros((n, k + 1))
         self.logdet_u = 0.0
         if n:
@@ -262,20 +289,21 @@ class _Split:
             data = np.concatenate([diag, -np.ones(int(off.sum()))])
             B = np.zeros((n, k + 1))
             np.add.at(B, (a[~off], state[b[~off]]), 1.0)
-            self.logdet_u, self.lu = _factor(n, rows, cols, data)
-            if self.lu is not None:
-                H = np.maximum(self.lu.solve(B), 0.0)
-        self.H = H
+            self.logdet_u, lu = _factor(n, rows, cols, data)
+            if lu is not None:
+                self.block = _Block(lu, n)
+                H = np.maximum(lu.solve(B), 0.0)
+        self.Ht = np.ascontiguousarray(H.T)  # (k + 1, n): a row per column of H
         K = max((len(nb) for nb in neighbors), default=1)
         self.K = max(K, 1)
-        self.heads, self.n_slots = self._heads(S, neighbors, state, H)
+        self.heads, self.n_slots = self._heads(S, neighbors, state, self.Ht)
 
-    def _heads(self, S, neighbors, state: np.ndarray, H: np.ndarray):
+    def _heads(self, S, neighbors, state: np.ndarray, Ht: np.ndarray):
         """``(heads (len(S), K, m), n_slots)``: for each slot of each state, where the walk
         first enters the states or ``r`` (``m`` columns, ``state[]`` numbering them) after
         stepping to its head: a unit vector for a state or ``r``, the head's row of ``H``
-        otherwise."""
-        heads = np.zeros((len(S), self.K, H.shape[1]))
+        otherwise (``Ht``: ``H`` transposed)."""
+        heads = np.zeros((len(S), self.K, Ht.shape[0]))
         n_slots = np.array([len(neighbors[v]) for v in S], dtype=np.int64)
         if not len(S):
             return heads, n_slots
@@ -284,34 +312,127 @@ class _Split:
         y = np.concatenate([np.asarray(neighbors[v], dtype=np.int64) for v in S])
         known = state[y] >= 0
         heads[i[known], s[known], state[y[known]]] = 1.0
-        heads[i[~known], s[~known]] = H[self.u_index[y[~known]]]
+        heads[i[~known], s[~known]] = Ht[:, self.u_index[y[~known]]].T
         return heads, n_slots
+
+    def _with_v(self, v: int, p: int):
+        """``(H'^T, g_vv, raw)``: the first-entry distribution into ``S``, ``v`` and ``r`` from
+        each unobserved polytope, for an unobserved ``v`` put at column ``p`` (``S``'s columns
+        after it and ``r``'s move one on), from the column ``g = L_UU^-1 e_v``
+        (:meth:`_Block.column`; ``raw``: the factor's column it was corrected from, for
+        :meth:`_Block.without`): with ``h(y) = P_y(reach v before leaving U) = g_y / g_v``,
+        ``H'(y, .) = H(y, .) - h(y) H(v, .)`` on ``S`` and ``r`` and ``h(y)`` on ``v`` (strong
+        Markov at the visit to ``v``). Rows of polytopes observed since the factor are kept
+        (stale, never read: their ``u_index`` is -1)."""
+        iv = int(self.u_index[v])
+        col, raw = self.block.column(iv)
+        h = np.clip(col / col[iv], 0.0, 1.0)
+        Hv = self.Ht[:, iv]
+        m = self.Ht.shape[0]
+        Ht = np.empty((m + 1, self.Ht.shape[1]))
+        for lo, hi, at in ((0, p, 0), (p, m, p + 1)):  # contiguous rows, no temporaries
+            out = Ht[at: at + hi - lo]
+            np.multiply(Hv[lo:hi, None], h[None, :], out=out)
+            np.subtract(self.Ht[lo:hi], out, out=out)
+        Ht[p] = h
+        np.maximum(Ht, 0.0, out=Ht)
+        return Ht, float(col[iv]), raw
 
     def with_state(self, v: int, S: tuple, neighbors: list[np.ndarray]):
         """The heads and slot counts of the chain on ``S + (v,)`` for an unobserved ``v``
-        (states ``0..k-1``, ``v`` as ``k``, ``r`` as ``k + 1``), from this factorisation and
-        one more solve: with ``h(y) = P_y(reach v before leaving U) = [L_UU^-1]_{yv} /
-        [L_UU^-1]_{vv}``, the first entry into ``S``, ``v`` or ``r`` from ``y`` is
-        ``H(y, .) - h(y) H(v, .)`` on ``S`` and ``r`` and ``h(y)`` on ``v`` (strong Markov at
-        the visit to ``v``). None when the block could not be factorised."""
-        if self.lu is None:
+        (states ``0..k-1``, ``v`` as ``k``, ``r`` as ``k + 1``), from this split and one more
+        solve (:meth:`_with_v`). None when the block could not be factorised."""
+        if self.block is None:
             return None
         k = len(S)
-        iv = int(self.u_index[v])
-        e = np.zeros(self.n)
-        e[iv] = 1.0
-        col = self.lu.solve(e)
-        h = np.clip(col / col[iv], 0.0, 1.0)
-        Hv = self.H[iv]
-        H = np.empty((self.n, k + 2))
-        H[:, :k] = self.H[:, :k] - h[:, None] * Hv[:k]
-        H[:, k] = h
-        H[:, k + 1] = self.H[:, k] - h * Hv[k]
-        np.maximum(H, 0.0, out=H)
+        H, _, _ = self._with_v(v, k)
         state = self.state.copy()
         state[self.state == k] = k + 1  # r moves one column on
         state[v] = k
         return self._heads((*S, v), neighbors, state, H)
+
+    def extend(self, v: int, neighbors: list[np.ndarray]) -> _Split:
+        """The split of ``S + {v}`` (sorted) for an unobserved ``v``, without a factorisation:
+        ``L_U'U'`` (``U' = U - {v}``) is ``L_UU`` without ``v``'s row and column, so
+        ``det L_U'U' = det L_UU [L_UU^-1]_vv`` (the cofactor), its first-entry distributions
+        are :meth:`_with_v`'s on ``U'``, and its solves are :meth:`_Block.without`'s. After
+        :data:`REFACTOR_AFTER` removals from one factor (or when the block could not be
+        factorised) the split is factorised afresh, which bounds both the correction's cost
+        and its rounding."""
+        S = tuple(sorted((*self.S, v)))
+        if self.block is None or len(self.block.removed) >= REFACTOR_AFTER:
+            return _Split(self.minor, neighbors, S)
+        p = S.index(v)
+        H, g_vv, raw = self._with_v(v, p)
+        if not (np.isfinite(g_vv) and g_vv > 0):
+            return _Split(self.minor, neighbors, S)
+        out = object.__new__(_Split)
+        out.minor, out.S, out.K, out.n, out.Ht = self.minor, S, self.K, self.n - 1, H
+        out.state = state = self.state.copy()
+        state[state >= p] += 1  # the states after v and r move one column on
+        state[v] = p
+        out.u_index = self.u_index.copy()
+        out.u_index[v] = -1
+        out.logdet_u = self.logdet_u + float(np.log(g_vv))
+        out.block = self.block.without(int(self.u_index[v]), raw)
+        out.heads, out.n_slots = out._heads(S, neighbors, state, H)
+        return out
+
+
+class _Block:
+    """A block ``A = L_UU`` held as the factor ``lu`` of an earlier, larger block ``A0 =
+    L_{U0 U0}`` (``U`` in ``U0``; rows numbered as in ``A0``) and the ``m`` rows ``R = U0 -
+    U`` removed since. ``A0`` is symmetric (every weight 1), so with ``G0 = A0^-1`` and ``C =
+    G0[:, R]``, the inverse of the principal submatrix is the Schur complement of ``G0`` on
+    ``R``::
+
+        A^-1 = G0[U, U] - C[U] (G0[R, R])^-1 C[U]^T,
+
+    ``G0[R, R]`` symmetric positive definite (Cholesky; ``m`` at most :data:`REFACTOR_AFTER`).
+    A solve ``A^-1 e_i`` costs one solve with ``lu`` and ``O(|U0| m)``; removing one more row
+    appends one column to ``C`` (a rank-one update per push). ``C`` lives in a buffer shared
+    along a chain of removals (``cols``, ``(|U0|, REFACTOR_AFTER)``, its first ``m`` columns
+    this block's); a removal from a block that is not the buffer's last copies the prefix."""
+
+    def __init__(self, lu, n0: int):
+        self.lu = lu
+        self.n0 = n0
+        self.removed = np.zeros(0, np.int64)
+        self.cols: list | None = None  # [buffer, columns in use by its longest block]
+        self._chol = None
+
+    def _C(self) -> np.ndarray:
+        return self.cols[0][:, : len(self.removed)]
+
+    def column(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(A^-1 e_i, G0 e_i)`` over ``A0``'s rows (those in ``R``: 0 up to rounding, not
+        to be read): the block's inverse column ``i``, and the factor's column it was
+        corrected from."""
+        e = np.zeros(self.n0)
+        e[i] = 1.0
+        raw = self.lu.solve(e)
+        if self._chol is None:
+            return raw, raw
+        return raw - self._C() @ cho_solve(self._chol, raw[self.removed],
+                                           check_finite=False), raw
+
+    def without(self, i: int, raw: np.ndarray) -> _Block:
+        """The block without its row and column ``i``, ``raw = G0 e_i``."""
+        m = len(self.removed)
+        out = object.__new__(_Block)
+        out.lu, out.n0 = self.lu, self.n0
+        out.removed = np.append(self.removed, i)
+        if self.cols is not None and self.cols[1] == m:
+            out.cols = self.cols  # this block is the buffer's last: append in place
+        else:
+            buf = np.empty((self.n0, REFACTOR_AFTER))
+            if m:
+                buf[:, :m] = self._C()
+            out.cols = [buf, m]
+        out.cols[0][:, m] = raw
+        out.cols[1] = m + 1
+        out._chol = cho_factor(out._C()[out.removed], check_finite=False)
+        return out
 
 
 class _Minor:
@@ -343,7 +464,9 @@ def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
     else:
         a = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
         try:
-            lu = splu(a)
+            # symmetric pattern and values: a minimum-degree ordering of A + A^T with
+            # diagonal pivots (an M-matrix needs no pivoting) halves the fill and the solves
+            lu = splu(a, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
         except RuntimeError:  # exactly singular
             return -np.inf, None
         d = lu.U.diagonal()

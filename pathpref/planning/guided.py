@@ -5,12 +5,15 @@ Same tree and observation model as the paper's search (:mod:`.pomcp`); what it o
 its root states come from and how it searches differ.
 
 0. **Root states.** Under the route prior (:mod:`pathpref.inference.routes`, the ``robust``
-   preset's) each simulation starts from one of :data:`~.pomcp.TREE_POOL` particles
-   ``(g, theta)`` drawn exactly from the posterior before the search (:func:`tree_pool`:
-   Wilson's algorithm, compiled); a full tree per particle judges every crossing of a
-   simulation by one preference that leads to ``g`` (1). (Drawing a fresh tree in every
-   simulation is exact too, but a random walk to the goal's polytope costs ~400 steps on
-   ``classroom``: 4x the search.)
+   preset's) each simulation starts from one of ``m`` particles ``(g, theta)`` drawn exactly
+   from the posterior before the search (:func:`tree_pool`: Wilson's algorithm, compiled); a
+   full tree per particle judges every crossing of a simulation by one preference that leads
+   to ``g`` (1). (Drawing a fresh tree in every simulation is exact too, but a random walk to
+   the goal's polytope costs ~400 steps on ``classroom``: 4x the search.) The rule
+   (:meth:`~.pomcp.POMCP._pool`): ``m = min(TREE_POOL, ceil(queries / SIMS_PER_TREE))``
+   (at least ``SIMS_PER_TREE`` simulations per particle on average), and the pool is drawn
+   only when the belief has changed since the last one (goal marginal or walk rows not
+   equal): between pushes the decisions reuse it.
    Under the independent prior, ``g ~ P(g | o)`` and each ``p_v ~ P(p_v | g, o)`` are drawn
    lazily per simulation, as in the paper's search.
 1. **Success reward.** A simulation earns ``R_g gamma^(L-1) rho^n`` when it reaches the sampled
@@ -90,6 +93,8 @@ from ..inference.chains import draw_observed_exits
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
 EPS_RANDOM = 0.1
+#: the stamp of a preference slot set before the simulation (:func:`_theta`)
+FIXED = -2
 
 
 @nb.njit(cache=True)
@@ -103,8 +108,10 @@ def _clock():
 def _theta(v, gi, q, nbr, pref_cdf, theta, stamp):
     """Slot ``k`` of the preferred neighbour of ``v`` in simulation ``q``, drawn lazily from
     ``P(p_v | g)`` (cumulative ``pref_cdf[gi, v]``) under the independent prior; under the route
-    prior every slot was set at the start of the simulation (:func:`tree_pool`)."""
-    if stamp[v] != q:
+    prior every slot was set at the start of the simulation (:func:`tree_pool`): ``theta`` is
+    then the particle's row of the pool and ``stamp`` all :data:`FIXED` (nothing drawn or
+    copied per simulation)."""
+    if stamp[v] != q and stamp[v] != FIXED:
         stamp[v] = q
         theta[v] = sample_slot(v, gi, nbr, pref_cdf)
     return theta[v]
@@ -336,6 +343,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     P = nbr.shape[0]
     theta = -np.ones(P, np.int64)
     stamp = -np.ones(P, np.int64)
+    fixed = np.full(P, FIXED, np.int64)
     made_q = -np.ones(P, np.int64)
     tree = pool_g.shape[0] > 0
     told_q = -np.ones(P, np.int64)
@@ -360,8 +368,8 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
         if tree:  # a particle of the route-prior posterior (tree_pool)
             j = np.random.randint(pool_g.shape[0])
             gi = pool_g[j]
-            theta[:] = pool_theta[j]
-            stamp[:] = q
+            theta = pool_theta[j]  # read only: _theta draws nothing under a FIXED stamp
+            stamp = fixed
         else:
             gi = sample_index(goal_cdf)
         s = s0

@@ -37,6 +37,9 @@ from .tree import best_root_action, init_node, new_tree, sample_index, sample_sl
 #: polytope to the goal's on a map of long loops), and success did not change within the
 #: intervals (README, "The robust preset")
 TREE_POOL = 128
+#: the pool holds at most one particle per ``SIMS_PER_TREE`` simulations of the decision
+#: (:meth:`POMCP._pool`): 128 at the paper's 5000 queries, 32 at the bench floor plan's 1000
+SIMS_PER_TREE = 32
 #: a tree's Wilson walks may take ``WALK_STEPS_PER_POLYTOPE * P + WALK_STEPS_MIN`` steps before
 #: it is drawn observed exits first instead (:func:`.guided.tree_pool`; the walk with no
 #: evidence takes 5-13 ``P`` steps in expectation on the paper's maps and examples/maps, median
@@ -199,6 +202,9 @@ class POMCP:
                               "reward, the paper's search with the additive one")
         self.tables = tables
         self.budget_s = float(budget_ms) / 1000.0
+        #: the last root pool and the distribution it was drawn from (:meth:`_pool`)
+        self._kept_pool: tuple | None = None
+        self.pools_drawn = 0
         if tables is not None:
             self.blocked = m.blocked.copy()
             v_next = self.cell_poly[self.next_cell]
@@ -250,18 +256,39 @@ class POMCP:
         )
         return SearchResult(int(a), visits, values, int(nodes), self.queries)
 
+    def pool_size(self) -> int:
+        """Root particles per decision: ``m = min(TREE_POOL, ceil(queries / SIMS_PER_TREE))``.
+        Each simulation starts from one particle drawn uniformly, so a particle is the start of
+        ``queries / m >= SIMS_PER_TREE`` simulations on average; a tree costs a Wilson draw of
+        ``~9 P`` walk steps, a simulation at most ``depth`` steps, and more particles than that
+        buy draws the search barely uses."""
+        return min(TREE_POOL, -(-self.queries // SIMS_PER_TREE))
+
     def _pool(self, belief: Belief, goal_cdf: np.ndarray, cdf: np.ndarray, seed: int):
         """Root particles ``(goal index, preference slots)`` of a route-prior belief
-        (:func:`~.guided.tree_pool`, :data:`TREE_POOL` exact draws); empty otherwise (the search
-        then draws ``g`` and each ``p_v`` lazily, independently)."""
+        (:func:`~.guided.tree_pool`, :meth:`pool_size` exact draws); empty otherwise (the search
+        then draws ``g`` and each ``p_v`` lazily, independently).
+
+        **Reuse.** The pool is kept and handed to the next decision while the distribution it
+        is drawn from is unchanged: the same goal marginal ``goal_cdf`` and the same normalised
+        walk rows ``cdf`` (compared exactly; the route posterior ``P(theta | g, o)`` is a
+        function of these alone, module :mod:`pathpref.inference.routes`). Between two pushes
+        (no observation, no candidate ruled out) every decision then searches from the same
+        exact draws: each decision's particles are still exact draws of its posterior, only
+        correlated with the previous decision's (``ΔT - 1`` of ``ΔT`` decisions draw nothing)."""
         if not (self.rewards.use_preference and getattr(belief, "route_prior", False)):
             return np.zeros(0, np.int64), np.zeros((0, len(self.nbr)), np.int64)
+        kept = self._kept_pool
+        if kept is not None and np.array_equal(kept[0], goal_cdf) and \
+                np.array_equal(kept[1], cdf):
+            return kept[2], kept[3]
         budget = WALK_STEPS_PER_POLYTOPE * len(self.nbr) + WALK_STEPS_MIN
         goals, slots, over = tree_pool(self.nbr, cdf, goal_cdf, self.goal_poly, self.component,
-                                       min(TREE_POOL, self.queries), (int(seed) + 1) % (2**32),
-                                       budget)
+                                       self.pool_size(), (int(seed) + 1) % (2**32), budget)
         if over.any():
             slots[over] = self._observed_first(belief, goals[over], cdf, seed, budget)
+        self._kept_pool = (goal_cdf.copy(), cdf.copy(), goals, slots)
+        self.pools_drawn += 1
         return goals, slots
 
     def _observed_first(self, belief, goals: np.ndarray, cdf: np.ndarray, seed: int,

@@ -62,6 +62,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         gb.update(c, h)
         t_goal.append(time.perf_counter() - t)
     planning = bench_pomcp(world, name, quick=quick, seed=seed)
+    routes = bench_route_update(model, pushes=20 if quick else 40, seed=seed)
     return {
         "polytopes": world.n_polytopes,
         "edges": world.graph.n_edges,
@@ -75,13 +76,38 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         "belief_updates": n_upd,
         "paper_belief_update_ms": paper.update_ms(name),
         **planning,
+        **routes,
     }
+
+
+def bench_route_update(model: ObservationModel, pushes: int = 40, seed: int = 0
+                       ) -> dict[str, Any]:
+    """The route prior's update: CPU time of one push (``update``) and the goal marginal
+    after it, median and mean over ``pushes`` pushes at random cells with random headings
+    (almost every one in a polytope not yet observed, the case that grows the observed set;
+    the belief of every candidate is solved after each)."""
+    rng = np.random.default_rng(seed + 2)
+    world = model.world
+    belief = RouteBelief(model)
+    belief.goal_marginal()
+    out = []
+    for c, h in zip(rng.integers(0, world.n_cells, size=pushes).tolist(),
+                    rng.integers(0, 8, size=pushes).tolist(), strict=True):
+        t = time.process_time()
+        belief.update(c, h)
+        belief.goal_marginal()
+        out.append(time.process_time() - t)
+    return {"route_update_ms": 1e3 * median(out),
+            "route_update_mean_ms": 1e3 * float(np.mean(out)),
+            "route_update_pushes": pushes,
+            "route_update_observed_polytopes": len(belief.observed_polytopes())}
 
 
 def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
     """First-decision POMCP time: 5000 queries at depth T_max, median over random instances.
     The robust search is timed from the robust preset's belief after one push (the route
-    prior: the posterior's solve and the 512 Wilson particles are in the time)."""
+    prior: the posterior's solve and the Wilson particles, :meth:`POMCP.pool_size`, are in
+    the time)."""
     preset = get_preset("paper")
     robust = get_preset("robust")
     depth = world.spec.t_max

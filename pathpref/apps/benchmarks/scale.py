@@ -12,6 +12,7 @@ import numpy as np
 from ...episode import EpisodeSpec, run_episode, sample_instance
 from ...geometry.maps import load_map
 from ...geometry.world import World
+from ...planning.pomdp import DEFAULT_PRESET
 
 
 # --- scale: Ray, big maps -------------------------------------------------------------------
@@ -73,15 +74,47 @@ def _scale_setup_child() -> None:
     build_cost_tables(world, np.array(sample_instance(world, 0, 10).goals))
     dt = time.perf_counter() - t
     print(dt, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+    from ...inference.human import ObservationModel
+    from .maps import bench_route_update
+
+    goals = np.random.default_rng(0).choice(world.n_cells, size=10, replace=False)
+    r = bench_route_update(ObservationModel.build(world, goals), pushes=40)
+    print(r["route_update_ms"], r["route_update_mean_ms"])
+
+
+def _episode_child(preset: str, queries: int) -> None:
+    """Run in a fresh interpreter: one path-preference episode on the benchmark floor plan
+    (ΔT = 5, instance 0) under ``preset``; prints JSON: wall and CPU seconds of the episode
+    (world, cost and likelihood tables, every decision), the process's peak RSS in MB
+    (tables included), steps, goal reached."""
+    import json
+    import resource
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "floor_200.json")
+        with open(path, "w") as f:
+            json.dump(scale_map(), f)
+        spec = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=0, run=0,
+                           instance_seed=1, run_seed=2, queries=queries,
+                           t_max=load_map(path).t_max, preset=preset)
+        c, t = time.process_time(), time.perf_counter()
+        ep = run_episode(spec)
+        print(json.dumps({"wall_s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
+                          "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                          "steps": ep.steps, "goal_reached": bool(ep.goal_reached)}))
 
 
 def bench_scale(queries: int = 1000) -> dict[str, Any]:
-    """Large-map figures: the 200 x 200 floor plan's setup time and peak memory (fresh process),
-    one path-preference episode on it, and the 40 x 40 rotated maps' reachable fraction."""
+    """Large-map figures: the 200 x 200 floor plan's setup time and peak memory and the route
+    prior's update on it (:func:`.maps.bench_route_update`; fresh process), one
+    path-preference episode on it per preset (``paper``, ``robust``: CPU seconds and peak RSS
+    with the likelihood tables, each in a fresh process; ``map_200_episode_s``, its steps,
+    goal and ``map_200_episode_peak_mb`` are the default preset's, as ``EpisodeSpec`` runs it),
+    and the 40 x 40 rotated maps' reachable fraction."""
     import json
     import subprocess
     import sys
-    import tempfile
 
     from ...geometry.generate import four_connected_components, random_floor_plan
     from ...geometry.maps import free_cell_mask
@@ -89,19 +122,24 @@ def bench_scale(queries: int = 1000) -> dict[str, Any]:
     code = "from pathpref.apps.benchmarks.scale import _scale_setup_child; _scale_setup_child()"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.split()
-    res: dict[str, Any] = {"map_200_setup_s": float(out[0]), "map_200_peak_mb": float(out[1])}
-    with tempfile.TemporaryDirectory() as tmp:
-        path = os.path.join(tmp, "floor_200.json")
-        with open(path, "w") as f:
-            json.dump(scale_map(), f)
-        spec = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=0, run=0,
-                           instance_seed=1, run_seed=2, queries=queries,
-                           t_max=load_map(path).t_max)
-        t = time.perf_counter()
-        ep = run_episode(spec)
-        res["map_200_episode_s"] = time.perf_counter() - t
-        res["map_200_episode_steps"] = ep.steps
-        res["map_200_episode_goal_reached"] = ep.goal_reached
+    res: dict[str, Any] = {"map_200_setup_s": float(out[0]), "map_200_peak_mb": float(out[1]),
+                           "map_200_route_update_ms": float(out[2]),
+                           "map_200_route_update_mean_ms": float(out[3])}
+    # one episode per preset, each in a fresh process (its peak RSS is the episode's)
+    for preset in ("paper", "robust"):
+        code = ("from pathpref.apps.benchmarks.scale import _episode_child; "
+                f"_episode_child({preset!r}, {int(queries)})")
+        ep = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True,
+                                       text=True, check=True).stdout.splitlines()[-1])
+        if preset == DEFAULT_PRESET:  # the keys as they were: the default preset, wall time
+            res["map_200_episode_s"] = ep["wall_s"]
+            res["map_200_episode_steps"] = ep["steps"]
+            res["map_200_episode_goal_reached"] = ep["goal_reached"]
+            res["map_200_episode_peak_mb"] = ep["peak_mb"]
+        res[f"map_200_{preset}_episode_cpu_s"] = ep["cpu_s"]
+        res[f"map_200_{preset}_episode_peak_mb"] = ep["peak_mb"]
+        res[f"map_200_{preset}_episode_steps"] = ep["steps"]
+        res[f"map_200_{preset}_episode_goal_reached"] = ep["goal_reached"]
     fractions = []
     for n in (32, 64):
         for seed in range(3):
