@@ -238,3 +238,21 @@ def test_force_direction_limits(simple):
         none.update_direction(s, float(ACTION_ANGLES[h]), 0.0)
     assert np.allclose(sharp.goal_marginal(), plain.goal_marginal(), rtol=1e-9, atol=1e-12)
     assert np.allclose(none.goal_marginal(), 0.1, atol=1e-12)
+
+
+def test_route_belief_takes_force_directions(simple):
+    """The route prior's belief takes force directions through the same tables: a sharp
+    direction along a heading is that heading's update, goal and preference marginals alike."""
+    from pathpref.geometry.grid import ACTION_ANGLES
+    from pathpref.inference.routes import RouteBelief
+
+    rng = np.random.default_rng(5)
+    model = ObservationModel.build(simple, rng.choice(simple.n_cells, size=10, replace=False))
+    sharp, plain = RouteBelief(model), RouteBelief(model)
+    for s, h in random_observations(simple, model, rng, 10):
+        sharp.update_direction(s, float(ACTION_ANGLES[h]), 5000.0)
+        plain.update(s, h)
+        assert np.allclose(sharp.goal_marginal(), plain.goal_marginal(), rtol=1e-9, atol=1e-12)
+    for v in range(simple.n_polytopes):
+        assert np.allclose(sharp.preference_marginal(v), plain.preference_marginal(v),
+                           rtol=1e-9, atol=1e-12)
