@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .. import plugins
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
@@ -133,8 +134,18 @@ def register_body(name: str, body: type[Body]) -> None:
 
 
 def body_class(sim: str, task: str = "navigate") -> type[Body]:
-    """The registered body ``sim``, checked to offer ``task``."""
+    """The registered body ``sim`` (or the one another package declares under that name in
+    the entry-point group ``pathpref.bodies``, :mod:`pathpref.plugins`), checked to offer
+    ``task``."""
     body = BODIES.get(sim)
+    if body is None and isinstance(sim, str):
+        found = plugins.load(plugins.BODIES, sim)
+        if found is not None:
+            if not (isinstance(found, type) and issubclass(found, Body)):
+                raise ConfigError(f"entry point {sim!r} of group {plugins.BODIES} must name a "
+                                  f"Body subclass, got {found!r}")
+            register_body(sim, found)
+            body = found
     if body is None:
         raise ConfigError(f"unknown simulator '{sim}'; registered: {', '.join(BODIES)} (a "
                           "simulator's bodies register when its package is imported)")

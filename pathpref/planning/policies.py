@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import plugins
 from ..errors import ConfigError
 from ..geometry.following import preference_following_distance, preferred_move
 from ..geometry.grid import STAY
@@ -262,9 +263,25 @@ def register_method(name: str, factory: Callable[[PolicyContext], Policy]) -> No
     METHODS[name] = factory
 
 
+def _known(name: str) -> bool:
+    """Whether method ``name`` exists: built in, registered, or declared by another package
+    in the entry-point group ``pathpref.methods`` (loaded and registered then)."""
+    if name in METHODS:
+        return True
+    found = plugins.load(plugins.METHODS, name) if isinstance(name, str) else None
+    if found is None:
+        return False
+    if not callable(found):
+        raise ConfigError(f"entry point {name!r} of group {plugins.METHODS} must name a method "
+                          f"(a class or function taking a PolicyContext), got {found!r}")
+    register_method(name, found)
+    return True
+
+
 def make_policy(name: str, ctx: PolicyContext) -> Policy:
-    """The method ``name`` (a key of :data:`METHODS`) built on ``ctx``."""
-    if name not in METHODS:
+    """The method ``name`` (a key of :data:`METHODS`, or another package's) built on
+    ``ctx``."""
+    if not _known(name):
         raise ConfigError(f"unknown method '{name}'; choose from {', '.join(METHODS)}")
     return METHODS[name](ctx)
 
@@ -275,7 +292,7 @@ def resolve_methods(names: list[str]) -> list[str]:
     everyday = [m for m in METHODS if m not in REFERENCE_METHODS]
     for n in names:
         for m in ({"all": everyday, "reference": list(REFERENCE_METHODS)}.get(n, [n])):
-            if m not in METHODS:
+            if not _known(m):
                 raise ConfigError(
                     f"unknown method '{m}'; choose from {', '.join(METHODS)}, 'all' (the four "
                     "methods of the paper) or 'reference' (oracle, goal_known)"

@@ -1,0 +1,85 @@
+"""Another package adds a body and a method through entry points (``pathpref.plugins``),
+installed the venv-less way: a module and a dist-info whose ``entry_points.txt`` declares them."""
+
+from __future__ import annotations
+
+import sys
+import textwrap
+
+import pytest
+
+from pathpref.episode import EpisodeSpec, run_episode
+from pathpref.episode.body import BODIES
+from pathpref.errors import ConfigError
+from pathpref.planning.policies import METHODS, resolve_methods
+
+PACKAGE = '''
+from pathpref.episode.body import GridBody
+from pathpref.geometry.grid import STAY
+from pathpref.planning.policies import CompliantPolicy
+
+
+class StubbornBody(GridBody):
+    """The grid body whose moves all fail: the robot never leaves its start."""
+
+    def move(self, action):
+        return self.cell
+
+
+class Still(CompliantPolicy):
+    """Never moves."""
+
+    def act(self, t, cell, heading):
+        return STAY
+
+
+NOT_A_BODY = 3
+'''
+
+
+@pytest.fixture
+def example_package(tmp_path, monkeypatch):
+    (tmp_path / "pathpref_example_plugins.py").write_text(PACKAGE)
+    info = tmp_path / "pathpref_example_plugins-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: pathpref-example-plugins\n"
+                                   "Version: 0.1\n")
+    (info / "entry_points.txt").write_text(textwrap.dedent("""\
+        [pathpref.bodies]
+        stubborn = pathpref_example_plugins:StubbornBody
+        notabody = pathpref_example_plugins:NOT_A_BODY
+        missing = pathpref_example_plugins_gone:Body
+
+        [pathpref.methods]
+        still = pathpref_example_plugins:Still
+        """))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield
+    sys.modules.pop("pathpref_example_plugins", None)
+    for name in ("stubborn", "notabody", "missing"):
+        BODIES.pop(name, None)
+    METHODS.pop("still", None)
+
+
+def test_a_package_adds_a_body_and_a_method(example_package):
+    """The package's method and body run an episode by name: a robot that never moves (its
+    body refuses every move, its method stays) spends all T_max steps at its start."""
+    assert resolve_methods(["still"]) == ["still"]
+    for sim, method in (("stubborn", "path_preference"), ("grid", "still")):
+        spec = EpisodeSpec.single("simple", method, 5, seed=2, sim=sim, t_max=6, queries=20)
+        res = run_episode(spec)
+        start = res.log[0]
+        assert res.steps == 6 and not res.goal_reached
+        assert all((s.x, s.y) == (start.x, start.y) for s in res.log)
+
+
+def test_bad_plugins_are_one_line_errors(example_package):
+    with pytest.raises(ConfigError, match="must name a Body subclass") as e:
+        run_episode(EpisodeSpec.single("simple", "compliant", 5, sim="notabody", t_max=3))
+    assert "\n" not in str(e.value)
+    with pytest.raises(ConfigError, match=r"entry point 'missing' of group pathpref.bodies"):
+        run_episode(EpisodeSpec.single("simple", "compliant", 5, sim="missing", t_max=3))
+    with pytest.raises(ConfigError, match="unknown simulator 'nowhere'"):
+        run_episode(EpisodeSpec.single("simple", "compliant", 5, sim="nowhere", t_max=3))
+    with pytest.raises(ConfigError, match="unknown method 'nothing'"):
+        resolve_methods(["nothing"])
