@@ -119,9 +119,14 @@ def test_scripted_demo_records_everything(demo_db, capsys):
         assert show == (name == "left")
         # the script's pushes that began before the robot reached the goal
         pushes_in = [p for p in script[name] if p["t"] < time_s]
-        assert pushes == len(pushes_in) == cues >= 3
-        # effort: each scripted push is |F| x duration (held constant, one physics step late)
-        expected = sum((p["fx"] ** 2 + p["fy"] ** 2) ** 0.5 * p["duration"] for p in pushes_in)
+        # every push released (and past the detector's 0.4 s release window) before the end
+        # gave its cue; one the goal cut short may not have
+        done = [p for p in pushes_in if p["t"] + p["duration"] + 0.4 <= time_s]
+        assert pushes == len(pushes_in) and len(done) <= cues <= pushes and cues >= 3
+        # effort: each scripted push is |F| x the time it acted (held constant, one physics
+        # step late; a push under way when the trial ended acted until then)
+        expected = sum((p["fx"] ** 2 + p["fy"] ** 2) ** 0.5 * min(p["duration"], time_s - p["t"])
+                       for p in pushes_in)
         assert effort == pytest.approx(expected, rel=0.01)
         rows = c.execute("SELECT t_start, peak_n FROM trial_pushes WHERE trial = ? ORDER BY k",
                          (k,)).fetchall()
@@ -130,7 +135,7 @@ def test_scripted_demo_records_everything(demo_db, capsys):
             "SELECT heading FROM trial_cues WHERE trial = ? ORDER BY k", (k,))]
         want = [HEADING[(int(p["fx"] > 0) - int(p["fx"] < 0), int(p["fy"] > 0) - int(p["fy"] < 0))]
                 for p in pushes_in]
-        assert headings == want
+        assert headings == want[:cues]  # the cues, in order, of the pushes that gave one
         n_forces = c.execute("SELECT count(*), max(time_s) FROM trial_forces WHERE trial = ?",
                              (k,)).fetchone()
         assert n_forces[0] == pytest.approx(n_forces[1] / 0.002, abs=2)  # every control step

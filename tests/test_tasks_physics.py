@@ -48,7 +48,9 @@ def test_legacy_default_is_unchanged(case):
     ``scripts/task_traces.py``), actions and discrete observations exactly, floats to
     ``tests/close.py``'s tolerance. Until issue 24 this was a SHA-256 of the float bits, which
     differed between CPU classes (README, "Replays exactly"); the traces were taken with the
-    code of that digest (10c6c15), and the sampler and belief of issue 24 reproduce them."""
+    code of that digest (10c6c15), and the sampler and belief of issue 24 reproduce them; they
+    were re-taken when the robust search's root pool became sized to the queries (issue 28:
+    1 tree at these tests' 20-50 queries, was 128), which changes the policy's actions."""
     import sys
     from pathlib import Path
 
@@ -66,7 +68,7 @@ def test_legacy_default_is_unchanged(case):
     # observations added since the traces were taken (the step's interaction) are pinned by
     # tests/test_tasks_interaction.py; every stored one must be unchanged
     stored = set(want["obs"][0])
-    assert stored < set(got["obs"][0])
+    assert stored <= set(got["obs"][0])
     got["obs"] = [{k: o[k] for k in sorted(stored)} for o in got["obs"]]
     if want["task"] == "navigate":  # decision steps: the moves are discrete
         assert got["action"] == want["action"]
