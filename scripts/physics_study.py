@@ -109,7 +109,7 @@ def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
     sim, physics = CONDITIONS[name]
     world = cached_world(specs[0].map)
     success, hits, pushes, steps, cells, wall, p_goal = [], 0, 0, [], [], [], []
-    p_mean = []
+    p_mean, metrics = [], []
     for base in specs:
         spec = replace(base, sim=sim, physics="" if physics == "noise" else physics)
         body = NoisyGridBody(world, spec, simulator_rng(spec)) if physics == "noise" else \
@@ -121,6 +121,7 @@ def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
         success.append(res.success)
         p_goal.append(res.log[-1].p_true_goal)
         p_mean.append(float(np.mean([s.p_true_goal for s in res.log])))
+        metrics.append(res.metrics)
         steps.append(res.steps)
         cells.append([(s.x, s.y) for s in res.log])
         if rec.pairs:
@@ -130,12 +131,29 @@ def run_condition(name: str, specs: list[EpisodeSpec]) -> dict:
             pushes += res.inputs
             hits += int(res.metrics.get("cue_hits", 0))
     k, n = int(sum(success)), len(success)
+
+    def total(key: str) -> float:
+        return float(sum(m.get(key, 0.0) for m in metrics))
+
+    given = total("pushes")
+    lat = [m["cue_latency_ms"] for m in metrics if "cue_latency_ms" in m]
     return {"success": k / n, "success_ci": wilson(k, n), "n": n,
             "cue_accuracy": hits / max(pushes, 1), "cue_accuracy_ci": wilson(hits, pushes),
             "pushes": pushes, "pushes_per_episode": pushes / n,
             "steps_mean": float(np.mean(steps)), "wall_s_per_episode": float(np.mean(wall)),
             "p_true_goal_final": float(np.mean(p_goal)),
             "p_true_goal_mean": float(np.mean(p_mean)),
+            # the body's own account (physical conditions): pushes missed / misread by the
+            # detector over the pushes given, mean cue latency, contact safety
+            "pushes_missed": total("pushes_missed"), "pushes_misread": total("pushes_misread"),
+            "pushes_missed_ci": wilson(int(total("pushes_missed")), int(given)) if given else
+            None,
+            "cue_latency_ms": float(np.mean(lat)) if lat else None,
+            "collisions_per_episode": total("collisions") / n,
+            "impact_speed_max": max((m.get("contact_impact_speed", 0.0) for m in metrics),
+                                    default=0.0),
+            "contact_force_max_n": max((m.get("contact_peak_force_n", 0.0) for m in metrics),
+                                       default=0.0),
             "cells": cells}
 
 
@@ -168,8 +186,9 @@ def main() -> None:
     print(f"\n{args.episodes} episodes per condition ({args.map}, {args.method}, "
           f"preset {args.preset}, Delta_T {args.delta_t}, 1000 queries, seed {args.seed})\n")
     print("| condition | success [95% CI] | cue accuracy [95% CI] | pushes/episode | steps | "
-          "final P(true goal) | mean P(true goal) | same path as control | wall s/episode |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "final P(true goal) | mean P(true goal) | same path as control | missed / misread "
+          "pushes | cue latency ms | collisions/episode, max impact m/s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for name, r in out.items():
         lo, hi = r["success_ci"]
         clo, chi = r["cue_accuracy_ci"]
@@ -177,7 +196,9 @@ def main() -> None:
               f"[{clo:.3f}, {chi:.3f}] | {r['pushes_per_episode']:.1f} | {r['steps_mean']:.1f} "
               f"| {r['p_true_goal_final']:.2f} | {r['p_true_goal_mean']:.2f} "
               f"| {r['same_as_control']}/{r['n']} "
-              f"| {r['wall_s_per_episode']:.2f} |")
+              f"| {r['pushes_missed']:.0f} / {r['pushes_misread']:.0f} "
+              f"| {'-' if r['cue_latency_ms'] is None else format(r['cue_latency_ms'], '.0f')} "
+              f"| {r['collisions_per_episode']:.2f}, {r['impact_speed_max']:.2f} |")
     if args.out:
         with open(args.out, "w") as f:
             json.dump({"args": vars(args), "conditions": out}, f, indent=1)

@@ -525,3 +525,28 @@ def test_guidance_reads_a_sustained_push_while_it_lasts():
     assert runner.result.metrics["cues_felt"] == len(cues)
     with pytest.raises(ConfigError, match="timing guidance needs base holonomic"):
         Physics.of(timing="guidance", base="diffdrive")
+
+
+def test_a_guided_base_is_not_pushed_into_a_wall():
+    """Guidance moves the base's target only where the base fits: 40 N toward the east wall
+    for 3 s from the cell beside it leaves the physical base (Physics() drive, stiff servos)
+    off the wall: no contact begun."""
+    from pathpref.episode.cache import cached_world
+    from pathpref.sim.body import MujocoBody
+
+    world = cached_world("simple")
+    spec = EpisodeSpec.single("simple", "compliant", 5, sim="mujoco",
+                              physics=Physics(timing="guidance", sensor="ideal"))
+    base = MujocoBody(world, spec, np.random.default_rng(0)).base
+    base.enable_guidance(20.0, 80.0)
+    w = world.spec.width
+    start = next(world.cell((w, y)) for y in range(1, world.spec.height + 1)
+                 if world.arrangement.cell_index[w - 1, y - 1] >= 0)
+    base.reset(start)
+    base.pushes.append(HumanPush(0.0, float(base.data.time),
+                                 PushProfile(peak_n=40.0, duration_s=3.0, noise_deg=0.0,
+                                             shape="plateau"), 2))
+    base.decision.hold(3.5, until_cue=False).run()
+    m = base.physical_metrics()
+    assert m["collisions"] == 0.0
+    assert m["contact_impact_speed"] == 0.0

@@ -62,6 +62,8 @@ from .sensing_chain import SensingChain
 ADMITTANCE_K = 400.0
 #: share of the drive's force limit above which the base braces instead of yielding
 BRACE = 0.6
+#: how far from an obstacle or a wall a guiding push may bring the base's edge (m)
+GUIDANCE_CLEARANCE_M = 0.05
 
 
 class MobileBase:
@@ -204,6 +206,7 @@ class MobileBase:
         self.sensing.split_pushes()
         self.guidance = (float(mass), float(damping))
         self.any_time = True
+        self._radius = float(self.model.geom("base_geom").size[0]) + GUIDANCE_CLEARANCE_M
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
@@ -396,8 +399,11 @@ class MobileBase:
         if not self.yielding():
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)
-            if self.guidance is not None:
+            if self.guidance is not None:  # the push's velocity as feedforward, within v_max
                 command[:2] += self.v_admit
+                speed = math.hypot(command[0], command[1])
+                if speed > self.controller.v_max:
+                    command[:2] *= self.controller.v_max / speed
             return command
         v = self.controller.ramp(self.admittance_velocity())
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
@@ -405,10 +411,41 @@ class MobileBase:
     def _admit(self) -> None:
         """One step of the guidance admittance ``v += dt (F_hat - b v) / M`` (explicit Euler;
         stable for ``dt < 2 M / b``: 0.5 s for the defaults against the 2 ms step) and of the
-        target it deforms, ``p_target += dt v``."""
+        target it deforms, ``p_target += dt v``. Safety: ``|v|`` is capped at the controller's
+        ``v_max``; where the base would not fit (:meth:`_fits`) within its stopping distance
+        ahead, ``|v|^2 / a_max`` (braking at half ``a_max``: a push may oppose the drive), the
+        admittance brakes at ``a_max``; the target never moves where the base does not fit, so
+        a push cannot drive the base into an obstacle or a wall."""
         mass, damping = self.guidance
-        self.v_admit += self.dt * (self.sensing.force_estimate - damping * self.v_admit) / mass
-        self.target = self.target + self.dt * self.v_admit
+        v, a_max = self.v_admit, self.controller.a_max
+        v += self.dt * (self.sensing.force_estimate - damping * v) / mass
+        speed = math.hypot(v[0], v[1])
+        if speed > self.controller.v_max:
+            v *= self.controller.v_max / speed
+            speed = self.controller.v_max
+        if speed > 1e-9:
+            ahead = self.target + v / a_max  # |v|^2 / a_max ahead, along v
+            if not self._fits(ahead):
+                v *= max(0.0, 1.0 - a_max * self.dt / speed)
+        moved = self.target + self.dt * v
+        if self._fits(moved):
+            self.target = moved
+        else:
+            v[:] = 0.0
+
+    def _fits(self, xy: np.ndarray) -> bool:
+        """Whether the base centred at ``xy`` (m) stands on free grid cells only: the cells
+        under ``xy`` and under its four extreme points at the base's radius (the
+        ``base_geom`` cylinder) plus ``GUIDANCE_CLEARANCE_M`` are free."""
+        scene, r = self.scene, self._radius
+        idx = scene.world.arrangement.cell_index
+        W, H = idx.shape
+        for dx, dy in ((0.0, 0.0), (r, 0.0), (-r, 0.0), (0.0, r), (0.0, -r)):
+            gx = int(math.floor((xy[0] + dx) / scene.cell_size))
+            gy = int(math.floor((xy[1] + dy) / scene.cell_size))
+            if not (0 <= gx < W and 0 <= gy < H) or idx[gx, gy] < 0:
+                return False
+        return True
 
     def admittance_velocity(self) -> np.ndarray:
         """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
