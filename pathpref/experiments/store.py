@@ -39,7 +39,14 @@ from typing import Any
 
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
-from .trials import STUDY_TABLE_NAMES, create_study_tables, study_sql
+from .trials import (
+    STUDY_TABLE_NAMES,
+    complete_trial_columns,
+    create_study_tables,
+    missing_trial_columns,
+    study_sql,
+    trial_columns_ok,
+)
 
 #: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the physical
 #: parameters of each episode (``physics``, JSON; "" = the legacy physics of older rows), the
@@ -194,7 +201,11 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
         raise foreign(f"steps has columns {sorted(set(step_columns) - set(STEP_COLUMNS))}")
     sqls = [("meta", META_SQL), ("steps", steps_sql(step_columns)),
             ("episodes", episodes_sql(columns))]
-    sqls += [(t, study_sql(t)) for t in tables if t in STUDY_TABLE_NAMES]
+    trial_columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(trials)")] if study else []
+    if study and not trial_columns_ok(trial_columns):
+        raise foreign(f"trials has columns {trial_columns}")
+    sqls += [(t, study_sql(t, trial_columns if t == "trials" else None))
+             for t in tables if t in STUDY_TABLE_NAMES]
     for t, sql in sqls:
         if objects[("table", t)][2:] != (t, sql):
             raise foreign(f"its table {t} is not defined as pathpref defines it")
@@ -460,11 +471,16 @@ class ResultStore:
     def _complete_schema(self) -> None:
         """Bring an :data:`ADDITIVE` (schema 3 or 4) file to this schema: add the missing
         episode and step columns (NULL in the old rows, see :data:`ADDITIVE`) and, to a schema
-        3 file, the study tables."""
+        3 file, the study tables; to a schema 4 or 5 file the late ``trials`` columns it lacks
+        (:data:`~.trials.LATE_TRIAL_COLUMNS`)."""
         c = self.conn
         row = c.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         version = int(row[0])
         if version not in ADDITIVE:
+            if version == SCHEMA_VERSION and missing_trial_columns(c):
+                c.execute("BEGIN IMMEDIATE")  # another process may be adding them now
+                with c:
+                    complete_trial_columns(c)
             return
         with c:
             for table, wanted in (("episodes", EPISODE_COLUMNS), ("steps", STEP_COLUMNS)):
@@ -474,6 +490,8 @@ class ResultStore:
                         c.execute(f"ALTER TABLE {table} ADD COLUMN {name} {kind}")
             if version < STUDY_SCHEMA:
                 create_study_tables(c)
+            else:
+                complete_trial_columns(c)
             c.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
                       (str(SCHEMA_VERSION),))
 

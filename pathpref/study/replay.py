@@ -146,8 +146,19 @@ def load_trial(db: str | Path, participant: str, trial: int
               preset=r["preset"], queries=r["queries"], start=tuple(json.loads(r["start"])),
               goal=tuple(json.loads(r["goal"])), candidates=cells("candidates"),
               route=cells("route"), time_limit_s=r["time_limit_s"],
-              condition=json.loads(r["condition"] or "{}"))
+              condition=json.loads(r["condition"] or "{}"), **recorded_setup(r))
     return t, int(r["seed"]), forces, steps, r | {"rows_pushes": n_pushes, "rows_cues": n_cues}
+
+
+def recorded_setup(row: dict) -> dict:
+    """The physics and robot a trial row says ran; a row of a file written before the
+    columns existed (NULL) ran the default physics ``Physics()`` and the ``navigate`` robot."""
+    out = {}
+    if row.get("physics") is not None:
+        out["physics"] = row["physics"]
+    if row.get("robot") is not None:
+        out["robot"] = row["robot"]
+    return out
 
 
 def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
