@@ -138,16 +138,21 @@ def load_trial(db: str | Path, participant: str, trial: int
         n_pushes, n_cues = (c.execute(
             f"SELECT count(*) FROM {t} WHERE participant = ? AND trial = ?",
             (participant, trial)).fetchone()[0] for t in ("trial_pushes", "trial_cues"))
+    return (trial_from_row(r), int(r["seed"]), forces, steps,
+            r | {"rows_pushes": n_pushes, "rows_cues": n_cues})
 
+
+def trial_from_row(r: dict) -> Trial:
+    """The trial as it ran, from its ``trials`` row (settings, physics and robot)."""
     def cells(key: str) -> tuple:
         return tuple(tuple(c) for c in json.loads(r[key]))
 
-    t = Trial(index=r["study_index"], name=r["name"], map=r["map"], method=r["method"],
-              preset=r["preset"], queries=r["queries"], start=tuple(json.loads(r["start"])),
-              goal=tuple(json.loads(r["goal"])), candidates=cells("candidates"),
-              route=cells("route"), time_limit_s=r["time_limit_s"],
-              condition=json.loads(r["condition"] or "{}"), **recorded_setup(r))
-    return t, int(r["seed"]), forces, steps, r | {"rows_pushes": n_pushes, "rows_cues": n_cues}
+    return Trial(index=r["study_index"], name=r["name"], map=r["map"], method=r["method"],
+                 preset=r["preset"], queries=r["queries"],
+                 start=tuple(json.loads(r["start"])), goal=tuple(json.loads(r["goal"])),
+                 candidates=cells("candidates"), route=cells("route"),
+                 time_limit_s=r["time_limit_s"], condition=json.loads(r["condition"] or "{}"),
+                 **recorded_setup(r))
 
 
 def recorded_setup(row: dict) -> dict:
