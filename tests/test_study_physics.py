@@ -4,11 +4,13 @@ databases written before the columns existed still open, replay and take new tri
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pathpref.apps.cli import main
@@ -104,6 +106,37 @@ def test_report_separates_conditions_by_physics_and_robot(physics_db, capsys):
     assert condition_label(row | {"physics": ""}) == "compliant, legacy physics"
     assert condition_label(row | {"physics": Physics(sensor="ideal").to_json()}) == \
         "compliant, physics sensor=ideal"
+
+
+def test_report_fits_the_participants_rationality(physics_db, tmp_path, capsys):
+    """gamma_h from every recorded cue (its cell and heading) under each trial's own goal and
+    route; shown by the report and in the study CSV; a tampered heading is one line."""
+    from pathpref.study.plan import trial_from_row
+    from pathpref.study.rationality import fit_gamma, heading_log_probs, participant_fits
+
+    c = sqlite3.connect(physics_db)
+    c.row_factory = sqlite3.Row
+    logp, heads = [], []
+    for r in c.execute("SELECT * FROM trials ORDER BY trial"):
+        cues = c.execute("SELECT x, y, heading FROM trial_cues WHERE trial = ? ORDER BY k",
+                         (r["trial"],)).fetchall()
+        logp.append(heading_log_probs(trial_from_row(dict(r)), [(q[0], q[1]) for q in cues]))
+        heads += [q[2] for q in cues]
+    want = fit_gamma(np.concatenate(logp), np.array(heads))
+    fits = participant_fits(physics_db)
+    assert list(fits) == ["p1"] and fits["p1"] == want and want.n == len(heads) >= 6
+    assert main(["report", str(physics_db), "--csv", str(tmp_path / "r.csv")]) == 0
+    assert f"| p1 | {len(heads)} | {want.text()} |" in capsys.readouterr().out
+    with open(tmp_path / "r.csv") as f:
+        first = next(csv.DictReader(f))
+    assert first["group"] == "p1" and float(first["gamma_h"]) == want.gamma
+    bad = tmp_path / "bad.sqlite"
+    shutil.copy(physics_db, bad)
+    with sqlite3.connect(bad) as b:
+        b.execute("UPDATE trial_cues SET heading = 9 WHERE k = 0 AND trial = 2")
+    b.close()
+    with pytest.raises(ConfigError, match=r"trial 2 of 'p1' has a cue heading outside 0\.\.7"):
+        participant_fits(bad)
 
 
 def _strip_late_columns(db: Path) -> None:

@@ -365,3 +365,20 @@ def load_study(path: str | Path) -> Study:
     except RecursionError:
         raise ConfigError(f"{p} is nested too deeply to be a study file") from None
     return parse_study(raw, str(p), p.parent)
+
+
+def trial_from_row(r: dict[str, Any]) -> Trial:
+    """The trial as it ran, from its stored ``trials`` row (:mod:`pathpref.experiments.trials`):
+    its settings, physics and robot; a row of a file written before the ``physics`` and
+    ``robot`` columns existed (NULL) ran the default physics ``Physics()`` on the ``navigate``
+    robot."""
+    def cells(key: str) -> tuple:
+        return tuple(tuple(c) for c in json.loads(r[key]))
+
+    setup = {k: r[k] for k in ("physics", "robot") if r.get(k) is not None}
+    return Trial(index=r["study_index"], name=r["name"], map=r["map"], method=r["method"],
+                 preset=r["preset"], queries=r["queries"],
+                 start=tuple(json.loads(r["start"])), goal=tuple(json.loads(r["goal"])),
+                 candidates=cells("candidates"), route=cells("route"),
+                 time_limit_s=r["time_limit_s"], condition=json.loads(r["condition"] or "{}"),
+                 **setup)

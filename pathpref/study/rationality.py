@@ -38,8 +38,7 @@ from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import has_study_tables, read_rows
 from ..inference.human import ObservationModel, SimulatedHuman
-from .plan import Trial
-from .replay import trial_from_row
+from .plan import Trial, trial_from_row
 
 GRID_N = 401
 GRID = np.geomspace(0.1, 10.0, GRID_N)

@@ -24,7 +24,6 @@ trial is 90000 frames).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +33,7 @@ from ..experiments.store import ResultStore
 from ..experiments.trials import has_study_tables, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
-from .plan import Trial
+from .plan import Trial, trial_from_row
 from .record import PUSH_ON_N
 from .session import TrialRunner
 
@@ -141,29 +140,6 @@ def load_trial(db: str | Path, participant: str, trial: int
     return (trial_from_row(r), int(r["seed"]), forces, steps,
             r | {"rows_pushes": n_pushes, "rows_cues": n_cues})
 
-
-def trial_from_row(r: dict) -> Trial:
-    """The trial as it ran, from its ``trials`` row (settings, physics and robot)."""
-    def cells(key: str) -> tuple:
-        return tuple(tuple(c) for c in json.loads(r[key]))
-
-    return Trial(index=r["study_index"], name=r["name"], map=r["map"], method=r["method"],
-                 preset=r["preset"], queries=r["queries"],
-                 start=tuple(json.loads(r["start"])), goal=tuple(json.loads(r["goal"])),
-                 candidates=cells("candidates"), route=cells("route"),
-                 time_limit_s=r["time_limit_s"], condition=json.loads(r["condition"] or "{}"),
-                 **recorded_setup(r))
-
-
-def recorded_setup(row: dict) -> dict:
-    """The physics and robot a trial row says ran; a row of a file written before the
-    columns existed (NULL) ran the default physics ``Physics()`` and the ``navigate`` robot."""
-    out = {}
-    if row.get("physics") is not None:
-        out["physics"] = row["physics"]
-    if row.get("robot") is not None:
-        out["robot"] = row["robot"]
-    return out
 
 
 def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
