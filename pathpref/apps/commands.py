@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 from pathlib import Path
@@ -233,7 +234,11 @@ def cmd_report(args: argparse.Namespace) -> int:
     recs = load_records(args.db, exclude_failed=args.exclude_failed)
     trials = load_trials(args.db)
     if trials:
-        print(study_tables(trials) + ("\n" if recs else ""))
+        from ..study.rationality import participant_fits, rationality_table
+
+        fits = participant_fits(args.db)
+        print(study_tables(trials) + "\n\n" + rationality_table(fits)
+              + ("\n" if recs else ""))
     elif not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
     if recs:
@@ -256,6 +261,10 @@ def cmd_report(args: argparse.Namespace) -> int:
         from ..viz.plots import study_figure
 
         srecs = study_records(trials)
+        for r in srecs:  # the participant's gamma_h fit (NaN on the condition rows)
+            f = fits.get(r["group"]) if r["by"] == "participant" else None
+            r["gamma_h"], r["gamma_h_low"], r["gamma_h_high"] = (
+                (math.nan,) * 3 if f is None else (f.gamma, f.low, f.high))
 
         def beside(path: str | Path) -> Path:
             path = Path(path)

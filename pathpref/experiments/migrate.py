@@ -71,7 +71,7 @@ from .store import (
     row_spec,
     schema_version,
 )
-from .trials import STUDY_TABLE_NAMES, has_study_tables
+from .trials import STUDY_TABLE_NAMES, STUDY_TABLES, has_study_tables
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
@@ -217,9 +217,11 @@ def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[
                 f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
                 [(*s, *(None,) * (width - len(s))) for s in steps])
             for table, rows in (study or {}).items():
-                if rows:
+                if rows:  # a file without the late trials columns: NULL, as it reads
+                    n = len(next(c for t, c, _ in STUDY_TABLES if t == table))
                     store.conn.executemany(
-                        f"INSERT INTO {table} VALUES ({', '.join('?' * len(rows[0]))})", rows)
+                        f"INSERT INTO {table} VALUES ({', '.join('?' * n)})",
+                        [(*r, *(None,) * (n - len(r))) for r in rows])
         store.conn.execute("PRAGMA wal_checkpoint(TRUNCATE)")
         store.conn.execute("PRAGMA journal_mode=DELETE")
         store.close()

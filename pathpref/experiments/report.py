@@ -399,11 +399,21 @@ def load_trials(db: str | Path) -> list[dict[str, Any]]:
 
 
 def condition_label(row: dict[str, Any]) -> str:
-    """A trial's condition as ``method, label=value, ...`` (the labels of the study file)."""
+    """A trial's condition as ``method, label=value, ...`` (the labels of the study file),
+    then the physics and robot when they are not the defaults (:func:`physics_label`, e.g.
+    ``physics sensor=ideal``; ``robot=carry``), so trials that ran different physics or robots
+    never share a group. A row written before the columns existed (NULL) ran the defaults."""
     import json
 
     labels = json.loads(row["condition"] or "{}")
-    return ", ".join([row["method"], *(f"{k}={v}" for k, v in sorted(labels.items()))])
+    parts = [row["method"], *(f"{k}={v}" for k, v in sorted(labels.items()))]
+    if row.get("physics") is not None:  # NULL: a row written before the column, default
+        physics = physics_label(row["physics"])
+        if physics != "default physics":
+            parts.append(physics)
+    if row.get("robot") not in (None, "navigate"):
+        parts.append(f"robot={row['robot']}")
+    return ", ".join(parts)
 
 
 #: fewer values than this get a mean and no interval (a t interval at n = 2 spans

@@ -39,14 +39,22 @@ from typing import Any
 
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
-from .trials import STUDY_TABLE_NAMES, create_study_tables, study_sql
+from .trials import (
+    STUDY_TABLE_NAMES,
+    complete_trial_columns,
+    create_study_tables,
+    missing_trial_columns,
+    study_sql,
+    trial_columns_ok,
+)
 
 #: 2: per-episode physical metrics (JSON); 3: keys by map content hash; 4: the physical
 #: parameters of each episode (``physics``, JSON; "" = the legacy physics of older rows), the
 #: belief's preference prior (``prior``; empty = the independent one older rows ran with) and
 #: the study tables (trials with people, :mod:`.trials`); 5: ``homotopy_success`` per episode,
 #: the human's push rule (``push_rule``; empty = the periodic human of older rows) and
-#: ``is_intervention`` per step
+#: ``is_intervention`` per step (and, added later in place, the late ``trials`` columns
+#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`)
 SCHEMA_VERSION = 5
 UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: older schemas whose tables are a subset of this one's: read as they are; opened for writing
@@ -194,7 +202,11 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
         raise foreign(f"steps has columns {sorted(set(step_columns) - set(STEP_COLUMNS))}")
     sqls = [("meta", META_SQL), ("steps", steps_sql(step_columns)),
             ("episodes", episodes_sql(columns))]
-    sqls += [(t, study_sql(t)) for t in tables if t in STUDY_TABLE_NAMES]
+    trial_columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(trials)")] if study else []
+    if study and not trial_columns_ok(trial_columns):
+        raise foreign(f"trials has columns {trial_columns}")
+    sqls += [(t, study_sql(t, trial_columns if t == "trials" else None))
+             for t in tables if t in STUDY_TABLE_NAMES]
     for t, sql in sqls:
         if objects[("table", t)][2:] != (t, sql):
             raise foreign(f"its table {t} is not defined as pathpref defines it")
@@ -460,11 +472,16 @@ class ResultStore:
     def _complete_schema(self) -> None:
         """Bring an :data:`ADDITIVE` (schema 3 or 4) file to this schema: add the missing
         episode and step columns (NULL in the old rows, see :data:`ADDITIVE`) and, to a schema
-        3 file, the study tables."""
+        3 file, the study tables; to a schema 4 or 5 file the late ``trials`` columns it lacks
+        (:data:`~.trials.LATE_TRIAL_COLUMNS`)."""
         c = self.conn
         row = c.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         version = int(row[0])
         if version not in ADDITIVE:
+            if version == SCHEMA_VERSION and missing_trial_columns(c):
+                c.execute("BEGIN IMMEDIATE")  # another process may be adding them now
+                with c:
+                    complete_trial_columns(c)
             return
         with c:
             for table, wanted in (("episodes", EPISODE_COLUMNS), ("steps", STEP_COLUMNS)):
@@ -474,6 +491,8 @@ class ResultStore:
                         c.execute(f"ALTER TABLE {table} ADD COLUMN {name} {kind}")
             if version < STUDY_SCHEMA:
                 create_study_tables(c)
+            else:
+                complete_trial_columns(c)
             c.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
                       (str(SCHEMA_VERSION),))
 

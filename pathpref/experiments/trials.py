@@ -39,7 +39,8 @@ STUDY_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
         ("status", "TEXT"), ("outcome", "TEXT"), ("success", "INTEGER"), ("time_s", "REAL"),
         ("steps", "INTEGER"), ("pushes", "INTEGER"), ("cues", "INTEGER"),
         ("effort_ns", "REAL"), ("violations", "INTEGER"), ("rerun", "TEXT"),
-        ("started_utc", "TEXT"), ("wall_s", "REAL")), "participant, trial"),
+        ("started_utc", "TEXT"), ("wall_s", "REAL"), ("physics", "TEXT"), ("robot", "TEXT")),
+        "participant, trial"),
     ("trial_steps", (
         ("participant", "TEXT"), ("trial", "INTEGER"), ("t", "INTEGER"), ("time_s", "REAL"),
         ("x", "INTEGER"), ("y", "INTEGER"), ("action", "INTEGER"), ("p_goal", "REAL"),
@@ -63,13 +64,41 @@ STUDY_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
 )
 STUDY_TABLE_NAMES = tuple(t for t, _, _ in STUDY_TABLES)
 TRIAL_COLUMNS = tuple(c for c, _ in STUDY_TABLES[0][1])
+#: the last columns of ``trials``, added to schema 5 after its first study files were written:
+#: a file may lack them (read as it is; added in place when opened for writing, NULL in the
+#: old rows: the default physics ``Physics()`` and the ``navigate`` robot those trials ran)
+LATE_TRIAL_COLUMNS = ("physics", "robot")
 
 
-def study_sql(table: str) -> str:
-    """The ``CREATE TABLE`` statement of one study table."""
+def study_sql(table: str, columns: Sequence[str] | None = None) -> str:
+    """The ``CREATE TABLE`` statement of one study table with ``columns`` (all of them by
+    default), as SQLite stores it, also after ``ALTER TABLE ADD COLUMN`` (new columns go
+    before the primary key)."""
     cols, pk = next((c, pk) for t, c, pk in STUDY_TABLES if t == table)
-    return (f"CREATE TABLE {table} ({', '.join(f'{c} {ty}' for c, ty in cols)}, "
+    types = dict(cols)
+    names = [c for c, _ in cols] if columns is None else list(columns)
+    return (f"CREATE TABLE {table} ({', '.join(f'{c} {types[c]}' for c in names)}, "
             f"PRIMARY KEY ({pk}))")
+
+
+def trial_columns_ok(columns: Sequence[str]) -> bool:
+    """``columns`` (of a stored ``trials`` table) are pathpref's, the late ones
+    (:data:`LATE_TRIAL_COLUMNS`) possibly missing from the end."""
+    n = len(TRIAL_COLUMNS) - len(LATE_TRIAL_COLUMNS)
+    return len(columns) >= n and tuple(columns) == TRIAL_COLUMNS[:len(columns)]
+
+
+def missing_trial_columns(conn: sqlite3.Connection) -> list[str]:
+    """The late ``trials`` columns (:data:`LATE_TRIAL_COLUMNS`) the file lacks."""
+    have = {r[1] for r in conn.execute("PRAGMA table_xinfo(trials)")}
+    return [c for c in LATE_TRIAL_COLUMNS if c not in have]
+
+
+def complete_trial_columns(conn: sqlite3.Connection) -> None:
+    """Add the late ``trials`` columns the file lacks (inside the caller's transaction)."""
+    types = dict(STUDY_TABLES[0][1])
+    for c in missing_trial_columns(conn):
+        conn.execute(f"ALTER TABLE trials ADD COLUMN {c} {types[c]}")
 
 
 def create_study_tables(conn: sqlite3.Connection) -> None:

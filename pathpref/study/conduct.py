@@ -257,7 +257,8 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
         "preset": trial.preset, "queries": trial.queries, "start": dumps(trial.start),
         "goal": dumps(trial.goal), "candidates": dumps(trial.candidates),
         "route": dumps(trial.route), "time_limit_s": trial.time_limit_s, "seed": study.seed,
-        "rerun": str(rerun), "started_utc": datetime.now(UTC).isoformat(timespec="seconds")})
+        "rerun": str(rerun), "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "physics": trial.physics, "robot": trial.robot})
     recorder = TrialRecorder(writer, position, runner, rerun)
     wall = time.perf_counter()
     while not runner.done:

@@ -23,7 +23,15 @@ Per trial (a field missing from a trial is taken from ``defaults``):
   (:func:`~pathpref.geometry.preference.preference_from_route`, open route) counts violations;
 * ``time_limit_s`` (1..3600): simulated seconds (real seconds for a person);
 * ``condition``: labels (strings) for the analysis; ``"belief": "hidden"`` hides the robot's
-  goal probabilities from the participant (shown otherwise).
+  goal probabilities from the participant (shown otherwise);
+* ``physics``: the physical parameters the trial runs with, an object of
+  :class:`~pathpref.episode.physics.Physics` flat fields (``{"sensor": "ideal"}``, ``{"base":
+  "diffdrive", "v_max": 0.8}``; the fields left out keep their defaults) or ``"legacy"`` (the
+  ideal sensor and original base of the first studies); default: ``Physics()``, as every
+  door's. The simulated human's fields (``timing``, ``gamma_h``, ...) are refused: a trial's
+  human is the participant;
+* ``robot``: ``navigate`` (the base) or ``carry`` (the Jaco arm on the base; the participant
+  pushes its tray); default ``navigate``.
 
 ``questionnaire``: ``"nasa-tlx"`` has the browser ask the NASA-TLX (six 0..100 scales) after
 every trial; the answers are recorded per participant (:mod:`.conduct`).
@@ -48,7 +56,9 @@ from typing import Any
 
 import numpy as np
 
-from ..episode import cached_world
+from ..episode import EpisodeSpec, cached_world
+from ..episode.instances import seed_for
+from ..episode.physics import FIELDS, Physics
 from ..errors import ConfigError, PathprefError
 from ..geometry.preference import preference_from_route
 from ..geometry.world import World
@@ -56,11 +66,13 @@ from ..planning.pomdp import DEFAULT_PRESET, PRESETS
 
 STUDY_METHODS = ("compliant", "goal_only", "path_preference", "blended")
 TRIAL_FIELDS = {"name", "map", "method", "preset", "queries", "start", "goal", "candidates",
-                "route", "time_limit_s", "condition"}
+                "route", "time_limit_s", "condition", "physics", "robot"}
 #: what a trial (and the study's ``defaults``) leaves out: the planner's defaults are every
 #: door's (``pathpref.planning.pomdp.DEFAULT_PRESET`` and its queries; None: the preset's)
 DEFAULTS = {"method": "path_preference", "preset": DEFAULT_PRESET, "queries": None,
-            "time_limit_s": 60.0, "condition": {}}
+            "time_limit_s": 60.0, "condition": {}, "physics": None, "robot": "navigate"}
+#: the robots of a trial: the MuJoCo body's tasks (``pathpref.sim.body.MujocoBody.tasks``)
+STUDY_ROBOTS = ("navigate", "carry")
 MAX_TRIALS = 1000
 
 
@@ -80,6 +92,9 @@ class Trial:
     route: tuple[tuple[int, int], ...]
     time_limit_s: float
     condition: dict[str, str] = field(default_factory=dict, hash=False, compare=False)
+    #: canonical JSON of the trial's :class:`~pathpref.episode.physics.Physics` ("": legacy)
+    physics: str = field(default_factory=lambda: Physics().to_json())
+    robot: str = "navigate"
 
     @property
     def show_belief(self) -> bool:
@@ -95,6 +110,20 @@ class Trial:
     def goal_index(self) -> int:
         """Index of the goal among the candidates."""
         return self.candidates.index(self.goal)
+
+    def episode_spec(self, seed: int) -> EpisodeSpec:
+        """The trial as an episode of the MuJoCo body (the robot infers over the candidates
+        from the start, one decision step per input, seeds from the study's ``seed`` and the
+        trial's index): what :class:`~.session.TrialRunner` runs."""
+        fixed = json.dumps({"start": list(self.start), "goals": [list(c) for c in
+                                                                  self.candidates],
+                            "true_goal": self.goal_index}, sort_keys=True)
+        return EpisodeSpec(map=self.map, method=self.method, delta_t=1, instance=self.index,
+                           run=0, instance_seed=seed_for(seed, self.index),
+                           run_seed=seed_for(seed, self.index, 0), preset=self.preset,
+                           queries=self.queries, t_max=self.world.spec.t_max,
+                           n_goals=len(self.candidates), sim="mujoco", fixed=fixed,
+                           physics=self.physics, robot=self.robot)
 
     def route_preference(self) -> np.ndarray:
         """The preference the route conveys, per polytope (-1: none): the open-route rule."""
@@ -241,12 +270,41 @@ def _trial(i: int, raw: Any, defaults: dict[str, Any], folder: Path) -> Trial:
     if cond.get("belief", "shown") not in ("shown", "hidden"):
         raise ConfigError(f"{where}.condition.belief must be shown or hidden")
     trial = Trial(i, name, m, t["method"], t["preset"], q, start, goal, tuple(cands),
-                  tuple(route), float(lim), dict(cond))
+                  tuple(route), float(lim), dict(cond), _physics(t["physics"], where),
+                  _robot(t["robot"], where))
     try:
         trial.route_preference()
     except PathprefError as e:
         raise ConfigError(f"{where}.route: {e}") from None
+    try:
+        trial.episode_spec(0).validate()
+    except PathprefError as e:
+        raise ConfigError(f"{where}: {e}") from None
     return trial
+
+
+def _physics(value: Any, where: str) -> str:
+    """The canonical ``physics`` of a trial field (module docstring)."""
+    if value is None or value == "legacy":
+        return Physics.coerce(value)
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}.physics must be an object of physics fields, e.g. "
+                          '{"sensor": "realistic"}, or "legacy"')
+    human = sorted(k for k in value if FIELDS.get(k, ("",))[0] == "human")
+    if human:
+        raise ConfigError(f"{where}.physics.{human[0]} is the simulated human's; a trial's "
+                          "human is the participant: leave it out")
+    try:
+        return Physics.coerce(value)
+    except PathprefError as e:
+        raise ConfigError(f"{where}.{e}") from None
+
+
+def _robot(value: Any, where: str) -> str:
+    if value not in STUDY_ROBOTS:
+        raise ConfigError(f"{where}.robot must be {' or '.join(STUDY_ROBOTS)}, got "
+                          f"{str(value)[:40]!r}")
+    return value
 
 
 def parse_study(raw: Any, path: str = "<study>", folder: Path | None = None) -> Study:
@@ -307,3 +365,20 @@ def load_study(path: str | Path) -> Study:
     except RecursionError:
         raise ConfigError(f"{p} is nested too deeply to be a study file") from None
     return parse_study(raw, str(p), p.parent)
+
+
+def trial_from_row(r: dict[str, Any]) -> Trial:
+    """The trial as it ran, from its stored ``trials`` row (:mod:`pathpref.experiments.trials`):
+    its settings, physics and robot; a row of a file written before the ``physics`` and
+    ``robot`` columns existed (NULL) ran the default physics ``Physics()`` on the ``navigate``
+    robot."""
+    def cells(key: str) -> tuple:
+        return tuple(tuple(c) for c in json.loads(r[key]))
+
+    setup = {k: r[k] for k in ("physics", "robot") if r.get(k) is not None}
+    return Trial(index=r["study_index"], name=r["name"], map=r["map"], method=r["method"],
+                 preset=r["preset"], queries=r["queries"],
+                 start=tuple(json.loads(r["start"])), goal=tuple(json.loads(r["goal"])),
+                 candidates=cells("candidates"), route=cells("route"),
+                 time_limit_s=r["time_limit_s"], condition=json.loads(r["condition"] or "{}"),
+                 **setup)

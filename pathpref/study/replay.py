@@ -24,7 +24,6 @@ trial is 90000 frames).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +33,7 @@ from ..experiments.store import ResultStore
 from ..experiments.trials import has_study_tables, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
-from .plan import Trial
+from .plan import Trial, trial_from_row
 from .record import PUSH_ON_N
 from .session import TrialRunner
 
@@ -138,16 +137,9 @@ def load_trial(db: str | Path, participant: str, trial: int
         n_pushes, n_cues = (c.execute(
             f"SELECT count(*) FROM {t} WHERE participant = ? AND trial = ?",
             (participant, trial)).fetchone()[0] for t in ("trial_pushes", "trial_cues"))
+    return (trial_from_row(r), int(r["seed"]), forces, steps,
+            r | {"rows_pushes": n_pushes, "rows_cues": n_cues})
 
-    def cells(key: str) -> tuple:
-        return tuple(tuple(c) for c in json.loads(r[key]))
-
-    t = Trial(index=r["study_index"], name=r["name"], map=r["map"], method=r["method"],
-              preset=r["preset"], queries=r["queries"], start=tuple(json.loads(r["start"])),
-              goal=tuple(json.loads(r["goal"])), candidates=cells("candidates"),
-              route=cells("route"), time_limit_s=r["time_limit_s"],
-              condition=json.loads(r["condition"] or "{}"))
-    return t, int(r["seed"]), forces, steps, r | {"rows_pushes": n_pushes, "rows_cues": n_cues}
 
 
 def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,

@@ -7,6 +7,10 @@ robot feels it only through its handle force sensor -> cue detector -> heading, 
 simulated push; each cue is given to the belief the moment it is detected (at the cell the base
 is in), so the next decision plans from it.
 
+The trial's physics and robot (:meth:`~.plan.Trial.episode_spec`) build the body as at every
+door (:class:`~pathpref.sim.body.MujocoBody`: the sensing chain, detector, drive and, for
+``carry``, the arm whose tray the participant pushes).
+
 The robot is told nothing else: not the trial's goal, not its route. It infers over the trial's
 goal candidates and plans with a receding horizon of the map's ``t_max`` decision steps. No
 candidate is ruled out when the robot drives over it.
@@ -22,15 +26,13 @@ machine allows.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
 
-from ..episode import EpisodeRunner, EpisodeSpec, Felt, simulator_rng
-from ..episode.instances import seed_for
+from ..episode import EpisodeRunner, Felt, simulator_rng
 from ..geometry.grid import STAY
 from ..sim.body import MujocoBody
 from ..sim.mobile_base import MobileBase
@@ -75,6 +77,10 @@ class StudyBody(MujocoBody):
             return self.applied
         return self.base.data.xfrc_applied[self.base.pushed_body, :2].copy()
 
+    def attach_human(self, heading_at, probs) -> bool:
+        """No simulated human: the participant pushes (whatever the physics' timing)."""
+        return False
+
     def push(self, heading: int) -> None:
         """Not used in a trial: the person pushes, and the cues reach the runner's door as
         they are read."""
@@ -93,15 +99,7 @@ class TrialRunner(EpisodeRunner):
 
     def __init__(self, trial: Trial, seed: int, source: PushSource | None = None):
         world = trial.world
-        fixed = json.dumps({"start": list(trial.start), "goals": [list(c) for c in
-                                                                   trial.candidates],
-                            "true_goal": trial.goal_index}, sort_keys=True)
-        spec = EpisodeSpec(map=trial.map, method=trial.method, delta_t=1,
-                           instance=trial.index, run=0,
-                           instance_seed=seed_for(seed, trial.index),
-                           run_seed=seed_for(seed, trial.index, 0), preset=trial.preset,
-                           queries=trial.queries, t_max=world.spec.t_max,
-                           n_goals=len(trial.candidates), sim="mujoco", fixed=fixed)
+        spec = trial.episode_spec(seed)
         self.trial = trial
         body = StudyBody(world, spec, simulator_rng(spec), source)
         self.cues: list[tuple[float, int, Felt]] = []  # (trial time, cell, cue)
