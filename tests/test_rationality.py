@@ -120,3 +120,31 @@ def test_one_gamma_is_the_plain_belief(simple):
     for v in range(simple.n_polytopes):
         assert np.allclose(mix.local_given_goal(v), plain.local_given_goal(v), atol=1e-12)
     assert mix.observed_polytopes() == plain.observed_polytopes()
+
+
+def test_learned_gamma_is_a_prior_option_with_its_own_key():
+    """``prior='learned-gamma'`` builds the mixture over the grid (the preset's coupling), is in
+    the key (the default prior's keys are unchanged), and an episode of a human with gamma 0.5
+    (5), pushing every step, ends with most weight on that value."""
+    from pathpref.episode import EpisodeSpec
+    from pathpref.episode.runner import EpisodeRunner
+
+    plain = EpisodeSpec.single("simple", "path_preference", 1, preset="paper", queries=300)
+    assert "prior" not in plain.key()
+    for true_gamma, seed in ((0.5, 0), (5.0, 1)):
+        spec = EpisodeSpec.single("simple", "path_preference", 1, seed=seed, preset="paper",
+                                  queries=300, prior="learned-gamma",
+                                  physics=f'{{"gamma_h": {true_gamma}}}')
+        assert "|prior=learned-gamma|" in spec.key()
+        runner = EpisodeRunner(spec)
+        belief = runner.policy.belief
+        assert isinstance(belief, GammaBelief)
+        assert [b.model.gamma for b in belief.inner] == list(GAMMA_GRID)
+        assert all(b.coupling for b in belief.inner)  # the paper preset's coupling
+        assert belief.inner[1].model is runner.model  # the assumed gamma's tables reused
+        for _ in range(spec.t_max):  # bounded: the episode ends by t_max
+            if runner.done:
+                break
+            runner.step()
+        assert runner.done
+        assert belief.gamma_marginal()[GAMMA_GRID.index(true_gamma)] > 0.9

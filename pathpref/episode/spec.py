@@ -126,9 +126,11 @@ class EpisodeSpec:
     #: A grid episode takes the human's settings only (``gamma_h`` ...; physics.grid_human).
     #: Parsed once into ``physical`` and ``human_model`` (typed, not fields)
     physics: str | None = None
-    #: the path-preference belief's prior: "independent" (the paper's) or "routes"
-    #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
-    #: of episodes stored before the field existed (all independent) stay as they were
+    #: the path-preference belief's prior: "independent" (the paper's), "routes"
+    #: (:mod:`pathpref.inference.routes`) or "learned-gamma" (independent, the human's
+    #: rationality inferred too: :mod:`pathpref.inference.rationality`); left out of the key
+    #: when "independent", so the keys of episodes stored before the field existed (all
+    #: independent) stay as they were
     prior: str | None = None
     #: when the human pushes: "" every delta_t steps (the paper's), or the corrective human's
     #: rule ``corrective delay=D miss=M`` (:mod:`.corrective`; delta_t 1); left out of the key
