@@ -9,7 +9,14 @@ from typing import Any
 
 from ..errors import ConfigError, PathprefError
 from ..geometry.maps import MAX_T_MAX
-from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS, Preset, get_preset
+from ..planning.pomdp import (
+    DEFAULT_PRESET,
+    PRESETS,
+    PRIOR_CHOICES,
+    PRIORS,
+    Preset,
+    get_preset,
+)
 from .cache import cached_map
 from .corrective import parse_push_rule
 from .instances import HUMANS, seed_for
@@ -257,7 +264,7 @@ class EpisodeSpec:
             if not isinstance(value, str):
                 raise ConfigError(f"{option} must be a string, got {_show(value)}")
         if self.prior not in PRIORS:
-            raise ConfigError(f"unknown prior '{self.prior}'; choose {' or '.join(PRIORS)}")
+            raise ConfigError(f"unknown prior '{self.prior}'; choose {PRIOR_CHOICES}")
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")

@@ -92,6 +92,8 @@ class Preset:
 
 #: the preference priors of the path-preference belief (:attr:`Preset.prior`)
 PRIORS = ("independent", "routes", "learned-gamma")
+#: the priors as an error message lists them
+PRIOR_CHOICES = ", ".join(PRIORS[:-1]) + " or " + PRIORS[-1]
 
 
 PRESETS: dict[str, Preset] = {
@@ -132,7 +134,7 @@ def get_preset(name: str, **overrides) -> Preset:
     if name not in PRESETS:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
     if overrides.get("prior") not in (None, *PRIORS):
-        raise ConfigError(f"unknown prior '{overrides['prior']}'; choose {' or '.join(PRIORS)}")
+        raise ConfigError(f"unknown prior '{overrides['prior']}'; choose {PRIOR_CHOICES}")
     preset = PRESETS[name]
     overrides = {k: v for k, v in overrides.items() if v is not None}
     return replace(preset, **overrides) if overrides else preset
