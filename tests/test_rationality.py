@@ -3,6 +3,8 @@ over the grid x 10 goals x all 2^8 preferences of simple."""
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -148,3 +150,35 @@ def test_learned_gamma_is_a_prior_option_with_its_own_key():
             runner.step()
         assert runner.done
         assert belief.gamma_marginal()[GAMMA_GRID.index(true_gamma)] > 0.9
+
+
+def test_route_belief_evidence_is_the_log_normaliser(simple):
+    """``RouteBelief.log_joint`` is absolutely scaled too: its log-sum-exp over goals equals
+    ``log P(o_1:t)`` under the route prior, enumerated (every tree toward each goal's polytope,
+    uniform, uniform goals)."""
+    from pathpref.inference.routes import RouteBelief
+
+    from .test_routes import is_tree, observations
+
+    rng = np.random.default_rng(2)
+    goals = rng.choice(simple.n_cells, size=4, replace=False)
+    model = ObservationModel.build(simple, goals, gamma=5.0)
+    obs = observations(simple, model, rng, 30)
+    b = RouteBelief(model)
+    for s, h in obs:
+        b.update(s, h)
+    nbrs = simple.graph.neighbors
+    thetas = np.array(list(itertools.product(*[range(len(n)) for n in nbrs])))
+    loglik = np.zeros((4, len(thetas)))
+    for s, h in obs:
+        loglik += np.log(model.likelihood[s, h][:, thetas[:, simple.cell_polytope[s]]])
+    top = loglik.max()
+    total = 0.0
+    for g, r in enumerate(simple.cell_polytope[goals]):
+        keep = np.array([t[r] == 0 and is_tree(t, r, nbrs) for t in thetas])
+        total += (np.exp(loglik[g] - top) * keep).sum() / keep.sum() / 4
+    want = top + np.log(total)
+    lj = b.log_joint()
+    got = lj.max() + np.log(np.exp(lj - lj.max()).sum())
+    assert want < -10  # far from 0: a missing scale would show
+    assert got == pytest.approx(want, rel=1e-9)
