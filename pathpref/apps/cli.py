@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 
 from ..errors import PathprefError
-from ..planning.pomdp import DEFAULT_PRESET, PRESETS
+from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS
 from . import commands as c
 from .checks import RangeAction, atomic_output, check_writable, is_disk_full, write_error
 from .physics_args import physics_options
@@ -117,10 +117,11 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
-        sp.add_argument("--prior", choices=["independent", "routes"], default=None,
+        sp.add_argument("--prior", choices=list(PRIORS), default=None,
                         help="the path-preference belief's prior (default: the preset's; "
                         "independent for paper and original, routes for robust: preferences "
-                        "that lead to the goal)")
+                        "that lead to the goal; learned-gamma: independent, with the human's "
+                        "rationality inferred over 0.5, 1.5, 5)")
         sp.add_argument("--ucb-c", action=RangeAction, limits="ucb_c", default=None,
                         help="POMCP UCB constant (the preset's: 1)")
         sp.add_argument("--episode-timeout", action=RangeAction, limits="episode_timeout",

@@ -9,7 +9,14 @@ from typing import Any
 
 from ..errors import ConfigError, PathprefError
 from ..geometry.maps import MAX_T_MAX
-from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS, Preset, get_preset
+from ..planning.pomdp import (
+    DEFAULT_PRESET,
+    PRESETS,
+    PRIOR_CHOICES,
+    PRIORS,
+    Preset,
+    get_preset,
+)
 from .cache import cached_map
 from .corrective import parse_push_rule
 from .instances import HUMANS, seed_for
@@ -126,9 +133,11 @@ class EpisodeSpec:
     #: A grid episode takes the human's settings only (``gamma_h`` ...; physics.grid_human).
     #: Parsed once into ``physical`` and ``human_model`` (typed, not fields)
     physics: str | None = None
-    #: the path-preference belief's prior: "independent" (the paper's) or "routes"
-    #: (:mod:`pathpref.inference.routes`); left out of the key when "independent", so the keys
-    #: of episodes stored before the field existed (all independent) stay as they were
+    #: the path-preference belief's prior: "independent" (the paper's), "routes"
+    #: (:mod:`pathpref.inference.routes`) or "learned-gamma" (independent, the human's
+    #: rationality inferred too: :mod:`pathpref.inference.rationality`); left out of the key
+    #: when "independent", so the keys of episodes stored before the field existed (all
+    #: independent) stay as they were
     prior: str | None = None
     #: when the human pushes: "" every delta_t steps (the paper's), or the corrective human's
     #: rule ``corrective delay=D miss=M`` (:mod:`.corrective`; delta_t 1); left out of the key
@@ -255,7 +264,7 @@ class EpisodeSpec:
             if not isinstance(value, str):
                 raise ConfigError(f"{option} must be a string, got {_show(value)}")
         if self.prior not in PRIORS:
-            raise ConfigError(f"unknown prior '{self.prior}'; choose {' or '.join(PRIORS)}")
+            raise ConfigError(f"unknown prior '{self.prior}'; choose {PRIOR_CHOICES}")
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")

@@ -166,6 +166,9 @@ class PreferenceBelief(Belief):
         self.log_scale: dict[int, np.ndarray] = {}  # per table row, see _multiply
         self.log_rowmean = np.zeros(G)  # sum over visited v of log r_v(g)
         self.ruled_out = np.zeros(G, dtype=bool)
+        #: the sum of the whole-table scales ``log top`` taken out by :meth:`_multiply` (the
+        #: same for every goal, so the goal marginal never needs it; :meth:`log_joint` does)
+        self.log_top = 0.0
         self.coupling = coupling
         self.cell_polytope = world.cell_polytope
 
@@ -196,6 +199,7 @@ class PreferenceBelief(Belief):
             if top > 0:
                 t /= top
                 self.log_scale[v] += np.log(top)
+                self.log_top += float(np.log(top))
             self.log_rowmean += np.log(t.mean(axis=1)) - old
             row = t.max(axis=1)
             low = row < ROW_RESCALE
@@ -241,6 +245,14 @@ class PreferenceBelief(Belief):
         """``log P0(g) + lw(g)`` (unnormalised), ``-inf`` for ruled-out candidates."""
         w = self.log_prior + self.log_rowmean
         return np.where(self.ruled_out, -np.inf, w)
+
+    def log_joint(self) -> np.ndarray:
+        """``log P0(g) + log P(o_1:t | g)``, absolutely scaled (not up to a constant), ``-inf``
+        for ruled-out candidates: ``lw(g) = sum_v log mean_k T_v(g, k)`` plus the table scales
+        :attr:`log_top` (every factor :meth:`_multiply` took out of a table, the same for every
+        goal; a row's own rescale is already in ``lw``). Its log-sum-exp over goals is the
+        evidence ``log P(o_1:t)`` (:mod:`.rationality`)."""
+        return self.goal_log_weights() + self.log_top
 
     def goal_marginal(self) -> np.ndarray:
         """``P(g | o_1:t)``."""

@@ -195,6 +195,11 @@ class RouteBelief(PreferenceBelief):
         w = self.log_prior + np.array([ll for ll, _ in self._solved()])
         return np.where(self.ruled_out | np.isnan(w), -np.inf, w)
 
+    def log_joint(self) -> np.ndarray:
+        """``log P0(g) + log P(o_1:t | g)``, absolutely scaled: :meth:`goal_log_weights`
+        already holds every row's scale (``log_scale``, the table scales included)."""
+        return self.goal_log_weights()
+
     def preference_given_goal(self, v: int) -> np.ndarray:
         """``(G, deg v)`` exact ``P(p_v = N(v)[k] | g, o_1:t)`` under the route prior (uniform
         outside the goal's component; the goal's own polytope has no preferred exit, shown as

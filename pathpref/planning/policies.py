@@ -32,6 +32,7 @@ from ..geometry.grid import STAY
 from ..geometry.world import World
 from ..inference.belief import Belief, GoalBelief, PreferenceBelief
 from ..inference.human import ObservationModel
+from ..inference.rationality import GammaBelief
 from ..inference.routes import RouteBelief
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
@@ -56,11 +57,14 @@ class PolicyContext:
     true_preference: np.ndarray | None = None
 
 
-def preference_belief(ctx: PolicyContext, prior: np.ndarray | None = None) -> PreferenceBelief:
+def preference_belief(ctx: PolicyContext, prior: np.ndarray | None = None) -> Belief:
     """The path-preference belief of the preset's prior (``independent``, with the preset's
-    coupling, or ``routes``), with goal prior ``prior`` (uniform when None)."""
+    coupling, ``routes``, or ``learned-gamma``: the independent one over a grid of the human's
+    rationality, with the preset's coupling), with goal prior ``prior`` (uniform when None)."""
     if ctx.preset.prior == "routes":
         return RouteBelief(ctx.model, prior=prior)
+    if ctx.preset.prior == "learned-gamma":
+        return GammaBelief.independent(ctx.model, prior=prior, coupling=ctx.preset.coupling)
     return PreferenceBelief(ctx.model, prior=prior, coupling=ctx.preset.coupling)
 
 

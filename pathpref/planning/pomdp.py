@@ -65,7 +65,10 @@ class Preset:
             prior instead).
         prior: the preference prior of the path-preference belief: ``independent`` (the
             paper's: each ``p_v`` uniform and independent) or ``routes`` (preferences form a
-            tree toward the goal, :mod:`pathpref.inference.routes`; exact posterior).
+            tree toward the goal, :mod:`pathpref.inference.routes`; exact posterior) or
+            ``learned-gamma`` (the independent prior, with the human's rationality ``gamma``
+            inferred too: uniform over :data:`pathpref.inference.rationality.GAMMA_GRID`,
+            exact posterior, :mod:`pathpref.inference.rationality`).
         queries: POMCP simulations per decision (the cap under a time budget).
         ucb_c: UCB exploration constant.
         time_budget_ms: robust search's wall-time budget per decision (0: ``queries`` only).
@@ -88,7 +91,9 @@ class Preset:
 
 
 #: the preference priors of the path-preference belief (:attr:`Preset.prior`)
-PRIORS = ("independent", "routes")
+PRIORS = ("independent", "routes", "learned-gamma")
+#: the priors as an error message lists them
+PRIOR_CHOICES = ", ".join(PRIORS[:-1]) + " or " + PRIORS[-1]
 
 
 PRESETS: dict[str, Preset] = {
@@ -129,7 +134,7 @@ def get_preset(name: str, **overrides) -> Preset:
     if name not in PRESETS:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
     if overrides.get("prior") not in (None, *PRIORS):
-        raise ConfigError(f"unknown prior '{overrides['prior']}'; choose {' or '.join(PRIORS)}")
+        raise ConfigError(f"unknown prior '{overrides['prior']}'; choose {PRIOR_CHOICES}")
     preset = PRESETS[name]
     overrides = {k: v for k, v in overrides.items() if v is not None}
     return replace(preset, **overrides) if overrides else preset
