@@ -96,6 +96,8 @@ CONDITIONS = {
     "anytime": ("mujoco", Physics.of(timing="interval").to_json()),
     "diffdrive": ("mujoco", Physics.of(base="diffdrive").to_json()),
     "guidance": ("mujoco", Physics.of(timing="guidance").to_json()),
+    # a sensor warming up after it was zeroed: 20 N of offset, time constant 120 s
+    "thermal": ("mujoco", Physics.of(sensor_thermal_n=20.0).to_json()),
     # does push strength help the observation model? a human who pushes harder when surer
     # (strength_confidence 1), the robot ignoring or using the strength
     "strength-ignored": ("mujoco", Physics.of(strength_confidence=1.0).to_json()),

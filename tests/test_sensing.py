@@ -336,3 +336,28 @@ def test_resting_hand_then_push_on_the_realistic_base(hand_heading):
 
     for seed in (0, 2):
         assert resting_hand_push(heading=2, hand_heading=hand_heading, seed=seed) == [2]
+
+
+def test_thermal_offset_grows_after_zeroing(scene):
+    """``thermal_n``: after a restart (zeroing) the reading at rest moves by ``thermal_n (1 -
+    exp(-t / THERMAL_S))`` in one horizontal direction: 10 N after 60 s of samples is
+    10 (1 - e^-0.5) = 3.93 N; none at the start. No other fault, so exactly that."""
+    from pathpref.sim.sensing import THERMAL_S, FaultySensor, HandleSensor
+
+    base = MobileBase(scene)
+    base.reset(scene.world.cell((1, 1)))
+    sensor = FaultySensor(scene.model, HandleSensor(scene.model), base.pushed_body,
+                          SensorModel(thermal_n=10.0, rate_hz=100.0), np.random.default_rng(0))
+    first = sensor.read_still(base.data).copy()
+    for _ in range(5999):
+        last = sensor.read_still(base.data)
+    raw = HandleSensor(scene.model)
+    still = base.data.sensordata[raw.adr:raw.adr + 3]
+    def warm(t):
+        return 10 * (1 - np.exp(-t / THERMAL_S))
+
+    assert np.linalg.norm((first - still)[:2]) == pytest.approx(warm(0.01), rel=1e-6)
+    assert np.linalg.norm((last - still)[:2]) == pytest.approx(warm(60.0), rel=1e-6)
+    assert abs(last[2] - still[2]) < 1e-12
+    sensor.restart()  # zeroed again: the warm-up starts over
+    assert np.linalg.norm((sensor.read_still(base.data) - still)[:2]) < 0.01

@@ -89,6 +89,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "v_max": (0.05, 1.5), "a_max": (0.1, 10.0), "force_limit_n": (1.0, 2000.0),
     "admittance_b": (5.0, 2000.0), "mass_kg": (20.0, 1000.0), "friction_n": (0.0, 500.0),
     "hold_s": (0.5, 10.0), "admittance_m": (1.0, 500.0), "arm_stiffness": (100.0, 20000.0),
+    "sensor_thermal_n": (0.0, 50.0),
 }
 #: the overrides that may be left at "the preset's" (stored as -1)
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
@@ -116,7 +117,7 @@ DRIVE_V_MAX = 1.5
 #: fields added after rows were stored: left out of the canonical JSON at their default, so
 #: the keys of stored episodes are unchanged
 QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0,
-                  "arm_stiffness": 1000.0}
+                  "arm_stiffness": 1000.0, "sensor_thermal_n": 0.0}
 #: the robot's model of how far a push's direction strays from the heading the human chose:
 #: von Mises concentration ``1 / sigma^2`` for the human model's default 10 degrees
 #: (:meth:`~pathpref.inference.belief.Belief.update_direction`)
@@ -181,6 +182,9 @@ class Sensing:
     off_n: float = DETECTOR["off_n"]
     off_s: float = DETECTOR["off_s"]
     use_strength: bool = False
+    #: the sensor's thermal warm-up offset after zeroing (N; :class:`~pathpref.sim.sensing.
+    #: SensorModel` ``thermal_n``; 0: none)
+    sensor_thermal_n: float = QUIET_DEFAULTS["sensor_thermal_n"]
 
     def __post_init__(self) -> None:
         _check(self)

@@ -261,6 +261,8 @@ def sensing_kwargs(physics: Physics, rng: np.random.Generator) -> dict:
     model = getattr(SensorModel, s.sensor)()
     over = {k: v for k, v in (("noise_n", s.sensor_noise_n), ("bias_n", s.sensor_bias_n),
                               ("drift_n_per_sqrt_s", s.sensor_drift_n)) if v >= 0}
+    if s.sensor_thermal_n > 0:
+        over["thermal_n"] = s.sensor_thermal_n
     model = replace(model, **over)
     return {"sensor_model": model, "rng": rng, "detector": s.detector}
 

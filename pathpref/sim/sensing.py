@@ -32,6 +32,9 @@ import numpy as np
 
 from ..errors import ConfigError
 
+#: the thermal warm-up's time constant (s; :class:`SensorModel` ``thermal_n``)
+THERMAL_S = 120.0
+
 
 class HandleSensor:
     """Reads the horizontal interaction force at a site with a force sensor."""
@@ -65,7 +68,11 @@ class SensorModel:
     ``extra_mass_kg``: mass on the sensor's tool side that the scene does not model (grip,
     tool plate): the sensor also reads ``-m_extra (a - g)``, the dynamics do not change;
     ``rate_hz``: output rate (each sample averages the physics steps since the previous one,
-    as an anti-aliasing filter does, and is held until the next); None: every physics step.
+    as an anti-aliasing filter does, and is held until the next); None: every physics step;
+    ``thermal_n``: a warm-up offset that grows after the sensor is zeroed, ``thermal_n (1 -
+    exp(-t / THERMAL_S))`` in a random horizontal direction (strain gauges warming after
+    power-up or a change of load; the time constant is an assumption, no datasheet figure), so
+    zeroing at the start does not remove it; 0: none (no random draw either).
     """
 
     noise_n: float = 0.0
@@ -74,9 +81,10 @@ class SensorModel:
     inertia: bool = True
     extra_mass_kg: float = 0.0
     rate_hz: float | None = None
+    thermal_n: float = 0.0
 
     def __post_init__(self):
-        for name in ("noise_n", "bias_n", "drift_n_per_sqrt_s", "extra_mass_kg"):
+        for name in ("noise_n", "bias_n", "drift_n_per_sqrt_s", "extra_mass_kg", "thermal_n"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise ConfigError(f"sensor {name} must be a finite number >= 0, got {v}")
@@ -133,6 +141,11 @@ class FaultySensor:
         phi = rng.uniform(0.0, 2.0 * np.pi)
         #: the current bias (N, sensor frame); drifts as a random walk
         self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
+        #: the warm-up offset's direction (sensor frame); drawn only when there is one
+        self._thermal = np.zeros(3)
+        if sensor_model.thermal_n > 0:
+            psi = rng.uniform(0.0, 2.0 * np.pi)
+            self._thermal = sensor_model.thermal_n * np.array([np.cos(psi), np.sin(psi), 0.0])
         self._acc = np.zeros(6)
         self._acc3 = self._acc[3:]  # the linear part (a view)
         #: the mass whose inertia and weight the reading adds to MuJoCo's (kg; 0: none)
@@ -173,6 +186,10 @@ class FaultySensor:
             self.bias[:2] += sm.drift_n_per_sqrt_s * np.sqrt(self.period) * \
                 self.rng.standard_normal(2)
         noise = sm.noise_n * self.rng.standard_normal(3) if sm.noise_n > 0 else 0.0
+        if sm.thermal_n > 0:  # the warm-up since the sensor was zeroed (restart)
+            self.warm_s += self.period
+            return mean + self.bias + noise + \
+                (1.0 - np.exp(-self.warm_s / THERMAL_S)) * self._thermal
         return mean + self.bias + noise
 
     def read(self, data) -> np.ndarray:
@@ -221,3 +238,4 @@ class FaultySensor:
         self._sum: list[float] = [0.0, 0.0, 0.0]  # the window's sum (floats: see read)
         self._count = 0
         self.fresh, self.window_s = False, self.dt
+        self.warm_s = 0.0  # seconds of samples since the restart (the thermal warm-up)
