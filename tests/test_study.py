@@ -117,6 +117,10 @@ def test_scripted_demo_records_everything(demo_db, capsys):
     for k, name, _, outcome, pushes, cues, effort, rerun, show, time_s in trials:
         assert outcome == "success" and time_s < 25
         assert show == (name == "left")
+        hom, violations = c.execute("SELECT homotopy_success, violations FROM trials WHERE "
+                                    "participant = 'demo' AND trial = ?", (k,)).fetchone()
+        # no preference violated: the route's way round every obstacle
+        assert hom == 1 if violations == 0 else hom in (0, 1)
         # the script's pushes that began before the robot reached the goal
         pushes_in = [p for p in script[name] if p["t"] < time_s]
         # every push released (and past the detector's 0.4 s release window) before the end

@@ -16,7 +16,7 @@ import pytest
 from pathpref.apps.cli import main
 from pathpref.episode.physics import Physics
 from pathpref.errors import ConfigError
-from pathpref.experiments.trials import TRIAL_COLUMNS, study_sql
+from pathpref.experiments.trials import LATE_TRIAL_COLUMNS, TRIAL_COLUMNS, study_sql
 from pathpref.study.plan import parse_study
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -142,7 +142,7 @@ def test_report_fits_the_participants_rationality(physics_db, tmp_path, capsys):
 def _strip_late_columns(db: Path) -> None:
     """Make ``db`` what a study database written before the columns looked like: its
     ``trials`` table as the older pathpref created it, the same rows."""
-    old = TRIAL_COLUMNS[:-2]
+    old = TRIAL_COLUMNS[:-len(LATE_TRIAL_COLUMNS)]
     with sqlite3.connect(db) as c:
         c.execute("ALTER TABLE trials RENAME TO t_new")
         c.execute(study_sql("trials", old))

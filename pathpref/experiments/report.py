@@ -438,7 +438,9 @@ def range_interval(values: list[float], low: float = 0.0, high: float = math.inf
 def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """One record per participant and per condition (``by``: ``participant`` or
     ``condition``): trials ``n``; success rate and the share of trials *on route* (no
-    violation of the route's preference), each with its 95% Wilson interval; the means of
+    violation of the route's preference) and homotopy-level success (the goal reached the
+    route's way round every obstacle; over the trials that measured it, ``None`` without
+    one), each with its 95% Wilson interval; the means of
     time (s; a timed-out trial counts its full time), pushes and effort (integral of |F| dt,
     N s), and of the trials' mean peak push force (N, ``push_peak_n``; over the trials with a
     push), with :func:`range_interval` (``nan`` when fewer than 3 values)."""
@@ -456,6 +458,10 @@ def study_records(trials: list[dict[str, Any]]) -> list[dict[str, Any]]:
             rec["ci_low"], rec["ci_high"] = wilson(k, n)
             rec["on_route"] = on / n
             rec["on_route_low"], rec["on_route_high"] = wilson(on, n)
+            measured = [r["homotopy_success"] for r in rs if r.get("homotopy_success") is not None]
+            rec["homotopy"] = sum(measured) / len(measured) if measured else None
+            rec["homotopy_low"], rec["homotopy_high"] = wilson(sum(measured), len(measured)) \
+                if measured else (None, None)
             for col in ("time_s", "pushes", "effort_ns", "push_peak_n"):
                 vals = [float(r[col]) for r in rs if r.get(col) is not None]
                 m, lo, hi = range_interval(vals) if vals else (math.nan,) * 3
@@ -483,8 +489,8 @@ def study_tables(trials: list[dict[str, Any]]) -> str:
         if lines:
             lines.append("")
         lines += [f"**{title}**", "", f"| {by} | n | success | time (s) | pushes | "
-                  "effort (N s) | on route | peak push (N) |",
-                  "|---|---|---|---|---|---|---|---|"]
+                  "effort (N s) | on route | homotopy-level | peak push (N) |",
+                  "|---|---|---|---|---|---|---|---|---|"]
         for r in (r for r in recs if r["by"] == by):
             lines.append(
                 f"| {r['group']} | {r['n']} | {r['success_rate']:.2f} [{r['ci_low']:.2f}, "
@@ -493,5 +499,7 @@ def study_tables(trials: list[dict[str, Any]]) -> str:
                              for c in ("time_s", "pushes", "effort_ns"))
                 + f" | {r['on_route']:.2f} [{r['on_route_low']:.2f}, "
                 f"{r['on_route_high']:.2f}] | "
-                + fmt(r["push_peak_n"], r["push_peak_n_low"], r["push_peak_n_high"]) + " |")
+                + ("not measured" if r["homotopy"] is None else
+                   f"{r['homotopy']:.2f} [{r['homotopy_low']:.2f}, {r['homotopy_high']:.2f}]")
+                + " | " + fmt(r["push_peak_n"], r["push_peak_n_low"], r["push_peak_n_high"]) + " |")
     return "\n".join(lines)

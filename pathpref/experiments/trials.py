@@ -39,7 +39,8 @@ STUDY_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
         ("status", "TEXT"), ("outcome", "TEXT"), ("success", "INTEGER"), ("time_s", "REAL"),
         ("steps", "INTEGER"), ("pushes", "INTEGER"), ("cues", "INTEGER"),
         ("effort_ns", "REAL"), ("violations", "INTEGER"), ("rerun", "TEXT"),
-        ("started_utc", "TEXT"), ("wall_s", "REAL"), ("physics", "TEXT"), ("robot", "TEXT")),
+        ("started_utc", "TEXT"), ("wall_s", "REAL"), ("physics", "TEXT"), ("robot", "TEXT"),
+        ("homotopy_success", "INTEGER")),
         "participant, trial"),
     ("trial_steps", (
         ("participant", "TEXT"), ("trial", "INTEGER"), ("t", "INTEGER"), ("time_s", "REAL"),
@@ -66,8 +67,9 @@ STUDY_TABLE_NAMES = tuple(t for t, _, _ in STUDY_TABLES)
 TRIAL_COLUMNS = tuple(c for c, _ in STUDY_TABLES[0][1])
 #: the last columns of ``trials``, added to schema 5 after its first study files were written:
 #: a file may lack them (read as it is; added in place when opened for writing, NULL in the
-#: old rows: the default physics ``Physics()`` and the ``navigate`` robot those trials ran)
-LATE_TRIAL_COLUMNS = ("physics", "robot")
+#: old rows: the default physics ``Physics()`` and the ``navigate`` robot those trials ran;
+#: ``homotopy_success`` NULL: not measured)
+LATE_TRIAL_COLUMNS = ("physics", "robot", "homotopy_success")
 
 
 def study_sql(table: str, columns: Sequence[str] | None = None) -> str:

@@ -127,4 +127,5 @@ class TrialRecorder:
         return {"outcome": "success" if res.goal_reached else "timeout",
                 "success": int(res.goal_reached), "time_s": r.time_s, "steps": res.steps,
                 "pushes": self.k_push, "cues": self.n_cues, "effort_ns": self.effort,
-                "violations": res.violations}
+                "violations": res.violations,
+                "homotopy_success": int(res.homotopy_success)}

@@ -157,6 +157,7 @@ class TrialRunner(EpisodeRunner):
         """The trial's goal cell ends the trial (before the limit); nothing is ruled out."""
         if cell == self.goal_cell and not self.timed_out:
             self.result.goal_reached = True
+            self.result.homotopic = self._homotopic(cell)
 
     def decide(self) -> None:
         """One decision: plan (receding horizon) from the belief, drive; cues on the way go
