@@ -4,7 +4,6 @@ installed the venv-less way: a module and a dist-info whose ``entry_points.txt``
 from __future__ import annotations
 
 import sys
-import textwrap
 
 import pytest
 
@@ -12,6 +11,8 @@ from pathpref.episode import EpisodeSpec, run_episode
 from pathpref.episode.body import BODIES
 from pathpref.errors import ConfigError
 from pathpref.planning.policies import METHODS, resolve_methods
+
+from .plugin_helpers import install_package
 
 PACKAGE = '''
 from pathpref.episode.body import GridBody
@@ -39,12 +40,7 @@ NOT_A_BODY = 3
 
 @pytest.fixture
 def example_package(tmp_path, monkeypatch):
-    (tmp_path / "pathpref_example_plugins.py").write_text(PACKAGE)
-    info = tmp_path / "pathpref_example_plugins-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: pathpref-example-plugins\n"
-                                   "Version: 0.1\n")
-    (info / "entry_points.txt").write_text(textwrap.dedent("""\
+    install_package(tmp_path, monkeypatch, "pathpref_example_plugins", PACKAGE, """\
         [pathpref.bodies]
         stubborn = pathpref_example_plugins:StubbornBody
         notabody = pathpref_example_plugins:NOT_A_BODY
@@ -52,8 +48,7 @@ def example_package(tmp_path, monkeypatch):
 
         [pathpref.methods]
         still = pathpref_example_plugins:Still
-        """))
-    monkeypatch.syspath_prepend(str(tmp_path))
+        """)
     yield
     sys.modules.pop("pathpref_example_plugins", None)
     for name in ("stubborn", "notabody", "missing"):

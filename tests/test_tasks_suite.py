@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import sys
-import textwrap
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -17,6 +16,8 @@ from dm_env import specs  # noqa: E402
 from pathpref_tasks import TASKS, all_tasks, gym_id, load  # noqa: E402
 
 from pathpref.errors import ConfigError  # noqa: E402
+
+from .plugin_helpers import install_package  # noqa: E402
 
 #: small episodes: the suite's checks, not the planner, are under test
 SMALL = {"map": "simple", "method": "compliant", "delta_t": 1, "queries": 20, "t_max": 3}
@@ -146,20 +147,13 @@ NOT_A_TASK = 3
 def example_package(tmp_path, monkeypatch):
     """``pathpref_example_tasks`` installed the venv-less way: its module and a dist-info
     whose ``entry_points.txt`` declares a task, a map, and (``broken``) a bad task."""
-    (tmp_path / "pathpref_example_tasks.py").write_text(PACKAGE)
-    info = tmp_path / "pathpref_example_tasks-0.1.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: pathpref-example-tasks\n"
-                                   "Version: 0.1\n")
-    (info / "entry_points.txt").write_text(textwrap.dedent("""\
+    yield install_package(tmp_path, monkeypatch, "pathpref_example_tasks", PACKAGE, """\
         [pathpref.tasks]
         patrol = pathpref_example_tasks:Patrol
 
         [pathpref.maps]
         corridor = pathpref_example_tasks:corridor
-        """))
-    monkeypatch.syspath_prepend(str(tmp_path))
-    yield info
+        """)
     sys.modules.pop("pathpref_example_tasks", None)
 
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..episode.physics import CHOICES, FIELDS, RANGES, Physics, flag, grid_human
+from ..episode.physics import CHOICES, FIELDS, RANGES, Physics, flag
 from ..errors import ConfigError
 
 
@@ -51,7 +51,7 @@ def physics_json(args: argparse.Namespace, sim: str) -> str:
             raise ConfigError(f"{flag(physical[0])} is a physical parameter: it needs --sim "
                               f"mujoco (a grid episode takes only the human's flags, e.g. "
                               f"--gamma-h)")
-        return grid_human(Physics.of(**given).to_json()) if given else ""
+        return Physics.of(**given).human.stored()
     if sim != "mujoco" or mode == "legacy":
         if given:
             name = next(iter(given))

@@ -231,8 +231,13 @@ class HumanModel:
                               f"({self.peak_max_n:g} N), got {self.peak_min_n:g}")
 
     def to_json(self) -> str:
-        """Canonical JSON (sorted keys): a grid episode's ``physics``."""
+        """Canonical JSON (sorted keys)."""
         return json.dumps(asdict(self), sort_keys=True, separators=(",", ":"))
+
+    def stored(self) -> str:
+        """A grid episode's ``physics``: ``""`` for the default human (grid keys unchanged),
+        else :meth:`to_json`."""
+        return "" if self == HumanModel() else self.to_json()
 
 
 @dataclass(frozen=True)
@@ -416,12 +421,12 @@ class Physics:
         return self.step_s(cell_size) - self.push_window_s()
 
 
-def grid_human(text: str) -> str:
-    """A grid episode's canonical ``physics``: ``""`` for the default human, else the
-    :class:`HumanModel`'s JSON. Sensing or drive fields are refused (a grid body has
-    neither) with the fix."""
+def grid_human(text: str) -> HumanModel:
+    """The human of a grid episode's ``physics`` (``""``: the default one); sensing or drive
+    fields other than their defaults are refused (a grid body has neither) with the fix. Its
+    canonical ``physics`` is :meth:`HumanModel.stored`."""
     if text == "":
-        return ""
+        return HumanModel()
     raw = Physics.parse(text)
     physical = sorted(k for k in raw if k in FIELDS and FIELDS[k][0] != "human")
     default = Physics().flat()
@@ -429,5 +434,4 @@ def grid_human(text: str) -> str:
     if moved:
         raise ConfigError(f"physics {moved[0]} ({flag(moved[0])}) needs a physical body: add "
                           f"--sim mujoco (a grid episode takes only the human's settings)")
-    human = Physics.of(**{k: v for k, v in raw.items() if k not in physical}).human
-    return "" if human == HumanModel() else human.to_json()
+    return Physics.of(**{k: v for k, v in raw.items() if k not in physical}).human

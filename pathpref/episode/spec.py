@@ -176,9 +176,8 @@ class EpisodeSpec:
         if isinstance(self.physics, str) and isinstance(self.sim, str):
             try:
                 if self.sim == "grid":
-                    object.__setattr__(self, "physics", grid_human(self.physics))
-                    human = (HumanModel() if self.physics == "" else
-                             Physics.of(**Physics.parse(self.physics)).human)
+                    human = grid_human(self.physics)
+                    object.__setattr__(self, "physics", human.stored())
                 else:
                     physical = Physics.from_json(self.physics)
                     human = HumanModel() if physical is None else physical.human

@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import mujoco
 import numpy as np
@@ -44,11 +45,11 @@ class Measurements:
         self.contact_force = 0.0
         self.penetration = 0.0
 
-    def update(self, data: mujoco.MjData, vxy_adr: tuple[int, int], pushed: bool,
-               force: np.ndarray) -> None:
+    def update(self, data: mujoco.MjData, vxy_adr: tuple[int, int],
+               pushed: Callable[[], bool], force: np.ndarray) -> None:
         """One physics step: the base's planar velocity at ``vxy_adr`` in ``qvel``, whether a
-        push acts (or the base yields: its acceleration is then not the controller's) and the
-        push estimate ``force``."""
+        push acts (or the base yields: its acceleration is then not the controller's; asked
+        only when the step's acceleration is a new peak) and the push estimate ``force``."""
         t, qvel = data.time, data.qvel
         vx, vy = float(qvel[vxy_adr[0]]), float(qvel[vxy_adr[1]])
         before = math.hypot(*self._v_prev)  # the speed a contact begun now met
@@ -59,7 +60,7 @@ class Measurements:
         self._v_prev, self._t_prev = (vx, vy), t
         if a > self.peak_accel_pushed:
             self.peak_accel_pushed = a
-        if a > self.peak_accel and not pushed:
+        if a > self.peak_accel and not pushed():
             self.peak_accel = a
         if force is not self._f_measured:  # the estimator holds its estimate between samples
             self._f_measured = force

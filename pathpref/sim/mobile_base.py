@@ -278,14 +278,19 @@ class MobileBase:
         cue = self.sensing.read(d)
         self._track_onset(cue)
         if self.measure:
-            t = d.time
-            pushed = self.yielding() or any(
-                p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
-                for p in [*self.pushes, *([push] if push is not None else [])])
-            self.measurements.update(d, self._vxy_adr, pushed, self.sensing.force_estimate)
+            self.measurements.update(d, self._vxy_adr, lambda: self._pushed(push),
+                                     self.sensing.force_estimate)
         for hook in self.on_substep:
             hook(self, push)
         return cue
+
+    def _pushed(self, push: HumanPush | None) -> bool:
+        """Whether the base's motion now is not its controller's own: it yields, or a push
+        acts (or ended less than 0.1 s ago)."""
+        t = self.data.time
+        return self.yielding() or any(
+            p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
+            for p in [*self.pushes, *([push] if push is not None else [])])
 
     def physical_metrics(self) -> dict[str, float]:
         """The base's measurements (:mod:`.measurements`; empty unless :attr:`measure`)."""
