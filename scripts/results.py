@@ -12,7 +12,8 @@ pushes per episode (the ``inputs`` column). A failed episode (an error, a timeou
 failure and the table says how many failed. A result JSON becomes its own table with the
 intervals it stores. Every table names its command, ``n`` and its date: the date of the file's
 last commit (``git log -1 --format=%cs``), else its modification date marked "not committed".
-The database sources also get a JSON of every cell beside them (``<db stem>.json``).
+The stored database sources also get a JSON of every cell beside them (``<db stem>.json``)
+and a figure of success against pushes per episode (``<db stem>.png``).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from pathpref.experiments.report import METHOD_LABEL, METHOD_ORDER, wilson
+from pathpref.viz.plots import success_pushes_figure
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -122,6 +124,7 @@ def db_cells(db: Path) -> list[dict[str, Any]]:
         hlo, hhi = wilson(int(hom or 0), hom_n)
         cells.append({
             "setting": setting_label(map_, sim, preset, human, rule, dt), "map": map_,
+            "human_setting": f"{rule} (ΔT = {dt})" if rule else f"every ΔT = {dt} steps",
             "sim": sim, "preset": preset, "human": human or "map", "push_rule": rule or "",
             "delta_t": dt, "method": method, "n": n, "success": int(succ or 0),
             "success_ci": [lo, hi], "homotopy": int(hom or 0), "homotopy_n": hom_n,
@@ -247,6 +250,8 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
         if cells_dir is not None:
             (cells_dir / f"{path.stem}.json").write_text(json.dumps(
                 {"command": command, "source": _rel(path), "cells": cells}, indent=1) + "\n")
+            success_pushes_figure(cells, cells_dir / f"{path.stem}.png")
+            lines += [f"![success against pushes]({cells_dir.name}/{path.stem}.png)", ""]
     for path, title, kind, command in jsons:
         if path.exists():
             lines += json_section(path, title, kind, command)

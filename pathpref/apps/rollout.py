@@ -24,9 +24,12 @@ from ..geometry.world import World
 from ..sim.body import MujocoBody
 from ..sim.render import Overlay, PushTrace, RolloutRenderer, VideoWriter, applied_push
 from ..viz.mapdraw import preference_arrows
-from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
+from ..viz.video import (PanelInfo, belief_rgba, compose, info_panel, outcome_card,
+                         outcome_lines)
 
 VIDEO_FPS = 25
+#: seconds the outcome card is held at the end of a video
+CARD_S = 1.0
 #: the video's default size and the named ones ``--size`` offers
 DEFAULT_SIZE = (960, 540)
 HOLD_S = 2.0  # s of simulated time a push or cue stays drawn (>= 1 s of video at speed 2)
@@ -209,6 +212,15 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
         log_step()
         if progress is not None:
             progress(runner, state["frames"], started)
+    if writer is not None and maker is not None:
+        # the final step's frame (the hook last drew the step before), then the outcome card
+        # held for CARD_S seconds
+        last = maker.frame(base, None)
+        writer.append(last)
+        card = outcome_card(last, outcome_lines(runner.result))
+        for _ in range(int(round(CARD_S * VIDEO_FPS))):
+            writer.append(card)
+        state["frames"] += 1 + int(round(CARD_S * VIDEO_FPS))
     if maker is not None:
         maker.close()
     if logger is not None:

@@ -24,12 +24,15 @@ def trajectories_figure(world: World, results, out: str | Path) -> None:
         draw_map(world, ax=ax, show_ids=False, show_edges=False)
         xy = np.array([[s.x, s.y] for s in r.log], float) - 0.5
         col = COLORS.get(r.spec.method, "k")
-        ax.plot(*xy.T, "-o", color=col, ms=3, lw=2, zorder=6)
+        ax.plot(*xy.T, "-o", color=col, ms=3, lw=2, zorder=6, label=f"path of {r.spec.method}")
         goals = np.array(r.instance_cells["goals"], float) - 0.5
-        ax.scatter(*goals.T, marker="s", s=60, facecolor="lightskyblue", edgecolor="k", zorder=5)
+        ax.scatter(*goals.T, marker="s", s=60, facecolor="lightskyblue", edgecolor="k", zorder=5,
+                   label="goal candidates")
         ax.scatter(*goals[r.instance.true_goal], marker="o", s=160, facecolor="hotpink",
-                   edgecolor="k", zorder=7)
-        ax.scatter(*xy[0], marker="^", s=120, color="k", zorder=7)
+                   edgecolor="k", zorder=7, label="true goal")
+        ax.scatter(*xy[0], marker="^", s=120, color="k", zorder=7, label="start")
+        ax.plot([], [], color="k", marker=r"$\rightarrow$", ls="", ms=12,
+                label="human push (direction)")
         for s, nxt in zip(r.log[:-1], r.log[1:], strict=True):
             if nxt.heading >= 0:
                 d = MOVES[nxt.heading] * 0.6
@@ -38,6 +41,7 @@ def trajectories_figure(world: World, results, out: str | Path) -> None:
                             arrowprops=dict(arrowstyle="-|>", color="k", lw=1.2))
         verdict = "success" if r.success else ("goal, wrong path" if r.goal_reached else "failed")
         ax.set_title(f"{r.spec.method}: {verdict} ({r.steps} steps)", fontsize=9)
+        ax.legend(loc="upper right", fontsize=6, framealpha=0.85)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

@@ -122,3 +122,49 @@ def finish_belief_axes(fig, axes, out: str | Path, dpi: int = 130) -> None:
     fig.tight_layout()
     fig.savefig(out, dpi=dpi)
     plt.close(fig)
+
+
+#: marker per human setting in :func:`success_pushes_figure` (distinct shapes, all filled)
+SETTING_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+
+
+def success_pushes_figure(cells: list[dict[str, Any]], out: str | Path) -> None:
+    """Strict success against mean pushes per episode: one point per method and human setting
+    with its 95% Wilson interval as a vertical bar, one panel per map. Colour is the method
+    (one legend), marker shape the human setting (a second legend). ``cells``: dicts with
+    ``map, method, setting`` (the human's), ``n, success`` (count), ``success_ci`` and
+    ``pushes_per_episode`` (``scripts/results.py``); ``human_setting`` names the human's setting."""
+    maps = list(dict.fromkeys(c["map"] for c in cells))
+    settings = list(dict.fromkeys(c["human_setting"] for c in cells))
+    methods = list(dict.fromkeys(c["method"] for c in cells))
+    palette = {**COLORS, "goal_known": "tab:gray", "oracle": "black"}
+    fig, axes = plt.subplots(1, len(maps), figsize=(5.2 * len(maps), 4.2), squeeze=False,
+                             sharey=True)
+    for ax, m in zip(axes[0], maps, strict=True):
+        for c in (c for c in cells if c["map"] == m):
+            p = c["success"] / c["n"]
+            lo, hi = c["success_ci"]
+            ax.errorbar(c["pushes_per_episode"], p, yerr=[[max(0.0, p - lo)], [max(0.0, hi - p)]],
+                        color=palette.get(c["method"], "tab:brown"), capsize=3, ls="",
+                        marker=SETTING_MARKERS[settings.index(c["human_setting"])
+                                               % len(SETTING_MARKERS)], ms=7)
+        ax.set_title(f"map {m}")
+        ax.set_xlabel("pushes per episode (mean)")
+        ax.set_ylim(-0.03, 1.03)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("success: goal by the preferred route (95% CI)")
+    from matplotlib.lines import Line2D
+
+    by_method = [Line2D([], [], color=palette.get(k, "tab:brown"), lw=6, label=k)
+                 for k in methods]
+    by_setting = [Line2D([], [], color="0.3", ls="", label=s,
+                         marker=SETTING_MARKERS[i % len(SETTING_MARKERS)], ms=7)
+                  for i, s in enumerate(settings)]
+    first = axes[0][-1].legend(handles=by_method, title="method (colour)", fontsize=7,
+                               title_fontsize=8, loc="lower right")
+    axes[0][-1].add_artist(first)
+    axes[0][0].legend(handles=by_setting, title="human (marker)", fontsize=7, title_fontsize=8,
+                      loc="lower left")
+    fig.tight_layout()
+    fig.savefig(out, dpi=120)
+    plt.close(fig)

@@ -180,3 +180,39 @@ def frame_grid(frames: list[np.ndarray], cols: int = 3, scale: float = 0.5) -> n
         r, c = divmod(k, cols)
         grid[r * th:(r + 1) * th, c * tw:(c + 1) * tw] = t[:th, :tw]
     return grid
+
+
+def outcome_lines(result) -> list[tuple[str, tuple[int, int, int]]]:
+    """The outcome card's lines (text, colour) for an :class:`~pathpref.episode.EpisodeResult`:
+    success (goal reached by the preferred route), the route, homotopy-level success (goal
+    reached in the preferred homotopy class), pushes and steps."""
+    good, bad = (20, 140, 60), (190, 30, 30)
+    if result.success:
+        head = ("SUCCESS: goal reached by the preferred route", good)
+    elif result.goal_reached:
+        head = ("FAILURE: goal reached by another route", bad)
+    else:
+        head = ("FAILURE: goal not reached", bad)
+    yes = {True: "yes", False: "no"}
+    return [head,
+            (f"preferred route followed: {yes[bool(result.pref_followed)]}", INK),
+            (f"homotopy-level success: {yes[bool(result.homotopy_success)]}", INK),
+            (f"pushes: {result.inputs}   steps: {result.steps}", INK)]
+
+
+def outcome_card(frame: np.ndarray, lines: list[tuple[str, tuple[int, int, int]]]
+                 ) -> np.ndarray:
+    """``frame`` faded towards white with ``lines`` in a box at its centre (the last frame of
+    a video, held)."""
+    img = Image.fromarray((0.45 * np.asarray(frame, float) + 0.55 * 255).astype(np.uint8))
+    d = ImageDraw.Draw(img)
+    w, h = img.size
+    u = max(10, h // 16)
+    f = font(u)
+    tw = max(int(d.textlength(text, font=f)) for text, _ in lines)
+    bw, bh = tw + 2 * u, int(len(lines) * u * 1.4) + u
+    x, y = (w - bw) // 2, (h - bh) // 2
+    d.rectangle([x, y, x + bw, y + bh], fill=(255, 255, 255), outline=INK, width=2)
+    for k, (text, rgb) in enumerate(lines):
+        d.text((x + u, y + u // 2 + int(k * u * 1.4)), text, fill=rgb, font=f)
+    return np.asarray(img)
