@@ -5,7 +5,8 @@ times faster than real time), every ``1 / VIDEO_FPS`` s while the human pushes (
 real time). The push arrow stays on screen for ``HOLD_S`` of simulated time after the push
 starts, the detected cue for ``HOLD_S`` after it is detected: at least one second of video
 each. The frame: :class:`~pathpref.sim.render.RolloutRenderer`'s views with the overlays, and
-the panel of :mod:`pathpref.viz.video`.
+the panel of :mod:`pathpref.viz.video`. A video ends with the final step's frame and then the
+outcome card (:func:`pathpref.viz.video.outcome_card`) held for ``CARD_S`` seconds.
 """
 
 from __future__ import annotations
@@ -24,8 +25,7 @@ from ..geometry.world import World
 from ..sim.body import MujocoBody
 from ..sim.render import Overlay, PushTrace, RolloutRenderer, VideoWriter, applied_push
 from ..viz.mapdraw import preference_arrows
-from ..viz.video import (PanelInfo, belief_rgba, compose, info_panel, outcome_card,
-                         outcome_lines)
+from ..viz.video import PanelInfo, belief_rgba, compose, info_panel, outcome_card, outcome_lines
 
 VIDEO_FPS = 25
 #: seconds the outcome card is held at the end of a video

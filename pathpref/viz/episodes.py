@@ -17,7 +17,8 @@ from .plots import COLORS, finish_belief_axes  # noqa: E402
 
 
 def trajectories_figure(world: World, results, out: str | Path) -> None:
-    """One panel per episode: path, start, candidates, true goal, human pushes."""
+    """One panel per episode: path, start, candidates, true goal, human pushes and the
+    human's preference (red arrows), with a legend in every panel."""
     n = len(results)
     fig, axes = plt.subplots(1, n, figsize=(4.2 * n, 4.4), squeeze=False)
     for ax, r in zip(axes[0], results, strict=True):
@@ -33,6 +34,8 @@ def trajectories_figure(world: World, results, out: str | Path) -> None:
         ax.scatter(*xy[0], marker="^", s=120, color="k", zorder=7, label="start")
         ax.plot([], [], color="k", marker=r"$\rightarrow$", ls="", ms=12,
                 label="human push (direction)")
+        ax.plot([], [], color="crimson", marker=r"$\rightarrow$", ls="", ms=12,
+                label="human's preferred route")
         for s, nxt in zip(r.log[:-1], r.log[1:], strict=True):
             if nxt.heading >= 0:
                 d = MOVES[nxt.heading] * 0.6
