@@ -10,7 +10,8 @@ human setting: the periodic human at every ``--delta-t`` and the corrective huma
 per map (the example plans pooled in one panel): a point per method and setting at (mean pushes
 per episode, strict success) with its Wilson 95 % interval, and a hollow marker at the same
 pushes for the homotopy-level success; colour is the method, the marker the setting. A JSON of
-every point is written beside the figure (``--json``).
+every point is written beside the figure (``--json``); ``--from-json FILE`` redraws the figure
+from such a file without running anything.
 """
 
 from __future__ import annotations
@@ -105,13 +106,16 @@ def figure(panels: dict[str, list[dict]], human: list[tuple[str, int, str]], out
         ax.set_ylim(-0.03, 1.03)
         ax.grid(alpha=0.3)
         ax.set_ylabel("success rate")
-    handles = [plt.Line2D([], [], color=COLOURS[m], marker="o", ls="", label=METHOD_LABEL.get(
+    # colour: a bar per method; shape: a grey marker per human setting; fill: which success
+    # (a hexagon, a shape no setting uses, so that no legend entry shares a marker)
+    handles = [plt.Line2D([], [], color=COLOURS[m], lw=6, label=METHOD_LABEL.get(
         m, m.replace("_", " "))) for m in METHODS]
-    handles += [plt.Line2D([], [], color="k", marker=marker[label], ls="", mfc="k",
+    handles += [plt.Line2D([], [], color="0.35", marker=marker[label], ls="", mfc="0.35",
                            label=label) for label, _, _ in human]
-    handles += [plt.Line2D([], [], color="k", marker="o", ls="", label="strict success, 95% CI"),
-                plt.Line2D([], [], color="k", marker="o", mfc="none", ls="",
-                           label="homotopy-level success")]
+    handles += [plt.Line2D([], [], color="0.35", marker="h", ls="", ms=8,
+                           label="filled: strict success, bar 95% CI"),
+                plt.Line2D([], [], color="0.35", marker="h", mfc="none", ls="", ms=9,
+                           label="hollow: homotopy-level success")]
     fig.legend(handles=handles, loc="lower center", ncol=5, fontsize=9, frameon=False)
     fig.suptitle(title, fontsize=11)
     fig.tight_layout(rect=(0, 0.07, 1, 0.96))
@@ -132,7 +136,16 @@ def main() -> None:
     ap.add_argument("--delta-t", type=int, nargs="+", default=[1, 5])
     ap.add_argument("--corrective", nargs="+", default=["corrective delay=1 miss=0.2"],
                     help="corrective push rules ('corrective delay=D miss=M')")
+    ap.add_argument("--from-json", default=None,
+                    help="redraw the figure from a stored points JSON (no sweep)")
     args = ap.parse_args()
+    if args.from_json:
+        data = json.loads(Path(args.from_json).read_text())
+        labels = dict.fromkeys(p["setting"] for pts in data["panels"].values() for p in pts)
+        figure(data["panels"], [(label, 0, "") for label in labels], Path(args.out),
+               data["title"])
+        print(f"wrote {args.out} from {args.from_json}")
+        return
     human = settings(args.delta_t, args.corrective)
     db_dir = Path(args.db_dir)
     db_dir.mkdir(parents=True, exist_ok=True)
