@@ -1,4 +1,4 @@
-"""Success against planning time (issue 10): the robust planner under wall-time budgets.
+"""Success against planning time: the robust planner under wall-time budgets.
 
     .venv/bin/python scripts/budget_figure.py --out docs/budget.png
 

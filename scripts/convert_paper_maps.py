@@ -5,7 +5,7 @@
 Obstacles are copied as cell rectangles. The authors' preference ``M_pref`` (polytope id ->
 preferred neighbour id, in their numbering) is written in a numbering-free form: each entry
 becomes ``{"from": cell, "to": cell}`` with a representative cell of each polytope. ``classroom``
-has no preference in the authors' data; it gets a route (see pathpref/inference/preference.py).
+has no preference in the authors' data; it gets a route (see pathpref/geometry/preference.py).
 """
 
 from __future__ import annotations

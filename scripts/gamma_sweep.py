@@ -1,4 +1,4 @@
-"""A mis-specified planner against a learned one (issue 27, item 4): the human's rationality.
+"""A mis-specified planner against a learned one: the human's rationality.
 
     .venv/bin/python scripts/gamma_sweep.py --json docs/gamma_sweep.json
 

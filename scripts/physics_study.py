@@ -1,4 +1,4 @@
-"""What physics changes (issue 12 item 7): the same episodes under six conditions.
+"""What physics changes: the same episodes under six conditions.
 
     MUJOCO_GL=egl .venv/bin/python scripts/physics_study.py --episodes 60 --out study.json
 

@@ -1,4 +1,4 @@
-"""Success against pushes per episode (issue 27): the periodic human and the corrective one.
+"""Success against pushes per episode: the periodic human and the corrective one.
 
     .venv/bin/python scripts/pushes_figure.py --out docs/pushes.png --db-dir /tmp/pushes
 

@@ -1,6 +1,6 @@
 """CPU time of the robust preset at floor-plan scale for this tree against an older commit, in
 one run: the two trees take turns in fresh processes (so a load that comes and goes hits both
-alike). Two measurements (issue 28):
+alike). Two measurements:
 
 * ``episode``: one path-preference episode on the bench's 200 x 200 floor plan
   (``pathpref bench --json``, ``scale.map_200_*``: ΔT = 5, 1000 queries, instance seed 1, run

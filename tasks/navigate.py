@@ -154,7 +154,7 @@ def bounded(shape: tuple, lo: float, hi: float, name: str) -> specs.BoundedArray
 class Navigate(base.Task):
     """The ``navigate`` task (module docstring); ``task="carry"`` gives the arm's scene."""
 
-    #: one environment step is one decision (False: control rate, :mod:`.control`)
+    #: one environment step is one decision (False: control rate, :mod:`.navigate_control`)
     decides = True
 
     def __init__(self, map: str = "simple", method: str = "path_preference", delta_t: int = 5,

@@ -1,4 +1,4 @@
-"""The consistent human on open routes (issue 24, item 4): its preference lies in the support of
+"""The consistent human on open routes: its preference lies in the support of
 the route prior (an in-arborescence rooted at the goal's polytope over its component), it keeps
 the map's route from the start, the oracle succeeds on its instances, and the map's human
 (the paper's protocol) draws the instances it drew before.

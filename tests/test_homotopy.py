@@ -1,4 +1,4 @@
-"""Homotopy-level success (issue 27, item 2): winding numbers on hand-drawn loops, the class
+"""Homotopy-level success: winding numbers on hand-drawn loops, the class
 test on one square, a rotated (diamond) obstacle, a loop round an obstacle, overlapping and
 border obstacles, and episodes on the paper's ``simple`` map driven by hand (the human's route
 goes east round the table: counter-clockwise).

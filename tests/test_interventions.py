@@ -1,4 +1,4 @@
-"""Minimal interventions (issue 27, item 3): the corrective human's push rule (its spelling, its
+"""Minimal interventions: the corrective human's push rule (its spelling, its
 need test on hand-picked moves, its reaction delay and misses on scripted episodes), the
 per-step ``is_intervention`` log, keys that stay as they were for the periodic human, the
 schema-5 columns added in place to older files and the report's pushes per episode.

@@ -1,4 +1,4 @@
-"""Physical interaction that matters (issue 12 items 2-7): pushes at any time, two pushes are
+"""Physical interaction that matters: pushes at any time, two pushes are
 two cues, the human who pushes like a person, the physical parameters of an episode."""
 
 from __future__ import annotations

@@ -46,11 +46,8 @@ def test_legacy_default_is_unchanged(case):
     """With ``physics="legacy"`` the tasks run the legacy physics unchanged: every observation,
     reward and action of the task's own policy equals ``tests/data/task_traces.json`` (written by
     ``scripts/task_traces.py``), actions and discrete observations exactly, floats to
-    ``tests/close.py``'s tolerance. Until issue 24 this was a SHA-256 of the float bits, which
-    differed between CPU classes (README, "Replays exactly"); the traces were taken with the
-    code of that digest (10c6c15), and the sampler and belief of issue 24 reproduce them; they
-    were re-taken when the robust search's root pool became sized to the queries (issue 28:
-    1 tree at these tests' 20-50 queries, was 128), which changes the policy's actions."""
+    ``tests/close.py``'s tolerance (floats compared with a tolerance, not by their bits, which
+    differ between CPU classes: README, "Replays exactly")."""
     import sys
     from pathlib import Path
 

@@ -22,8 +22,7 @@ its root states come from and how it searches differ.
    ``v`` by a face other than the sampled ``p_v`` (``rho``:
    :attr:`~.pomdp.Rewards.goal_after_violation`). No other reward. Each violation costs its own
    factor: with one factor for any number, a robot that has violated once (in every particle) is
-   free to cross anything, and wanders back and forth between polytopes on its way (on
-   ``classroom`` at ΔT = 5, 2.2 back-crossings per episode against 0.9 this way). A polytope is
+   free to cross anything, and wanders back and forth between polytopes on its way. A polytope is
    known once the belief holds an observation made in it. Under the independent prior the
    transitions out of the others count as allowed, because the robot will be told about them
    (pushed) when it gets there. Under the route prior this is modelled: the search is told when
@@ -54,13 +53,9 @@ its root states come from and how it searches differ.
    ``v`` only under the independent prior; every ``v`` under the route prior, whose particle
    trees never lead back through a polytope by a face it does not prefer); ``h = d(., target)``
    otherwise; else a random move that stays in ``v``. The goal-only planner rolls out along
-   ``d(., target)``. Heading for the simulation's own goal instead (earlier releases) values
-   standing between the candidates, since from there every simulation "knows" where to go: with
-   the goal uncertain the robot drifted inside one polytope for up to 15 of its 30 steps on
-   ``simple`` at ΔT = 30 and reached the goal in 0.69 of episodes, against 0.91 this way
-   (paired, n = 120). Not knowing the preference either (the shortest way in polytopes not
-   yet observed or told) did as well on ``simple`` and worse on ``classroom`` at ΔT = 5 (0.36
-   against 0.43, n = 120), so the particle's exits stay. Each move is a look-up in a table
+   ``d(., target)``. Heading for the simulation's own goal instead would value standing between
+   the candidates, since from there every simulation "knows" where to go. Each move is a
+   look-up in a table
    built once per planner (:func:`rollout_moves`), and a rollout stops as soon as the
    simulation's goal is out of reach (``L + d(s, g) > depth``: its return is 0 whatever
    follows).

@@ -323,8 +323,10 @@ class SteadyPush:
 def runaway(force_n: float = 130.0, seconds: float = 3.0, physical: bool = True,
             any_time: bool = False, sensor: str = "realistic") -> dict[str, float]:
     """A push above the drive's 120 N limit (``force_n`` east for ``seconds``) on the standing
-    base in the middle of ``office``'s widest free row: the largest displacement (m) and the
-    distance from the start 3 s after the push ended (the recovery; the base holds its cell)."""
+    base at cell (1, 3) of ``simple``: the largest displacement (m) and the distance from the
+    start 3 s after the push ended (the recovery; the base holds its cell). ``physical``: the
+    physical base (else the original one); ``any_time``: pushes sensed at any time, the base
+    not stopping on a cue."""
     from ...sim.body import scene_for as scene
 
     world = cached_world("simple")
