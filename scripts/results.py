@@ -13,7 +13,8 @@ failure and the table says how many failed. A result JSON becomes its own table 
 intervals it stores. Every table names its command, ``n`` and its date: the date of the file's
 last commit (``git log -1 --format=%cs``), else its modification date marked "not committed".
 The stored database sources also get a JSON of every cell beside them (``<db stem>.json``)
-and a figure of success against pushes per episode (``<db stem>.png``).
+and a figure of success against pushes per episode (``<db stem>.png``). A database too large to
+commit (Table I's 6000 episodes) is kept as that JSON only: its section is then read from it.
 """
 
 from __future__ import annotations
@@ -34,6 +35,9 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: the stored sweep databases: path (repository-relative), title, command that wrote it
 DB_SOURCES: list[tuple[str, str, str]] = [
+    ("docs/results/table1_simple.sqlite", "Table I: success rates on simple (Map 1)",
+     "pathpref evaluate --map simple --preset paper --methods all --delta-t 1 5 10 20 30 "
+     "--instances 6 --runs 50 --db docs/results/table1_simple.sqlite --workers 2"),
     ("docs/results/demo_sweep.sqlite",
      "When inferring the preference matters (the demo's sweep)",
      "sh scripts/demo_sweep.sh docs/results/demo_sweep.sqlite"),
@@ -135,11 +139,29 @@ def db_cells(db: Path) -> list[dict[str, Any]]:
     return cells
 
 
-def db_section(db: Path, title: str, command: str) -> tuple[list[str], list[dict[str, Any]]]:
-    """The Markdown section of one sweep database and its cells."""
-    cells = db_cells(db)
-    lines = [f"## {title}", "", f"Source `{_rel(db)}`, {sum(c['n'] for c in cells)} episodes, "
-             f"dated {file_date(db)}; command:", "", "```", command, "```", ""]
+def db_section(cells: list[dict[str, Any]], source: str, date: str, title: str,
+               command: str) -> list[str]:
+    """The Markdown section of one sweep's cells: per group of settings that differ only in
+    ΔT, a method x ΔT grid of success when there are several ΔT, then a table per setting."""
+    lines = [f"## {title}", "", f"Source {source}, {sum(c['n'] for c in cells)} episodes, "
+             f"dated {date}; command:", "", "```", command, "```", ""]
+    groups: dict[tuple, list[dict[str, Any]]] = {}
+    for c in cells:
+        groups.setdefault((c["map"], c["sim"], c["preset"], c["human"], c["push_rule"]),
+                          []).append(c)
+    for (map_, sim, preset, human, rule), group in groups.items():
+        dts = sorted({c["delta_t"] for c in group})
+        if len(dts) < 2:
+            continue
+        lines += [f"### {map_}, {sim}, {preset} preset, {human} human"
+                  + (f", {rule}" if rule else "") + ": success against ΔT", ""]
+        at = {(c["method"], c["delta_t"]): c for c in group}
+        methods = sorted({c["method"] for c in group}, key=_method_key)
+        lines += _table(["method"] + [f"ΔT={d}" for d in dts],
+                        [[METHOD_LABEL.get(m, m)] + [
+                            rate(at[m, d]["success"], at[m, d]["n"]) if (m, d) in at else "–"
+                            for d in dts] for m in methods])
+        lines.append("")
     for setting in dict.fromkeys(c["setting"] for c in cells):
         group = [c for c in cells if c["setting"] == setting]
         n = sorted({c["n"] for c in group})
@@ -153,7 +175,7 @@ def db_section(db: Path, title: str, command: str) -> tuple[list[str], list[dict
               rate(c["success"], c["n"]), rate(c["homotopy"], c["homotopy_n"]),
               f"{c['goal_reached']}/{c['n']}", _num(c["pushes_per_episode"])] for c in group])
         lines.append("")
-    return lines, cells
+    return lines
 
 
 def _rel(path: Path) -> str:
@@ -242,14 +264,22 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
              "homotopy class; intervals are 95% Wilson intervals unless a table says "
              "otherwise.", ""]
     for path, title, command in dbs:
-        if not path.exists():
+        stored = path.with_suffix(".json")  # the cells of a database too large to commit
+        if path.exists():
+            cells, date, source = db_cells(path), file_date(path), f"`{_rel(path)}`"
+        elif path.parent == ROOT / "docs" / "results" and stored.exists():
+            data = json.loads(stored.read_text())
+            cells, date = data["cells"], file_date(stored)
+            source = f"`{_rel(stored)}` (the cells of `{data['source']}`, not committed)"
+        else:
             print(f"results: {path} not found; its section is left out", file=sys.stderr)
             continue
-        section, cells = db_section(path, title, command)
-        lines += section
+        lines += db_section(cells, source, date, title, command)
         if cells_dir is not None:
-            (cells_dir / f"{path.stem}.json").write_text(json.dumps(
-                {"command": command, "source": _rel(path), "cells": cells}, indent=1) + "\n")
+            if path.exists():
+                (cells_dir / f"{path.stem}.json").write_text(json.dumps(
+                    {"command": command, "source": _rel(path), "cells": cells}, indent=1)
+                    + "\n")
             success_pushes_figure(cells, cells_dir / f"{path.stem}.png")
             lines += [f"![success against pushes]({cells_dir.name}/{path.stem}.png)", ""]
     for path, title, kind, command in jsons:
