@@ -14,7 +14,8 @@ intervals it stores. Every table names its command, ``n`` and its date: the date
 last commit (``git log -1 --format=%cs``), else its modification date marked "not committed".
 The stored database sources also get a JSON of every cell beside them (``<db stem>.json``)
 and a figure of success against pushes per episode (``<db stem>.png``). A database too large to
-commit (Table I's 6000 episodes) is kept as that JSON only: its section is then read from it.
+commit (Table I's 6000 episodes, office, classroom) is kept as that JSON only: its section is
+then read from it.
 """
 
 from __future__ import annotations
@@ -38,6 +39,12 @@ DB_SOURCES: list[tuple[str, str, str]] = [
     ("docs/results/table1_simple.sqlite", "Table I: success rates on simple (Map 1)",
      "pathpref evaluate --map simple --preset paper --methods all --delta-t 1 5 10 20 30 "
      "--instances 6 --runs 50 --db docs/results/table1_simple.sqlite --workers 2"),
+    ("docs/results/office_paper.sqlite", "Office, the paper's planner (not in the paper)",
+     "pathpref evaluate --map office --preset paper --methods all --delta-t 1 5 10 20 30 "
+     "--instances 6 --runs 20 --db docs/results/office_paper.sqlite --workers 2"),
+    ("docs/results/classroom_paper.sqlite", "Classroom, the paper's planner (not in the paper)",
+     "pathpref evaluate --map classroom --preset paper --methods all --delta-t 1 5 10 20 30 "
+     "--instances 6 --runs 10 --db docs/results/classroom_paper.sqlite --workers 2"),
     ("docs/results/demo_sweep.sqlite",
      "When inferring the preference matters (the demo's sweep)",
      "sh scripts/demo_sweep.sh docs/results/demo_sweep.sqlite"),
@@ -112,7 +119,9 @@ def setting_label(map_: str, sim: str, preset: str, human: str | None, push_rule
 
 def db_cells(db: Path) -> list[dict[str, Any]]:
     """Per setting and method, the counts of the database's episodes (see module docstring)."""
-    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    # immutable: no -shm/-wal files left beside a stored database (unless a WAL is pending)
+    pending = Path(f"{db}-wal").exists()
+    con = sqlite3.connect(f"file:{db}?mode=ro{'' if pending else '&immutable=1'}", uri=True)
     try:
         rows = con.execute(
             "SELECT map, sim, preset, human, push_rule, delta_t, method, COUNT(*), "
