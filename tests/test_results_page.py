@@ -4,6 +4,7 @@ worked out here."""
 
 from __future__ import annotations
 
+import json
 import math
 import sqlite3
 import sys
@@ -59,6 +60,24 @@ def test_page_rows_match_the_database(tmp_path):
         section = page.split(f"a push every ΔT = {dt} steps")[1].split("###")[0]
         assert row in section, (row, section)
     assert "| oracle | 4 | 4/4 = 1.00" in page  # the consistent human's oracle never fails
+
+
+def test_a_database_kept_as_its_cells_json(tmp_path):
+    """Without the database, its section is read from ``<stem>.json`` (the cells results.py
+    wrote): the same rows, the source says so; with neither, the section is left out."""
+    cell = {"setting": "S1", "map": "simple", "sim": "grid", "preset": "paper", "human": "map",
+            "push_rule": "", "delta_t": 5, "method": "goal_only", "n": 4, "success": 3,
+            "homotopy": 4, "homotopy_n": 4, "goal_reached": 4, "pushes_per_episode": 2.5,
+            "failed": 1}
+    (tmp_path / "big.json").write_text(json.dumps({"source": "docs/results/big.sqlite",
+                                                   "cells": [cell]}))
+    page = results.build([(tmp_path / "big.sqlite", "Big", "CMD"),
+                          (tmp_path / "gone.sqlite", "Gone", "CMD")], [])
+    assert "(the cells of `docs/results/big.sqlite`, not committed)" in page
+    assert "| goal only | 4 | 3/4 = 0.75 [0.30, 0.95] | 4/4 = 1.00 [0.51, 1.00] | 4/4 | 2.50 |" \
+        in page
+    assert "1 failed (counted as failures)" in page
+    assert "Gone" not in page
 
 
 def test_stored_sources_exist():
