@@ -90,8 +90,17 @@ def test_short_rollout_video_and_rerun(tmp_path):
     assert (tmp_path / "r.rrd").stat().st_size > 2000
     import imageio.v2 as iio
 
-    frame = iio.get_reader(str(tmp_path / "r.mp4")).get_data(rec.frames // 2)
+    reader = iio.get_reader(str(tmp_path / "r.mp4"))
+    frame = reader.get_data(rec.frames // 2)
     assert frame.std() > 10
+    # the video ends on the outcome card, held CARD_S s: the same faded frame, a white box
+    from pathpref.apps.rollout import CARD_S, VIDEO_FPS
+
+    held = int(round(CARD_S * VIDEO_FPS))
+    last, card0 = reader.get_data(rec.frames - 1), reader.get_data(rec.frames - held)
+    assert np.abs(last.astype(int) - card0.astype(int)).mean() < 3  # codec noise only
+    final_step = reader.get_data(rec.frames - held - 1)  # the frame the card fades
+    assert last.mean() > final_step.mean() + 5  # faded towards white (0.45 v + 0.55 * 255)
     assert frame.shape == (540, 960, 3)  # the default size
     # the recording: its entities and the blueprint stored with it (read back with the
     # rerun CLI that rerun-sdk installs next to this Python)
