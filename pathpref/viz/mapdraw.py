@@ -96,10 +96,23 @@ def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = Tr
 
 
 def save_map_figure(world: World, out: str | Path) -> Path:
-    """Draw ``world`` and write the figure (format from the suffix, e.g. .png or .pdf)."""
+    """Draw ``world`` and write the figure (format from the suffix, e.g. .png or .pdf), with a
+    legend below the map."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
     out = Path(out)
     ax = draw_map(world)
     fig = ax.figure
+    handles = [Patch(facecolor="tab:blue", alpha=0.35, edgecolor="0.4",
+                     label="polytope (its id at the centre)"),
+               Patch(facecolor="0.15", edgecolor="k", label="obstacle"),
+               Line2D([], [], color="0.3", ls=":", label="graph edge (shared face)")]
+    if world.preference is not None:
+        handles.append(Line2D([], [], color="crimson", marker=r"$\rightarrow$", ls="", ms=12,
+                              label="human's preferred exit"))
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.06), ncol=2,
+              fontsize=7, frameon=False)
     fig.tight_layout()
     fig.savefig(out, dpi=130)
     plt.close(fig)
