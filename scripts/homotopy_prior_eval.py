@@ -169,9 +169,12 @@ def main() -> None:
         if not p.exists():
             p.write_text(json.dumps(held_out_plan(s), indent=1))
         paths.append(p)
-    result = {"command": "scripts/homotopy_prior_eval.py " + " ".join(
-        f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items() if v not in (None, False)),
-        "prediction": prediction(paths, args.instances)}
+    flags = " ".join(f"--{k.replace('_', '-')} " + (" ".join(map(str, v)) if isinstance(v, list)
+                                                    else str(v))
+                     for k, v in vars(args).items() if v not in (None, False, True)
+                     and k not in ("out", "plans"))
+    result = {"command": f"python scripts/homotopy_prior_eval.py {flags}",
+              "prediction": prediction(paths, args.instances)}
     for k, m in result["prediction"]["mean"].items():
         print(f"after {k} pushes: route log-prob routes {m['routes']:.2f}, homotopy "
               f"{m['homotopy']:.2f}, difference {m['difference']:+.2f} "

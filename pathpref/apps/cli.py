@@ -26,7 +26,7 @@ def force_option(sp: argparse.ArgumentParser) -> None:
     """``--force``: build a map whose arrangement may exceed the size limit."""
     sp.add_argument("--force", action="store_true",
                     help="build the map even when its arrangement may exceed the size limit "
-                    "(arrangement.MAX_POLYTOPES, see README 'Limits')")
+                    "(arrangement.MAX_POLYTOPES, see docs/limits.md)")
 
 
 class DefaultsFormatter(argparse.HelpFormatter):
@@ -263,8 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "viewer or scripted participants), recorded in a results database")
     stsub = st.add_subparsers(dest="study_command", required=True)
     sr = stsub.add_parser("run", help="run a participant's trials of a study file")
-    sr.add_argument("study", help="study file (.json or .toml; see README 'Studies with "
-                    "people')")
+    sr.add_argument("study", help="study file (.json or .toml; see docs/study.md)")
     sr.add_argument("--participant", required=True, help="participant id (letters, digits, "
                     "_ . -)")
     sr.add_argument("--db", required=True, help="results database (.sqlite; sweeps' store)")

@@ -35,7 +35,7 @@ from .tree import best_root_action, init_node, new_tree, sample_index, sample_sl
 #: root particles of a route-prior belief per decision (exact draws, :func:`.guided.tree_pool`).
 #: 128, not 512: on ``classroom`` the draws took a third of a decision (a random walk from each
 #: polytope to the goal's on a map of long loops), and success did not change within the
-#: intervals (README, "The robust preset")
+#: intervals (docs/robust.md)
 TREE_POOL = 128
 #: the pool holds at most one particle per ``SIMS_PER_TREE`` simulations of the decision
 #: (:meth:`POMCP._pool`): 128 at the paper's 5000 queries, 32 at the bench floor plan's 1000
