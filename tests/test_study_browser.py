@@ -287,19 +287,20 @@ def test_browser_gamepad_calibration_pushes_and_questionnaire(tmp_path):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0, out
-    tlx = [json.loads(line) for line in Path(f"{db}.p.tlx.jsonl").read_text().splitlines()]
-    assert [(t["trial"], t["name"], t["scores"]) for t in tlx] == [(1, "left", answers)]
-    assert tlx[0]["raw_tlx"] == pytest.approx(200 / 6, abs=1e-12)  # (40+65+20+15+55+5) / 6
     c = sqlite3.connect(db)
+    tlx = c.execute("SELECT participant, trial, name, mental, physical, temporal, performance, "
+                    "effort, frustration, raw_tlx FROM study_tlx").fetchall()
+    assert [t[:9] for t in tlx] == [("p", 1, "left", *answers.values())]
+    assert tlx[0][9] == pytest.approx(200 / 6, abs=1e-12)  # (40+65+20+15+55+5) / 6
     assert [r[0] for r in c.execute("SELECT heading FROM trial_cues ORDER BY k")] == [
         HEADING[(-1, 0)], HEADING[(0, 1)]]
     peaks = [r[0] for r in c.execute("SELECT peak_n FROM trial_pushes ORDER BY k")]
     assert peaks == pytest.approx([60 * 0.65 / 0.85] * 2, rel=1e-6)
-    cal = [json.loads(line) for line in Path(f"{db}.p.calibration.jsonl").read_text()
-           .splitlines()]
-    assert len(cal) == 1 and cal[0]["trial"] == 1 and cal[0]["device"] == "fake pad"
-    assert cal[0]["rest"] == pytest.approx(list(rest), abs=1e-12)
-    assert cal[0]["reach"] == pytest.approx(reach, abs=1e-12)
+    cal = c.execute("SELECT k, trial, device, rest_x, rest_y, reach FROM study_calibrations "
+                    "WHERE participant = 'p'").fetchall()
+    assert len(cal) == 1 and cal[0][:3] == (0, 1, "fake pad")
+    assert cal[0][3:5] == pytest.approx(rest, abs=1e-12)
+    assert cal[0][5] == pytest.approx(reach, abs=1e-12)
 
 
 PATH_RGB = (0x7A, 0x3C, 0xC8)  # the planned path's colour on the page (page.html PATH_RGB)

@@ -76,7 +76,8 @@ def test_tidy_csv_folder(demo_db, tmp_path):
                  str(tmp_path), "--no-mcap"]) == 0
     folder = tmp_path / "demo"
     assert sorted(p.name for p in folder.iterdir()) == [
-        "beliefs.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv", "trials.csv"]
+        "beliefs.csv", "calibration.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv",
+        "tlx.csv", "trials.csv"]
 
     def read(name):
         with open(folder / name, newline="") as f:

@@ -234,11 +234,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     recs = load_records(args.db, exclude_failed=args.exclude_failed)
     trials = load_trials(args.db)
     if trials:
+        from ..study.answers import load_answers, tlx_records, tlx_table
         from ..study.rationality import participant_fits, rationality_table
 
         fits = participant_fits(args.db)
+        tlx = tlx_table(tlx_records(load_answers(args.db)[1], trials))
         print(study_tables(trials) + "\n\n" + rationality_table(fits)
-              + ("\n" if recs else ""))
+              + (f"\n\n{tlx}" if tlx else "") + ("\n" if recs else ""))
     elif not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
     if recs:

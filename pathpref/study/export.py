@@ -6,7 +6,9 @@ Into ``OUT/PARTICIPANT/``:
   and ``trial`` in every row): ``trials.csv`` (the trial rows as stored), ``steps.csv``,
   ``forces.csv`` (every control step, 2 ms), ``pushes.csv``, ``cues.csv`` and ``beliefs.csv``
   (long form: one row per belief update *and goal candidate*: ``k, time_s, cause, goal,
-  goal_x, goal_y, p``);
+  goal_x, goal_y, p``); ``calibration.csv`` and ``tlx.csv``: the participant's gamepad
+  calibrations and NASA-TLX answers (:mod:`.answers`; also those older sessions wrote as JSON
+  lines beside the database);
 * per trial, ``trial-KK.mcap`` (MCAP, JSON messages with JSON Schemas, zstd chunks), readable
   by the ``mcap`` Python reader and Foxglove:
 
@@ -37,6 +39,7 @@ from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import STUDY_TABLES, has_study_tables
 from ..sim.scene import CELL_SIZE_M
+from .answers import load_answers
 
 CHUNK_ROWS = 4096
 VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
@@ -181,6 +184,12 @@ def export_participant(db: str | Path, participant: str, out: str | Path,
         counts["beliefs.csv"] = _write_csv(folder / "beliefs.csv", [
             "participant", "trial", "k", "time_s", "cause", "goal", "goal_x", "goal_y", "p"],
             beliefs())
+        cal, tlx = load_answers(db)
+        for table, name, rows in (("study_calibrations", "calibration.csv", cal),
+                                  ("study_tlx", "tlx.csv", tlx)):
+            cols = [col for col, _ in next(c for t, c, _ in STUDY_TABLES if t == table)]
+            counts[name] = _write_csv(folder / name, cols, (
+                [r[col] for col in cols] for r in rows if r["participant"] == participant))
         if mcap:
             for t in trials:
                 write_mcap(c, participant, t, folder / f"trial-{t['trial']:02d}.mcap")
