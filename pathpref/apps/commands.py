@@ -492,13 +492,14 @@ def cmd_study_run(args: argparse.Namespace) -> int:
 
 
 def cmd_study_export(args: argparse.Namespace) -> int:
-    """``pathpref study export``: a participant's trials as CSV and MCAP files."""
+    """``pathpref study export``: a participant's trials as CSV/Parquet and MCAP files."""
     from ..study.conduct import check_participant
     from ..study.export import export_participant
 
     check_participant(args.participant)
     check_database(args.db, "database", must_exist=True)
-    counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap)
+    counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap,
+                                fmt=args.format)
     folder = Path(args.out) / args.participant
     print(f"wrote {folder}: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
     return 0
