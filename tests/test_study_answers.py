@@ -201,3 +201,13 @@ def test_push_file_tlx_is_checked(tmp_path):
         with pytest.raises(ConfigError, match="tlx") as e:
             PushScript({"pushes": [], "tlx": {"a": bad}})
         assert "\n" not in str(e.value)
+
+
+def test_legacy_files_of_a_database_named_with_glob_characters(tmp_path):
+    """A database named ``a[1].sqlite``: its legacy files are found by their literal name."""
+    from pathpref.study.answers import _legacy_participants
+
+    db = tmp_path / "a[1].sqlite"
+    (tmp_path / "a[1].sqlite.p.1.tlx.jsonl").write_text("")
+    (tmp_path / "a1.sqlite.q.tlx.jsonl").write_text("")  # what the unescaped pattern matches
+    assert _legacy_participants(db, "tlx") == ["p.1"]

@@ -18,6 +18,7 @@ lines into the tables before its first trial by the same rule, so nothing is cou
 
 from __future__ import annotations
 
+import glob
 import json
 import math
 from collections import defaultdict
@@ -127,7 +128,8 @@ def _legacy_participants(db: str | Path, kind: str) -> list[str]:
     """Participants with a legacy ``kind`` file (``calibration`` or ``tlx``) beside ``db``."""
     db = Path(db)
     head, tail = f"{db.name}.", f".{kind}.jsonl"
-    return sorted(p.name[len(head):-len(tail)] for p in db.parent.glob(f"{db.name}.*{tail}")
+    pattern = f"{glob.escape(db.name)}.*{tail}"  # the file name may hold [, *, ?
+    return sorted(p.name[len(head):-len(tail)] for p in db.parent.glob(pattern)
                   if len(p.name) > len(head) + len(tail))
 
 
