@@ -280,12 +280,15 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument("--resume", action="store_true",
                     help="continue a participant's trials (the unfinished one runs again)")
     sr.set_defaults(func=c.cmd_study_run)
-    se = stsub.add_parser("export", help="a participant's trials as a tidy CSV folder and "
-                          "one MCAP file per trial (docs/study_export.md)")
+    se = stsub.add_parser("export", help="a participant's trials as a tidy CSV/Parquet folder "
+                          "and one MCAP file per trial (docs/study_export.md)")
     se.add_argument("db", help="results database holding study trials")
     se.add_argument("--participant", required=True, help="the participant's id")
     se.add_argument("--out", required=True, help="folder; the files go to OUT/PARTICIPANT/")
     se.add_argument("--no-mcap", action="store_true", help="CSV only (no mcap package needed)")
+    se.add_argument("--format", choices=["csv", "parquet", "both"], default="csv",
+                    help="the tables as CSV (default), Parquet (needs pyarrow: pip install "
+                    "'pathpref[parquet]') or both")
     se.set_defaults(func=c.cmd_study_export)
 
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")
