@@ -34,6 +34,8 @@ from ..errors import ConfigError
 
 #: the thermal warm-up's time constant (s; :class:`SensorModel` ``thermal_n``)
 THERMAL_S = 120.0
+OBJ_BODY = mujoco.mjtObj.mjOBJ_BODY
+INF = float("inf")
 
 
 class HandleSensor:
@@ -161,6 +163,8 @@ class FaultySensor:
         a = self.sensor.adr
         self._reading = data.sensordata[a:a + 3]
         self._RT = data.site_xmat[self.sensor.site].reshape(3, 3).T
+        self._ma = np.zeros(3)  # m a (the product's buffer)
+        self._x = np.zeros(3)  # R^T m a (the reading's addition's buffer)
 
     def _physical(self, data) -> np.ndarray:
         """This physics step's reading before the electronics (N, sensor frame): MuJoCo's, with
@@ -176,9 +180,12 @@ class FaultySensor:
         """What the extra (or removed) mass adds to the reading: ``R^T m a`` (sensor frame), ``a``
         the world-frame linear acceleration of the sensed body's centre of mass minus gravity
         (the simulator's truth: the sensor model uses it, the robot's estimator does not)."""
-        mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
-                                     self._acc, 0)
-        return self._RT @ (self._extra_m * self._acc3)
+        if data is not self._data:
+            self._bind(data)
+        mujoco.mj_objectAcceleration(self.model, data, OBJ_BODY, self.body, self._acc, 0)
+        # the same products and sums as ``R^T @ (m * a)``, into buffers (no arrays per step)
+        np.multiply(self._acc3, self._extra_m, out=self._ma)
+        return np.matmul(self._RT, self._ma, out=self._x)
 
     def _emit(self, mean: np.ndarray) -> np.ndarray:
         sm = self.spec
@@ -202,18 +209,19 @@ class FaultySensor:
         # the window's sum on floats: element by element the same additions as on arrays
         if data is not self._data:
             self._bind(data)
-        r, s = self._reading, self._sum
+        r0, r1, r2 = self._reading.tolist()  # Python floats: the same IEEE additions
+        s = self._sum
         if self._extra_m == 0.0:
-            s[0] += r[0]
-            s[1] += r[1]
-            s[2] += r[2]
+            s[0] += r0
+            s[1] += r1
+            s[2] += r2
         else:
-            x = self._inertial(data)
-            s[0] += r[0] + x[0]
-            s[1] += r[1] + x[1]
-            s[2] += r[2] + x[2]
+            x0, x1, x2 = self._inertial(data).tolist()
+            s[0] += r0 + x0
+            s[1] += r1 + x1
+            s[2] += r2 + x2
         self._count += 1
-        if self._next_t == -np.inf:
+        if self._next_t == -INF:
             self._next_t = t
         self.fresh = t >= self._next_t - 1e-9 or self._held is None
         if self.fresh:
