@@ -97,7 +97,12 @@ class MobileBase:
         self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
         self._zero_q, self._zero_v = np.zeros(m.nq), np.zeros(m.nv)
         # MjData's arrays, bound once (its buffers stay put; an attribute read makes a new one)
-        self._qpos, self._qvel = self.data.qpos, self.data.qvel
+        self._qpos, self._qvel, self._ctrl_view = self.data.qpos, self.data.qvel, self.data.ctrl
+        a = self.actuators  # a slice when the actuators are adjacent (no index array per step)
+        self._act = slice(int(a[0]), int(a[0]) + len(a)) \
+            if list(a) == list(range(int(a[0]), int(a[0]) + len(a))) else a
+        q = self.xy
+        self._xy = slice(int(q[0]), int(q[0]) + 2) if q[1] == q[0] + 1 else q
         self._wrench_of: int | None = None
         self._step_push: HumanPush | None = None
         self._float_for: TrackingController | None = None  # the controller _can_float judged
@@ -387,21 +392,20 @@ class MobileBase:
         :class:`~.controller.ProfiledController` on this class's own command law, not
         yielding, is evaluated on floats and written per actuator: the same numbers as
         :meth:`_base_command` without its arrays (it runs at every physics step)."""
-        d = self.data
-        if self._float_for is not self.controller:
+        c = self.controller
+        if self._float_for is not c:
             self._float_control = self._can_float()
         if self.guidance is not None:
             self._admit()
-        if self._float_control and self.guidance is None and not self.yielding():
+        elif self._float_control and (self.admittance_b is None or not self.yielding()):
             self._anchor = None
-            c, q, (ix, iy, iyaw), (a0, a1, a2) = \
-                self.controller, self._qpos, self._float_adr, self._float_act
+            q, (ix, iy, iyaw), (a0, a1, a2) = self._qpos, self._float_adr, self._float_act
             tx, ty = self.target.tolist()
             vx, vy = c.ramp_xy(*c.goal_xy(q.item(ix), q.item(iy), tx, ty), c.dt)
-            ctrl = self._ctrl
+            ctrl = self._ctrl_view
             ctrl[a0], ctrl[a1], ctrl[a2] = vx, vy, -c.k_yaw * q.item(iyaw)
             return
-        d.ctrl[self.actuators] = self._base_command()
+        self._ctrl_view[self._act] = self._base_command()
 
     def _can_float(self) -> bool:
         """Whether :meth:`_control` may take its float path (its docstring): a
@@ -411,7 +415,6 @@ class MobileBase:
         ok = (isinstance(c, ProfiledController) and type(c).command is ProfiledController.command
               and type(self)._base_command is MobileBase._base_command)
         if ok:
-            self._ctrl = self.data.ctrl
             self._float_adr = (int(self.xy[0]), int(self.xy[1]), self.yaw)
             self._float_act = tuple(int(a) for a in self.actuators)
         return ok
@@ -422,7 +425,7 @@ class MobileBase:
         spring ``k = ADMITTANCE_K`` keeps a push the actuators cannot resist from carrying the
         base away); a profiled controller ramps to it within its acceleration limit."""
         d = self.data
-        pos = d.qpos[self.xy]
+        pos = self._qpos[self._xy].copy()
         if not self.yielding():
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)
