@@ -25,6 +25,7 @@ See ``docs/sensing.md`` for the figures behind :meth:`SensorModel.realistic`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -140,6 +141,8 @@ class FaultySensor:
         self.mass = float(model.body_subtreemass[self.body])  # the model's sensed mass
         self.dt = float(model.opt.timestep)
         self.period = self.dt if sensor_model.rate_hz is None else 1.0 / sensor_model.rate_hz
+        #: the drift's spread per sample, ``drift sqrt(period)`` (N)
+        self._drift_step = sensor_model.drift_n_per_sqrt_s * math.sqrt(self.period)
         phi = rng.uniform(0.0, 2.0 * np.pi)
         #: the current bias (N, sensor frame); drifts as a random walk
         self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
@@ -190,8 +193,7 @@ class FaultySensor:
     def _emit(self, mean: np.ndarray) -> np.ndarray:
         sm = self.spec
         if sm.drift_n_per_sqrt_s > 0:
-            self.bias[:2] += sm.drift_n_per_sqrt_s * np.sqrt(self.period) * \
-                self.rng.standard_normal(2)
+            self.bias[:2] += self._drift_step * self.rng.standard_normal(2)
         noise = sm.noise_n * self.rng.standard_normal(3) if sm.noise_n > 0 else 0.0
         if sm.thermal_n > 0:  # the warm-up since the sensor was zeroed (restart)
             self.warm_s += self.period
