@@ -247,12 +247,12 @@ class FilteredCueDetector(CueDetector):
             while len(q) > self._hold_n:
                 x, y = q.popleft()
                 b = self.baseline
-                ex, ey = x - float(b[0]), y - float(b[1])
+                bx, by = b.tolist()  # floats: the same IEEE operations as on its elements
+                ex, ey = x - bx, y - by
                 if ex * ex + ey * ey < self.off_n * self.off_n:
                     self.var += self._beta * (0.5 * (ex * ex + ey * ey) - self.var)
                     learnt = True
-                b[0] += self._gamma * ex
-                b[1] += self._gamma * ey
+                b[0], b[1] = bx + self._gamma * ex, by + self._gamma * ey
             if learnt:
                 self._thresholds()
 
@@ -271,7 +271,7 @@ class FilteredCueDetector(CueDetector):
             return None
         # the low-pass on Python floats, in place: the same IEEE operations as on arrays
         f, a = self.f, self._alpha
-        fx, fy = float(f[0]), float(f[1])
+        fx, fy = f.tolist()
         fx, fy = fx + a * (x - fx), fy + a * (y - fy)
         f[0], f[1] = fx, fy
         idle = not self.active and self._above == 0.0
