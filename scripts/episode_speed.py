@@ -49,7 +49,7 @@ def child(n: int, which: str) -> None:
                                   sim="mujoco", t_max=t_max, physics=ph)
 
     run_episode(spec(0, 3))  # compile the scene and the planner first
-    times, overhead, h = [], [], hashlib.sha256()
+    times, overhead, python_us, h = [], [], [], hashlib.sha256()
     for i in range(n):
         runner = EpisodeRunner(spec(i, 30))
         base = runner.body.base
@@ -64,11 +64,12 @@ def child(n: int, which: str) -> None:
         steps = round(float(base.data.time) / base.dt)
         # the episode against bare MuJoCo plus planning (physics.overhead_vs_bare_mujoco)
         overhead.append(times[-1] / (times[-1] - spent[0] + steps * bare))
+        python_us.append(1e6 * (spent[0] / steps - bare))
         h.update(repr([(s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
                        for s in res.log]).encode())
         h.update(repr(sorted(res.metrics.items())).encode())
     print(json.dumps({"file": pathpref.__file__, "times": times, "overhead": overhead,
-                      "digest": h.hexdigest()[:16]}))
+                      "python_us": python_us, "digest": h.hexdigest()[:16]}))
 
 
 def bare_step_s(model, data, steps: int = 2000) -> float:
@@ -127,6 +128,7 @@ def main() -> None:
         subprocess.run(["tar", "-x", "-C", tmp], input=archive, check=True)
         runs: dict[str, list[list[float]]] = {"before": [], "after": []}
         ratios: dict[str, list[float]] = {"before": [], "after": []}
+        python_us: dict[str, list[float]] = {"before": [], "after": []}
         digests: dict[str, set[str]] = {"before": set(), "after": set()}
         for _ in range(a.rounds):
             for name in ("before", "after"):
@@ -140,6 +142,7 @@ def main() -> None:
                 d = json.loads(out)
                 runs[name].append(d["times"])
                 ratios[name] += d["overhead"]
+                python_us[name] += d["python_us"]
                 digests[name].add(d["digest"])
                 print(f"{name:6s} {' '.join(f'{t:5.2f}' for t in d['times'])}  "
                       f"({d['file']}, digest {d['digest']})", flush=True)
@@ -150,7 +153,9 @@ def main() -> None:
           f"after: {med['before'] / med['after']:.2f}x (totals "
           f"{total['before'] / total['after']:.2f}x); same episodes: {same}")
     print(f"episode / (bare mj_step + planning), median: {statistics.median(ratios['before']):.2f}"
-          f" before, {statistics.median(ratios['after']):.2f} after")
+          f" before, {statistics.median(ratios['after']):.2f} after; Python per physics step "
+          f"{statistics.median(python_us['before']):.1f} us before, "
+          f"{statistics.median(python_us['after']):.1f} us after")
 
 
 if __name__ == "__main__":

@@ -85,3 +85,25 @@ def test_overhead_keys():
                         "overhead_vs_bare_mujoco_control"}
     assert out["overhead_vs_bare_mujoco"] > 1.0 and out["overhead_vs_bare_mujoco_control"] > 1.0
     assert out["python_us_per_step"] > 0.0 and out["bare_step_us"] > 0.0
+
+
+def test_cell_at_is_the_floor_rule_on_floats():
+    """``Scene.cell_at`` (floats, no arrays) against the rule computed with NumPy: grid
+    coordinates ``floor(xy / cell) + 1`` clipped to the grid, the free cell there, else the
+    free cell whose centre is nearest; points inside, on cell borders, in obstacles and off
+    the grid on every side."""
+    world = load_world("simple")
+    scene = build_scene(world)
+    rng = np.random.default_rng(5)
+    size, W, H = scene.cell_size, world.spec.width, world.spec.height
+    pts = np.concatenate([rng.uniform(-1.0, 1.0, (1500, 2)) * (W * size, H * size) * 1.3,
+                          rng.integers(-2, max(W, H) + 2, (500, 2)) * size])
+    obstacles = 0
+    for p in pts:
+        c = np.clip(np.floor(p / size).astype(int) + 1, 1, (W, H))
+        idx = int(world.arrangement.cell_index[c[0] - 1, c[1] - 1])
+        if idx < 0:
+            obstacles += 1
+            idx = int(np.argmin(np.linalg.norm(world.cells - 0.5 - p / size, axis=1)))
+        assert scene.cell_at(p) == idx, p
+    assert obstacles > 0
