@@ -98,13 +98,13 @@ class ForceEstimator:
         np.subtract(qvel, self._qvel_mark, out=dv)
         np.divide(dv, window_s, out=dv)
         np.copyto(self._qvel_mark, qvel)
-        return self._jac @ dv
+        return self._jac.dot(dv)  # the same gemv as ``@`` (sensing.FaultySensor._inertial)
 
     def expected(self, R: np.ndarray, acc: np.ndarray) -> np.ndarray:
         """What the sensor reads without a push and without faults (N, sensor frame): the
         known mass's inertia and weight, ``R^T m (a - g)``."""
         a = acc if self.config.compensate_inertia else np.zeros(3)
-        return R.T @ (self.mass * (a + GRAVITY_UP))
+        return R.T.dot(self.mass * (a + GRAVITY_UP))
 
     def tare(self, readings: list[np.ndarray], R: np.ndarray) -> None:
         """Zero the sensor from readings taken at rest (the mean residual becomes the bias)."""
@@ -128,7 +128,7 @@ class ForceEstimator:
         self.acc = acc = self.acceleration(data, window)
         residual = reading - self.expected(R, acc)
         # the sensed body's speed, then its acceleration, asked only while they may decide
-        still = cue_idle and norm(self._jac @ data.qvel) < c.still_mps and \
+        still = cue_idle and norm(self._jac.dot(data.qvel)) < c.still_mps and \
             norm(acc) < c.still_mps2
         if still:
             self.quiet += window
@@ -140,7 +140,7 @@ class ForceEstimator:
         a = min(1.0, window / (c.bias_tau_s + window))
         while len(self._pending) * window > c.quiet_s + 1e-12:
             self.bias += a * (self._pending.popleft() - self.bias)
-        self.force = -(R @ (residual - self.bias))[:2]
+        self.force = -(R.dot(residual - self.bias))[:2]
         return self.force
 
 

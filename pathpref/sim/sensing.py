@@ -186,9 +186,11 @@ class FaultySensor:
         if data is not self._data:
             self._bind(data)
         mujoco.mj_objectAcceleration(self.model, data, OBJ_BODY, self.body, self._acc, 0)
-        # the same products and sums as ``R^T @ (m * a)``, into buffers (no arrays per step)
+        # ``R^T @ (m * a)`` into buffers (no arrays per step); ``ndarray.dot`` calls the same
+        # BLAS ``gemv`` as ``@`` (equal bits, tests/test_physics_overhead.py) at a third of
+        # the cost
         np.multiply(self._acc3, self._extra_m, out=self._ma)
-        return np.matmul(self._RT, self._ma, out=self._x)
+        return self._RT.dot(self._ma, out=self._x)
 
     def _emit(self, mean: np.ndarray) -> np.ndarray:
         sm = self.spec
