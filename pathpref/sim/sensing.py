@@ -50,7 +50,7 @@ class HandleSensor:
         """The horizontal interaction force (N) in the world frame."""
         f_site = data.sensordata[self.adr:self.adr + 3]
         R = data.site_xmat[self.site].reshape(3, 3)
-        return -(R @ f_site)[:2]
+        return -(R.dot(f_site))[:2]  # the same gemv as ``@`` (see FaultySensor._inertial)
 
     def rotation(self, data) -> np.ndarray:
         """The site's rotation (site frame to world frame, 3x3)."""
