@@ -60,6 +60,57 @@ def scale_map() -> dict[str, Any]:
     return with_loop_preference(random_floor_plan(name="floor_200", **SCALE_MAP))
 
 
+#: the forced 500 x 500 map: the bench floor plan's obstacle density (per area) at 500 x 500,
+#: 1,122 distinct lines over 232,643 free cells (above the polytope limit: built with force)
+MAP_500 = dict(SCALE_MAP, width=500, height=500, n_rotated=125, n_boxes=250)
+
+
+def map_500() -> dict[str, Any]:
+    """The 500 x 500 floor plan of :data:`MAP_500`, with a loop preference."""
+    from ...geometry.generate import random_floor_plan, with_loop_preference
+
+    return with_loop_preference(random_floor_plan(name="floor_500", **MAP_500))
+
+
+def _map_500_child(queries: int = 1000) -> None:
+    """Run in a fresh interpreter: the 500 x 500 map built (forced), the robust preset's
+    likelihood tables for instance 0 (10 goals) and its first decision. Prints JSON: the CPU
+    seconds and the process's peak RSS (MB, ``ru_maxrss``, which only grows) after each stage
+    (``world``, ``tables``, ``decision``), polytopes, lines and the maximum degree."""
+    import json
+    import resource
+    import tempfile
+
+    from ...episode.runner import EpisodeRunner
+
+    out: dict[str, Any] = {}
+    c0 = time.process_time()
+
+    def stage(name: str) -> None:
+        out[f"{name}_cpu_s"] = time.process_time() - c0
+        out[f"{name}_peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "floor_500.json")
+        with open(path, "w") as f:
+            json.dump(map_500(), f)
+        spec = load_map(path)
+        world = World.from_spec(spec)
+        stage("world")
+        ep = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=0, run=0,
+                         instance_seed=1, run_seed=2, queries=queries, t_max=spec.t_max,
+                         preset="robust")
+        runner = EpisodeRunner(ep, world=world)
+        model = runner.model
+        _ = (model.likelihood, model.goal_likelihood)
+        stage("tables")
+        log = runner.step()
+        stage("decision")
+    out.update(polytopes=world.n_polytopes, lines=len(world.arrangement.normals),
+               max_degree=world.graph.max_degree, cells=world.n_cells, action=int(log.action))
+    print(json.dumps(out))
+
+
 def _scale_setup_child() -> None:
     """Run in a fresh interpreter: arrangement + graph + cost tables for 10 goals on the
     benchmark floor plan; prints ``seconds peak_MB``."""
