@@ -153,9 +153,11 @@ class CellTable:
         n, G = len(self.slots), self.n_goals
         out = np.full((n, 8, G, width), fill)
         for k in np.unique(self.slots).tolist():
-            cells = np.flatnonzero(self.slots == k)
-            idx = self.offsets[cells][:, None] + np.arange(8 * G * k)[None, :]
-            out[cells, :, :, :k] = self.flat[idx].reshape(len(cells), 8, G, k)
+            group = np.flatnonzero(self.slots == k)
+            for lo in range(0, len(group), EXCESS_CHUNK):  # bounded index temporaries
+                cells = group[lo: lo + EXCESS_CHUNK]
+                idx = self.offsets[cells][:, None] + np.arange(8 * G * k)[None, :]
+                out[cells, :, :, :k] = self.flat[idx].reshape(len(cells), 8, G, k)
         return out
 
 
@@ -266,8 +268,11 @@ class ObservationModel:
         if delta_u is None and "_delta" not in self.__dict__:
             _ = self._compact
             delta_u = self.__dict__["_delta_u"]
-        return boltzmann(self._delta[1] if delta_u is None else delta_u, self.gamma,
-                         self.normalize)
+        lik = boltzmann(self._delta[1] if delta_u is None else delta_u, self.gamma,
+                        self.normalize)
+        if self.normalize:  # nothing else reads the goal-only excess
+            self.__dict__.pop("_delta_u", None)
+        return lik
 
     @cached_property
     def heading_probs(self) -> np.ndarray:
