@@ -9,7 +9,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip "setuptools>=77"
-	$(BIN)/pip install --quiet -e '.[dev,ray,export]'
+	$(BIN)/pip install --quiet -e '.[dev,ray,export,parquet]'
 	@# the study's browser tests drive Debian's chromium (Playwright, no browser download);
 	@# its viewer test opens a real MuJoCo window on a virtual screen (xvfb-run)
 	(command -v chromium >/dev/null && command -v xvfb-run >/dev/null) || \
@@ -26,7 +26,7 @@ test: $(STAMP)
 # The replays and pinned decisions (marker cross_cpu) once more under another CPU feature set:
 # NumPy at its x86-64-v2 baseline (no AVX2/AVX-512 kernels), OpenBLAS's Sandy Bridge kernels
 # (AVX, no FMA), numba compiled for a generic x86-64 with its own cache. On any x86-64 machine
-# with AVX2 this differs from the first run's kernels (README, "Replays exactly").
+# with AVX2 this differs from the first run's kernels (docs/experiments.md, "Replays exactly").
 CROSS_CPU_ENV = NPY_DISABLE_CPU_FEATURES="X86_V3 X86_V4 AVX512F AVX512CD AVX512_SKX AVX512_CLX AVX512_CNL AVX512_ICL AVX512_SPR" \
 	OPENBLAS_CORETYPE=Sandybridge NUMBA_CPU_NAME=generic NUMBA_CACHE_DIR=$(CURDIR)/.numba-generic
 test-cross-cpu: $(STAMP)

@@ -1,5 +1,6 @@
-"""The README's outcome tables: per method and ΔT, success / goal reached / back-crossings per
-episode (and the oracle's share), from one or more results databases of ``pathpref evaluate``.
+"""The outcome tables of docs/robust.md: per method and ΔT, success / goal reached /
+back-crossings per episode (and the oracle's share), from one or more results databases of
+``pathpref evaluate``.
 
     .venv/bin/python scripts/outcome_table.py results/office_paper_consistent.sqlite \\
         results/office_robust_consistent.sqlite

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The robust planner's tables in the README (issue 10). Each block writes one SQLite database
+# The robust planner's tables in docs/robust.md. Each block writes one SQLite database
 # under results/ (resumable: rerun the script after a crash and finished episodes are skipped)
 # and prints its Markdown table. Usage: bash scripts/robust_tables.sh [part ...]
 # Parts: csweep simple office classroom warehouse atrium (default: all). Environment: N (sweep

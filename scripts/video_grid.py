@@ -1,5 +1,6 @@
-"""The README's frame grid: render one episode at 960 x 540 with ``pathpref render`` and lay
-six frames out 3 x 2 (the first push, the detected cue, four moments spread over the rest).
+"""The README's frame grid (docs/video_grid.png): render one episode at 960 x 540 with
+``pathpref render`` and lay six frames out 3 x 2 (the first push, the detected cue, four
+moments spread over the rest).
 
     MUJOCO_GL=egl python scripts/video_grid.py --out docs/video_grid.png
 """

@@ -168,6 +168,19 @@ class NavigateControl(Navigate):
         library writes it: a Gymnasium ``Box`` holds it in float32 (``float32(0.8)`` is
         ``0.800000011920929``) and PPO clips its actions to that, so a value within the
         float32 rounding of ``v_max`` is in range (and clipped to it)."""
+        if type(action) is np.ndarray and action.dtype == np.float64 and action.shape == (2,):
+            a = action  # real, the right shape: only the range is left to check
+        else:
+            a = self._parse_action(action)
+        bound = max(self.v_max, float(np.float32(self.v_max)))  # float32's rounding of it
+        if not (np.isfinite(a).all() and (np.abs(a) <= bound).all()):
+            raise ConfigError(f"action must be (vx, vy) with each in [-{self.v_max:g}, "
+                              f"{self.v_max:g}] m/s, got {np.array2string(a, precision=3)}")
+        return np.clip(a, -self.v_max, self.v_max)
+
+    def _parse_action(self, action) -> np.ndarray:
+        """``action`` as a float array of shape (2,); a one-line ConfigError naming a complex
+        number or the shape."""
         if np.iscomplexobj(action) or any(isinstance(v, complex) for v in np.ravel(
                 np.asarray(action, dtype=object))):
             raise ConfigError(f"action must be (vx, vy) in m/s, real numbers, got "
@@ -179,11 +192,7 @@ class NavigateControl(Navigate):
         if a is None or a.shape != (2,):
             shown = repr(action)[:40] if a is None else f"an array of shape {a.shape}"
             raise ConfigError(f"action must be (vx, vy) in m/s, shape (2,), got {shown}")
-        bound = max(self.v_max, float(np.float32(self.v_max)))  # float32's rounding of it
-        if not (np.isfinite(a).all() and (np.abs(a) <= bound).all()):
-            raise ConfigError(f"action must be (vx, vy) with each in [-{self.v_max:g}, "
-                              f"{self.v_max:g}] m/s, got {np.array2string(a, precision=3)}")
-        return np.clip(a, -self.v_max, self.v_max)
+        return a
 
     def before_step(self, action, physics: Physics) -> None:
         """Hold the commanded velocity; start the human's push when one is due."""

@@ -114,8 +114,12 @@ class ForceFilter:
         into the world frame) or the estimator's output."""
         b = self.base
         if raw is None:
-            raw = -(self._R @ self._reading) if b.sensor_model is None else b.force_estimate
-        self.f += self.alpha * (raw - self.f)
+            raw = -(self._R.dot(self._reading)) if b.sensor_model is None else \
+                b.force_estimate  # dot: the same gemv as ``@``, cheaper to call
+        # on Python floats, element by element the same operations as ``f += a (raw - f)``
+        f, a = self.f, self.alpha
+        (r0, r1), (f0, f1) = np.asarray(raw, float).tolist(), f.tolist()
+        f[0], f[1] = f0 + a * (r0 - f0), f1 + a * (r1 - f1)
 
 
 class StepInteraction:

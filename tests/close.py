@@ -1,4 +1,4 @@
-"""Comparisons that hold on every x86-64 machine (README, "Replays exactly").
+"""Comparisons that hold on every x86-64 machine (docs/experiments.md, "Replays exactly").
 
 NumPy, OpenBLAS and numba choose CPU-specific kernels, so a float can differ in its last bits
 between two machines (``0.1126323642245804`` against ``0.11263236422458038``). Tests that pin a

@@ -113,7 +113,7 @@ def test_coupling_lowers_going_back(simple):
         b.enter(v, east)
     back = simple.graph.neighbor_index(east, v)
     # without coupling the unobserved polytope stays uniform: 0.5 up to rounding (a matrix
-    # product whose last bit depends on the CPU's kernels, README "Replays exactly")
+    # product whose last bit depends on the CPU's kernels, docs/experiments.md "Replays exactly")
     assert off.preference_marginal(east)[back] == pytest.approx(0.5, rel=1e-12)
     assert on.preference_marginal(east)[back] < 0.5 - 1e-3
 

@@ -1,4 +1,4 @@
-"""The README's table scripts (scripts/outcome_table.py, scripts/back_crossings.py) on a small
+"""The results pages' table scripts (scripts/outcome_table.py, scripts/back_crossings.py) on a small
 real sweep: their figures agree with the database's own columns, counted here independently."""
 
 from __future__ import annotations

@@ -6,8 +6,8 @@ three instances; office: the four methods at Delta_T 5, two instances; 1000 quer
 ``--preset robust`` episodes, and three MuJoCo episodes (``navigate`` and ``carry``). Every
 stored outcome, count, physical metric and per-step log (cells, actions, headings, P(true goal)
 and goal entropy) must come out the same from today's code: discrete values exactly, floats to
-``tests/close.py``'s tolerance (they differ in the last bits between CPU classes; README,
-"Replays exactly").
+``tests/close.py``'s tolerance (they differ in the last bits between CPU classes;
+docs/experiments.md, "Replays exactly").
 
 The robust search has changed on purpose since the save (each violation costs its own factor
 ``rho``; the root breaks statistical ties by the rollout heuristic), so its four episodes are

@@ -50,7 +50,7 @@ def _rest(base: MobileBase, seconds: float) -> None:
 @pytest.mark.parametrize("sensor_model", [None, SensorModel.ideal(), SensorModel()])
 def test_ideal_default_is_unchanged(worlds, scene, sensor_model):
     """The default (and an explicit ideal model) gives the cue of the old code: its heading
-    exactly, its floats to ``tests/close.py``'s physical tolerance (README, "Replays
+    exactly, its floats to ``tests/close.py``'s physical tolerance (docs/experiments.md, "Replays
     exactly")."""
     from tests.close import REL_PHYSICS, assert_same
 

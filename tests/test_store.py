@@ -32,7 +32,8 @@ def test_sweep_resumes(tmp_path):
 
 
 def test_any_stored_row_replays_exactly(tmp_path):
-    """The README's promise: a row's stored configuration and seeds reproduce the episode."""
+    """The promise of docs/experiments.md: a row's stored configuration and seeds reproduce
+    the episode."""
     from pathpref.episode import run_episode
     from pathpref.experiments.store import row_spec
 

@@ -287,16 +287,75 @@ def test_browser_gamepad_calibration_pushes_and_questionnaire(tmp_path):
         if proc.poll() is None:
             proc.kill()
     assert proc.returncode == 0, out
-    tlx = [json.loads(line) for line in Path(f"{db}.p.tlx.jsonl").read_text().splitlines()]
-    assert [(t["trial"], t["name"], t["scores"]) for t in tlx] == [(1, "left", answers)]
-    assert tlx[0]["raw_tlx"] == pytest.approx(200 / 6, abs=1e-12)  # (40+65+20+15+55+5) / 6
     c = sqlite3.connect(db)
+    tlx = c.execute("SELECT participant, trial, name, mental, physical, temporal, performance, "
+                    "effort, frustration, raw_tlx FROM study_tlx").fetchall()
+    assert [t[:9] for t in tlx] == [("p", 1, "left", *answers.values())]
+    assert tlx[0][9] == pytest.approx(200 / 6, abs=1e-12)  # (40+65+20+15+55+5) / 6
     assert [r[0] for r in c.execute("SELECT heading FROM trial_cues ORDER BY k")] == [
         HEADING[(-1, 0)], HEADING[(0, 1)]]
     peaks = [r[0] for r in c.execute("SELECT peak_n FROM trial_pushes ORDER BY k")]
     assert peaks == pytest.approx([60 * 0.65 / 0.85] * 2, rel=1e-6)
-    cal = [json.loads(line) for line in Path(f"{db}.p.calibration.jsonl").read_text()
-           .splitlines()]
-    assert len(cal) == 1 and cal[0]["trial"] == 1 and cal[0]["device"] == "fake pad"
-    assert cal[0]["rest"] == pytest.approx(list(rest), abs=1e-12)
-    assert cal[0]["reach"] == pytest.approx(reach, abs=1e-12)
+    cal = c.execute("SELECT k, trial, device, rest_x, rest_y, reach FROM study_calibrations "
+                    "WHERE participant = 'p'").fetchall()
+    assert len(cal) == 1 and cal[0][:3] == (0, 1, "fake pad")
+    assert cal[0][3:5] == pytest.approx(rest, abs=1e-12)
+    assert cal[0][5] == pytest.approx(reach, abs=1e-12)
+
+
+PATH_RGB = (0x7A, 0x3C, 0xC8)  # the planned path's colour on the page (page.html PATH_RGB)
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="chromium not found (make install puts it there "
+                    "with apt-get install chromium)")
+def test_browser_observer_draws_the_planned_path(tmp_path):
+    """A trial with the belief hidden, a driver page and an observer page (two windows): the
+    observer's canvas draws the robot's planned path (the page's count of the vertices it
+    drew, and the path's colour in a screenshot of the canvas); the driver's draws none."""
+    playwright = pytest.importorskip("playwright.sync_api")
+    import imageio.v2 as imageio
+
+    study = tmp_path / "one.json"
+    study.write_text(json.dumps({"trials": [{
+        "name": "hidden", "map": "simple", "start": [5, 2], "goal": [5, 9],
+        "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [2, 2], [2, 9], [5, 9]],
+        "time_limit_s": 6, "queries": 100, "condition": {"belief": "hidden"}}]}))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pathpref", "study", "run", str(study), "--participant", "p",
+         "--db", str(tmp_path / "o.sqlite"), "--port", "0"], stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT, text=True, env={**os.environ, "MUJOCO_GL": "egl"})
+    try:
+        url = re.search(r"(http://\S+)", proc.stdout.readline()).group(1)
+        with playwright.sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
+            pages = []
+            for role in ("driver", "observer"):
+                page = browser.new_context(viewport={"width": 1100, "height": 700}).new_page()
+                page.goto(url)
+                page.wait_for_function(f"window.study.scene !== null && window.study.role "
+                                       f"=== '{role}'", timeout=EVENT_MS)
+                pages.append(page)
+            driver, observer = pages
+            driver.click("#start")
+            observer.wait_for_function(
+                "window.study.state !== null && window.study.state.path !== null && "
+                "window.study.state.path.length >= 3 && window.study.pathDrawn >= 3",
+                timeout=EVENT_MS, polling="raf")
+            shots = {}
+            for name, page in (("observer", observer), ("driver", driver)):
+                shots[name] = tmp_path / f"{name}.png"
+                page.locator("#map").screenshot(path=str(shots[name]))
+            drawn = driver.evaluate("[window.study.pathDrawn, window.study.state.path]")
+            driver.wait_for_function("window.study.scene.status === 'finished'",
+                                     timeout=EVENT_MS)
+            browser.close()
+        out = proc.communicate(timeout=EVENT_MS / 1000)[0]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    assert drawn == [0, None]  # the driver is not shown the belief: no path either
+    purple = {k: _colour_pixels(imageio.imread(v), PATH_RGB) for k, v in shots.items()}
+    assert purple["driver"] == 0
+    print(f"planned path pixels: {purple}")
+    assert purple["observer"] > 150, purple  # a dashed line 3 px wide over >= 2 cells

@@ -76,7 +76,8 @@ def test_tidy_csv_folder(demo_db, tmp_path):
                  str(tmp_path), "--no-mcap"]) == 0
     folder = tmp_path / "demo"
     assert sorted(p.name for p in folder.iterdir()) == [
-        "beliefs.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv", "trials.csv"]
+        "beliefs.csv", "calibration.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv",
+        "tlx.csv", "trials.csv"]
 
     def read(name):
         with open(folder / name, newline="") as f:
@@ -201,3 +202,70 @@ def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
     assert infos[0].title.startswith("demo trial 1: ")
     assert f"recorded: {outcome} in {time_s:.1f} s" in infos[-1].extra
     assert infos[-1].pushes == cues and abs(float(infos[-1].belief.sum()) - 1.0) < 1e-9
+
+
+def test_parquet_beside_csv_reads_back_with_arrow(demo_db, tmp_path, capsys):
+    """``--format both``: every table as CSV and as Parquet with the same columns and rows
+    (pyarrow's own reader; every value printed as the CSV prints it), typed as the study
+    tables (int64, float64, string); the force samples are every stored row, 2 ms apart.
+    ``--format parquet`` alone writes no CSV; the default writes no Parquet."""
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow is installed by make install "
+                             "(the 'parquet' extra); without it Parquet export is refused")
+    out = tmp_path / "both"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out", str(out),
+                 "--no-mcap", "--format", "both"]) == 0
+    folder = out / "demo"
+    stems = ["beliefs", "calibration", "cues", "forces", "pushes", "steps", "tlx", "trials"]
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        [f"{s}.csv" for s in stems] + [f"{s}.parquet" for s in stems])
+    for stem in stems:
+        with open(folder / f"{stem}.csv", newline="") as f:
+            header, *body = list(csv.reader(f))
+        table = pq.read_table(folder / f"{stem}.parquet")
+        assert table.column_names == header and table.num_rows == len(body)
+        cols = [table.column(n).to_pylist() for n in header]
+        assert [["" if v is None else str(v) for v in r] for r in zip(*cols)] == body, stem
+    forces = pq.read_table(folder / "forces.parquet")
+    assert str(forces.schema.field("fx").type) == "double"
+    assert str(forces.schema.field("k").type) == "int64"
+    assert str(forces.schema.field("participant").type) == "string"
+    stored = rows(demo_db, "SELECT trial, k, time_s, fx, fy, sensed_fx, sensed_fy FROM "
+                  "trial_forces ORDER BY trial, k")
+    got = list(zip(*(forces.column(n).to_pylist() for n in (
+        "trial", "k", "time_s", "fx", "fy", "sensed_fx", "sensed_fy")), strict=True))
+    assert got == stored and len(got) > 1000
+    for (t0, k0, s0, *_), (t1, k1, s1, *_) in zip(got, got[1:]):
+        if t0 == t1:
+            assert k1 == k0 + 1 and abs((s1 - s0) - 0.002) < 1e-9  # the 2 ms physics step
+    only = tmp_path / "pq"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out", str(only),
+                 "--no-mcap", "--format", "parquet"]) == 0
+    assert sorted(p.suffix for p in (only / "demo").iterdir()) == [".parquet"] * len(stems)
+    csv_only = tmp_path / "csv"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(csv_only), "--no-mcap"]) == 0
+    assert sorted(p.suffix for p in (csv_only / "demo").iterdir()) == [".csv"] * len(stems)
+
+
+def test_parquet_row_groups_bound_the_buffer(tmp_path, monkeypatch):
+    """Worst case of the Parquet buffer: more rows than a row group holds are written as
+    several groups (the buffer never holds more than PARQUET_GROUP_ROWS rows), and an empty
+    table is a file with its columns and no rows."""
+    pq = pytest.importorskip("pyarrow.parquet", reason="pyarrow is installed by make install")
+    from pathpref.study import export
+
+    monkeypatch.setattr(export, "PARQUET_GROUP_ROWS", 4)
+    cols = [("participant", "TEXT"), ("k", "INTEGER"), ("x", "REAL")]
+    seen = []
+    w = export.TableWriter(tmp_path, "t", cols, ("parquet",))
+    for k in range(10):
+        w.write(["p", k, None if k == 3 else k / 8])
+        seen.append(len(w._buffer))
+    assert max(seen) < 4 and w.close() == {"t.parquet": 10}
+    f = pq.ParquetFile(tmp_path / "t.parquet")
+    assert f.metadata.num_row_groups == 3  # 4 + 4 + 2
+    assert f.read().to_pylist() == [{"participant": "p", "k": k,
+                                     "x": None if k == 3 else k / 8} for k in range(10)]
+    assert export._write_table(tmp_path, "e", cols, [], ("csv", "parquet")) == {
+        "e.csv": 0, "e.parquet": 0}
+    assert pq.read_table(tmp_path / "e.parquet").column_names == ["participant", "k", "x"]

@@ -71,7 +71,7 @@ def test_ten_trial_study_with_a_simulated_gamepad(tmp_path):
     """Ten trials, the pushes sent as stick axes of a calibrated simulated gamepad, complete
     unattended: every push recorded with the scripted force as its peak, felt as a cue; the
     calibration is recorded once, before trial 1."""
-    from pathpref.study.conduct import calibration_path, run_study
+    from pathpref.study.conduct import run_study
     from pathpref.study.plan import parse_study
     from pathpref.study.script import PushScript, ScriptedFrontEnd
 
@@ -97,11 +97,10 @@ def test_ten_trial_study_with_a_simulated_gamepad(tmp_path):
         peaks = [p for (p,) in c.execute("SELECT peak_n FROM trial_pushes WHERE trial = ? "
                                          "ORDER BY k", (r["trial"],))]
         assert peaks == pytest.approx([math.hypot(p["fx"], p["fy"]) for p in made], abs=1e-9)
-    lines = calibration_path(db, "g1").read_text().splitlines()
-    assert len(lines) == 1
-    rec = json.loads(lines[0])
-    assert (rec["trial"], rec["rest"], rec["reach"], rec["deadzone"]) == (1, [0.1, -0.05], 0.9,
-                                                                          0.15)
+    cal = c.execute("SELECT participant, k, trial, rest_x, rest_y, reach, deadzone, "
+                    "max_force_n FROM study_calibrations").fetchall()
+    assert cal == [("g1", 0, 1, 0.1, -0.05, 0.9, 0.15, 60.0)]
+    assert not list(tmp_path.glob("*.jsonl"))  # the database holds it, nothing beside it
 
 
 def test_tlx_answers_are_checked():

@@ -434,3 +434,66 @@ def test_waiting_for_start_is_bounded(tmp_path):
     rows = run_study(study, "p1", db, ScriptedFrontEnd(PushScript({"pushes": []})),
                      log=lambda m: None)
     assert [r["status"] for r in rows] == ["done"]
+
+
+def test_observers_see_the_planned_path_the_driver_only_when_the_belief_is_shown(tmp_path):
+    """A trial with the belief hidden: every state message an observer gets carries the
+    robot's planned path (free cells of the map, grid neighbours one after the other, from
+    the robot's cell, ending at the candidate the belief favours); the driver's carries
+    neither the belief nor the path."""
+    study = parse_study({"trials": [{**TRIAL, "time_limit_s": 2,
+                                     "condition": {"belief": "hidden"}}]})
+    world = study.trials[0].world
+    cands = [tuple(c) for c in TRIAL["candidates"]]
+    f = BrowserFrontEnd(port=0)
+    th, box = _run_in_thread(study, "p1", tmp_path / "p.sqlite", f)
+    drv, role = page(f)
+    obs, role_o = page(f)
+    assert (role, role_o) == ("driver", "observer")
+    stop = threading.Event()
+    got: dict[str, list] = {"driver": [], "observer": []}
+
+    def alive():
+        while not stop.is_set():
+            try:
+                drv.send('{"type": "alive"}')
+            except Exception:  # noqa: BLE001 - the server closed at the end
+                return
+            time.sleep(0.1)
+
+    def read(ws, who):
+        try:
+            while True:
+                m = json.loads(ws.recv(timeout=WAIT_S))
+                if m["type"] == "state":
+                    got[who].append(m)
+        except Exception:  # noqa: BLE001 - closed at the end of the session
+            return
+
+    readers = [threading.Thread(target=read, args=(ws, who), daemon=True)
+               for ws, who in ((drv, "driver"), (obs, "observer"))]
+    for t in readers:
+        t.start()
+    threading.Thread(target=alive, daemon=True).start()
+    assert wait_for(lambda: f._scene is not None)
+    drv.send('{"type": "start"}')
+    th.join(WAIT_S)
+    stop.set()
+    f.close()
+    for t in readers:
+        t.join(WAIT_S)
+    assert "error" not in box, box.get("error")
+    assert got["observer"] and got["driver"]
+    assert all(m["path"] is None and m["probs"] is None for m in got["driver"])
+    steps = set()
+    for m in got["observer"]:
+        path = [tuple(c) for c in m["path"]]
+        assert path[0] == tuple(m["cell"])
+        for xy in path:
+            world.cell(xy)  # a free cell of the map (a MapError otherwise)
+        assert all(max(abs(a[0] - b[0]), abs(a[1] - b[1])) == 1
+                   for a, b in zip(path, path[1:]))
+        best = max(m["probs"])
+        assert path[-1] in cands and m["probs"][cands.index(path[-1])] >= best - 1e-4
+        steps.add(m["step"])
+    assert len(steps) >= 2  # states from more than one decision step

@@ -26,7 +26,7 @@ def force_option(sp: argparse.ArgumentParser) -> None:
     """``--force``: build a map whose arrangement may exceed the size limit."""
     sp.add_argument("--force", action="store_true",
                     help="build the map even when its arrangement may exceed the size limit "
-                    "(arrangement.MAX_POLYTOPES, see README 'Limits')")
+                    "(arrangement.MAX_POLYTOPES, see docs/limits.md)")
 
 
 class DefaultsFormatter(argparse.HelpFormatter):
@@ -263,8 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "viewer or scripted participants), recorded in a results database")
     stsub = st.add_subparsers(dest="study_command", required=True)
     sr = stsub.add_parser("run", help="run a participant's trials of a study file")
-    sr.add_argument("study", help="study file (.json or .toml; see README 'Studies with "
-                    "people')")
+    sr.add_argument("study", help="study file (.json or .toml; see docs/study.md)")
     sr.add_argument("--participant", required=True, help="participant id (letters, digits, "
                     "_ . -)")
     sr.add_argument("--db", required=True, help="results database (.sqlite; sweeps' store)")
@@ -281,12 +280,15 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument("--resume", action="store_true",
                     help="continue a participant's trials (the unfinished one runs again)")
     sr.set_defaults(func=c.cmd_study_run)
-    se = stsub.add_parser("export", help="a participant's trials as a tidy CSV folder and "
-                          "one MCAP file per trial (docs/study_export.md)")
+    se = stsub.add_parser("export", help="a participant's trials as a tidy CSV/Parquet folder "
+                          "and one MCAP file per trial (docs/study_export.md)")
     se.add_argument("db", help="results database holding study trials")
     se.add_argument("--participant", required=True, help="the participant's id")
     se.add_argument("--out", required=True, help="folder; the files go to OUT/PARTICIPANT/")
     se.add_argument("--no-mcap", action="store_true", help="CSV only (no mcap package needed)")
+    se.add_argument("--format", choices=["csv", "parquet", "both"], default="csv",
+                    help="the tables as CSV (default), Parquet (needs pyarrow: pip install "
+                    "'pathpref[parquet]') or both")
     se.set_defaults(func=c.cmd_study_export)
 
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")

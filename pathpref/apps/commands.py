@@ -234,11 +234,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     recs = load_records(args.db, exclude_failed=args.exclude_failed)
     trials = load_trials(args.db)
     if trials:
+        from ..study.answers import load_answers, tlx_records, tlx_table
         from ..study.rationality import participant_fits, rationality_table
 
         fits = participant_fits(args.db)
+        tlx = tlx_table(tlx_records(load_answers(args.db)[1], trials))
         print(study_tables(trials) + "\n\n" + rationality_table(fits)
-              + ("\n" if recs else ""))
+              + (f"\n\n{tlx}" if tlx else "") + ("\n" if recs else ""))
     elif not recs:
         raise ConfigError(f"{args.db} holds no episodes yet")
     if recs:
@@ -490,13 +492,14 @@ def cmd_study_run(args: argparse.Namespace) -> int:
 
 
 def cmd_study_export(args: argparse.Namespace) -> int:
-    """``pathpref study export``: a participant's trials as CSV and MCAP files."""
+    """``pathpref study export``: a participant's trials as CSV/Parquet and MCAP files."""
     from ..study.conduct import check_participant
     from ..study.export import export_participant
 
     check_participant(args.participant)
     check_database(args.db, "database", must_exist=True)
-    counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap)
+    counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap,
+                                fmt=args.format)
     folder = Path(args.out) / args.participant
     print(f"wrote {folder}: " + ", ".join(f"{k} {v}" for k, v in counts.items()))
     return 0

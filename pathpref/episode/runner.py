@@ -92,7 +92,7 @@ class EpisodeRunner:
         self.human_rng = np.random.default_rng(human_seq)
         ctx = PolicyContext(world=world, model=model, preset=spec.planner(), t_max=spec.t_max,
                             rng=np.random.default_rng(policy_seq), true_goal=inst.true_goal,
-                            true_preference=self.pref)
+                            true_preference=self.pref, start=inst.start)
         self.policy = make_policy(spec.method, ctx)
         self.physics = spec.physical
         gamma_h = spec.human_model.gamma_h  # the human's rationality, any body (grid too)

@@ -91,7 +91,7 @@ class EpisodeSpec:
     preset and these overrides meet. ``coupling`` (on in the ``paper`` and ``original`` presets,
     as in the authors' code) applies the paper's back-edge remark to the robot's belief at every
     real polytope change; without it the paper's reward can be farmed by crossing a confidently
-    preferred edge back and forth (see README, "Reproducing Table I").
+    preferred edge back and forth (see docs/reproduction.md, "Reproducing Table I").
 
     ``fixed`` optionally pins the instance: JSON of ``{"start": [x, y], "goals": [[x, y], ...],
     "true_goal": k, "free_goal_polytope": bool}``; otherwise it is drawn from

@@ -22,9 +22,9 @@ completion order to the coordinator, which alone writes the results store.
 
 ``ray``: each episode is a Ray task (``max_retries`` re-runs a task whose worker died).
 ``address=None`` starts a local Ray instance; ``address="auto"`` or ``"ray://host:10001"``
-joins an existing cluster (see README, "Running on a Ray cluster"); an address whose port does
-not accept a connection within :data:`RAY_CONNECT_S` seconds is refused at once (Ray itself
-would retry for minutes, deaf to SIGTERM).
+joins an existing cluster (see docs/experiments.md, "Running on a Ray cluster"); an address
+whose port does not accept a connection within :data:`RAY_CONNECT_S` seconds is refused at
+once (Ray itself would retry for minutes, deaf to SIGTERM).
 
 An exception inside an episode (bad input, NaN, a timeout) is never lost: :func:`safe_run` turns
 it into a failed episode with its reason, and the sweep goes on.

@@ -36,7 +36,8 @@ then row by row), and an episode with a missing step row is left out, so a rerun
 redoes exactly what was lost. The study tables (schema 4) are salvaged the same way: a trial is
 kept, with every row of its tables, when its ``trials`` row reads back and its rows are whole
 (:func:`_whole_trials`); a trial missing rows is left out whole and counted lost (``study run
---resume`` on the new database runs that trial again, the participant's other trials stay).
+--resume`` on the new database runs that trial again, the participant's other trials stay),
+with its NASA-TLX answers; the participant's gamepad calibrations are kept as they read back.
 The study rows are read into memory as the episodes are (a salvage is a one-off repair).
 """
 
@@ -71,7 +72,13 @@ from .store import (
     row_spec,
     schema_version,
 )
-from .trials import STUDY_TABLE_NAMES, STUDY_TABLES, has_study_tables
+from .trials import (
+    SESSION_TABLES,
+    STUDY_TABLE_NAMES,
+    STUDY_TABLES,
+    has_study_tables,
+    missing_study_tables,
+)
 
 
 def _read_old(path: Path) -> tuple[int, list[dict[str, Any]], list[tuple]]:
@@ -439,7 +446,8 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
                                   "databases")
             episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
             steps, steps_lost, exact_s = _read_table(ro, "steps")
-            study = ({t: _read_table(ro, t) for t in STUDY_TABLE_NAMES}
+            absent = missing_study_tables(ro) if has_study_tables(ro) else []
+            study = ({t: _read_table(ro, t) for t in STUDY_TABLE_NAMES if t not in absent}
                      if has_study_tables(ro) else None)
         finally:
             ro.close()
@@ -452,8 +460,11 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
     study_rows: dict[str, list[tuple]] = {}
     if study is not None:
         good, broken_trials = _whole_trials({t: v[0] for t, v in study.items()})
+        # a trial's rows go with it (its NASA-TLX answers too); the participant's
+        # calibrations (SESSION_TABLES) are kept whenever they read back
         study_rows = {t: [tuple(r.values()) for r in v[0]
-                          if (r["participant"], r["trial"]) in good] for t, v in study.items()}
+                          if t in SESSION_TABLES or (r["participant"], r["trial"]) in good]
+                      for t, v in study.items()}
         trials, trial_rows = len(good), sum(len(v) for v in study_rows.values())
         # a trial whose `trials` row did not read back is lost too (its other rows go with it)
         trials_lost = broken_trials + study["trials"][1]

@@ -40,9 +40,12 @@ from typing import Any
 from ..episode import EpisodeResult, EpisodeSpec, result_row
 from ..errors import ConfigError
 from .trials import (
+    LATE_STUDY_TABLES,
     STUDY_TABLE_NAMES,
+    complete_study_tables,
     complete_trial_columns,
     create_study_tables,
+    missing_study_tables,
     missing_trial_columns,
     study_sql,
     trial_columns_ok,
@@ -54,7 +57,8 @@ from .trials import (
 #: the study tables (trials with people, :mod:`.trials`); 5: ``homotopy_success`` per episode,
 #: the human's push rule (``push_rule``; empty = the periodic human of older rows) and
 #: ``is_intervention`` per step (and, added later in place, the late ``trials`` columns
-#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`)
+#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`, and the late study tables
+#: of calibrations and NASA-TLX answers: :data:`~.trials.LATE_STUDY_TABLES`)
 SCHEMA_VERSION = 5
 UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: older schemas whose tables are a subset of this one's: read as they are; opened for writing
@@ -180,7 +184,9 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
                            "left untouched: give another --db path")
 
     study = any(("table", t) in objects for t in STUDY_TABLE_NAMES)
-    tables = TABLES if study else BASE_TABLES
+    # a study file written before the late study tables may lack them (read as empty)
+    tables = tuple(t for t in TABLES if t not in LATE_STUDY_TABLES or ("table", t) in objects
+                   ) if study else BASE_TABLES
     expected = {("table", t) for t in tables} | {
         ("index", f"sqlite_autoindex_{t}_1") for t in tables}
     extra = sorted(set(objects) - expected)
@@ -472,16 +478,19 @@ class ResultStore:
     def _complete_schema(self) -> None:
         """Bring an :data:`ADDITIVE` (schema 3 or 4) file to this schema: add the missing
         episode and step columns (NULL in the old rows, see :data:`ADDITIVE`) and, to a schema
-        3 file, the study tables; to a schema 4 or 5 file the late ``trials`` columns it lacks
-        (:data:`~.trials.LATE_TRIAL_COLUMNS`)."""
+        3 file, the study tables; to a schema 4 or 5 file the late ``trials`` columns and
+        study tables it lacks (:data:`~.trials.LATE_TRIAL_COLUMNS`,
+        :data:`~.trials.LATE_STUDY_TABLES`)."""
         c = self.conn
         row = c.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         version = int(row[0])
         if version not in ADDITIVE:
-            if version == SCHEMA_VERSION and missing_trial_columns(c):
+            if version == SCHEMA_VERSION and (missing_trial_columns(c)
+                                              or missing_study_tables(c)):
                 c.execute("BEGIN IMMEDIATE")  # another process may be adding them now
                 with c:
                     complete_trial_columns(c)
+                    complete_study_tables(c)
             return
         with c:
             for table, wanted in (("episodes", EPISODE_COLUMNS), ("steps", STEP_COLUMNS)):
@@ -493,6 +502,7 @@ class ResultStore:
                 create_study_tables(c)
             else:
                 complete_trial_columns(c)
+                complete_study_tables(c)
             c.execute("UPDATE meta SET value = ? WHERE key = 'schema_version'",
                       (str(SCHEMA_VERSION),))
 

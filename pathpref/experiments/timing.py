@@ -44,7 +44,7 @@ def time_map(map_name: str, instances: int = 100, queries: int = 5000, preset: s
         inst = sample_instance(world, seed_for(seed, i, 7))
         goals = np.array(inst.goals)
         model = ObservationModel.build(world, goals)
-        _ = (model.likelihood, model.goal_likelihood)  # build the tables outside the timing
+        _ = (model.cell_likelihood, model.goal_likelihood)  # build the tables outside the timing
         rng = np.random.default_rng(seed_for(seed, i, 8))
         heading = SimulatedHuman(model, inst.true_goal, pref).sample(inst.start, rng)
         for method, belief, rewards in (

@@ -10,7 +10,11 @@ effort), and what happened during it, written as it happens by :class:`TrialWrit
   end, peak (N) and impulse (N s);
 * ``trial_cues``: every cue the robot's detector found: time, cell, heading sector (0..7: N,
   NE, ..., NW), magnitude (peak N), impulse and duration;
-* ``trial_beliefs``: the robot's goal probabilities after every update (start, cue, move).
+* ``trial_beliefs``: the robot's goal probabilities after every update (start, cue, move);
+* ``study_calibrations``: the participant's gamepad calibrations (rest, reach, the stick rule's
+  dead zone and maximum force), and ``study_tlx``: their NASA-TLX answers after each trial
+  (six 0..100 scales and the raw TLX, their mean); both late tables
+  (:data:`LATE_STUDY_TABLES`).
 
 Times are simulated seconds since the trial began (a person's trial runs in real time, so they
 are wall seconds too). A trial row is written with ``status = 'running'`` when it starts and
@@ -62,8 +66,24 @@ STUDY_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
     ("trial_beliefs", (
         ("participant", "TEXT"), ("trial", "INTEGER"), ("k", "INTEGER"), ("time_s", "REAL"),
         ("cause", "TEXT"), ("goals", "TEXT")), "participant, trial, k"),
+    ("study_calibrations", (
+        ("participant", "TEXT"), ("k", "INTEGER"), ("utc", "TEXT"), ("trial", "INTEGER"),
+        ("device", "TEXT"), ("rest_x", "REAL"), ("rest_y", "REAL"), ("reach", "REAL"),
+        ("deadzone", "REAL"), ("max_force_n", "REAL")), "participant, k"),
+    ("study_tlx", (
+        ("participant", "TEXT"), ("trial", "INTEGER"), ("name", "TEXT"), ("utc", "TEXT"),
+        ("mental", "INTEGER"), ("physical", "INTEGER"), ("temporal", "INTEGER"),
+        ("performance", "INTEGER"), ("effort", "INTEGER"), ("frustration", "INTEGER"),
+        ("raw_tlx", "REAL")), "participant, trial"),
 )
 STUDY_TABLE_NAMES = tuple(t for t, _, _ in STUDY_TABLES)
+#: the study tables added to schema 5 after its first study files were written: a file may
+#: lack them (read as empty; created in place when opened for writing): the participant's
+#: gamepad calibrations (``k = 0, 1, ...`` in order; ``trial``: the position of the trial
+#: under way or next, 0 before the first) and NASA-TLX answers (one per finished trial)
+LATE_STUDY_TABLES = ("study_calibrations", "study_tlx")
+#: the participant's own records, not a trial's: kept when a trial is discarded or lost
+SESSION_TABLES = ("study_calibrations",)
 TRIAL_COLUMNS = tuple(c for c, _ in STUDY_TABLES[0][1])
 #: the last columns of ``trials``, added to schema 5 after its first study files were written:
 #: a file may lack them (read as it is; added in place when opened for writing, NULL in the
@@ -109,6 +129,18 @@ def create_study_tables(conn: sqlite3.Connection) -> None:
         conn.execute(study_sql(t))
 
 
+def missing_study_tables(conn: sqlite3.Connection) -> list[str]:
+    """The late study tables (:data:`LATE_STUDY_TABLES`) the file lacks."""
+    have = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    return [t for t in LATE_STUDY_TABLES if t not in have]
+
+
+def complete_study_tables(conn: sqlite3.Connection) -> None:
+    """Create the late study tables the file lacks (inside the caller's transaction)."""
+    for t in missing_study_tables(conn):
+        conn.execute(study_sql(t))
+
+
 class TrialWriter:
     """Writes one participant's trials into an open results database connection ``conn``
     (schema 4, see module docstring). Each ``write_*`` call is its own transaction."""
@@ -130,7 +162,7 @@ class TrialWriter:
         lost = [r["trial"] for r in self.trials() if r["status"] != "done"]
         with self.conn:
             for k in lost:
-                for t in STUDY_TABLE_NAMES:
+                for t in (t for t in STUDY_TABLE_NAMES if t not in SESSION_TABLES):
                     self.conn.execute(f"DELETE FROM {t} WHERE participant = ? AND trial = ?",
                                       (self.participant, k))
         return lost
@@ -155,6 +187,30 @@ class TrialWriter:
                 self.conn.executemany(
                     f"INSERT INTO {table} VALUES ({', '.join('?' * n)})",
                     [(self.participant, trial, *v) for v in values])
+
+    def write_calibration(self, row: dict[str, Any]) -> int:
+        """Append a gamepad calibration (the columns of ``study_calibrations`` but
+        participant and ``k``) as the participant's next ``k``, in one transaction; ``k``."""
+        cols = [c for c, _ in next(c for t, c, _ in STUDY_TABLES if t == "study_calibrations")]
+        with self.conn:
+            k = self.conn.execute("SELECT coalesce(max(k) + 1, 0) FROM study_calibrations "
+                                  "WHERE participant = ?", (self.participant,)).fetchone()[0]
+            full = row | {"participant": self.participant, "k": k}
+            self.conn.execute(f"INSERT INTO study_calibrations VALUES "
+                              f"({', '.join('?' * len(cols))})", [full.get(c) for c in cols])
+        return int(k)
+
+    def write_tlx(self, trial: int, row: dict[str, Any]) -> bool:
+        """Store the NASA-TLX answers after ``trial`` (the columns of ``study_tlx`` but
+        participant and trial) in one transaction; False (nothing written) when that trial
+        has its answers already (the first answer counts)."""
+        cols = [c for c, _ in next(c for t, c, _ in STUDY_TABLES if t == "study_tlx")]
+        full = row | {"participant": self.participant, "trial": trial}
+        with self.conn:
+            cur = self.conn.execute(f"INSERT OR IGNORE INTO study_tlx VALUES "
+                                    f"({', '.join('?' * len(cols))})",
+                                    [full.get(c) for c in cols])
+        return cur.rowcount == 1
 
     def finish(self, trial: int, outcome: dict[str, Any]) -> None:
         """Set the trial's outcome columns and mark it ``done``."""

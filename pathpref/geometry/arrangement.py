@@ -28,6 +28,8 @@ from .polygon import facet_rows, h_polygon
 SIDE_EPS = 1e-9
 #: free cells per block of the sign computation in :func:`build_arrangement`
 SIGN_CHUNK = 4096
+#: polytope pairs per block of :meth:`Arrangement.lines_between`
+PAIR_CHUNK = 4096
 #: free cells x lines above which a map is refused before any allocation (the sign-vector table
 #: has one byte per pair; temporaries take a few times that)
 MAX_CELL_LINES = 400_000_000
@@ -144,6 +146,25 @@ class Arrangement:
     def polytope_cells(self, v: int) -> np.ndarray:
         """Cell indices of polytope ``v``."""
         return np.flatnonzero(self.cell_polytope == v)
+
+    def lines_between(self, v: np.ndarray, w: np.ndarray, chunk: int | None = None
+                      ) -> np.ndarray:
+        """``|{j : signs[v_i, j] != signs[w_i, j]}|`` for each pair ``(v_i, w_i)``: the number
+        of lines separating the two polytopes (integers, exact).
+
+        Each distinct pair is counted once, ``chunk`` (:data:`PAIR_CHUNK` when None) pairs at
+        a time, so the ``pairs x lines`` comparison never exceeds ``chunk x lines`` bytes
+        (many moves share a pair: a polytope boundary is crossed from every cell along it)."""
+        v, w = np.asarray(v, dtype=np.int64), np.asarray(w, dtype=np.int64)
+        chunk = PAIR_CHUNK if chunk is None else int(chunk)
+        key = v * max(self.n_polytopes, 1) + w
+        uniq, inverse = np.unique(key, return_inverse=True)
+        uv, uw = np.divmod(uniq, max(self.n_polytopes, 1))
+        count = np.empty(len(uniq), dtype=np.int64)
+        for lo in range(0, len(uniq), chunk):
+            hi = lo + chunk
+            count[lo:hi] = (self.signs[uv[lo:hi]] != self.signs[uw[lo:hi]]).sum(axis=1)
+        return count[inverse.ravel()]
 
     def constraint_rows(self, v: int) -> tuple[np.ndarray, np.ndarray]:
         """All rows (one per line) whose intersection is polytope ``v``: ``A x <= b``."""

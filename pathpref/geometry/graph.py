@@ -110,7 +110,7 @@ def straight_move_pairs(arr: Arrangement) -> np.ndarray:
         v, w = arr.cell_polytope[src], arr.cell_polytope[j]
         diff = v != w
         v, w = v[diff], w[diff]
-        many = (arr.signs[v] != arr.signs[w]).sum(axis=1) >= 2
+        many = arr.lines_between(v, w) >= 2
         pairs.append(np.stack([np.minimum(v, w)[many], np.maximum(v, w)[many]], axis=1))
     allp = np.concatenate(pairs) if pairs else np.zeros((0, 2), dtype=int)
     return np.unique(allp, axis=0) if len(allp) else allp.reshape(0, 2).astype(int)

@@ -107,7 +107,7 @@ def build_motion(arr: Arrangement, graph: PolytopeGraph) -> GridMotion:
     edge[change] = graph.edges_between(v_src[change], v_tgt[change])
     diagonal = (MOVES[:, 0] != 0) & (MOVES[:, 1] != 0)
     lines = np.zeros((n, 8), dtype=int)
-    lines[change] = (arr.signs[v_src[change]] != arr.signs[v_tgt[change]]).sum(axis=1)
+    lines[change] = arr.lines_between(v_src[change], v_tgt[change])
     ok = free & ((v_src == v_tgt) | ((edge >= 0) & ~(diagonal[None, :] & (lines > 1))))
     next_cell = np.where(ok, t_idx, src)
     cost = np.where(ok, MOVE_COST[None, :], BLOCKED_COST)

@@ -49,22 +49,33 @@ def obstacle_points(spec: MapSpec) -> np.ndarray:
     return np.array([o.vertices.mean(axis=0) for o in spec.obstacles], dtype=float)
 
 
+def crossings(p: np.ndarray, q: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``(k, m)`` signed crossings of the segments ``p[i] -> q[i]`` (``(k, 2)`` each) with the
+    ray from each of ``points`` (``(m, 2)``) toward ``+x``: +1 for an upward crossing, -1 for a
+    downward one, 0 otherwise (the rule of the module docstring, each segment half-open in
+    ``y``). A closed loop's winding number is the sum over its edges; reversing a segment
+    negates its crossing, so the crossings of a path are additive along it."""
+    p = np.asarray(p, dtype=float).reshape(-1, 2)
+    q = np.asarray(q, dtype=float).reshape(-1, 2)
+    points = np.asarray(points, dtype=float).reshape(-1, 2)
+    px, py = p[:, 0][:, None], p[:, 1][:, None]
+    qx, qy = q[:, 0][:, None], q[:, 1][:, None]
+    cx, cy = points[:, 0][None, :], points[:, 1][None, :]
+    side = (qx - px) * (cy - py) - (cx - px) * (qy - py)  # > 0: c left of p -> q
+    up = (py <= cy) & (cy < qy) & (side > 0)
+    down = (qy <= cy) & (cy < py) & (side < 0)
+    return up.astype(np.int64) - down.astype(np.int64)
+
+
 def winding_numbers(loop: np.ndarray, points: np.ndarray) -> np.ndarray:
     """``(m,)`` integer winding number of the closed polyline ``loop`` (``(k, 2)``, the last
     vertex joined back to the first) round each of ``points`` (``(m, 2)``), by the rule of the
-    module docstring."""
+    module docstring: the sum of its edges' :func:`crossings`."""
     loop = np.asarray(loop, dtype=float).reshape(-1, 2)
     points = np.asarray(points, dtype=float).reshape(-1, 2)
     if len(loop) < 2 or len(points) == 0:
         return np.zeros(len(points), dtype=np.int64)
-    p, q = loop, np.roll(loop, -1, axis=0)  # edges p -> q
-    px, py = p[:, 0][None, :], p[:, 1][None, :]
-    qx, qy = q[:, 0][None, :], q[:, 1][None, :]
-    cx, cy = points[:, 0][:, None], points[:, 1][:, None]
-    side = (qx - px) * (cy - py) - (cx - px) * (qy - py)  # > 0: c left of p -> q
-    up = (py <= cy) & (cy < qy) & (side > 0)
-    down = (qy <= cy) & (cy < py) & (side < 0)
-    return (up.sum(axis=1) - down.sum(axis=1)).astype(np.int64)
+    return crossings(loop, np.roll(loop, -1, axis=0), points).sum(axis=0).astype(np.int64)
 
 
 def cell_centres(cells: np.ndarray) -> np.ndarray:

@@ -213,12 +213,13 @@ class PreferenceBelief(Belief):
         """Condition on the heading ``heading`` (0..7) given at free cell ``cell``
         (likelihood to the power ``weight``)."""
         v = int(self.cell_polytope[cell])
-        lik = self.model.likelihood[cell, heading, :, : self.degree[v]]
+        lik = self.model.cell_likelihood[cell][heading]
         self._multiply(v, lik if weight == 1.0 else lik ** weight)
 
     def _update_mixture(self, cell: int, a: np.ndarray, weight: float) -> None:
         v = int(self.cell_polytope[cell])
-        lik = np.tensordot(a, self.model.likelihood[cell, :, :, : self.degree[v]], axes=1)
+        # a fresh copy of the block, as the padded table's slice was copied before the product
+        lik = np.tensordot(a, self.model.cell_likelihood[cell].copy(), axes=1)
         self._multiply(v, lik ** weight)
 
     def enter(self, v_from: int, v_to: int) -> None:

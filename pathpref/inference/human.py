@@ -127,11 +127,78 @@ def boltzmann(delta: np.ndarray, gamma: float, normalize: bool) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
+class CellTable:
+    """A per-cell table ``T[s][h, g, k]`` whose width is the cell's own slot count
+    ``k_s = max(deg(v(s)), 1)`` (the neighbours of its polytope, or the one "no preference"
+    slot of a polytope without any), not the map's maximum degree.
+
+    Cell ``s``'s block is ``flat[offsets[s]: offsets[s + 1]]`` read as ``(8, G, k_s)``
+    (C order), so ``offsets[s + 1] - offsets[s] = 8 G k_s`` and the table holds
+    ``8 G sum_s k_s`` numbers against ``8 G n K`` padded.
+    """
+
+    flat: np.ndarray
+    offsets: np.ndarray
+    slots: np.ndarray
+    n_goals: int
+
+    def __getitem__(self, cell: int) -> np.ndarray:
+        """``(8, G, k_s)`` block of free cell ``cell`` (a view)."""
+        c = int(cell)
+        return self.flat[self.offsets[c]: self.offsets[c + 1]].reshape(
+            8, self.n_goals, int(self.slots[c]))
+
+    def padded(self, width: int, fill: float) -> np.ndarray:
+        """The ``(n, 8, G, width)`` table with slots ``k >= k_s`` set to ``fill``."""
+        n, G = len(self.slots), self.n_goals
+        out = np.full((n, 8, G, width), fill)
+        for k in np.unique(self.slots).tolist():
+            group = np.flatnonzero(self.slots == k)
+            for lo in range(0, len(group), EXCESS_CHUNK):  # bounded index temporaries
+                cells = group[lo: lo + EXCESS_CHUNK]
+                idx = self.offsets[cells][:, None] + np.arange(8 * G * k)[None, :]
+                out[cells, :, :, :k] = self.flat[idx].reshape(len(cells), 8, G, k)
+        return out
+
+
+def cell_slots(world: World) -> np.ndarray:
+    """``(n,)`` slot count ``k_s = max(deg(v(s)), 1)`` of each free cell (:class:`CellTable`)."""
+    deg = np.array([len(nb) for nb in world.graph.neighbors], dtype=np.int64)
+    return np.maximum(deg, 1)[world.cell_polytope]
+
+
+def _compact_tables(world: World, tables: CostTables, gamma: float, normalize: tuple[bool, ...],
+                    chunk: int | None = None) -> tuple[list[CellTable], np.ndarray]:
+    """``boltzmann(Delta, gamma, z)`` for each ``z`` in ``normalize`` as :class:`CellTable`
+    (each cell's first ``k_s`` slots of the padded rows of :func:`cost_excess`, so every
+    stored value is the padded table's), and the goal-only excess ``(n, 8, G)``; built
+    ``chunk`` cells at a time (the padded excess is never held whole)."""
+    n, G = world.n_cells, len(tables.goals)
+    slots = cell_slots(world)
+    offsets = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(8 * G * slots, out=offsets[1:])
+    flats = [np.empty(int(offsets[-1])) for _ in normalize]
+    delta_u = np.empty((n, 8, G))
+    for sl, d, du in _cost_excess_chunks(world, tables, chunk):
+        delta_u[sl] = du
+        ks = slots[sl]
+        groups = [(k, np.flatnonzero(ks == k)) for k in np.unique(ks).tolist()]
+        for flat, z in zip(flats, normalize, strict=True):
+            lik = boltzmann(d, gamma, z)
+            for k, rows in groups:
+                idx = offsets[sl.start + rows][:, None] + np.arange(8 * G * k)[None, :]
+                flat[idx] = lik[rows, :, :, :k].reshape(len(rows), -1)
+    return [CellTable(f, offsets, slots, G) for f in flats], delta_u
+
+
+@dataclass(frozen=True, eq=False)
 class ObservationModel:
     """Likelihood tables of the human's headings for one world and goal set.
 
-    ``likelihood[s, h, g, k] = P(h | s, g, p_{v(s)} = N(v(s))[k])`` and
-    ``goal_likelihood[s, h, g] = P(h | s, g)`` (goal-only model); an update is a table look-up.
+    ``cell_likelihood[s][h, g, k] = P(h | s, g, p_{v(s)} = N(v(s))[k])`` (a :class:`CellTable`,
+    ``k < k_s``) and ``goal_likelihood[s, h, g] = P(h | s, g)`` (goal-only model); an update
+    is a table look-up. ``likelihood`` is the same table padded to the maximum degree (built
+    only when asked for).
     """
 
     world: World
@@ -164,44 +231,61 @@ class ObservationModel:
         return cost_excess(self.world, self.tables)
 
     @cached_property
-    def likelihood(self) -> np.ndarray:
-        """``(n, 8, G, K)`` ``P(heading | s, g, p_v(s) = N(v)[k])`` (SPEC 4).
-
-        Normalised, the excess ``Delta`` it is computed from is neither kept nor held whole
-        (nothing else reads it: :attr:`heading_probs` is this table), so building it needs
-        one ``(n, 8, G, K)`` array, not three; only the goal-only excess is kept for
+    def _compact(self) -> tuple[CellTable, CellTable]:
+        """(likelihood, normalised heading probabilities) as :class:`CellTable`; one table
+        when normalised (they are equal). Keeps the goal-only excess for
         :attr:`goal_likelihood`."""
-        if not self.normalize or "_delta" in self.__dict__:
-            return boltzmann(self._delta[0], self.gamma, self.normalize)
-        # built a block of cells at a time (each cell's row is normalised on its own): the
-        # excess is never held whole
-        n, G, K = self.world.n_cells, len(self.goals), self.world.graph.neighbor_table().shape[1]
-        lik = np.empty((n, 8, G, K))
-        delta_u = np.empty((n, 8, G))
-        for sl, d, du in _cost_excess_chunks(self.world, self.tables):
-            lik[sl] = boltzmann(d, self.gamma, True)
-            delta_u[sl] = du
+        z = (True,) if self.normalize else (False, True)
+        cts, delta_u = _compact_tables(self.world, self.tables, self.gamma, z)
         self.__dict__["_delta_u"] = delta_u
-        return lik
+        return cts[0], cts[-1]
+
+    @property
+    def cell_likelihood(self) -> CellTable:
+        """``P(heading | s, g, p_v(s) = N(v)[k])`` per cell, ``(8, G, k_s)`` (SPEC 4)."""
+        return self._compact[0]
+
+    @property
+    def cell_heading_probs(self) -> CellTable:
+        """Normalised per-cell probabilities the simulated human samples from."""
+        return self._compact[1]
+
+    def _pad(self, table: CellTable, normalized: bool) -> np.ndarray:
+        # a padded slot's excess is 0: exp(0) = 1, normalised over the 8 headings 1/8
+        return table.padded(self.world.graph.neighbor_table().shape[1],
+                            0.125 if normalized else 1.0)
+
+    @cached_property
+    def likelihood(self) -> np.ndarray:
+        """``(n, 8, G, K)`` :attr:`cell_likelihood` padded to the maximum degree ``K``
+        (slots ``k >= k_s`` hold ``exp(0)``, normalised when the model is)."""
+        return self._pad(self.cell_likelihood, self.normalize)
 
     @cached_property
     def goal_likelihood(self) -> np.ndarray:
         """``(n, 8, G)`` ``P(heading | s, g)`` of the unconstrained human (goal-only baseline)."""
         delta_u = self.__dict__.get("_delta_u")
-        return boltzmann(self._delta[1] if delta_u is None else delta_u, self.gamma,
-                         self.normalize)
+        if delta_u is None and "_delta" not in self.__dict__:
+            _ = self._compact
+            delta_u = self.__dict__["_delta_u"]
+        lik = boltzmann(self._delta[1] if delta_u is None else delta_u, self.gamma,
+                        self.normalize)
+        if self.normalize:  # nothing else reads the goal-only excess
+            self.__dict__.pop("_delta_u", None)
+        return lik
 
     @cached_property
     def heading_probs(self) -> np.ndarray:
-        """Normalised ``(n, 8, G, K)`` probabilities the simulated human samples from."""
-        return self.likelihood if self.normalize else boltzmann(self._delta[0], self.gamma, True)
+        """Normalised ``(n, 8, G, K)`` probabilities (:attr:`cell_heading_probs` padded)."""
+        return self.likelihood if self.normalize else self._pad(self.cell_heading_probs, True)
 
     @cached_property
     def goal_heading_probs(self) -> np.ndarray:
         """Normalised ``(n, 8, G)`` probabilities for a human with no preference."""
         if self.normalize:
             return self.goal_likelihood
-        return boltzmann(self._delta[1], self.gamma, True)
+        _ = self._compact
+        return boltzmann(self.__dict__["_delta_u"], self.gamma, True)
 
 
 class SimulatedHuman:
@@ -227,7 +311,7 @@ class SimulatedHuman:
         k = self.pref_slot[self.model.world.cell_polytope[cell]]
         if k < 0:
             return self.model.goal_heading_probs[cell, :, self.goal_index]
-        return self.model.heading_probs[cell, :, self.goal_index, k]
+        return self.model.cell_heading_probs[cell][:, self.goal_index, k]
 
     def sample(self, cell: int, rng: np.random.Generator) -> int:
         """One heading index (0..7, N, NE, ..., NW)."""

@@ -35,7 +35,7 @@ from .tree import best_root_action, init_node, new_tree, sample_index, sample_sl
 #: root particles of a route-prior belief per decision (exact draws, :func:`.guided.tree_pool`).
 #: 128, not 512: on ``classroom`` the draws took a third of a decision (a random walk from each
 #: polytope to the goal's on a map of long loops), and success did not change within the
-#: intervals (README, "The robust preset")
+#: intervals (docs/robust.md)
 TREE_POOL = 128
 #: the pool holds at most one particle per ``SIMS_PER_TREE`` simulations of the decision
 #: (:meth:`POMCP._pool`): 128 at the paper's 5000 queries, 32 at the bench floor plan's 1000
@@ -282,13 +282,29 @@ class POMCP:
         if kept is not None and np.array_equal(kept[0], goal_cdf) and \
                 np.array_equal(kept[1], cdf):
             return kept[2], kept[3]
-        budget = WALK_STEPS_PER_POLYTOPE * len(self.nbr) + WALK_STEPS_MIN
-        goals, slots, over = tree_pool(self.nbr, cdf, goal_cdf, self.goal_poly, self.component,
-                                       self.pool_size(), (int(seed) + 1) % (2**32), budget)
-        if over.any():
-            slots[over] = self._observed_first(belief, goals[over], cdf, seed, budget)
+        m = self.pool_size()
+        mixture = getattr(belief, "particles", None)
+        if mixture is None:
+            goals, slots = self._trees(belief, goal_cdf, cdf, m, seed)
+        else:  # the homotopy prior: way particles, and trees for the route prior's share
+            m_tree, tree_cdf, goals, slots = mixture(m, np.random.default_rng(int(seed) + 3))
+            if m_tree:
+                tg, ts = self._trees(belief, tree_cdf, cdf, m_tree, seed)
+                goals, slots = np.concatenate([tg, goals]), np.concatenate([ts, slots])
         self._kept_pool = (goal_cdf.copy(), cdf.copy(), goals, slots)
         self.pools_drawn += 1
+        return goals, slots
+
+    def _trees(self, belief: Belief, goal_cdf: np.ndarray, cdf: np.ndarray, m: int,
+               seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """``m`` exact draws of ``(g, theta)`` of the route prior's posterior, ``g`` from
+        ``goal_cdf`` (:func:`~.guided.tree_pool`; the draws whose walks passed their budget
+        by :meth:`_observed_first`)."""
+        budget = WALK_STEPS_PER_POLYTOPE * len(self.nbr) + WALK_STEPS_MIN
+        goals, slots, over = tree_pool(self.nbr, cdf, goal_cdf, self.goal_poly, self.component,
+                                       m, (int(seed) + 1) % (2**32), budget)
+        if over.any():
+            slots[over] = self._observed_first(belief, goals[over], cdf, seed, budget)
         return goals, slots
 
     def _observed_first(self, belief, goals: np.ndarray, cdf: np.ndarray, seed: int,

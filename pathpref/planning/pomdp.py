@@ -68,7 +68,9 @@ class Preset:
             tree toward the goal, :mod:`pathpref.inference.routes`; exact posterior) or
             ``learned-gamma`` (the independent prior, with the human's rationality ``gamma``
             inferred too: uniform over :data:`pathpref.inference.rationality.GAMMA_GRID`,
-            exact posterior, :mod:`pathpref.inference.rationality`).
+            exact posterior, :mod:`pathpref.inference.rationality`) or ``homotopy`` (a
+            mixture over the ways round the obstacles from the start to each goal and the
+            route prior; exact posterior, :mod:`pathpref.inference.homotopy_prior`).
         queries: POMCP simulations per decision (the cap under a time budget).
         ucb_c: UCB exploration constant.
         time_budget_ms: robust search's wall-time budget per decision (0: ``queries`` only).
@@ -91,7 +93,7 @@ class Preset:
 
 
 #: the preference priors of the path-preference belief (:attr:`Preset.prior`)
-PRIORS = ("independent", "routes", "learned-gamma")
+PRIORS = ("independent", "routes", "learned-gamma", "homotopy")
 #: the priors as an error message lists them
 PRIOR_CHOICES = ", ".join(PRIORS[:-1]) + " or " + PRIORS[-1]
 

@@ -66,8 +66,8 @@ class TrackingController:
         more than ``1.01 tol_m`` away along one axis is answered without it, which changes
         no answer)."""
         tol = self.tol_m
-        if abs(float(target[0] - pos[0])) > 1.01 * tol or \
-                abs(float(target[1] - pos[1])) > 1.01 * tol:
+        (tx, ty), (px, py) = target[:2].tolist(), pos[:2].tolist()
+        if abs(tx - px) > 1.01 * tol or abs(ty - py) > 1.01 * tol:
             return False
         return norm(np.asarray(target) - pos) < tol and norm(vel) < self.still_mps
 

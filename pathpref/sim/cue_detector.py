@@ -232,26 +232,34 @@ class FilteredCueDetector(CueDetector):
     @property
     def noise_n(self) -> float:
         """The learnt per-axis spread of the filtered force at rest (N, 1 sigma)."""
-        return float(np.sqrt(self.var))
+        return math.sqrt(self.var)
 
     def _calibrate(self, fx: float, fy: float, at_rest: bool) -> None:
         """One idle sample: queue it (at rest) or drop the queue; commit the samples older
         than ``hold_s`` to the baseline and, below ``off``, to the noise level; refresh the
-        thresholds (class docstring)."""
+        thresholds when the noise level changed (class docstring)."""
         q = self._pending
         if not at_rest:
             q.clear()
         else:
             q.append((fx, fy))
+            learnt = False
             while len(q) > self._hold_n:
                 x, y = q.popleft()
                 b = self.baseline
-                ex, ey = x - float(b[0]), y - float(b[1])
+                bx, by = b.tolist()  # floats: the same IEEE operations as on its elements
+                ex, ey = x - bx, y - by
                 if ex * ex + ey * ey < self.off_n * self.off_n:
                     self.var += self._beta * (0.5 * (ex * ex + ey * ey) - self.var)
-                b[0] += self._gamma * ex
-                b[1] += self._gamma * ey
-        sigma = self.noise_n
+                    learnt = True
+                b[0], b[1] = bx + self._gamma * ex, by + self._gamma * ey
+            if learnt:
+                self._thresholds()
+
+    def _thresholds(self) -> None:
+        """``on = max(on_n, on_k sigma)`` and ``off = max(off_n, off_k sigma)`` for the noise
+        level learnt so far (they change only when it does)."""
+        sigma = math.sqrt(self.var)  # what noise_n gives: sqrt is correctly rounded
         self.on_n = max(self.base_on_n, self.on_k * sigma)
         self.off_n = max(self.base_off_n, self.off_k * sigma)
 
@@ -263,13 +271,20 @@ class FilteredCueDetector(CueDetector):
             return None
         # the low-pass on Python floats, in place: the same IEEE operations as on arrays
         f, a = self.f, self._alpha
-        fx, fy = float(f[0]), float(f[1])
+        fx, fy = f.tolist()
         fx, fy = fx + a * (x - fx), fy + a * (y - fy)
         f[0], f[1] = fx, fy
-        if not self.active and self._above == 0.0:
+        idle = not self.active and self._above == 0.0
+        if idle:
             self._calibrate(fx, fy, at_rest)
-        e = np.array([fx - self.baseline[0], fy - self.baseline[1]])
-        mag = float(np.hypot(e[0], e[1]))
+        bx, by = self.baseline.tolist()
+        ex, ey = fx - bx, fy - by
+        # idle and clearly below ``on`` (``np.hypot`` is within an ulp of the true norm, the
+        # sum of squares within a few): the onset rule has nothing to do
+        if idle and ex * ex + ey * ey < 0.98 * self.on_n * self.on_n:
+            return None
+        e = np.array([ex, ey])
+        mag = float(np.hypot(ex, ey))
         if not self.active:
             self._onset(e, mag)
             if self.active:

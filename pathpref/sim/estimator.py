@@ -69,6 +69,7 @@ class ForceEstimator:
         self.config = config or EstimatorConfig()
         self.dt = float(model.opt.timestep)
         self._jac = np.zeros((3, model.nv))
+        self._dv = np.zeros(model.nv)
         self.reset()
 
     def reset(self) -> None:
@@ -90,17 +91,20 @@ class ForceEstimator:
         last ``window_s`` from the robot's joint velocities: ``J_com (qvel - qvel_mark) /
         window_s`` (the sensor averaged its reading over the same window)."""
         mujoco.mj_jacBodyCom(self.model, data, self._jac, None, self.body)
+        qvel = data.qvel
         if self._qvel_mark is None:
-            self._qvel_mark = data.qvel.copy()
-        acc = self._jac @ ((data.qvel - self._qvel_mark) / window_s)
-        self._qvel_mark = data.qvel.copy()
-        return acc
+            self._qvel_mark = qvel.copy()
+        dv = self._dv  # (qvel - mark) / window, into a buffer: the same element operations
+        np.subtract(qvel, self._qvel_mark, out=dv)
+        np.divide(dv, window_s, out=dv)
+        np.copyto(self._qvel_mark, qvel)
+        return self._jac.dot(dv)  # the same gemv as ``@`` (sensing.FaultySensor._inertial)
 
     def expected(self, R: np.ndarray, acc: np.ndarray) -> np.ndarray:
         """What the sensor reads without a push and without faults (N, sensor frame): the
         known mass's inertia and weight, ``R^T m (a - g)``."""
         a = acc if self.config.compensate_inertia else np.zeros(3)
-        return R.T @ (self.mass * (a + GRAVITY_UP))
+        return R.T.dot(self.mass * (a + GRAVITY_UP))
 
     def tare(self, readings: list[np.ndarray], R: np.ndarray) -> None:
         """Zero the sensor from readings taken at rest (the mean residual becomes the bias)."""
@@ -123,8 +127,9 @@ class ForceEstimator:
         window = self.dt if window_s is None else window_s
         self.acc = acc = self.acceleration(data, window)
         residual = reading - self.expected(R, acc)
-        speed = norm(self._jac @ data.qvel)  # the sensed body's speed
-        still = cue_idle and speed < c.still_mps and norm(acc) < c.still_mps2
+        # the sensed body's speed, then its acceleration, asked only while they may decide
+        still = cue_idle and norm(self._jac.dot(data.qvel)) < c.still_mps and \
+            norm(acc) < c.still_mps2
         if still:
             self.quiet += window
             self._pending.append(residual)
@@ -135,7 +140,7 @@ class ForceEstimator:
         a = min(1.0, window / (c.bias_tau_s + window))
         while len(self._pending) * window > c.quiet_s + 1e-12:
             self.bias += a * (self._pending.popleft() - self.bias)
-        self.force = -(R @ (residual - self.bias))[:2]
+        self.force = -(R.dot(residual - self.bias))[:2]
         return self.force
 
 

@@ -30,6 +30,7 @@ class Measurements:
         self._static = np.array([model.geom(i).name.startswith(("obstacle_", "wall_"))
                                  for i in range(model.ngeom)], dtype=bool)
         self._wrench = np.zeros(6)
+        self._data: mujoco.MjData | None = None
         self.reset(0.0)
 
     def reset(self, t: float) -> None:
@@ -50,13 +51,14 @@ class Measurements:
         """One physics step: the base's planar velocity at ``vxy_adr`` in ``qvel``, whether a
         push acts (or the base yields: its acceleration is then not the controller's; asked
         only when the step's acceleration is a new peak) and the push estimate ``force``."""
-        t, qvel = data.time, data.qvel
-        vx, vy = float(qvel[vxy_adr[0]]), float(qvel[vxy_adr[1]])
-        before = math.hypot(*self._v_prev)  # the speed a contact begun now met
+        if data is not self._data:  # MjData's qvel, bound once (its buffer stays put)
+            self._data, self._qvel = data, data.qvel
+        t, qvel = data.time, self._qvel
+        vx, vy = qvel.item(vxy_adr[0]), qvel.item(vxy_adr[1])
+        v_prev = self._v_prev  # the velocity a contact begun now met
         # over the time since the last measurement (a caller, e.g. dm_control's environment
         # step, may step the physics without the base's substep)
-        a = math.hypot(vx - self._v_prev[0], vy - self._v_prev[1]) / \
-            max(t - self._t_prev, self.dt)
+        a = math.hypot(vx - v_prev[0], vy - v_prev[1]) / max(t - self._t_prev, self.dt)
         self._v_prev, self._t_prev = (vx, vy), t
         if a > self.peak_accel_pushed:
             self.peak_accel_pushed = a
@@ -80,7 +82,7 @@ class Measurements:
                                            -1000.0 * float(data.contact.dist[i]))
         if touching and not self._touching:
             self.collisions += 1
-            self.impact_speed = max(self.impact_speed, before)
+            self.impact_speed = max(self.impact_speed, math.hypot(*v_prev))
         self._touching = touching
 
     def metrics(self) -> dict[str, float]:

@@ -96,6 +96,15 @@ class MobileBase:
         #: the planar drive's force limit (N; the first actuator's range)
         self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
         self._zero_q, self._zero_v = np.zeros(m.nq), np.zeros(m.nv)
+        # MjData's arrays, bound once (its buffers stay put; an attribute read makes a new one)
+        self._qpos, self._qvel, self._ctrl_view = self.data.qpos, self.data.qvel, self.data.ctrl
+        a = self.actuators  # a slice when the actuators are adjacent (no index array per step)
+        self._act = slice(int(a[0]), int(a[0]) + len(a)) \
+            if list(a) == list(range(int(a[0]), int(a[0]) + len(a))) else a
+        q = self.xy
+        self._xy = slice(int(q[0]), int(q[0]) + 2) if q[1] == q[0] + 1 else q
+        self._wrench_of: int | None = None
+        self._step_push: HumanPush | None = None
         self._float_for: TrackingController | None = None  # the controller _can_float judged
         self._float_control = False
         #: the body a human pushes and the sensor feels (the handle; the arm's tray)
@@ -261,28 +270,44 @@ class MobileBase:
     def substep(self, push: HumanPush | None = None) -> Cue | None:
         """One physics step: controller, optional push, sensing and detection."""
         d = self.data
-        for hook in self.pre_substep:
-            hook(self)
+        if self.pre_substep:
+            for hook in self.pre_substep:
+                hook(self)
         self._control()
         if self.pushes:
             self._apply_pushes(push)
-        elif push is not None and push.active(float(d.time)):
+        elif push is not None and push.active(d.time):
             push.apply(d, self.pushed_body)
         elif not self.external_forces:
-            d.xfrc_applied[self.pushed_body, :] = 0.0
+            self._wrench().fill(0.0)
         mujoco.mj_step(self.model, d)
-        # x . 0 is NaN exactly when x holds a NaN or an infinity (one dot product per vector)
-        if not (math.isfinite(d.qpos.dot(self._zero_q)) and
-                math.isfinite(d.qvel.dot(self._zero_v))):
+        # x . 0 is NaN exactly when x holds a NaN or an infinity, and so is the sum of two
+        if not math.isfinite(self._qpos.dot(self._zero_q) + self._qvel.dot(self._zero_v)):
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
-        cue = self.sensing.read(d)
-        self._track_onset(cue)
+        sensing = self.sensing
+        cue = sensing.read(d)
+        if cue is not None or self._onset is not None or self.guidance is not None or \
+                sensing.under_way:
+            self._track_onset(cue)
         if self.measure:
-            self.measurements.update(d, self._vxy_adr, lambda: self._pushed(push),
-                                     self.sensing.force_estimate)
-        for hook in self.on_substep:
-            hook(self, push)
+            self._step_push = push
+            self.measurements.update(d, self._vxy_adr, self._pushed_now,
+                                     sensing.force_estimate)
+        if self.on_substep:
+            for hook in self.on_substep:
+                hook(self, push)
         return cue
+
+    def _wrench(self) -> np.ndarray:
+        """A view of the pushed body's row of ``xfrc_applied`` (bound once per pushed body)."""
+        if self._wrench_of != self.pushed_body:
+            self._wrench_of = self.pushed_body
+            self._wrench_view = self.data.xfrc_applied[self.pushed_body]
+        return self._wrench_view
+
+    def _pushed_now(self) -> bool:
+        """:meth:`_pushed` for the push of the physics step under way."""
+        return self._pushed(self._step_push)
 
     def _pushed(self, push: HumanPush | None) -> bool:
         """Whether the base's motion now is not its controller's own: it yields, or a push
@@ -367,20 +392,20 @@ class MobileBase:
         :class:`~.controller.ProfiledController` on this class's own command law, not
         yielding, is evaluated on floats and written per actuator: the same numbers as
         :meth:`_base_command` without its arrays (it runs at every physics step)."""
-        d = self.data
-        if self._float_for is not self.controller:
+        c = self.controller
+        if self._float_for is not c:
             self._float_control = self._can_float()
         if self.guidance is not None:
             self._admit()
-        if self._float_control and self.guidance is None and not self.yielding():
+        elif self._float_control and (self.admittance_b is None or not self.yielding()):
             self._anchor = None
-            c, q, ctrl, (ix, iy, iyaw), (a0, a1, a2) = \
-                self.controller, d.qpos, d.ctrl, self._float_adr, self._float_act
-            target = self.target
-            vx, vy = c.ramp_xy(*c.goal_xy(q[ix], q[iy], target[0], target[1]), c.dt)
-            ctrl[a0], ctrl[a1], ctrl[a2] = vx, vy, -c.k_yaw * q[iyaw]
+            q, (ix, iy, iyaw), (a0, a1, a2) = self._qpos, self._float_adr, self._float_act
+            tx, ty = self.target.tolist()
+            vx, vy = c.ramp_xy(*c.goal_xy(q.item(ix), q.item(iy), tx, ty), c.dt)
+            ctrl = self._ctrl_view
+            ctrl[a0], ctrl[a1], ctrl[a2] = vx, vy, -c.k_yaw * q.item(iyaw)
             return
-        d.ctrl[self.actuators] = self._base_command()
+        self._ctrl_view[self._act] = self._base_command()
 
     def _can_float(self) -> bool:
         """Whether :meth:`_control` may take its float path (its docstring): a
@@ -400,7 +425,7 @@ class MobileBase:
         spring ``k = ADMITTANCE_K`` keeps a push the actuators cannot resist from carrying the
         base away); a profiled controller ramps to it within its acceleration limit."""
         d = self.data
-        pos = d.qpos[self.xy]
+        pos = self._qpos[self._xy].copy()
         if not self.yielding():
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)

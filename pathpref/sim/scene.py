@@ -9,6 +9,7 @@ from its H-representation's vertices. Four walls bound the map.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -48,13 +49,14 @@ class Scene:
 
     def cell_at(self, xy: np.ndarray) -> int:
         """Free cell holding a metric position (the nearest free cell if it is in an obstacle)."""
-        g = np.asarray(xy, float) / self.cell_size
-        c = np.floor(g).astype(int) + 1
+        gx, gy = float(xy[0]) / self.cell_size, float(xy[1]) / self.cell_size
         W, H = self.world.spec.width, self.world.spec.height
-        x, y = int(np.clip(c[0], 1, W)), int(np.clip(c[1], 1, H))
-        idx = int(self.world.arrangement.cell_index[x - 1, y - 1])
-        if idx >= 0:
-            return idx
+        if math.isfinite(gx) and math.isfinite(gy):  # floor + 1 clipped to the grid, on floats
+            x, y = min(max(math.floor(gx) + 1, 1), W), min(max(math.floor(gy) + 1, 1), H)
+            idx = int(self.world.arrangement.cell_index[x - 1, y - 1])
+            if idx >= 0:
+                return idx
+        g = np.asarray(xy, float)[:2] / self.cell_size
         d = np.linalg.norm(self.world.cells - 0.5 - g, axis=1)
         return int(np.argmin(d))
 

@@ -25,6 +25,7 @@ See ``docs/sensing.md`` for the figures behind :meth:`SensorModel.realistic`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import mujoco
@@ -34,6 +35,8 @@ from ..errors import ConfigError
 
 #: the thermal warm-up's time constant (s; :class:`SensorModel` ``thermal_n``)
 THERMAL_S = 120.0
+OBJ_BODY = mujoco.mjtObj.mjOBJ_BODY
+INF = float("inf")
 
 
 class HandleSensor:
@@ -47,7 +50,7 @@ class HandleSensor:
         """The horizontal interaction force (N) in the world frame."""
         f_site = data.sensordata[self.adr:self.adr + 3]
         R = data.site_xmat[self.site].reshape(3, 3)
-        return -(R @ f_site)[:2]
+        return -(R.dot(f_site))[:2]  # the same gemv as ``@`` (see FaultySensor._inertial)
 
     def rotation(self, data) -> np.ndarray:
         """The site's rotation (site frame to world frame, 3x3)."""
@@ -138,6 +141,8 @@ class FaultySensor:
         self.mass = float(model.body_subtreemass[self.body])  # the model's sensed mass
         self.dt = float(model.opt.timestep)
         self.period = self.dt if sensor_model.rate_hz is None else 1.0 / sensor_model.rate_hz
+        #: the drift's spread per sample, ``drift sqrt(period)`` (N)
+        self._drift_step = sensor_model.drift_n_per_sqrt_s * math.sqrt(self.period)
         phi = rng.uniform(0.0, 2.0 * np.pi)
         #: the current bias (N, sensor frame); drifts as a random walk
         self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
@@ -161,6 +166,8 @@ class FaultySensor:
         a = self.sensor.adr
         self._reading = data.sensordata[a:a + 3]
         self._RT = data.site_xmat[self.sensor.site].reshape(3, 3).T
+        self._ma = np.zeros(3)  # m a (the product's buffer)
+        self._x = np.zeros(3)  # R^T m a (the reading's addition's buffer)
 
     def _physical(self, data) -> np.ndarray:
         """This physics step's reading before the electronics (N, sensor frame): MuJoCo's, with
@@ -176,15 +183,19 @@ class FaultySensor:
         """What the extra (or removed) mass adds to the reading: ``R^T m a`` (sensor frame), ``a``
         the world-frame linear acceleration of the sensed body's centre of mass minus gravity
         (the simulator's truth: the sensor model uses it, the robot's estimator does not)."""
-        mujoco.mj_objectAcceleration(self.model, data, mujoco.mjtObj.mjOBJ_BODY, self.body,
-                                     self._acc, 0)
-        return self._RT @ (self._extra_m * self._acc3)
+        if data is not self._data:
+            self._bind(data)
+        mujoco.mj_objectAcceleration(self.model, data, OBJ_BODY, self.body, self._acc, 0)
+        # ``R^T @ (m * a)`` into buffers (no arrays per step); ``ndarray.dot`` calls the same
+        # BLAS ``gemv`` as ``@`` (equal bits, tests/test_physics_overhead.py) at a third of
+        # the cost
+        np.multiply(self._acc3, self._extra_m, out=self._ma)
+        return self._RT.dot(self._ma, out=self._x)
 
     def _emit(self, mean: np.ndarray) -> np.ndarray:
         sm = self.spec
         if sm.drift_n_per_sqrt_s > 0:
-            self.bias[:2] += sm.drift_n_per_sqrt_s * np.sqrt(self.period) * \
-                self.rng.standard_normal(2)
+            self.bias[:2] += self._drift_step * self.rng.standard_normal(2)
         noise = sm.noise_n * self.rng.standard_normal(3) if sm.noise_n > 0 else 0.0
         if sm.thermal_n > 0:  # the warm-up since the sensor was zeroed (restart)
             self.warm_s += self.period
@@ -202,18 +213,19 @@ class FaultySensor:
         # the window's sum on floats: element by element the same additions as on arrays
         if data is not self._data:
             self._bind(data)
-        r, s = self._reading, self._sum
+        r0, r1, r2 = self._reading.tolist()  # Python floats: the same IEEE additions
+        s = self._sum
         if self._extra_m == 0.0:
-            s[0] += r[0]
-            s[1] += r[1]
-            s[2] += r[2]
+            s[0] += r0
+            s[1] += r1
+            s[2] += r2
         else:
-            x = self._inertial(data)
-            s[0] += r[0] + x[0]
-            s[1] += r[1] + x[1]
-            s[2] += r[2] + x[2]
+            x0, x1, x2 = self._inertial(data).tolist()
+            s[0] += r0 + x0
+            s[1] += r1 + x1
+            s[2] += r2 + x2
         self._count += 1
-        if self._next_t == -np.inf:
+        if self._next_t == -INF:
             self._next_t = t
         self.fresh = t >= self._next_t - 1e-9 or self._held is None
         if self.fresh:

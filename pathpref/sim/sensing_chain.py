@@ -108,11 +108,14 @@ class SensingChain:
         if self.faulty is None:
             raise ConfigError("the sensing chain reads before its first reset: call the "
                               "base's reset(cell) first")
-        faulty = self.faulty
+        faulty, est = self.faulty, self.estimator
         reading = faulty.read(data)
-        self.force_estimate = self.estimator.update(reading, self._rotation, data,
-                                                    not self.under_way, faulty.fresh,
-                                                    faulty.window_s)
+        idle = not self.under_way
+        if faulty.fresh or not idle:
+            self.force_estimate = est.update(reading, self._rotation, data, idle,
+                                             faulty.fresh, faulty.window_s)
+        else:  # between samples with no cue under way the estimator holds its estimate
+            self.force_estimate = est.force
         return self.force_estimate
 
     def read(self, data: mujoco.MjData) -> Cue | None:

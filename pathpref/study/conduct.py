@@ -17,30 +17,36 @@ deleted. All checks (participant, lock, existing trials, study file) run before 
 is made, so a refused command serves no page and prints no URL.
 
 **Gamepad calibration** (:class:`~.controls.StickCalibration`): every calibration the
-participant's front end accepts is appended, as one JSON line (time, the trial it came
-before, device, rest, reach, dead zone, maximum force), to ``DB.PARTICIPANT.calibration.jsonl``
-beside the database (the database's schema is left as it is).
+participant's front end accepts becomes a row of ``study_calibrations`` (time, the trial under
+way or next, device, rest, reach, dead zone, maximum force).
 
 **Questionnaire** (the study's ``questionnaire``: ``nasa-tlx``): the front end asks it after
-every trial; each answer is appended as one JSON line (time, trial position and name, the six
-scales, and the raw TLX: their mean) to ``DB.PARTICIPANT.tlx.jsonl``.
+every trial; each answer becomes a row of ``study_tlx`` (trial position and name, time, the six
+scales, and the raw TLX: their mean).
+
+Both arrive on the front end's thread (the browser's server); they are queued and written by
+the session's thread, each in its own transaction as the trials' rows are: before every trial,
+after every decision step, after every trial (the questionnaire's answer is in by then) and at
+the session's end. A session first imports its participant's records that older sessions wrote
+as JSON lines beside the database (:mod:`.answers`).
 """
 
 from __future__ import annotations
 
 import fcntl
-import json
 import os
 import re
+import threading
 import time
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from ..episode import cached_map
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import TrialWriter, dumps
+from .answers import calibration_row, import_legacy, tlx_row
 from .plan import Study, Trial
 from .record import TrialRecorder
 from .session import TrialRunner
@@ -71,6 +77,10 @@ class FrontEnd(Protocol):
         """The study is over (or aborted): release windows and sockets."""
 
 
+def _utc() -> str:
+    return datetime.now(UTC).isoformat(timespec="seconds")
+
+
 def check_participant(pid: str) -> str:
     """A participant id: 1..64 letters, digits, ``_``, ``.``, ``-`` (it names files)."""
     if not isinstance(pid, str) or not PARTICIPANT_RE.fullmatch(pid):
@@ -84,20 +94,6 @@ def rerun_path(db: str | Path, participant: str, position: int, trial: Trial) ->
     db = Path(db)
     name = re.sub(r"[^A-Za-z0-9_.-]", "_", trial.name)[:40]
     return db.with_name(db.stem + ".rerun") / f"{participant}-{position:02d}-{name}.rrd"
-
-
-def calibration_path(db: str | Path, participant: str) -> Path:
-    """The participant's gamepad calibrations: JSON lines beside the database (module
-    docstring)."""
-    db = Path(db)
-    return db.with_name(f"{db.name}.{participant}.calibration.jsonl")
-
-
-def tlx_path(db: str | Path, participant: str) -> Path:
-    """The participant's NASA-TLX answers: JSON lines beside the database (module
-    docstring)."""
-    db = Path(db)
-    return db.with_name(f"{db.name}.{participant}.tlx.jsonl")
 
 
 def lock_path(db: str | Path, participant: str) -> Path:
@@ -163,26 +159,29 @@ class Session:
                               f"study file ({existing[0]['study']}); resume with that file")
 
     def _record_calibration(self, cal) -> None:
-        """Append a gamepad calibration to the participant's calibration file (one JSON line:
-        when, before which trial, the device, rest, reach, and the rule's constants)."""
-        from .controls import MAX_FORCE_N, STICK_DEADZONE
-
-        line = json.dumps({"utc": datetime.now(UTC).isoformat(timespec="seconds"),
-                           "trial": self.position, "device": cal.device,
-                           "rest": list(cal.rest), "reach": cal.reach,
-                           "deadzone": STICK_DEADZONE, "max_force_n": MAX_FORCE_N})
-        with open(calibration_path(self.db, self.participant), "a") as f:
-            f.write(line + "\n")
+        """Queue a gamepad calibration (any thread; :meth:`_flush` writes it)."""
+        row = calibration_row(cal, self.position, _utc())
+        with self._queue_lock:
+            self._queue.append(("calibration", row))
 
     def _record_tlx(self, k: int, scores: dict[str, int]) -> None:
-        """Append the NASA-TLX answers after trial ``k`` (module docstring)."""
+        """Queue the NASA-TLX answers after trial ``k`` (any thread)."""
         order = self.study.order_for(self.participant)
         name = order[k - 1].name if 1 <= k <= len(order) else None
-        line = json.dumps({"utc": datetime.now(UTC).isoformat(timespec="seconds"),
-                           "trial": k, "name": name, "scores": scores,
-                           "raw_tlx": sum(scores.values()) / len(scores)})
-        with open(tlx_path(self.db, self.participant), "a") as f:
-            f.write(line + "\n")
+        with self._queue_lock:
+            self._queue.append(("tlx", (k, tlx_row(scores, name, _utc()))))
+
+    def _flush(self, writer: TrialWriter) -> None:
+        """Write the queued calibrations and answers (the session's thread; each its own
+        transaction, module docstring). The queue holds what arrived since the last flush:
+        a few records."""
+        with self._queue_lock:
+            queued, self._queue = self._queue, []
+        for kind, item in queued:
+            if kind == "calibration":
+                writer.write_calibration(item)
+            else:
+                writer.write_tlx(*item)
 
     def close(self) -> None:
         """Release the lock (the file is removed first, then unlocked)."""
@@ -200,6 +199,8 @@ class Session:
         """Run (or resume) the participant's trials through ``front``; the trial rows."""
         study, participant, db = self.study, self.participant, self.db
         self.position = 0
+        self._queue: list[tuple[str, Any]] = []
+        self._queue_lock = threading.Lock()
         controls = front.source()
         if controls is not None and hasattr(controls, "on_calibration"):
             controls.on_calibration.append(self._record_calibration)
@@ -208,8 +209,9 @@ class Session:
             front.questionnaire = study.questionnaire
         try:
             store = ResultStore(db)
+            writer = TrialWriter(store.conn, participant)
             try:
-                writer = TrialWriter(store.conn, participant)
+                import_legacy(writer, db)
                 lost = writer.discard_unfinished()
                 if lost:
                     log(f"trial {', '.join(map(str, lost))} of {participant!r} did not "
@@ -220,11 +222,16 @@ class Session:
                     if position in done:
                         continue
                     self.position = position
+                    self._flush(writer)
                     run_trial(study, trial, position, len(order), participant, db, writer,
-                              front, log)
+                              front, log, between=lambda: self._flush(writer))
+                    self._flush(writer)
                 return writer.trials()
             finally:
-                store.close()
+                try:
+                    self._flush(writer)
+                finally:
+                    store.close()
         finally:
             front.close()
             self.close()
@@ -242,8 +249,10 @@ def run_study(study: Study, participant: str, db: str | Path, front: FrontEnd,
 
 
 def run_trial(study: Study, trial: Trial, position: int, total: int, participant: str,
-              db: str | Path, writer: TrialWriter, front: FrontEnd, log=print) -> dict:
-    """Run one trial through ``front`` and record it (row written first as ``running``)."""
+              db: str | Path, writer: TrialWriter, front: FrontEnd, log=print,
+              between=None) -> dict:
+    """Run one trial through ``front`` and record it (row written first as ``running``);
+    ``between()`` (when given) runs after every decision step."""
     runner = TrialRunner(trial, study.seed, front.source())
     front.begin_trial(position, total, runner)
     rerun = rerun_path(db, participant, position, trial)
@@ -265,6 +274,8 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
         runner.decide()
         recorder.after_decision()
         front.after_decision(runner)
+        if between is not None:
+            between()
     outcome = recorder.finish() | {"wall_s": time.perf_counter() - wall}
     writer.finish(position, outcome)
     front.end_trial(runner, outcome)

@@ -2,11 +2,17 @@
 
 Into ``OUT/PARTICIPANT/``:
 
-* a tidy CSV folder (one observation per row, one table per file, a header row, ``participant``
-  and ``trial`` in every row): ``trials.csv`` (the trial rows as stored), ``steps.csv``,
-  ``forces.csv`` (every control step, 2 ms), ``pushes.csv``, ``cues.csv`` and ``beliefs.csv``
-  (long form: one row per belief update *and goal candidate*: ``k, time_s, cause, goal,
-  goal_x, goal_y, p``);
+* a tidy table folder, CSV (the default), Parquet (``--format parquet``: one ``.parquet`` file
+  per table with the same name, columns and rows, typed: the SQL ``INTEGER``/``REAL``/``TEXT``
+  of the study tables as Arrow ``int64``/``float64``/``string``, NULL kept; written with
+  pyarrow, ``pip install 'pathpref[parquet]'``) or both (``--format both``); one observation
+  per row, one table per file, a header row, ``participant`` and ``trial`` in every row:
+  ``trials.csv`` (the trial rows as stored), ``steps.csv``, ``forces.csv`` (every control
+  step, 2 ms), ``pushes.csv``, ``cues.csv`` and ``beliefs.csv`` (long form: one row per
+  belief update *and goal candidate*: ``k, time_s, cause, goal, goal_x, goal_y, p``);
+  ``calibration.csv`` and ``tlx.csv``: the participant's gamepad calibrations and NASA-TLX
+  answers (:mod:`.answers`; also those older sessions wrote as JSON lines beside the
+  database);
 * per trial, ``trial-KK.mcap`` (MCAP, JSON messages with JSON Schemas, zstd chunks), readable
   by the ``mcap`` Python reader and Foxglove:
 
@@ -37,6 +43,7 @@ from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import STUDY_TABLES, has_study_tables
 from ..sim.scene import CELL_SIZE_M
+from .answers import load_answers
 
 CHUNK_ROWS = 4096
 VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
@@ -138,21 +145,101 @@ def write_mcap(conn, participant: str, trial: dict, out: Path) -> dict[str, int]
     return counts
 
 
-def _write_csv(path: Path, header: list[str], rows) -> int:
-    n = 0
-    with open(path, "w", newline="") as f:
-        out = csv.writer(f)
-        out.writerow(header)
+#: the export's table formats (``--format``)
+FORMATS = ("csv", "parquet", "both")
+#: rows per Parquet row group (the rows buffered before one is written)
+PARQUET_GROUP_ROWS = 65_536
+#: Arrow types of the study tables' SQL types (every column nullable)
+ARROW_TYPES = {"INTEGER": "int64", "REAL": "float64", "TEXT": "string"}
+
+
+class TableWriter:
+    """One table of the export: ``STEM.csv`` and/or ``STEM.parquet`` (``formats``) with the
+    columns ``columns`` (name, SQL type), written from one pass over the rows. CSV rows go out
+    as they come; Parquet rows are buffered :data:`PARQUET_GROUP_ROWS` at a time, one row group
+    each (bounded memory)."""
+
+    def __init__(self, folder: Path, stem: str, columns: list[tuple[str, str]],
+                 formats: tuple[str, ...]):
+        self.names = [c for c, _ in columns]
+        self.files: list[str] = []
+        self.n = 0
+        self._csv = self._pq = None
+        if "csv" in formats:
+            self.files.append(f"{stem}.csv")
+            self._csv_file = open(folder / f"{stem}.csv", "w", newline="")
+            self._csv = csv.writer(self._csv_file)
+            self._csv.writerow(self.names)
+        if "parquet" in formats:
+            import pyarrow as pa
+            import pyarrow.parquet as pq
+
+            self._pa = pa
+            self.schema = pa.schema([(c, getattr(pa, ARROW_TYPES[t])()) for c, t in columns])
+            self.files.append(f"{stem}.parquet")
+            self._pq = pq.ParquetWriter(folder / f"{stem}.parquet", self.schema)
+            self._buffer: list[list] = []
+
+    def write(self, row: list) -> None:
+        """One row (values in column order)."""
+        self.n += 1
+        if self._csv is not None:
+            self._csv.writerow(row)
+        if self._pq is not None:
+            self._buffer.append(row)
+            if len(self._buffer) >= PARQUET_GROUP_ROWS:
+                self._flush()
+
+    def _flush(self) -> None:
+        cols = list(zip(*self._buffer, strict=True)) if self._buffer else [()] * len(self.names)
+        self._pq.write_table(self._pa.Table.from_arrays(
+            [self._pa.array(list(v), type=f.type) for v, f in zip(cols, self.schema,
+                                                                   strict=True)],
+            schema=self.schema))
+        self._buffer = []
+
+    def close(self) -> dict[str, int]:
+        """Finish the files; the rows written per file."""
+        if self._csv is not None:
+            self._csv_file.close()
+        if self._pq is not None:
+            if self._buffer or self.n == 0:
+                self._flush()  # an empty table is a file with its schema and no rows
+            self._pq.close()
+        return dict.fromkeys(self.files, self.n)
+
+
+def _write_table(folder: Path, stem: str, columns: list[tuple[str, str]], rows,
+                 formats: tuple[str, ...]) -> dict[str, int]:
+    w = TableWriter(folder, stem, columns, formats)
+    try:
         for r in rows:
-            out.writerow(r)
-            n += 1
-    return n
+            w.write(r)
+    finally:
+        counts = w.close()
+    return counts
+
+
+def _formats(fmt: str) -> tuple[str, ...]:
+    """The file formats of ``--format`` (:data:`FORMATS`); Parquet needs pyarrow."""
+    if fmt not in FORMATS:
+        raise ConfigError(f"--format must be one of {', '.join(FORMATS)}, got {str(fmt)[:20]!r}")
+    out = ("csv", "parquet") if fmt == "both" else (fmt,)
+    if "parquet" in out:
+        try:
+            import pyarrow.parquet  # noqa: F401
+        except ImportError:
+            raise ConfigError("--format parquet needs the pyarrow package: pip install "
+                              "'pathpref[parquet]' (or --format csv)") from None
+    return out
 
 
 def export_participant(db: str | Path, participant: str, out: str | Path,
-                       mcap: bool = True) -> dict[str, int]:
-    """Write ``participant``'s trials of ``db`` into ``out/participant/`` (module docstring);
-    the number of rows per CSV file and of MCAP files."""
+                       mcap: bool = True, fmt: str = "csv") -> dict[str, int]:
+    """Write ``participant``'s trials of ``db`` into ``out/participant/`` (module docstring) as
+    CSV (``fmt="csv"``, the default), Parquet (``"parquet"``) or both; the number of rows per
+    table file and of MCAP files."""
+    formats = _formats(fmt)
     folder = Path(out) / participant
     with ResultStore(db, create=False) as store:
         c = store.conn
@@ -163,13 +250,18 @@ def export_participant(db: str | Path, participant: str, out: str | Path,
             raise ConfigError(f"{db} has no trials of participant {participant!r}")
         folder.mkdir(parents=True, exist_ok=True)
         counts: dict[str, int] = {}
+
+        def columns(table: str) -> list[tuple[str, str]]:
+            return list(next(c for t, c, _ in STUDY_TABLES if t == table))
+
         for table, order in (("trials", "trial"), ("trial_steps", "trial, t"),
                              ("trial_forces", "trial, k"), ("trial_pushes", "trial, k"),
                              ("trial_cues", "trial, k")):
-            cols = [col for col, _ in next(c for t, c, _ in STUDY_TABLES if t == table)]
-            name = "trials.csv" if table == "trials" else table[6:] + ".csv"
-            counts[name] = _write_csv(folder / name, cols, (
-                [r[col] for col in cols] for r in _rows(c, table, participant, None, order)))
+            cols = columns(table)
+            stem = "trials" if table == "trials" else table[6:]
+            counts |= _write_table(folder, stem, cols, (
+                [r.get(col) for col, _ in cols]
+                for r in _rows(c, table, participant, None, order)), formats)
         cands = {t["trial"]: json.loads(t["candidates"]) for t in trials}
 
         def beliefs():
@@ -178,9 +270,17 @@ def export_participant(db: str | Path, participant: str, out: str | Path,
                     x, y = cands[r["trial"]][g]
                     yield [participant, r["trial"], r["k"], r["time_s"], r["cause"], g, x, y, p]
 
-        counts["beliefs.csv"] = _write_csv(folder / "beliefs.csv", [
-            "participant", "trial", "k", "time_s", "cause", "goal", "goal_x", "goal_y", "p"],
-            beliefs())
+        counts |= _write_table(folder, "beliefs", [
+            ("participant", "TEXT"), ("trial", "INTEGER"), ("k", "INTEGER"),
+            ("time_s", "REAL"), ("cause", "TEXT"), ("goal", "INTEGER"), ("goal_x", "INTEGER"),
+            ("goal_y", "INTEGER"), ("p", "REAL")], beliefs(), formats)
+        cal, tlx = load_answers(db)
+        for table, stem, rows in (("study_calibrations", "calibration", cal),
+                                  ("study_tlx", "tlx", tlx)):
+            cols = columns(table)
+            counts |= _write_table(folder, stem, cols, (
+                [r[col] for col, _ in cols] for r in rows if r["participant"] == participant),
+                formats)
         if mcap:
             for t in trials:
                 write_mcap(c, participant, t, folder / f"trial-{t['trial']:02d}.mcap")

@@ -16,6 +16,9 @@ A simulated gamepad: ``"gamepad": {"rest": [x, y], "reach": r}`` (a calibration 
 would send it) makes the script calibrate once, before its first trial, and send each push as
 the stick axes that give its force under that calibration
 (:func:`~.controls.stick_axes`), and each release as the stick back at rest.
+
+A questionnaire: ``"tlx": {"right": {"mental": 40, "physical": 65, ...}}`` answers the NASA-TLX
+(the six scales, integers 0..100) after the trials it names, as the page's ``tlx`` message.
 """
 
 from __future__ import annotations
@@ -55,13 +58,31 @@ def _pushes(raw: Any, where: str) -> list[tuple[float, float, float, float]]:
     return out
 
 
+def _tlx(raw: Any, path: str) -> dict[str, dict[str, int]]:
+    """The ``tlx`` answers of a push file: trial name -> the six scales (0..100 integers)."""
+    from .controls import TLX_SCALES
+
+    if not isinstance(raw, dict):
+        raise ConfigError(f"{path}: tlx must map trial names to NASA-TLX answers")
+    out = {}
+    for name, scores in raw.items():
+        if not (isinstance(scores, dict) and set(scores) == set(TLX_SCALES) and all(
+                type(v) is int and 0 <= v <= 100 for v in scores.values())):
+            raise ConfigError(f"{path}: tlx.{str(name)[:40]} must give exactly "
+                              f"{', '.join(TLX_SCALES)}, each an integer 0..100")
+        out[name] = {k: scores[k] for k in TLX_SCALES}
+    return out
+
+
 class PushScript:
     """A validated push file (module docstring)."""
 
     def __init__(self, raw: Any, path: str = "<script>"):
-        if not isinstance(raw, dict) or not raw or set(raw) - {"pushes", "trials", "gamepad"}:
+        if not isinstance(raw, dict) or not raw or set(raw) - {"pushes", "trials", "gamepad",
+                                                                "tlx"}:
             raise ConfigError(f"{path}: a push file is an object with 'pushes' and/or 'trials' "
-                              "(and optionally 'gamepad')")
+                              "(and optionally 'gamepad', 'tlx')")
+        self.tlx = _tlx(raw.get("tlx", {}), path)
         self.gamepad: StickCalibration | None = None
         if "gamepad" in raw:
             pad = raw["gamepad"]
@@ -93,7 +114,7 @@ class PushScript:
     def check_names(self, study) -> None:
         """Every trial the file names is a trial of ``study`` (one line naming it if not)."""
         have = {t.name for t in study.trials}
-        for name in self.named:
+        for name in (*self.named, *self.tlx):
             if name not in have:
                 raise ConfigError(f"push file trials.{str(name)[:40]}: the study has no trial "
                                   f"of that name; its trials: {', '.join(sorted(have))[:200]}")
@@ -155,6 +176,7 @@ class ScriptedFrontEnd:
 
     def begin_trial(self, position: int, total: int, runner) -> None:
         """Start at once; play the trial's pushes at their simulated times."""
+        self.position = position
         self.controls.reset()
         pad = self.script.gamepad
         if pad is not None and self.controls.calibration is None:  # the calibration step
@@ -169,7 +191,11 @@ class ScriptedFrontEnd:
         """Nothing to show."""
 
     def end_trial(self, runner, outcome: dict) -> None:
-        """Nothing to show."""
+        """Answer the questionnaire when the script has answers for this trial."""
+        scores = self.script.tlx.get(runner.trial.name)
+        if scores is not None:
+            self.controls.handle(json.dumps({"type": "tlx", "trial": self.position,
+                                             "scores": scores}))
 
     def close(self) -> None:
         """Nothing to release."""

@@ -21,8 +21,9 @@ thread) publishes the state, and the driving page's messages go to
   rebinding).
 * *One driver*: the first page to connect while nobody drives is the session's *driver* (its
   push, release and start messages act); every other page with the token is a read-only
-  *observer* (its messages are dropped; it sees the belief, always, and the trial). When the
-  driver disconnects its push ends at once and the next page to connect drives.
+  *observer* (its messages are dropped; it sees the belief and the planned path, always, and
+  the trial). When the driver disconnects its push ends at once and the next page to connect
+  drives.
 * *Dead man*: a push ends :data:`~.controls.DEADMAN_S` (0.5 s) after its page's last push
   message (the page repeats it every 0.1 s while the pointer is down).
 * *Pause*: during a trial the physics waits (the robot holds still, nothing is recorded) while
@@ -42,7 +43,9 @@ thread) publishes the state, and the driving page's messages go to
 Messages to the page: ``role`` (``driver`` or ``observer``) on connection; ``scene`` (the map,
 the trial: start, goal, route, candidates, whether the belief is shown, the time limit; the
 status ``waiting``/``running``/``paused``/``done``/``finished``) when it changes and on
-connection, and ``state`` (robot position, applied force, goal probabilities when shown (to
+connection, and ``state`` (robot position, its grid cell ``[x, y]``, applied force, goal
+probabilities and the planned path (``path``: the ``[x, y]`` cells the robot intends to visit,
+from its cell, :meth:`~.session.TrialRunner.planned_path`) when the trial shows the belief (to
 observers always), time, pushes, cues) at up to 30 Hz.
 """
 
@@ -334,9 +337,12 @@ class BrowserFrontEnd:
         state = {"type": "state", "t": round(r.time_s, 3),
                  "xy": [round(float(v), 4) for v in r.base.position],
                  "force": [round(float(v), 2) for v in r.body.applied],
-                 "probs": p, "cues": len(r.cues), "step": r.t}
+                 "cell": r.world.cells[r.cell].tolist(),
+                 "probs": p, "path": r.world.cells[r.planned_path()].tolist(),
+                 "cues": len(r.cues), "step": r.t}
         observer = json.dumps(state)
-        driver = observer if r.trial.show_belief else json.dumps(state | {"probs": None})
+        driver = observer if r.trial.show_belief else json.dumps(
+            state | {"probs": None, "path": None})
         with self._lock:
             self._state = (driver, observer)
             self._state_seq += 1

@@ -36,6 +36,7 @@ from ..episode import EpisodeRunner, Felt, simulator_rng
 from ..geometry.grid import STAY
 from ..sim.body import MujocoBody
 from ..sim.mobile_base import MobileBase
+from .intent import policy_path
 from .plan import Trial
 
 #: shortest decision step (simulated s): the base holds its cell at least this long
@@ -112,6 +113,18 @@ class TrialRunner(EpisodeRunner):
         self.goal_cell = world.cell(trial.goal)
         self.t_start = float(self.body.base.data.time)
         self.on_belief: list[Callable[[str], None]] = []
+        #: the move under way (None: the robot holds its cell between decisions)
+        self.intended_action: int | None = None
+        self._plan: list[int] | None = None
+
+    def planned_path(self) -> list[int]:
+        """The cells (indices) the robot intends to visit, from its cell: the decided move
+        under way, then the belief's most likely route (:mod:`.intent`). Computed once per
+        decision, move or cue (the belief or the move changed), not per call."""
+        if self._plan is None:
+            self._plan = policy_path(self.world, self.model.goals, self.policy, self.cell,
+                                     self.intended_action)
+        return self._plan
 
     def _preference(self, free_goal: bool) -> np.ndarray:
         """The route's preference (the map's own is not used, and may be absent)."""
@@ -145,6 +158,7 @@ class TrialRunner(EpisodeRunner):
             return
         super().observe(felt)
         self.cues.append((self.time_s, felt.cell, felt))
+        self._plan = None
         for hook in self.on_cue:
             hook(felt)
         for hook in self.on_belief:
@@ -164,7 +178,11 @@ class TrialRunner(EpisodeRunner):
         to the belief as they come."""
         self.begin()
         action = int(self.policy.act(1, self.cell, self.pending_heading))
-        self.step(action)
+        self.intended_action, self._plan = action, None
+        try:
+            self.step(action)
+        finally:
+            self.intended_action, self._plan = None, None
         for hook in self.on_belief:
             hook("move")
 

@@ -43,7 +43,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
 
     def tables():
         m = ObservationModel.build(world, goals)
-        return m.likelihood, m.goal_likelihood
+        return m.cell_likelihood, m.goal_likelihood
 
     tab = _timeit(tables, reps)
     model = ObservationModel.build(world, goals)

@@ -3,6 +3,8 @@ latency, false cues while driving, episode time, rendering, IK and tray tilt."""
 
 from __future__ import annotations
 
+import contextlib
+import copy
 import time
 from statistics import median
 from typing import Any
@@ -590,6 +592,101 @@ def render_fps_video(width: int = 960, height: int = 540, frames: int = 60) -> f
     return made / spent
 
 
+def bare_step_us(model, data, steps: int = 2000, repeats: int = 3) -> float:
+    """Microseconds of one bare ``mj_step`` of ``model`` from ``data``'s state (a copy; no
+    Python between the steps but the loop's), the best of ``repeats`` runs of ``steps``."""
+    import mujoco
+
+    best = float("inf")
+    for _ in range(repeats):
+        d = copy.copy(data)
+        t = time.perf_counter()
+        for _ in range(steps):
+            mujoco.mj_step(model, d)
+        best = min(best, time.perf_counter() - t)
+    return 1e6 * best / steps
+
+
+@contextlib.contextmanager
+def timed_phases(spent: list[float]):
+    """While the context lasts, the wall time of every decision-step phase run to completion
+    (:meth:`~pathpref.sim.decision.DecisionStep.run`: the physics steps and their Python) is
+    added to ``spent[0]``."""
+    from ...sim.decision import DecisionStep
+
+    run = DecisionStep.run
+
+    def timed(self):
+        t = time.perf_counter()
+        try:
+            return run(self)
+        finally:
+            spent[0] += time.perf_counter() - t
+
+    DecisionStep.run = timed
+    try:
+        yield spent
+    finally:
+        DecisionStep.run = run
+
+
+def physics_overhead(episodes: int = 5) -> dict[str, float]:
+    """The Python cost of the physics step, on the ``episode_s`` episodes (``Physics()``).
+
+    An episode of wall time ``T`` spends ``T_phys`` in its ``N`` physics steps and the rest,
+    ``T - T_phys``, in planning and bookkeeping; with ``b`` the bare ``mj_step`` time of its
+    scene (:func:`bare_step_us`), ``overhead_vs_bare_mujoco = T / (T - T_phys + N b)``: the
+    episode against bare MuJoCo plus planning (1 when the step has no Python), and
+    ``python_us_per_step = T_phys / N - b``; medians over the episodes.
+    ``overhead_vs_bare_mujoco_control``: ``navigate_control`` (``Physics()``, random velocity
+    commands at 50 Hz, resets excluded) against ``b`` per physics step of its steps."""
+    from ... import sim  # noqa: F401 - registers the MuJoCo body
+    from ...episode import Physics
+    from ...episode.runner import EpisodeRunner
+
+    ratios, python_us, bare = [], [], []
+    physics = Physics().to_json()
+    run_episode(EpisodeSpec.single("simple", "path_preference", 5, seed=11, sim="mujoco",
+                                   t_max=3, physics=physics))  # compile scene and planner
+    for i in range(episodes):
+        spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
+                                  sim="mujoco", t_max=30, physics=physics)
+        runner = EpisodeRunner(spec)
+        base = runner.body.base
+        b = bare_step_us(base.model, base.data)
+        spent = [0.0]
+        with timed_phases(spent):
+            t = time.perf_counter()
+            while not runner.done:
+                runner.step()
+            wall = time.perf_counter() - t
+        n = round(float(base.data.time) / base.dt)
+        ratios.append(wall / (wall - spent[0] + n * b * 1e-6))
+        python_us.append(1e6 * spent[0] / n - b)
+        bare.append(b)
+    from pathpref_tasks import load
+
+    env = load("navigate_control", task_kwargs={"map": "simple", "method": "goal_only",
+                                                "seed": 0, "queries": 50})
+    env.reset()
+    base = env.task.base
+    b = bare_step_us(base.model, base.data)
+    spec, rng = env.action_spec(), np.random.default_rng(0)
+    spent, steps = 0.0, 0
+    for a in rng.uniform(spec.minimum, spec.maximum, size=(500, *spec.shape)):
+        t0, t = float(base.data.time), time.perf_counter()
+        last = env.step(a).last()
+        spent += time.perf_counter() - t
+        steps += round((float(base.data.time) - t0) / base.dt)
+        if last:
+            env.reset()
+            base = env.task.base
+    return {"overhead_vs_bare_mujoco": median(ratios),
+            "python_us_per_step": median(python_us),
+            "bare_step_us": median(bare),
+            "overhead_vs_bare_mujoco_control": spent / (steps * b * 1e-6)}
+
+
 def bench_physics(quick: bool = False) -> dict[str, Any]:
     """Cue detection (with and without heading noise), false cues, episode time, rendering;
     the same with realistic sensing (``*_realistic``, :func:`cue_accuracy_realistic`,
@@ -654,6 +751,7 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "episode_legacy_s": median(legacy_times),
         "render_fps": render_fps(frames=20 if quick else 60),
         "render_fps_video": render_fps_video(frames=20 if quick else 60),
+        **physics_overhead(2 if quick else 5),
     }
 
 

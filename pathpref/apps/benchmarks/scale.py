@@ -60,6 +60,59 @@ def scale_map() -> dict[str, Any]:
     return with_loop_preference(random_floor_plan(name="floor_200", **SCALE_MAP))
 
 
+#: the forced 500 x 500 map: the bench floor plan's obstacle density (per area) at 500 x 500,
+#: 1,122 distinct lines over 232,643 free cells (above the polytope limit: built with force)
+MAP_500 = dict(SCALE_MAP, width=500, height=500, n_rotated=125, n_boxes=250)
+
+
+def map_500() -> dict[str, Any]:
+    """The 500 x 500 floor plan of :data:`MAP_500`, with a loop preference."""
+    from ...geometry.generate import random_floor_plan, with_loop_preference
+
+    return with_loop_preference(random_floor_plan(name="floor_500", **MAP_500))
+
+
+def _map_500_child(queries: int = 1000) -> None:
+    """Run in a fresh interpreter: the 500 x 500 map built (forced), the robust preset's
+    episode set up for instance 0 (10 goals: cost tables, route prior, search), its likelihood
+    tables and its first decision. Prints JSON: the CPU seconds and the process's peak RSS (MB,
+    ``ru_maxrss``, which only grows) after each stage (``world``, ``policy``, ``tables``,
+    ``decision``), polytopes, lines, cells and the maximum degree."""
+    import json
+    import resource
+    import tempfile
+
+    from ...episode.runner import EpisodeRunner
+
+    out: dict[str, Any] = {}
+    c0 = time.process_time()
+
+    def stage(name: str) -> None:
+        out[f"{name}_cpu_s"] = time.process_time() - c0
+        out[f"{name}_peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "floor_500.json")
+        with open(path, "w") as f:
+            json.dump(map_500(), f)
+        spec = load_map(path)
+        world = World.from_spec(spec)
+        stage("world")
+        ep = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=0, run=0,
+                         instance_seed=1, run_seed=2, queries=queries, t_max=spec.t_max,
+                         preset="robust")
+        runner = EpisodeRunner(ep, world=world)
+        stage("policy")
+        model = runner.model
+        _ = (model.cell_likelihood, model.goal_likelihood)
+        stage("tables")
+        log = runner.step()
+        stage("decision")
+    out.update(polytopes=world.n_polytopes, lines=len(world.arrangement.normals),
+               max_degree=world.graph.max_degree, cells=world.n_cells, action=int(log.action))
+    print(json.dumps(out))
+
+
 def _scale_setup_child() -> None:
     """Run in a fresh interpreter: arrangement + graph + cost tables for 10 goals on the
     benchmark floor plan; prints ``seconds peak_MB``."""
@@ -105,13 +158,31 @@ def _episode_child(preset: str, queries: int) -> None:
                           "steps": ep.steps, "goal_reached": bool(ep.goal_reached)}))
 
 
-def bench_scale(queries: int = 1000) -> dict[str, Any]:
+def bench_map_500(queries: int = 1000) -> dict[str, Any]:
+    """The forced 500 x 500 map (:func:`_map_500_child`, fresh process): ``map_500_peak_mb``
+    (the whole process's peak RSS: map, tables, one robust decision), ``map_500_cpu_s``
+    (CPU seconds of all of it) and the stages' peaks."""
+    import json
+    import subprocess
+    import sys
+
+    code = ("from pathpref.apps.benchmarks.scale import _map_500_child; "
+            f"_map_500_child({int(queries)})")
+    d = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                                  check=True).stdout.splitlines()[-1])
+    return {"map_500_peak_mb": d["decision_peak_mb"], "map_500_cpu_s": d["decision_cpu_s"],
+            "map_500_world_peak_mb": d["world_peak_mb"],
+            "map_500_policy_peak_mb": d["policy_peak_mb"],
+            "map_500_tables_peak_mb": d["tables_peak_mb"], "map_500_polytopes": d["polytopes"]}
+
+
+def bench_scale(queries: int = 1000, map_500: bool = True) -> dict[str, Any]:
     """Large-map figures: the 200 x 200 floor plan's setup time and peak memory and the route
     prior's update on it (:func:`.maps.bench_route_update`; fresh process), one
     path-preference episode on it per preset (``paper``, ``robust``: CPU seconds and peak RSS
     with the likelihood tables, each in a fresh process; ``map_200_episode_s``, its steps,
     goal and ``map_200_episode_peak_mb`` are the default preset's, as ``EpisodeSpec`` runs it),
-    and the 40 x 40 rotated maps' reachable fraction."""
+    the 40 x 40 rotated maps' reachable fraction and (``map_500``) :func:`bench_map_500`."""
     import json
     import subprocess
     import sys
@@ -148,6 +219,8 @@ def bench_scale(queries: int = 1000) -> dict[str, Any]:
             largest4 = np.bincount(lab[lab > 0]).max()
             fractions.append(np.bincount(world.motion.components()).max() / largest4)
     res["rotated_40_reachable_fraction"] = float(min(fractions))
+    if map_500:
+        res.update(bench_map_500(queries))
     return res
 
 

@@ -1,0 +1,48 @@
+"""The physics step's Python changes no result: a few physical episodes (navigate with the
+realistic, ideal and legacy sensing, pushes at any time, the differential drive, carry) and
+control-rate task runs replay ``tests/data/physics_traces.json`` (written by
+``scripts/physics_traces.py`` with the per-step code of 23bd330, before the step was cut):
+decision steps, cue headings and cells, counts exactly; times, forces, impulses and the base's
+final ``qpos`` to ``tests/close.py``'s ``REL_PHYSICS``."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import pytest  # noqa: E402
+
+from tests.close import REL_PHYSICS, assert_same  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "scripts"))
+
+from physics_traces import EPISODES, TASKS, episode, task_run  # noqa: E402
+
+WANT = json.loads((ROOT / "tests/data/physics_traces.json").read_text())
+
+
+@pytest.mark.cross_cpu
+@pytest.mark.parametrize("row", EPISODES, ids=[r[0] for r in EPISODES])
+def test_episode_replays(row):
+    """One physical episode (module docstring)."""
+    got, want = episode(row), WANT[row[0]]
+    assert [s[:5] for s in got["steps"]] == want["steps"]
+    assert [f[:2] for f in got["felt"]] == [f[:2] for f in want["felt"]]
+    for k in ("pushes", "pushes_missed", "pushes_misread", "collisions", "cues_felt"):
+        assert got["metrics"].get(k) == want["metrics"].get(k), k
+    assert_same(got, want, row[0], rel=REL_PHYSICS)
+
+
+@pytest.mark.cross_cpu
+@pytest.mark.parametrize("row", TASKS, ids=[r[0] for r in TASKS])
+def test_control_task_replays(row):
+    """A control-rate task run by its own policy (module docstring)."""
+    got, want = task_run(row), WANT[row[0]]
+    assert got["rewards"] == want["rewards"] and got["cells"] == want["cells"]
+    assert [f[:2] for f in got["felt"]] == [f[:2] for f in want["felt"]]
+    assert_same(got, want, row[0], rel=REL_PHYSICS)
