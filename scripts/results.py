@@ -279,7 +279,8 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
         elif stored.exists():
             data = json.loads(stored.read_text())
             cells, date = data["cells"], file_date(stored)
-            source = f"`{_rel(stored)}` (the cells of `{data['source']}`, not committed)"
+            source = (f"`{_rel(stored)}` (the cells of `{data['source']}`; the database is not "
+                      "in the repository)")
         else:
             print(f"results: {path} not found; its section is left out", file=sys.stderr)
             continue

@@ -73,7 +73,7 @@ def test_a_database_kept_as_its_cells_json(tmp_path):
                                                    "cells": [cell]}))
     page = results.build([(tmp_path / "big.sqlite", "Big", "CMD"),
                           (tmp_path / "gone.sqlite", "Gone", "CMD")], [])
-    assert "(the cells of `docs/results/big.sqlite`, not committed)" in page
+    assert "(the cells of `docs/results/big.sqlite`; the database is not in" in page
     assert "| goal only | 4 | 3/4 = 0.75 [0.30, 0.95] | 4/4 = 1.00 [0.51, 1.00] | 4/4 | 2.50 |" \
         in page
     assert "1 failed (counted as failures)" in page
