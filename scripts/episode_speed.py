@@ -91,7 +91,8 @@ def bare_step_s(model, data, steps: int = 2000) -> float:
 
 @contextlib.contextmanager
 def timed_phases(spent: list[float]):
-    """Add the wall time of every decision-step phase (``DecisionStep.run``) to ``spent[0]``."""
+    """Add the wall time of every decision-step phase (``DecisionStep.run``) to ``spent[0]``
+    (as ``pathpref.apps.benchmarks.physics.timed_phases``, which the older tree may not have)."""
     from pathpref.sim.decision import DecisionStep
 
     run = DecisionStep.run

@@ -6,8 +6,6 @@ exits, summed term by term), and the search's particles against the exact margin
 
 from __future__ import annotations
 
-import itertools
-
 import numpy as np
 import pytest
 
@@ -18,7 +16,7 @@ from pathpref.geometry.world import World
 from pathpref.inference import homotopy_prior
 from pathpref.inference.homotopy_prior import HomotopyBelief
 from pathpref.inference.human import ObservationModel
-from tests.test_routes import is_tree, observations, random_world
+from tests.test_routes import every_theta, is_tree, observations, random_world
 
 
 def box_world(obstacles):
@@ -77,11 +75,7 @@ def brute(belief: HomotopyBelief, model, obs):
     nbrs = w.graph.neighbors
     P, G = w.n_polytopes, len(model.goals)
     roots = w.cell_polytope[model.goals]
-    thetas = np.array(list(itertools.product(*[range(len(n)) for n in nbrs])))
-    loglik = np.zeros((G, len(thetas)))
-    for s, h in obs:
-        v = w.cell_polytope[s]
-        loglik += np.log(model.likelihood[s, h][:, thetas[:, v]])
+    thetas, loglik = every_theta(model, obs)
     a = homotopy_prior.TREE_SHARE
     goal = np.zeros(G)
     cond = {v: np.zeros((G, len(nbrs[v]))) for v in range(P)}

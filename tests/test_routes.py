@@ -29,6 +29,18 @@ def is_tree(theta, root, neighbors):
     return True
 
 
+def every_theta(model, observations):
+    """``(thetas, loglik)``: every preference vector (a slot per polytope) and, per goal, the
+    log-likelihood of the observations under it, straight from the model's table."""
+    w = model.world
+    thetas = np.array(list(itertools.product(*[range(len(n)) for n in w.graph.neighbors])))
+    loglik = np.zeros((len(model.goals), len(thetas)))
+    for s, h in observations:
+        v = w.cell_polytope[s]
+        loglik += np.log(model.likelihood[s, h][:, thetas[:, v]])
+    return thetas, loglik
+
+
 def brute(model, observations):
     """``(P(g | o), {v: (G, deg v) P(p_v | g, o)})`` by enumerating every theta."""
     w = model.world
@@ -36,11 +48,7 @@ def brute(model, observations):
     P = w.n_polytopes
     G = len(model.goals)
     roots = w.cell_polytope[model.goals]
-    thetas = np.array(list(itertools.product(*[range(len(n)) for n in nbrs])))
-    loglik = np.zeros((G, len(thetas)))
-    for s, h in observations:
-        v = w.cell_polytope[s]
-        loglik += np.log(model.likelihood[s, h][:, thetas[:, v]])
+    thetas, loglik = every_theta(model, observations)
     goal = np.zeros(G)
     cond = {v: np.zeros((G, len(nbrs[v]))) for v in range(P)}
     for g in range(G):

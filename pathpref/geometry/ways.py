@@ -74,6 +74,14 @@ class Sketch:
     length: np.ndarray
     signature: np.ndarray
 
+    def edge_index(self, v: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """The index (into ``src``, ``dst``, ...) of each directed edge ``v[i] -> u[i]`` (all
+        must be edges)."""
+        P = len(self.point)
+        key = self.src * P + self.dst
+        by_key = np.argsort(key)
+        return by_key[np.searchsorted(key, np.asarray(v) * P + np.asarray(u), sorter=by_key)]
+
     def matrix(self, scale: float = 1.0) -> sp.csr_matrix:
         """``(P, P)`` the edge lengths times ``scale`` (a sparse graph for Dijkstra)."""
         P = len(self.point)
@@ -133,14 +141,11 @@ def _tree(sk: Sketch, matrix: sp.csr_matrix, root: int, reverse: bool = False):
     sketch's edge ``x -> p`` and ``sig[x]`` is the signature of the path ``x ~> root``."""
     P = len(sk.point)
     dist, pred = dijkstra(matrix, directed=True, indices=root, return_predecessors=True)
-    key = sk.src * P + sk.dst
-    by_key = np.argsort(key)
     sig = np.zeros((P, sk.signature.shape[1]), dtype=np.int64)
     reached = np.flatnonzero(np.isfinite(dist) & (pred >= 0))
     order = reached[np.argsort(dist[reached], kind="stable")]  # parents before children
     parent = pred[order].astype(np.int64)
-    edge_key = order * P + parent if reverse else parent * P + order
-    edge = by_key[np.searchsorted(key, edge_key, sorter=by_key)]
+    edge = sk.edge_index(order, parent) if reverse else sk.edge_index(parent, order)
     for x, p, e in zip(order.tolist(), parent.tolist(), edge.tolist(), strict=True):
         sig[x] = sig[p] + sk.signature[e]
     return dist, pred, sig
@@ -189,8 +194,7 @@ def way_potential(sk: Sketch, route: np.ndarray, leave: float = LEAVE) -> np.nda
     (module docstring; ``inf`` where the way cannot be reached)."""
     P = len(sk.point)
     route = np.asarray(route, dtype=np.int64)
-    mat = sk.matrix()
-    step = np.array([mat[route[i], route[i + 1]] for i in range(len(route) - 1)], dtype=float)
+    step = sk.length[sk.edge_index(route[:-1], route[1:])]
     remaining = np.concatenate([np.cumsum(step[::-1])[::-1], [0.0]]) if len(step) else \
         np.zeros(1)
     at = np.full(P, np.inf)

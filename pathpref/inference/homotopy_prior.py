@@ -216,7 +216,8 @@ class HomotopyBelief(RouteBelief):
             np.cumsum(np.full(len(tree_g), 1.0 / len(tree_g)))
         goals = g_all[~is_tree]
         ways = comp[~is_tree] - 1
-        P, K = self._nbr.shape
+        P = self._nbr.shape[0]
+        top_slot = np.maximum((self._nbr >= 0).sum(axis=1), 1) - 1
         slots = np.zeros((len(goals), P), dtype=np.int64)
         for (g, c) in set(zip(goals.tolist(), ways.tolist(), strict=True)):
             rows = self.ways[g][c].copy()
@@ -228,8 +229,7 @@ class HomotopyBelief(RouteBelief):
             idx = np.flatnonzero((goals == g) & (ways == c))
             u = rng.random((len(idx), P, 1))
             s = (cdf[None, :, :] < u * cdf[None, :, -1:]).sum(axis=2)
-            deg = np.maximum((self._nbr >= 0).sum(axis=1), 1)
-            slots[idx] = np.minimum(s, deg - 1)
+            slots[idx] = np.minimum(s, top_slot)
         for g in np.unique(goals).tolist():
             slots[goals == g, int(self.goal_polytope[g])] = -1
         return int(is_tree.sum()), tree_cdf, goals.astype(np.int64), slots

@@ -352,19 +352,28 @@ class BrowserFrontEnd:
         docstring); a pause over ``pause_limit_s`` raises :class:`PageGone`."""
         if self.driver_present():
             return
-        t0 = self.clock()
         self.controls.release()
         self._set_scene("paused")
         log.warning("trial %d paused: the participant's page is gone", self.position)
-        while not self.driver_present():
-            if self.clock() - t0 > self.pause_limit_s:
-                raise PageGone(
-                    f"the participant's page was gone for over {self.pause_limit_s:g} s in "
-                    f"trial {self.position}; it is left unfinished: run the same command "
-                    "with --resume to run it again")
-            time.sleep(0.05)
-        self.pauses.append((self.position, self.clock() - t0))
+        waited = self._await(
+            self.driver_present, self.pause_limit_s,
+            f"the participant's page was gone for over {self.pause_limit_s:g} s in trial "
+            f"{self.position}; it is left unfinished: run the same command with --resume to "
+            "run it again")
+        self.pauses.append((self.position, waited))
         self._set_scene("running")
+
+    def _await(self, ready, limit_s: float, message: str, poll_s: float = 0.05) -> float:
+        """Wait until ``ready()`` is true (``ready`` may block up to its own timeout; else a
+        sleep of ``poll_s`` between calls) and return the seconds waited; past ``limit_s``
+        raise :class:`PageGone` with ``message``: every wait of a session is bounded."""
+        t0 = self.clock()
+        while not ready():
+            if self.clock() - t0 > limit_s:
+                raise PageGone(message)
+            if poll_s:
+                time.sleep(poll_s)
+        return self.clock() - t0
 
     def _latency(self, cue) -> None:
         t = self.controls.released_at
@@ -379,12 +388,10 @@ class BrowserFrontEnd:
         self.runner, self.position, self.total = runner, position, total
         self._set_scene("waiting", self.last_outcome)
         self.publish()
-        t0 = self.clock()
-        while not self.controls.started.wait(0.2):
-            if self.clock() - t0 > self.start_limit_s:
-                raise PageGone(
+        self._await(lambda: self.controls.started.wait(0.2), self.start_limit_s,
                     f"nobody pressed Start for {self.start_limit_s:g} s before trial "
-                    f"{position}; run the same command with --resume to go on from it")
+                    f"{position}; run the same command with --resume to go on from it",
+                    poll_s=0.0)
         self._set_scene("running")
         runner.base.on_substep.append(self._hold)
         runner.base.on_substep.append(Pacer())
@@ -402,14 +409,10 @@ class BrowserFrontEnd:
         self.last_outcome = {k: outcome[k] for k in ("outcome", "time_s", "pushes")}
         self._set_scene("finished" if last else "done", self.last_outcome)
         if self.questionnaire:  # the answers come before the next trial (or the end)
-            t0 = self.clock()
-            while self.position not in self.controls.tlx:
-                if self.clock() - t0 > self.start_limit_s:
-                    raise PageGone(
+            self._await(lambda: self.position in self.controls.tlx, self.start_limit_s,
                         f"no questionnaire answer after trial {self.position} for "
                         f"{self.start_limit_s:g} s (the trial is recorded); run the same "
                         "command with --resume to go on")
-                time.sleep(0.05)
 
     def close(self) -> None:
         """Let the page see the last scene, then stop the server and its thread."""
