@@ -1,11 +1,17 @@
-"""The homotopy prior against the route prior on held-out floor plans (issue 27, item 1).
+"""Route-structured priors against the route prior on held-out floor plans (issue 27, item 1).
 
     .venv/bin/python scripts/homotopy_prior_eval.py --out docs/results/homotopy_prior.json
+    .venv/bin/python scripts/homotopy_prior_eval.py --plan-set loop --priors routes circulation \
+        --out docs/results/circulation_prior.json
 
-**Held-out plans**, drawn before any setting of the homotopy prior was chosen and never used to
-choose one: ``random_floor_plan(24, 16, 7 rotated, 2 boxes, sizes 1.5..4, seed 9001..9006)``
-(:mod:`pathpref.geometry.generate`), each with an open preference route through four waypoints
-drawn (seed = the plan's) from the largest 4-connected free area, written to ``--plans``.
+**Held-out plans**, drawn before any setting of the prior under test was chosen and never used
+to choose one: ``random_floor_plan(24, 16, 7 rotated, 2 boxes, sizes 1.5..4, seed)``
+(:mod:`pathpref.geometry.generate`), written to ``--plans``. ``--plan-set open`` (seeds
+9001..9006, drawn for the homotopy prior): an open preference route through four waypoints
+drawn (seed = the plan's) from the largest 4-connected free area. ``--plan-set loop`` (seeds
+9101..9106, drawn for the circulation prior): the closed route round the map of
+:func:`~pathpref.geometry.generate.with_loop_preference`, the kind of preference the example
+plans have.
 
 Two measurements, both with the consistent human:
 
@@ -13,7 +19,8 @@ Two measurements, both with the consistent human:
    preference) at every third cell of the human's own route; after ``k`` pushes the
    log-probability of the human's route is ``sum_v log P(p_v = next_v | g*, o_1:k)`` over the
    route's polytope exits (``next_v``: the polytope the route enters from ``v``) under each
-   prior. Mean over plans and instances with a 95 % t interval of the paired difference.
+   prior. Mean over plans and instances with a 95 % t interval of the paired difference from
+   the route prior.
 2. **Success.** Robust episodes of ``path_preference`` at each ``--delta-t`` under each prior:
    strict and homotopy-level success with Wilson 95 % intervals, pushes per episode
    (databases in ``--db-dir``, resumable).
@@ -39,22 +46,30 @@ from pathpref.geometry.following import consistent_preference, human_route  # no
 from pathpref.geometry.generate import (  # noqa: E402
     four_connected_components,
     random_floor_plan,
+    with_loop_preference,
 )
 from pathpref.geometry.maps import free_cell_mask, parse_map  # noqa: E402
 from pathpref.geometry.world import load_world  # noqa: E402
+from pathpref.inference.circulation_prior import CirculationBelief  # noqa: E402
 from pathpref.inference.homotopy_prior import HomotopyBelief  # noqa: E402
 from pathpref.inference.human import ObservationModel, SimulatedHuman  # noqa: E402
 from pathpref.inference.routes import RouteBelief  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-SEEDS = range(9001, 9007)
+SEEDS = {"open": range(9001, 9007), "loop": range(9101, 9107)}
 PUSHES = (0, 1, 2, 4, 8)
+#: the beliefs compared, by ``--prior`` name
+BELIEFS = {"routes": lambda model, start: RouteBelief(model),
+           "homotopy": HomotopyBelief, "circulation": CirculationBelief}
 
 
-def held_out_plan(seed: int) -> dict:
+def held_out_plan(seed: int, kind: str = "open") -> dict:
     """The held-out plan of ``seed`` (module docstring)."""
     raw = random_floor_plan(24, 16, 7, n_boxes=2, seed=seed, size_range=(1.5, 4.0),
                             name=f"heldout_{seed}")
+    if kind == "loop":
+        return {**with_loop_preference(raw), "description": "held out for the circulation "
+                "prior (scripts/homotopy_prior_eval.py); never used to choose its settings"}
     labels, _ = four_connected_components(free_cell_mask(parse_map(raw)))
     biggest = np.bincount(labels[labels > 0]).argmax()
     xs, ys = np.nonzero(labels == biggest)
@@ -75,7 +90,7 @@ def route_logprob(belief, world, g: int, exits: list[tuple[int, int]]) -> float:
     return total
 
 
-def prediction(paths: list[Path], instances: int) -> dict:
+def prediction(paths: list[Path], instances: int, priors: list[str]) -> dict:
     """Measurement 1 of the module docstring."""
     rows = []
     for path in paths:
@@ -95,7 +110,7 @@ def prediction(paths: list[Path], instances: int) -> dict:
                 continue
             model = ObservationModel.build(world, goals, normalize=True)
             human = SimulatedHuman(model, g, pref)
-            beliefs = {"routes": RouteBelief(model), "homotopy": HomotopyBelief(model, inst.start)}
+            beliefs = {name: BELIEFS[name](model, inst.start) for name in priors}
             rng = np.random.default_rng(i)
             at = cells[::3]
             heads = [human.sample(c, rng) for c in at]
@@ -112,12 +127,17 @@ def prediction(paths: list[Path], instances: int) -> dict:
     out = {"n": len(rows), "rows": rows, "mean": {}}
     for k in PUSHES:
         a = np.array([r[f"routes_{k}"] for r in rows])
-        b = np.array([r[f"homotopy_{k}"] for r in rows])
-        d = b - a
-        half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
-        out["mean"][k] = {"routes": float(a.mean()), "homotopy": float(b.mean()),
-                          "difference": float(d.mean()),
-                          "difference_ci": [float(d.mean() - half), float(d.mean() + half)]}
+        out["mean"][k] = {"routes": float(a.mean())}
+        for name in priors:
+            if name == "routes":
+                continue
+            b = np.array([r[f"{name}_{k}"] for r in rows])
+            d = b - a
+            half = stats.t.ppf(0.975, len(d) - 1) * d.std(ddof=1) / np.sqrt(len(d))
+            suffix = "" if name == "homotopy" else f"_{name}"  # the first file's keys stay
+            out["mean"][k] |= {name: float(b.mean()), f"difference{suffix}": float(d.mean()),
+                               f"difference_ci{suffix}": [float(d.mean() - half),
+                                                          float(d.mean() + half)]}
     return out
 
 
@@ -126,8 +146,9 @@ def success(paths: list[Path], args) -> list[dict]:
     out = []
     db_dir = Path(args.db_dir)
     db_dir.mkdir(parents=True, exist_ok=True)
-    for prior in ("routes", "homotopy"):
-        db = db_dir / f"{prior}.sqlite"
+    for prior in args.priors:
+        db = db_dir / f"{args.plan_set}_{prior}.sqlite" if args.plan_set != "open" else \
+            db_dir / f"{prior}.sqlite"  # (the first plan set's file names stay)
         specs = []
         for p in paths:
             specs += sweep_specs(str(p), ["path_preference"], args.delta_t, args.instances,
@@ -160,30 +181,44 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--delta-t", type=int, nargs="+", default=[1, 5])
     ap.add_argument("--skip-success", action="store_true")
+    ap.add_argument("--plan-set", choices=sorted(SEEDS), default="open")
+    ap.add_argument("--maps", nargs="+", default=None,
+                    help="measure on these maps instead of a held-out plan set (names or map "
+                         "files; not held out if the prior's settings were chosen on them)")
+    ap.add_argument("--priors", nargs="+", choices=sorted(BELIEFS),
+                    default=["routes", "homotopy"], help="routes must come first")
     args = ap.parse_args()
+    if args.priors[0] != "routes":
+        ap.error("--priors: the first must be routes (the others are compared with it)")
     plans = Path(args.plans)
     plans.mkdir(parents=True, exist_ok=True)
     paths = []
-    for s in SEEDS:
-        p = plans / f"heldout_{s}.json"
+    for s in SEEDS[args.plan_set] if args.maps is None else ():
+        p = plans / (f"heldout_{s}.json" if args.plan_set == "open" else
+                     f"heldout_{args.plan_set}_{s}.json")
         if not p.exists():
-            p.write_text(json.dumps(held_out_plan(s), indent=1))
+            p.write_text(json.dumps(held_out_plan(s, args.plan_set), indent=1))
         paths.append(p)
+    if args.maps is not None:
+        args.plan_set = "maps"
+        paths = [Path(m) for m in args.maps]
     flags = " ".join(f"--{k.replace('_', '-')} " + (" ".join(map(str, v)) if isinstance(v, list)
                                                     else str(v))
                      for k, v in vars(args).items() if v not in (None, False, True)
                      and k not in ("out", "plans"))
     result = {"command": f"python scripts/homotopy_prior_eval.py {flags}",
-              "prediction": prediction(paths, args.instances)}
+              "prediction": prediction(paths, args.instances, args.priors)}
     for k, m in result["prediction"]["mean"].items():
-        print(f"after {k} pushes: route log-prob routes {m['routes']:.2f}, homotopy "
-              f"{m['homotopy']:.2f}, difference {m['difference']:+.2f} "
-              f"[{m['difference_ci'][0]:+.2f}, {m['difference_ci'][1]:+.2f}] "
-              f"(n = {result['prediction']['n']})", flush=True)
+        for name in args.priors[1:]:
+            suffix = "" if name == "homotopy" else f"_{name}"
+            lo, hi = m[f"difference_ci{suffix}"]
+            print(f"after {k} pushes: route log-prob routes {m['routes']:.2f}, {name} "
+                  f"{m[name]:.2f}, difference {m[f'difference{suffix}']:+.2f} "
+                  f"[{lo:+.2f}, {hi:+.2f}] (n = {result['prediction']['n']})", flush=True)
     if not args.skip_success:
         result["success"] = success(paths, args)
         for r in result["success"]:
-            print(f"{r['prior']:9s} ΔT={r['delta_t']}: strict {r['success']:.2f} "
+            print(f"{r['prior']:11s} ΔT={r['delta_t']}: strict {r['success']:.2f} "
                   f"[{r['ci'][0]:.2f}, {r['ci'][1]:.2f}], homotopy-level {r['homotopy']:.2f} "
                   f"[{r['homotopy_ci'][0]:.2f}, {r['homotopy_ci'][1]:.2f}], "
                   f"{r['pushes']:.1f} pushes (n = {r['n']})", flush=True)

@@ -52,7 +52,7 @@ def run_map(map_name: str, db: Path, args, human: list[tuple[str, int, str]]) ->
     specs = []
     for _, dt, rule in human:
         specs += sweep_specs(map_name, METHODS, [dt], args.instances, args.runs,
-                             seed=args.seed, human="consistent", queries=args.queries,
+                             seed=args.seed, human="consistent", queries=args.queries or None,
                              push_rule=rule)
     counts = run_sweep(specs, str(db), workers=args.workers, progress=False)
     print(f"{map_name}: {counts['ran']} run, {counts['skipped']} already there, "
@@ -61,8 +61,9 @@ def run_map(map_name: str, db: Path, args, human: list[tuple[str, int, str]]) ->
 
 def points(rows: list[dict], human: list[tuple[str, int, str]]) -> list[dict]:
     """One point per (method, setting) over ``rows``: episodes, mean pushes per episode (and
-    per successful episode), strict and homotopy-level success with Wilson 95 % intervals (a
-    failed row counts as a failure)."""
+    per successful episode, and all pushes over the successes: what one success cost), strict
+    and homotopy-level success with Wilson 95 % intervals (a failed row counts as a
+    failure)."""
     out = []
     for label, dt, rule in human:
         for m in METHODS:
@@ -76,6 +77,9 @@ def points(rows: list[dict], human: list[tuple[str, int, str]]) -> list[dict]:
             out.append({"method": m, "setting": label, "n": n,
                         "pushes": sum(r["inputs"] for r in rs) / n,
                         "pushes_per_success": sum(won) / len(won) if won else None,
+                        # every push the method needed, over its successes: the interventions
+                        # one success cost (None: no success)
+                        "pushes_for_one_success": sum(r["inputs"] for r in rs) / k if k else None,
                         "success": k / n, "ci": wilson(k, n),
                         "homotopy": kh / n, "homotopy_ci": wilson(kh, n)})
     return out
@@ -130,7 +134,8 @@ def main() -> None:
     ap.add_argument("--db-dir", default="pushes_dbs")
     ap.add_argument("--instances", type=int, default=4)
     ap.add_argument("--runs", type=int, default=1)
-    ap.add_argument("--queries", type=int, default=200)
+    ap.add_argument("--queries", type=int, default=200,
+                    help="POMCP queries per decision (0: the robust preset's own)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--delta-t", type=int, nargs="+", default=[1, 5])
@@ -160,7 +165,8 @@ def main() -> None:
     panels = {name: points(rows[name], human) for name in ("simple", "office", "classroom")}
     panels["examples/maps (4 plans pooled)"] = points(
         [r for e in EXAMPLES for r in rows[e]], human)
-    title = (f"Success against pushes per episode: robust preset, {args.queries} queries, "
+    queries = args.queries or "its own"
+    title = (f"Success against pushes per episode: robust preset, {queries} queries, "
              f"consistent human, {args.instances} instances x {args.runs} runs per map")
     figure(panels, human, Path(args.out), title)
     out_json = Path(args.json) if args.json else Path(args.out).with_suffix(".json")

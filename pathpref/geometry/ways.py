@@ -88,14 +88,23 @@ class Sketch:
         return sp.csr_matrix((self.length * scale, (self.src, self.dst)), shape=(P, P))
 
 
+def polytope_points(world: World) -> np.ndarray:
+    """``(P, 2)`` each polytope's point ``x_v``: the mean of its cells' centres (inside ``v``:
+    its cells are those of a convex region)."""
+    P = world.n_polytopes
+    centre = world.cells.astype(float) - 0.5
+    cp = world.cell_polytope.astype(np.int64)
+    count = np.bincount(cp, minlength=P).astype(float)
+    return np.stack([np.bincount(cp, weights=centre[:, i], minlength=P) for i in (0, 1)],
+                    axis=1) / np.maximum(count, 1.0)[:, None]
+
+
 def sketch(world: World) -> Sketch:
     """The :class:`Sketch` of ``world``'s polytope graph (module docstring)."""
     P = world.n_polytopes
     centre = world.cells.astype(float) - 0.5
     cp = world.cell_polytope.astype(np.int64)
-    count = np.bincount(cp, minlength=P).astype(float)
-    point = np.stack([np.bincount(cp, weights=centre[:, i], minlength=P) for i in (0, 1)],
-                     axis=1) / np.maximum(count, 1.0)[:, None]
+    point = polytope_points(world)
     m = world.motion
     a, k = np.nonzero(m.crossed_edge >= 0)  # every crossing move a -> b
     b = m.next_cell[a, k]

@@ -71,41 +71,47 @@ class HomotopyBelief(RouteBelief):
         prior: goal prior ``P0`` (uniform when None).
     """
 
+    #: the route prior's share ``a`` of the mixture (module docstring)
+    tree_share = TREE_SHARE
+
     def __init__(self, model: ObservationModel, start: int, prior: np.ndarray | None = None):
-        if start < 0:
-            raise ConfigError("the homotopy prior needs the robot's start cell (start=-1); "
-                              "pass the episode's start")
         super().__init__(model, prior=prior)
-        world = model.world
-        sk = sketch(world)
-        s = int(world.cell_polytope[start])
-        nbr = world.graph.neighbor_table()
+        nbr = self.model.world.graph.neighbor_table()
         self._nbr = nbr
-        P, K = nbr.shape
-        valid = nbr >= 0
-        G = len(self.goal_polytope)
-        per_root = {}
-        for r in np.unique(self.goal_polytope).tolist():
-            ways = find_ways(sk, s, int(r))
-            per_root[r] = [self._rows(way_potential(sk, c), int(r), nbr, valid)
-                           for c in ways.routes]
-        #: ways per goal and their exit rows ``pi_gc`` (``(P, K)``, zero-padded)
+        per_root = self._component_rows(start, nbr)
+        #: the components per goal and their exit rows ``pi_gc`` (``(P, K)``, zero-padded)
         self.ways = [per_root[int(r)] for r in self.goal_polytope]
         self.n_ways = np.array([len(w) for w in self.ways], dtype=np.int64)
+        G = len(self.goal_polytope)
         C = max(1, int(self.n_ways.max()))
         self._C = C
-        # log prior weight of each component given g: the tree, then the ways (-inf: padding)
+        # log prior weight of each component given g: the tree, then the others (-inf: padding)
+        a = self.tree_share
         self._log_w = np.full((G, 1 + C), -np.inf)
         for g in range(G):
             n = int(self.n_ways[g])
             if n:
-                self._log_w[g, 0] = np.log(TREE_SHARE)
-                self._log_w[g, 1: 1 + n] = np.log((1.0 - TREE_SHARE) / n)
+                self._log_w[g, 0] = np.log(a)
+                self._log_w[g, 1: 1 + n] = np.log((1.0 - a) / n)
             else:
                 self._log_w[g, 0] = 0.0
         #: per observed polytope, ``(G, C)`` ``log sum_u pi_gc(v, u) T_v(g, u)``
         self._way_terms: dict[int, np.ndarray] = {}
         self._comp: np.ndarray | None = None  # component_log_joint, until the next update
+
+    def _component_rows(self, start: int, nbr: np.ndarray) -> dict[int, list[np.ndarray]]:
+        """Per goal polytope ``r``, the exit rows of its components: one per way from the
+        start's polytope to ``r`` (module docstring)."""
+        if start < 0:
+            raise ConfigError("the homotopy prior needs the robot's start cell (start=-1); "
+                              "pass the episode's start")
+        world = self.model.world
+        sk = sketch(world)
+        s = int(world.cell_polytope[start])
+        valid = nbr >= 0
+        return {r: [self._rows(way_potential(sk, c), r, nbr, valid)
+                    for c in find_ways(sk, s, r).routes]
+                for r in np.unique(self.goal_polytope).tolist()}
 
     @staticmethod
     def _rows(phi: np.ndarray, r: int, nbr: np.ndarray, valid: np.ndarray) -> np.ndarray:

@@ -70,7 +70,10 @@ class Preset:
             inferred too: uniform over :data:`pathpref.inference.rationality.GAMMA_GRID`,
             exact posterior, :mod:`pathpref.inference.rationality`) or ``homotopy`` (a
             mixture over the ways round the obstacles from the start to each goal and the
-            route prior; exact posterior, :mod:`pathpref.inference.homotopy_prior`).
+            route prior; exact posterior, :mod:`pathpref.inference.homotopy_prior`) or
+            ``circulation`` (a mixture over one-way flows round the map, each completed for
+            the goal, and the route prior; exact posterior,
+            :mod:`pathpref.inference.circulation_prior`).
         queries: POMCP simulations per decision (the cap under a time budget).
         ucb_c: UCB exploration constant.
         time_budget_ms: robust search's wall-time budget per decision (0: ``queries`` only).
@@ -93,7 +96,7 @@ class Preset:
 
 
 #: the preference priors of the path-preference belief (:attr:`Preset.prior`)
-PRIORS = ("independent", "routes", "learned-gamma", "homotopy")
+PRIORS = ("independent", "routes", "learned-gamma", "homotopy", "circulation")
 #: the priors as an error message lists them
 PRIOR_CHOICES = ", ".join(PRIORS[:-1]) + " or " + PRIORS[-1]
 
