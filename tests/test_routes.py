@@ -519,6 +519,23 @@ def test_block_buffer_grows_and_keeps_earlier_blocks_exact():
             assert np.allclose(b.column(i)[0][keep], inv[:, j], rtol=1e-12, atol=1e-14)
 
 
+def test_goal_minors_share_their_components_slots():
+    """The goals' minors of one component hold one copy of its slot arrays (the root's own
+    slots included), and each minor still numbers the component without its root: on a map
+    with islands, one ``src`` per component among the goal polytopes."""
+    world = random_world(30)
+    label = components(world.graph.neighbors)
+    goals = np.arange(world.n_cells)[:: max(1, world.n_cells // 12)]
+    belief = RouteBelief(ObservationModel.build(world, goals, normalize=True))
+    roots = {int(r) for r in belief.goal_polytope}
+    assert len(roots) >= 3
+    assert len({id(m.src) for m in belief._minors.values()}) == len({int(label[r]) for r in roots})
+    for r, m in belief._minors.items():
+        members = np.flatnonzero(label == label[r])
+        assert m.n == len(members) - 1 and m.index[r] == -1
+        assert sorted(set(m.src.tolist())) == members.tolist()
+
+
 def _laplacian_minor(rng, side: int):
     """A grid graph's Laplacian (unit weights, 4-neighbours, random extra diagonals) without
     node 0's row and column: a symmetric M-matrix, as :class:`routes._Split` factorises."""

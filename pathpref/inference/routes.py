@@ -121,7 +121,8 @@ class RouteBelief(PreferenceBelief):
         super().__init__(model, prior=prior, coupling=False)
         self.component = components(self.neighbors)
         self.goal_polytope = model.world.cell_polytope[model.goals].astype(np.int64)
-        self._minors = {int(r): _Minor(self.neighbors, self.component, int(r))
+        slots: dict = {}  # per component: its slots, shared by the goals' minors
+        self._minors = {int(r): _Minor(self.neighbors, self.component, int(r), slots)
                         for r in np.unique(self.goal_polytope)}
         self._splits: dict[tuple, _Split] = {}
         self._last_split: dict[int, _Split] = {}  # per root: the split asked for last
@@ -445,21 +446,29 @@ class _Block:
 
 
 class _Minor:
-    """``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside)."""
+    """``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside).
 
-    def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int):
+    ``src``, ``dst``: every slot ``(v, N(v)[k])`` of the component's polytopes, ``r``'s own
+    included (the pattern of ``~L`` once ``r``'s row is dropped, which :class:`_Split` does:
+    it reads the rows of unobserved polytopes only), as arrays shared through ``slots`` (a
+    dict keyed by component label) by every goal polytope of the component."""
+
+    def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int,
+                 slots: dict | None = None):
         self.root = root
-        members = np.flatnonzero(component == component[root])
+        label = int(component[root])
+        members = np.flatnonzero(component == label)
+        slots = {} if slots is None else slots
+        if label not in slots:
+            deg = np.array([len(neighbors[v]) for v in members.tolist()], dtype=np.int64)
+            slots[label] = (np.repeat(members, deg),
+                            np.concatenate([np.asarray(neighbors[v], dtype=np.int64)
+                                            for v in members.tolist()]))
+        self.src, self.dst = slots[label]
         members = members[members != root]
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
-        #: every slot ``(v, N(v)[k])`` of the members, as arrays (the pattern of ``~L``)
-        deg = np.array([len(neighbors[v]) for v in members.tolist()], dtype=np.int64)
-        self.src = np.repeat(members, deg)
-        self.dst = (np.concatenate([np.asarray(neighbors[v], dtype=np.int64)
-                                    for v in members.tolist()])
-                    if len(members) else np.zeros(0, dtype=np.int64))
 
 
 def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
