@@ -432,17 +432,24 @@ def _fresh(model, pushes):
     return belief
 
 
-@pytest.mark.parametrize("factor", ["dense", "sparse"])
-def test_updated_posterior_equals_fresh_factorisation(factor, monkeypatch):
+@pytest.mark.parametrize("factor,limit", [("dense", "count"), ("sparse", "count"),
+                                          ("sparse", "bytes")])
+def test_updated_posterior_equals_fresh_factorisation(factor, limit, monkeypatch):
     """80 pushes, one at a time, on a 104-polytope floor plan: the posterior reached by
     rank-one updates of the unobserved block (:meth:`routes._Split.extend`, refactorised
-    every 7 removals here to cross several factors) equals a fresh factorisation of every
+    every 7 removals here to cross several factors, or every 5 by the byte bound
+    :data:`routes.BLOCK_BYTES` of a large map's blocks) equals a fresh factorisation of every
     block, goal marginal and every preference marginal (observed and unobserved polytopes)
     within 1e-9 absolute (probabilities; measured differences <= 2e-14), and so do the chain's
-    first-entry distributions and ``log det L_UU``."""
+    first-entry distributions and ``log det L_UU``. The belief holds one split per goal
+    polytope, and no block more removals than its bound (:func:`routes._refactor_after`)."""
     if factor == "sparse":
         monkeypatch.setattr(routes, "DENSE_MAX", 0)
-    monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    bound = 5  # columns of the largest block (103 rows) under the byte bound
+    if limit == "count":
+        monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    else:
+        monkeypatch.setattr(routes, "BLOCK_BYTES", 8 * 103 * bound + 7)
     world = load_world(random_floor_plan(20, 16, 3, 6, seed=4, size_range=(1.5, 4.0)))
     assert world.n_polytopes == 104
     rng = np.random.default_rng(5)
@@ -467,9 +474,25 @@ def test_updated_posterior_equals_fresh_factorisation(factor, monkeypatch):
         for v in range(world.n_polytopes):
             assert np.allclose(belief.preference_given_goal(v), fresh.preference_given_goal(v),
                                rtol=0, atol=1e-9), (i, v)
+        assert len(belief._splits) == len(belief._minors)
+        assert all(len(sp_.block.removed) <= routes._refactor_after(sp_.block.n0)
+                   for sp_ in belief._splits.values())
     # the updates did run: 30+ polytopes observed, blocks from several factors
     assert len(belief.observed_polytopes()) >= 30
     assert any(len(sp_.block.removed) for sp_ in belief._last_split.values())
+    if limit == "bytes":  # fewer than 64 observed: only the byte bound refactorised
+        assert len(belief.observed_polytopes()) < 64
+        assert max(sp_.block.n0 for sp_ in belief._last_split.values()) <= 103 - bound
+
+
+def test_refactor_bound_by_count_and_bytes(monkeypatch):
+    """:func:`routes._refactor_after`: ``REFACTOR_AFTER`` (64) removals up to 32,768 rows at
+    the default 16 MiB, then as many columns of ``8 n0`` bytes as fit (14 at the 500 x 500
+    map's 144,700 rows), never fewer than 4."""
+    assert [routes._refactor_after(n) for n in (1, 8452, 32768, 32769, 144700, 10**7)] == \
+        [64, 64, 64, 63, 14, 4]
+    monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    assert routes._refactor_after(100) == 7
 
 
 def test_block_without_rows_inverts_the_principal_submatrix():

@@ -77,6 +77,9 @@ DENSE_MAX = 400
 #: factor (:meth:`_Split.extend`; the low-rank correction costs ``O(|U| REFACTOR_AFTER)`` per
 #: solve)
 REFACTOR_AFTER = 64
+#: ... or sooner on a large block, when the correction's columns (``8 |U|`` bytes each, one
+#: per removal, :class:`_Block`) would pass this many bytes (:func:`_refactor_after`)
+BLOCK_BYTES = 16 * 2**20
 
 
 def components(neighbors: list[np.ndarray]) -> np.ndarray:
@@ -136,25 +139,26 @@ class RouteBelief(PreferenceBelief):
         self._cache = None
 
     def _split(self, r: int, S: tuple) -> _Split:
-        """The unobserved block of ``r``'s minor for observed set ``S`` (cached; the oldest of
-        more than two per goal polytope is dropped: the observed set only grows, so an older
-        one is rarely asked for again). A new ``S`` that contains the last one of ``r`` is
-        reached from it by :meth:`_Split.extend`, one polytope at a time (no new
-        factorisation); any other is factorised afresh."""
+        """The unobserved block of ``r``'s minor for observed set ``S`` (cached, one per goal
+        polytope: a new one drops ``r``'s older split, its first-entry distributions ``H``
+        (``|U| (|S| + 1)`` numbers) and, after a refactorisation, its factor; the observed
+        set only grows, so an older one is rarely asked for again). A new ``S`` that
+        contains the last one of ``r`` is reached from it by :meth:`_Split.extend`, one
+        polytope at a time (no new factorisation); any other is factorised afresh."""
         key = (r, S)
         sp_ = self._splits.get(key)
         last = self._last_split.get(r)
         if sp_ is None and last is not None and last.S == S:
             sp_ = last
         if sp_ is None:
-            while len(self._splits) >= max(2, 2 * len(self._minors)):
-                self._splits.pop(next(iter(self._splits)))
             if last is not None and len(last.S) < len(S) and set(last.S) <= set(S):
                 sp_ = last
                 for v in sorted(set(S) - set(last.S)):
                     sp_ = sp_.extend(v, self.neighbors)
             else:
                 sp_ = _Split(self._minors[r], self.neighbors, S)
+            for old in [k for k in self._splits if k[0] == r]:
+                del self._splits[old]
             self._splits[key] = sp_
         self._last_split[r] = sp_
         return sp_
@@ -363,11 +367,11 @@ class _Split:
         ``L_U'U'`` (``U' = U - {v}``) is ``L_UU`` without ``v``'s row and column, so
         ``det L_U'U' = det L_UU [L_UU^-1]_vv`` (the cofactor), its first-entry distributions
         are :meth:`_with_v`'s on ``U'``, and its solves are :meth:`_Block.without`'s. After
-        :data:`REFACTOR_AFTER` removals from one factor (or when the block could not be
-        factorised) the split is factorised afresh, which bounds both the correction's cost
-        and its rounding."""
+        :func:`_refactor_after` removals from one factor (or when the block could not be
+        factorised) the split is factorised afresh, which bounds the correction's cost, its
+        memory and its rounding."""
         S = tuple(sorted((*self.S, v)))
-        if self.block is None or len(self.block.removed) >= REFACTOR_AFTER:
+        if self.block is None or len(self.block.removed) >= _refactor_after(self.block.n0):
             return _Split(self.minor, neighbors, S)
         p = S.index(v)
         H, g_vv, raw = self._with_v(v, p)
@@ -401,7 +405,7 @@ class _Block:
     along a chain of removals (``cols``, ``(|U0|, capacity)``, its first ``m`` columns
     this block's); a removal from a block that is not the buffer's last copies the prefix,
     and so does one that finds the buffer full (its capacity doubles from 4 columns up to
-    :data:`REFACTOR_AFTER`, so ``m`` removals hold ``O(|U0| m)`` numbers, not ``|U0|
+    :func:`_refactor_after`, so ``m`` removals hold ``O(|U0| m)`` numbers, not ``|U0|
     REFACTOR_AFTER``)."""
 
     def __init__(self, lu, n0: int):
@@ -434,8 +438,8 @@ class _Block:
         out.removed = np.append(self.removed, i)
         if self.cols is not None and self.cols[1] == m and self.cols[0].shape[1] > m:
             out.cols = self.cols  # this block is the buffer's last: append in place
-        else:  # a fork, or a full buffer: a larger one (doubling, at most REFACTOR_AFTER)
-            buf = np.empty((self.n0, max(m + 1, min(max(2 * m, 4), REFACTOR_AFTER))))
+        else:  # a fork, or a full buffer: a larger one (doubling, up to _refactor_after)
+            buf = np.empty((self.n0, max(m + 1, min(max(2 * m, 4), _refactor_after(self.n0)))))
             if m:
                 buf[:, :m] = self._C()
             out.cols = [buf, m]
@@ -469,6 +473,13 @@ class _Minor:
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
+
+
+def _refactor_after(n0: int) -> int:
+    """Removals from a factor of ``n0`` rows before :meth:`_Split.extend` factorises afresh:
+    :data:`REFACTOR_AFTER`, or fewer (at least 4) when that many columns of ``n0`` numbers
+    would pass :data:`BLOCK_BYTES` (``n0`` above 32,768 rows at the defaults)."""
+    return max(4, min(REFACTOR_AFTER, BLOCK_BYTES // (8 * max(n0, 1))))
 
 
 def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
