@@ -432,17 +432,24 @@ def _fresh(model, pushes):
     return belief
 
 
-@pytest.mark.parametrize("factor", ["dense", "sparse"])
-def test_updated_posterior_equals_fresh_factorisation(factor, monkeypatch):
+@pytest.mark.parametrize("factor,limit", [("dense", "count"), ("sparse", "count"),
+                                          ("sparse", "bytes")])
+def test_updated_posterior_equals_fresh_factorisation(factor, limit, monkeypatch):
     """80 pushes, one at a time, on a 104-polytope floor plan: the posterior reached by
     rank-one updates of the unobserved block (:meth:`routes._Split.extend`, refactorised
-    every 7 removals here to cross several factors) equals a fresh factorisation of every
+    every 7 removals here to cross several factors, or every 5 by the byte bound
+    :data:`routes.BLOCK_BYTES` of a large map's blocks) equals a fresh factorisation of every
     block, goal marginal and every preference marginal (observed and unobserved polytopes)
     within 1e-9 absolute (probabilities; measured differences <= 2e-14), and so do the chain's
-    first-entry distributions and ``log det L_UU``."""
+    first-entry distributions and ``log det L_UU``. The belief holds one split per goal
+    polytope, and no block more removals than its bound (:func:`routes._refactor_after`)."""
     if factor == "sparse":
         monkeypatch.setattr(routes, "DENSE_MAX", 0)
-    monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    bound = 5  # columns of the largest block (103 rows) under the byte bound
+    if limit == "count":
+        monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    else:
+        monkeypatch.setattr(routes, "BLOCK_BYTES", 8 * 103 * bound + 7)
     world = load_world(random_floor_plan(20, 16, 3, 6, seed=4, size_range=(1.5, 4.0)))
     assert world.n_polytopes == 104
     rng = np.random.default_rng(5)
@@ -467,9 +474,25 @@ def test_updated_posterior_equals_fresh_factorisation(factor, monkeypatch):
         for v in range(world.n_polytopes):
             assert np.allclose(belief.preference_given_goal(v), fresh.preference_given_goal(v),
                                rtol=0, atol=1e-9), (i, v)
+        assert len(belief._splits) == len(belief._minors)
+        assert all(len(sp_.block.removed) <= routes._refactor_after(sp_.block.n0)
+                   for sp_ in belief._splits.values())
     # the updates did run: 30+ polytopes observed, blocks from several factors
     assert len(belief.observed_polytopes()) >= 30
     assert any(len(sp_.block.removed) for sp_ in belief._last_split.values())
+    if limit == "bytes":  # fewer than 64 observed: only the byte bound refactorised
+        assert len(belief.observed_polytopes()) < 64
+        assert max(sp_.block.n0 for sp_ in belief._last_split.values()) <= 103 - bound
+
+
+def test_refactor_bound_by_count_and_bytes(monkeypatch):
+    """:func:`routes._refactor_after`: ``REFACTOR_AFTER`` (64) removals up to 32,768 rows at
+    the default 16 MiB, then as many columns of ``8 n0`` bytes as fit (14 at the 500 x 500
+    map's 144,700 rows), never fewer than 4."""
+    assert [routes._refactor_after(n) for n in (1, 8452, 32768, 32769, 144700, 10**7)] == \
+        [64, 64, 64, 63, 14, 4]
+    monkeypatch.setattr(routes, "REFACTOR_AFTER", 7)
+    assert routes._refactor_after(100) == 7
 
 
 def test_block_without_rows_inverts_the_principal_submatrix():
@@ -495,6 +518,144 @@ def test_block_without_rows_inverts_the_principal_submatrix():
     check(b2, [i for i in range(n) if i not in (3, 7)])
     check(fork, [i for i in range(n) if i not in (3, 0)])
     check(b1, [i for i in range(n) if i != 3])
+
+
+def test_block_buffer_grows_and_keeps_earlier_blocks_exact():
+    """:class:`routes._Block`'s removal buffer starts at 4 columns and doubles: a chain of 9
+    removals crosses two copies (capacity 4 -> 8 -> 16), and every block of the chain, the
+    early ones included (their columns live in the older buffers), still inverts its principal
+    submatrix (numpy, 1e-12 relative); the capacity is the doubling's, not REFACTOR_AFTER."""
+    rng = np.random.default_rng(1)
+    n = 20
+    adj = np.triu(rng.random((n, n)) < 0.3, 1)
+    adj = (adj | adj.T).astype(float)
+    A = np.diag(adj.sum(axis=1) + 1.0) - adj
+    chain = [routes._Block(routes._DenseLU(A), n)]
+    order = rng.permutation(n)[:9].tolist()
+    for i in order:
+        chain.append(chain[-1].without(i, chain[-1].column(i)[1]))
+    assert [b.cols[0].shape[1] for b in chain[1:]] == [4] * 4 + [8] * 4 + [16]
+    for m, b in enumerate(chain):
+        keep = [i for i in range(n) if i not in order[:m]]
+        inv = np.linalg.inv(A[np.ix_(keep, keep)])
+        for j, i in enumerate(keep):
+            assert np.allclose(b.column(i)[0][keep], inv[:, j], rtol=1e-12, atol=1e-14)
+
+
+def test_goal_minors_share_their_components_slots():
+    """The goals' minors of one component hold one copy of its slot arrays (the root's own
+    slots included), and each minor still numbers the component without its root: on a map
+    with islands, one ``src`` per component among the goal polytopes."""
+    world = random_world(30)
+    label = components(world.graph.neighbors)
+    goals = np.arange(world.n_cells)[:: max(1, world.n_cells // 12)]
+    belief = RouteBelief(ObservationModel.build(world, goals, normalize=True))
+    roots = {int(r) for r in belief.goal_polytope}
+    assert len(roots) >= 3
+    assert len({id(m.src) for m in belief._minors.values()}) == len({int(label[r]) for r in roots})
+    for r, m in belief._minors.items():
+        members = np.flatnonzero(label == label[r])
+        assert m.n == len(members) - 1 and m.index[r] == -1
+        assert sorted(set(m.src.tolist())) == members.tolist()
+
+
+def _laplacian_minor(rng, side: int):
+    """A grid graph's Laplacian (unit weights, 4-neighbours, random extra diagonals) without
+    node 0's row and column: a symmetric M-matrix, as :class:`routes._Split` factorises."""
+    import scipy.sparse as sp
+
+    idx = np.arange(side * side).reshape(side, side)
+    e = np.concatenate([np.c_[idx[:, :-1].ravel(), idx[:, 1:].ravel()],
+                        np.c_[idx[:-1].ravel(), idx[1:].ravel()]])
+    diag_e = np.c_[idx[:-1, :-1].ravel(), idx[1:, 1:].ravel()]
+    e = np.concatenate([e, diag_e[rng.random(len(diag_e)) < 0.3]])
+    N = side * side
+    W = sp.coo_matrix((np.ones(2 * len(e)), (np.r_[e[:, 0], e[:, 1]], np.r_[e[:, 1], e[:, 0]])),
+                      shape=(N, N)).tocsr()
+    L = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+    return L[1:, 1:].tocoo()
+
+
+def test_sparse_factor_is_l_and_pivots_and_solves_exactly():
+    """The sparse factor of a minor (:func:`routes._factor` above DENSE_MAX) keeps only the
+    unit lower triangle ``L`` (as many values as SuperLU's ``L``) and the pivots: ``log det``
+    equals numpy's ``slogdet`` (1e-12 relative), and solves with one and with several
+    right-hand sides equal numpy's dense solve (1e-10 relative to the solution's largest
+    entry; a 900-row grid minor)."""
+    from scipy.sparse.linalg import splu
+
+    rng = np.random.default_rng(2)
+    A = _laplacian_minor(rng, 30)
+    n = A.shape[0]
+    assert n > routes.DENSE_MAX
+    logdet, f = routes._factor(n, A.row, A.col, A.data)
+    assert isinstance(f, routes._SparseLDL)
+    slu = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A",
+               options={"SymmetricMode": True, "DiagPivotThresh": 0.0})
+    assert len(f.val) == slu.L.nnz and f.perm.tolist() == slu.perm_c.tolist()
+    dense = A.toarray()
+    sign, want = np.linalg.slogdet(dense)
+    assert sign == 1 and np.isclose(logdet, want, rtol=1e-12, atol=0)
+    b1 = np.zeros(n)
+    b1[rng.integers(n)] = 1.0
+    B = rng.random((n, 3))
+    for b in (b1, B):
+        x, ref = f.solve(b), np.linalg.solve(dense, b)
+        assert x.shape == b.shape
+        assert np.allclose(x, ref, rtol=0, atol=1e-10 * np.abs(ref).max())
+
+
+def test_sparse_factor_keeps_superlu_when_it_pivots_off_the_diagonal():
+    """A zero on the diagonal makes SuperLU pivot off it (``perm_r != perm_c``): the factor is
+    then SuperLU's own, and it solves the system (1e-12)."""
+    import scipy.sparse as sp
+    from scipy.sparse.linalg import splu
+
+    A = np.array([[0.0, 2.0, 0.0], [2.0, 1.0, 1.0], [0.0, 1.0, 3.0]])
+    slu = splu(sp.csc_matrix(A), permc_spec="MMD_AT_PLUS_A",
+               options={"SymmetricMode": True, "DiagPivotThresh": 0.0})
+    f, d = routes._SparseLDL.of(slu)
+    assert f is slu and not np.array_equal(slu.perm_r, slu.perm_c)
+    assert np.isclose(abs(np.prod(d)), abs(np.linalg.det(A)), rtol=1e-12)
+    b = np.array([1.0, -2.0, 0.5])
+    assert np.allclose(f.solve(b), np.linalg.solve(A, b), rtol=1e-12, atol=1e-12)
+
+
+def test_kept_pool_rows_compare_as_the_whole_walk_table(simple):
+    """The root pool is kept with the walk rows of the polytopes observed when it was drawn
+    only (:meth:`POMCP._same_rows`); the comparison agrees with ``np.array_equal`` of the
+    whole ``(G, P, K)`` table in every case (every row of a polytope not observed is the
+    uniform one, :meth:`POMCP.preference_cdf`): unchanged; an observed row changed; a polytope
+    observed then and not now; a newly observed polytope whose rows are still uniform (equal
+    tables: reuse) or not."""
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    goals = np.random.default_rng(4).choice(simple.n_cells, size=5, replace=False)
+    model = ObservationModel.build(simple, goals, normalize=True)
+    belief = RouteBelief(model)
+    planner = POMCP(simple, goals, get_preset("robust").path_preference, queries=100,
+                    tables=model.tables)
+    for s, h in ((0, 2), (17, 5)):
+        belief.update(s, h)
+    observed = np.asarray(belief.observed_polytopes(), dtype=np.int64)
+    cdf = planner.preference_cdf(belief)
+    kept_rows = cdf[:, observed].copy()
+    others = [v for v in range(simple.n_polytopes) if v not in observed.tolist()]
+    cases = [(cdf.copy(), observed)]
+    changed = cdf.copy()
+    changed[1, observed[0], 0] *= 0.5
+    cases.append((changed, observed))
+    changed = cdf.copy()  # observed then, not now: its rows back to uniform
+    changed[:, observed[0]] = planner._uniform_cdf[observed[0]]
+    cases.append((changed, observed[1:]))
+    cases.append((cdf.copy(), np.sort(np.r_[observed, others[1]])))  # uniform rows: equal
+    changed = cdf.copy()
+    changed[2, others[1], 0] *= 0.5
+    cases.append((changed, np.sort(np.r_[observed, others[1]])))
+    got = [planner._same_rows(observed, kept_rows, obs, c) for c, obs in cases]
+    assert got == [np.array_equal(cdf, c) for c, _ in cases] == [True, False, False, True,
+                                                                  False]
 
 
 def test_root_pool_is_reused_while_the_belief_is_unchanged(simple):

@@ -138,18 +138,26 @@ def build_cost_tables(world: World, goals: np.ndarray) -> CostTables:
     nbr_ptr = np.concatenate([[0], np.cumsum(deg)]).astype(np.int64)
     nbr_edges = np.concatenate([*graph.neighbor_edges, np.zeros(0, int)]).astype(np.int64)
     D = np.full((n, K, G), np.inf)
-    _exit_dijkstra(motion.next_cell.astype(np.int64), motion.cost.astype(np.float64),
-                   motion.blocked, motion.crossed_edge.astype(np.int64), cell_poly.astype(np.int64),
-                   poly_ptr.astype(np.int64), order.astype(np.int64), nbr_ptr, nbr_edges,
+    _exit_dijkstra(np.asarray(motion.next_cell, dtype=np.int64),
+                   np.asarray(motion.cost, dtype=np.float64), motion.blocked,
+                   np.asarray(motion.crossed_edge, dtype=np.int64),
+                   np.asarray(cell_poly, dtype=np.int64), poly_ptr.astype(np.int64),
+                   order.astype(np.int64), nbr_ptr, nbr_edges,
                    np.ascontiguousarray(dist, dtype=np.float64), D)
-    # goal inside v(o): nothing constrained; unmet constraint: fall back to d
+    # goal inside v(o): nothing constrained; unmet constraint: fall back to d (in place: the
+    # temporaries are (n, K, G) masks, not tables)
     slot = np.arange(K)[None, :] < deg[cell_poly][:, None]  # (n, K) real neighbour slots
     unconstrained = np.broadcast_to(dist.T[:, None, :], D.shape)
     inside = (goal_poly[None, :] == cell_poly[:, None])[:, None, :] & slot[:, :, None]
-    D = np.where(inside, unconstrained, D)
-    feasible = np.isfinite(D) & slot[:, :, None]
-    bad = slot[:, :, None] & ~np.isfinite(D) & np.isfinite(unconstrained)
-    D = np.where(bad, unconstrained, D)
+    np.copyto(D, unconstrained, where=inside)
+    del inside
+    feasible = np.isfinite(D)
+    feasible &= slot[:, :, None]
+    bad = ~np.isfinite(D)
+    bad &= slot[:, :, None]
+    bad &= np.isfinite(unconstrained)
+    np.copyto(D, unconstrained, where=bad)
+    del bad
     return CostTables(
         goals=goals, dist=dist, constrained=D, goal_polytope=goal_poly, feasible=feasible
     )

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 import warnings
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
@@ -76,6 +77,9 @@ DENSE_MAX = 400
 #: factor (:meth:`_Split.extend`; the low-rank correction costs ``O(|U| REFACTOR_AFTER)`` per
 #: solve)
 REFACTOR_AFTER = 64
+#: ... or sooner on a large block, when the correction's columns (``8 |U|`` bytes each, one
+#: per removal, :class:`_Block`) would pass this many bytes (:func:`_refactor_after`)
+BLOCK_BYTES = 16 * 2**20
 
 
 def components(neighbors: list[np.ndarray]) -> np.ndarray:
@@ -120,7 +124,8 @@ class RouteBelief(PreferenceBelief):
         super().__init__(model, prior=prior, coupling=False)
         self.component = components(self.neighbors)
         self.goal_polytope = model.world.cell_polytope[model.goals].astype(np.int64)
-        self._minors = {int(r): _Minor(self.neighbors, self.component, int(r))
+        slots: dict = {}  # per component: its slots, shared by the goals' minors
+        self._minors = {int(r): _Minor(self.neighbors, self.component, int(r), slots)
                         for r in np.unique(self.goal_polytope)}
         self._splits: dict[tuple, _Split] = {}
         self._last_split: dict[int, _Split] = {}  # per root: the split asked for last
@@ -134,25 +139,26 @@ class RouteBelief(PreferenceBelief):
         self._cache = None
 
     def _split(self, r: int, S: tuple) -> _Split:
-        """The unobserved block of ``r``'s minor for observed set ``S`` (cached; the oldest of
-        more than two per goal polytope is dropped: the observed set only grows, so an older
-        one is rarely asked for again). A new ``S`` that contains the last one of ``r`` is
-        reached from it by :meth:`_Split.extend`, one polytope at a time (no new
-        factorisation); any other is factorised afresh."""
+        """The unobserved block of ``r``'s minor for observed set ``S`` (cached, one per goal
+        polytope: a new one drops ``r``'s older split, its first-entry distributions ``H``
+        (``|U| (|S| + 1)`` numbers) and, after a refactorisation, its factor; the observed
+        set only grows, so an older one is rarely asked for again). A new ``S`` that
+        contains the last one of ``r`` is reached from it by :meth:`_Split.extend`, one
+        polytope at a time (no new factorisation); any other is factorised afresh."""
         key = (r, S)
         sp_ = self._splits.get(key)
         last = self._last_split.get(r)
         if sp_ is None and last is not None and last.S == S:
             sp_ = last
         if sp_ is None:
-            while len(self._splits) >= max(2, 2 * len(self._minors)):
-                self._splits.pop(next(iter(self._splits)))
             if last is not None and len(last.S) < len(S) and set(last.S) <= set(S):
                 sp_ = last
                 for v in sorted(set(S) - set(last.S)):
                     sp_ = sp_.extend(v, self.neighbors)
             else:
                 sp_ = _Split(self._minors[r], self.neighbors, S)
+            for old in [k for k in self._splits if k[0] == r]:
+                del self._splits[old]
             self._splits[key] = sp_
         self._last_split[r] = sp_
         return sp_
@@ -361,11 +367,11 @@ class _Split:
         ``L_U'U'`` (``U' = U - {v}``) is ``L_UU`` without ``v``'s row and column, so
         ``det L_U'U' = det L_UU [L_UU^-1]_vv`` (the cofactor), its first-entry distributions
         are :meth:`_with_v`'s on ``U'``, and its solves are :meth:`_Block.without`'s. After
-        :data:`REFACTOR_AFTER` removals from one factor (or when the block could not be
-        factorised) the split is factorised afresh, which bounds both the correction's cost
-        and its rounding."""
+        :func:`_refactor_after` removals from one factor (or when the block could not be
+        factorised) the split is factorised afresh, which bounds the correction's cost, its
+        memory and its rounding."""
         S = tuple(sorted((*self.S, v)))
-        if self.block is None or len(self.block.removed) >= REFACTOR_AFTER:
+        if self.block is None or len(self.block.removed) >= _refactor_after(self.block.n0):
             return _Split(self.minor, neighbors, S)
         p = S.index(v)
         H, g_vv, raw = self._with_v(v, p)
@@ -396,8 +402,11 @@ class _Block:
     ``G0[R, R]`` symmetric positive definite (Cholesky; ``m`` at most :data:`REFACTOR_AFTER`).
     A solve ``A^-1 e_i`` costs one solve with ``lu`` and ``O(|U0| m)``; removing one more row
     appends one column to ``C`` (a rank-one update per push). ``C`` lives in a buffer shared
-    along a chain of removals (``cols``, ``(|U0|, REFACTOR_AFTER)``, its first ``m`` columns
-    this block's); a removal from a block that is not the buffer's last copies the prefix."""
+    along a chain of removals (``cols``, ``(|U0|, capacity)``, its first ``m`` columns
+    this block's); a removal from a block that is not the buffer's last copies the prefix,
+    and so does one that finds the buffer full (its capacity doubles from 4 columns up to
+    :func:`_refactor_after`, so ``m`` removals hold ``O(|U0| m)`` numbers, not ``|U0|
+    REFACTOR_AFTER``)."""
 
     def __init__(self, lu, n0: int):
         self.lu = lu
@@ -427,10 +436,10 @@ class _Block:
         out = object.__new__(_Block)
         out.lu, out.n0 = self.lu, self.n0
         out.removed = np.append(self.removed, i)
-        if self.cols is not None and self.cols[1] == m:
+        if self.cols is not None and self.cols[1] == m and self.cols[0].shape[1] > m:
             out.cols = self.cols  # this block is the buffer's last: append in place
-        else:
-            buf = np.empty((self.n0, REFACTOR_AFTER))
+        else:  # a fork, or a full buffer: a larger one (doubling, up to _refactor_after)
+            buf = np.empty((self.n0, max(m + 1, min(max(2 * m, 4), _refactor_after(self.n0)))))
             if m:
                 buf[:, :m] = self._C()
             out.cols = [buf, m]
@@ -441,27 +450,43 @@ class _Block:
 
 
 class _Minor:
-    """``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside)."""
+    """``r``'s component without ``r`` (``index[v]``: ``v``'s row, -1 outside).
 
-    def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int):
+    ``src``, ``dst``: every slot ``(v, N(v)[k])`` of the component's polytopes, ``r``'s own
+    included (the pattern of ``~L`` once ``r``'s row is dropped, which :class:`_Split` does:
+    it reads the rows of unobserved polytopes only), as arrays shared through ``slots`` (a
+    dict keyed by component label) by every goal polytope of the component."""
+
+    def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int,
+                 slots: dict | None = None):
         self.root = root
-        members = np.flatnonzero(component == component[root])
+        label = int(component[root])
+        members = np.flatnonzero(component == label)
+        slots = {} if slots is None else slots
+        if label not in slots:
+            deg = np.array([len(neighbors[v]) for v in members.tolist()], dtype=np.int64)
+            slots[label] = (np.repeat(members, deg),
+                            np.concatenate([np.asarray(neighbors[v], dtype=np.int64)
+                                            for v in members.tolist()]))
+        self.src, self.dst = slots[label]
         members = members[members != root]
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
-        #: every slot ``(v, N(v)[k])`` of the members, as arrays (the pattern of ``~L``)
-        deg = np.array([len(neighbors[v]) for v in members.tolist()], dtype=np.int64)
-        self.src = np.repeat(members, deg)
-        self.dst = (np.concatenate([np.asarray(neighbors[v], dtype=np.int64)
-                                    for v in members.tolist()])
-                    if len(members) else np.zeros(0, dtype=np.int64))
+
+
+def _refactor_after(n0: int) -> int:
+    """Removals from a factor of ``n0`` rows before :meth:`_Split.extend` factorises afresh:
+    :data:`REFACTOR_AFTER`, or fewer (at least 4) when that many columns of ``n0`` numbers
+    would pass :data:`BLOCK_BYTES` (``n0`` above 32,768 rows at the defaults)."""
+    return max(4, min(REFACTOR_AFTER, BLOCK_BYTES // (8 * max(n0, 1))))
 
 
 def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
     """``(log det A, its LU)`` of the ``n x n`` M-matrix ``A`` given by triplets;
     ``(-inf, None)`` when singular. Dense LAPACK up to :data:`DENSE_MAX` rows (scipy's sparse
-    constructors cost more than the factorisation there), SuperLU above."""
+    constructors cost more than the factorisation there), SuperLU above, kept as
+    :class:`_SparseLDL`."""
     if n <= DENSE_MAX:
         a = np.bincount(rows * n + cols, weights=data, minlength=n * n).reshape(n, n)
         lu = _DenseLU(a)
@@ -470,15 +495,90 @@ def _factor(n: int, rows: np.ndarray, cols: np.ndarray, data: np.ndarray):
         a = sp.csc_matrix((data, (rows, cols)), shape=(n, n))
         try:
             # symmetric pattern and values: a minimum-degree ordering of A + A^T with
-            # diagonal pivots (an M-matrix needs no pivoting) halves the fill and the solves
-            lu = splu(a, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+            # diagonal pivots (an M-matrix needs no pivoting: any nonzero diagonal is taken)
+            # halves the fill and the solves
+            slu = splu(a, permc_spec="MMD_AT_PLUS_A",
+                       options={"SymmetricMode": True, "DiagPivotThresh": 0.0})
         except RuntimeError:  # exactly singular
             return -np.inf, None
-        d = lu.U.diagonal()
+        del a
+        lu, d = _SparseLDL.of(slu)
     if not np.all(np.isfinite(d)) or np.any(d == 0):
         return -np.inf, None
     # an M-matrix has det > 0: the sign of the factors is not needed
     return float(np.sum(np.log(np.abs(d)))), lu
+
+
+class _SparseLDL:
+    """SuperLU's ``P_r A P_c = L U`` of a symmetric ``A`` kept as ``L`` alone: with diagonal
+    pivots (``P_r = P_c^T``, what the symmetric mode of :func:`_factor` gives an M-matrix)
+    the factorisation is ``P_c^T A P_c = L D L^T``, ``D = diag(U)``, ``L`` unit lower
+    triangular (``U = D L^T`` up to rounding), so a solve is
+
+        x = P_c L^-T D^-1 L^-1 P_c^T b
+
+    (:func:`_ldl_solve`: a forward sweep down ``L``'s columns, a backward one up them) and
+    only ``L``'s columns (compressed, ``nnz(L)`` values and 32-bit row indices) and ``D`` are
+    held: about a quarter of SuperLU's supernodal ``L`` and ``U``. With row pivots
+    (``P_r != P_c^T``, a zero on the diagonal) :meth:`of` keeps SuperLU's factor as it is.
+
+    Attributes:
+        d: ``(n,)`` the pivots ``diag(U)`` (``det A = prod d`` up to sign).
+    """
+
+    def __init__(self, L, d: np.ndarray, perm: np.ndarray):
+        self.ptr = L.indptr
+        self.idx = L.indices
+        self.val = L.data
+        self.d = d
+        self.perm = perm
+
+    @staticmethod
+    def of(slu):
+        """``(factor, pivots diag(U))`` of the SuperLU object ``slu``: the factor a
+        :class:`_SparseLDL` under diagonal pivots, ``slu`` itself (the same ``solve``)
+        when a zero diagonal made SuperLU pivot off it."""
+        d = slu.U.diagonal()
+        if not np.array_equal(slu.perm_r, slu.perm_c):
+            return slu, d
+        return _SparseLDL(slu.L.tocsc(), d, np.asarray(slu.perm_c, dtype=np.int64)), d
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """``A^-1 b`` for ``b`` of shape ``(n,)`` or ``(n, m)``."""
+        b2 = np.asarray(b, dtype=np.float64).reshape(len(self.d), -1)
+        out = np.empty(b2.shape)
+        _ldl_solve(self.ptr, self.idx, self.val, self.d, self.perm, b2, out)
+        return out.reshape(np.shape(b))
+
+
+@nb.njit(cache=True)
+def _ldl_solve(ptr, idx, val, d, perm, b, out):
+    """``out[:, j] = P L^-T D^-1 L^-1 P^T b[:, j]`` for each column (:class:`_SparseLDL`):
+    ``L`` unit lower triangular in compressed columns (its stored unit diagonal skipped),
+    ``perm`` the column permutation (``(P y)[i] = y[perm[i]]``)."""
+    n = d.shape[0]
+    z = np.empty(n)
+    for c in range(b.shape[1]):
+        for i in range(n):
+            z[perm[i]] = b[i, c]
+        for j in range(n):  # L w = z, column by column (w_j final once reached)
+            zj = z[j]
+            if zj != 0.0:
+                for p in range(ptr[j], ptr[j + 1]):
+                    i = idx[p]
+                    if i != j:
+                        z[i] -= val[p] * zj
+        for j in range(n):
+            z[j] /= d[j]
+        for j in range(n - 1, -1, -1):  # L^T y = w: row j of L^T is column j of L
+            s = z[j]
+            for p in range(ptr[j], ptr[j + 1]):
+                i = idx[p]
+                if i != j:
+                    s -= val[p] * z[i]
+            z[j] = s
+        for i in range(n):
+            out[i, c] = z[perm[i]]
 
 
 class _DenseLU:

@@ -185,10 +185,11 @@ class POMCP:
         self.rewards = rewards
         self.queries = int(queries)
         self.c = float(c)
-        self.next_cell = m.next_cell.astype(np.int64)
-        self.cost = m.cost.astype(np.float64)
-        self.crossed = m.crossed_edge.astype(np.int64)
-        self.cell_poly = world.cell_polytope.astype(np.int64)
+        # the world's arrays themselves when of the kernels' types (read only: no copy)
+        self.next_cell = np.asarray(m.next_cell, dtype=np.int64)
+        self.cost = np.asarray(m.cost, dtype=np.float64)
+        self.crossed = np.asarray(m.crossed_edge, dtype=np.int64)
+        self.cell_poly = np.asarray(world.cell_polytope, dtype=np.int64)
         self.nbr = world.graph.neighbor_table().astype(np.int64)
         self.goal_cells = np.asarray(goals, dtype=np.int64)
         self.goal_poly = self.cell_poly[self.goal_cells]
@@ -279,9 +280,10 @@ class POMCP:
         if not (self.rewards.use_preference and getattr(belief, "route_prior", False)):
             return np.zeros(0, np.int64), np.zeros((0, len(self.nbr)), np.int64)
         kept = self._kept_pool
+        observed = np.asarray(belief.observed_polytopes(), dtype=np.int64)
         if kept is not None and np.array_equal(kept[0], goal_cdf) and \
-                np.array_equal(kept[1], cdf):
-            return kept[2], kept[3]
+                self._same_rows(kept[1], kept[2], observed, cdf):
+            return kept[3], kept[4]
         m = self.pool_size()
         mixture = getattr(belief, "particles", None)
         if mixture is None:
@@ -291,9 +293,22 @@ class POMCP:
             if m_tree:
                 tg, ts = self._trees(belief, tree_cdf, cdf, m_tree, seed)
                 goals, slots = np.concatenate([tg, goals]), np.concatenate([ts, slots])
-        self._kept_pool = (goal_cdf.copy(), cdf.copy(), goals, slots)
+        self._kept_pool = (goal_cdf.copy(), observed, cdf[:, observed].copy(), goals, slots)
         self.pools_drawn += 1
         return goals, slots
+
+    def _same_rows(self, kept_v: np.ndarray, kept_rows: np.ndarray, observed: np.ndarray,
+                   cdf: np.ndarray) -> bool:
+        """True when ``cdf`` equals, exactly, the walk rows a pool was drawn from, kept as the
+        rows ``kept_rows`` of the polytopes ``kept_v`` observed then. Every other row of
+        either is the uniform one (:meth:`preference_cdf`), so the two ``(G, P, K)`` arrays
+        are equal iff they agree on the polytopes observed then or now; the kept rows cost
+        ``G K`` numbers per observed polytope, not ``G P K``."""
+        both = np.union1d(kept_v, observed)
+        then = np.broadcast_to(self._uniform_cdf[both], (cdf.shape[0], len(both), cdf.shape[2]))
+        then = then.copy()
+        then[:, np.searchsorted(both, kept_v)] = kept_rows
+        return bool(np.array_equal(then, cdf[:, both]))
 
     def _trees(self, belief: Belief, goal_cdf: np.ndarray, cdf: np.ndarray, m: int,
                seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -72,12 +72,14 @@ def map_500() -> dict[str, Any]:
     return with_loop_preference(random_floor_plan(name="floor_500", **MAP_500))
 
 
-def _map_500_child(queries: int = 1000) -> None:
+def _map_500_child(queries: int = 1000, steps: int = 1) -> None:
     """Run in a fresh interpreter: the 500 x 500 map built (forced), the robust preset's
     episode set up for instance 0 (10 goals: cost tables, route prior, search), its likelihood
     tables and its first decision. Prints JSON: the CPU seconds and the process's peak RSS (MB,
     ``ru_maxrss``, which only grows) after each stage (``world``, ``policy``, ``tables``,
-    ``decision``), polytopes, lines, cells and the maximum degree."""
+    ``decision``), polytopes, lines, cells and the maximum degree. With ``steps > 1`` the
+    episode goes on to at most ``steps`` decisions (``episode`` stage; ``episode_steps``
+    run, ``observed_polytopes`` of the belief then)."""
     import json
     import resource
     import tempfile
@@ -108,6 +110,14 @@ def _map_500_child(queries: int = 1000) -> None:
         stage("tables")
         log = runner.step()
         stage("decision")
+        done = 1
+        while done < steps and not runner.done:
+            runner.step()
+            done += 1
+        if steps > 1:
+            stage("episode")
+            out.update(episode_steps=done, observed_polytopes=len(
+                runner.policy.belief.observed_polytopes()))
     out.update(polytopes=world.n_polytopes, lines=len(world.arrangement.normals),
                max_degree=world.graph.max_degree, cells=world.n_cells, action=int(log.action))
     print(json.dumps(out))
