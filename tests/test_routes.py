@@ -211,8 +211,8 @@ def test_get_preset_takes_and_checks_the_prior():
     assert get_preset("robust", prior="independent").prior == "independent"
     with pytest.raises(ConfigError) as e:
         get_preset("paper", prior="tree")
-    assert str(e.value) == ("unknown prior 'tree'; choose independent, routes, learned-gamma "
-                            "or homotopy")
+    assert str(e.value) == ("unknown prior 'tree'; choose independent, routes, learned-gamma, "
+                            "homotopy or circulation")
 
 
 def _draw_all_observed_first(planner, belief, n, seed):
