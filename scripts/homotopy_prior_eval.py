@@ -147,7 +147,8 @@ def success(paths: list[Path], args) -> list[dict]:
     db_dir = Path(args.db_dir)
     db_dir.mkdir(parents=True, exist_ok=True)
     for prior in args.priors:
-        db = db_dir / f"{args.plan_set}_{prior}.sqlite" if args.plan_set != "open" else \
+        plan_set = "maps" if args.maps is not None else args.plan_set
+        db = db_dir / f"{plan_set}_{prior}.sqlite" if plan_set != "open" else \
             db_dir / f"{prior}.sqlite"  # (the first plan set's file names stay)
         specs = []
         for p in paths:
@@ -200,12 +201,12 @@ def main() -> None:
             p.write_text(json.dumps(held_out_plan(s, args.plan_set), indent=1))
         paths.append(p)
     if args.maps is not None:
-        args.plan_set = "maps"
         paths = [Path(m) for m in args.maps]
     flags = " ".join(f"--{k.replace('_', '-')} " + (" ".join(map(str, v)) if isinstance(v, list)
                                                     else str(v))
                      for k, v in vars(args).items() if v not in (None, False, True)
-                     and k not in ("out", "plans"))
+                     and k not in ("out", "plans")
+                     and not (k == "plan_set" and args.maps is not None))
     result = {"command": f"python scripts/homotopy_prior_eval.py {flags}",
               "prediction": prediction(paths, args.instances, args.priors)}
     for k, m in result["prediction"]["mean"].items():
