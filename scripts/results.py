@@ -63,6 +63,10 @@ JSON_SOURCES: list[tuple[str, str, str, str]] = [
     ("docs/pushes.json", "Success against pushes per episode", "pushes",
      "python scripts/pushes_figure.py --out docs/pushes.png --db-dir /tmp/pushes "
      "--instances 4 --queries 200"),
+    ("docs/results/pushes_6x20.json",
+     "Success against pushes per episode at full size (6 x 20 per map)", "pushes",
+     "python scripts/pushes_figure.py --out docs/results/pushes_6x20.png --db-dir /tmp/pushes "
+     "--instances 6 --runs 20 --queries 0"),
     ("docs/budget.json", "Success against planning time", "budget",
      "python scripts/budget_figure.py --maps simple office classroom"),
     ("docs/gamma_sweep.json", "The human's rationality: assumed against learned", "gamma",
@@ -212,13 +216,15 @@ def physics_section(data: dict[str, Any]) -> tuple[str, list[str]]:
 
 
 def pushes_section(data: dict[str, Any]) -> list[str]:
-    """The table behind docs/pushes.png."""
+    """The table behind a success-against-pushes figure (``scripts/pushes_figure.py``), with
+    all pushes over the successes where the file has them."""
     rows = [[panel, METHOD_LABEL.get(p["method"], p["method"]), p["setting"], str(p["n"]),
-             _num(p["pushes"]), _ci(p["success"], p["ci"]), _ci(p["homotopy"], p["homotopy_ci"])]
+             _num(p["pushes"]), _num(p.get("pushes_for_one_success"), 1),
+             _ci(p["success"], p["ci"]), _ci(p["homotopy"], p["homotopy_ci"])]
             for panel, points in data["panels"].items() for p in points]
     return [data["title"] + ".", ""] + _table(
-        ["map", "method", "human", "n", "pushes/episode", "success [95% CI]",
-         "homotopy-level success [95% CI]"], rows)
+        ["map", "method", "human", "n", "pushes/episode", "pushes/success",
+         "success [95% CI]", "homotopy-level success [95% CI]"], rows)
 
 
 def budget_section(data: list[dict[str, Any]]) -> list[str]:
