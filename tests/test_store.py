@@ -205,6 +205,27 @@ def test_two_sweeps_on_one_database_never_run_an_episode_twice(tmp_path, workers
     assert len(rows) == 24 and {r["status"] for r in rows} == {"ok"}
 
 
+def test_a_sweep_that_finds_the_tables_made_does_not_reopen_the_file(tmp_path, monkeypatch):
+    """When two sweeps create one new file at once, the second finds the first one's tables
+    and checks them on its own connection: opening the file again (even to read its header)
+    and closing it would drop the process's POSIX locks, the first sweep would fold and delete
+    the WAL on closing, and this sweep's later episodes would be lost (seen as a claim left
+    'running' after both sweeps ended, one run in 25). Also: a refused schema is one line."""
+    from pathpref.experiments import store as store_mod
+
+    with ResultStore(tmp_path / "r.sqlite") as st:
+        def no_reopen(*args, **kwargs):
+            raise AssertionError("the database file was opened again while connected")
+
+        monkeypatch.setattr(store_mod, "require_sqlite_file", no_reopen)
+        monkeypatch.setattr(store_mod, "open_readonly", no_reopen)
+        st._create_schema()  # the tables are there: checked on st.conn, nothing reopened
+        st.conn.execute("UPDATE meta SET value = '999' WHERE key = 'schema_version'")
+        st.conn.commit()
+        with pytest.raises(ConfigError, match="schema 999"):
+            st._create_schema()
+
+
 def test_stale_claims_are_taken_over_and_live_ones_left(tmp_path):
     """A claim of a process that is gone (a crashed sweep) is run on resume; a claim of a
     live sweep is left to it; a finished sweep leaves no claim behind; reports skip claims."""

@@ -365,6 +365,9 @@ def check_stored_rows(conn: sqlite3.Connection, path: str | Path) -> None:
 
 #: ``status`` of an episode row that a sweep has claimed and not finished
 RUNNING = "running"
+#: how many times opening a file asks for WAL journaling while another process holds it
+#: (:meth:`ResultStore._wal`)
+WAL_TRIES = 80
 
 
 def process_start(pid: int) -> str | None:
@@ -440,12 +443,26 @@ class ResultStore:
         if not create:
             return
         with self._errors("open"):
-            self.conn.execute("PRAGMA journal_mode=WAL")
+            self._wal()
             self.conn.execute("PRAGMA synchronous=NORMAL")
             if not existing:
                 self._create_schema()
             elif create:
                 self._complete_schema()
+
+    def _wal(self) -> None:
+        """``PRAGMA journal_mode=WAL``. Switching a file's journal mode needs it alone, and
+        SQLite answers "database is locked" at once, without waiting, while another sweep
+        opening the same file holds it: asked again after 10, 20, ... ms, at most
+        :data:`WAL_TRIES` times (about 30 s in all); the last refusal is raised."""
+        for k in range(WAL_TRIES):
+            try:
+                self.conn.execute("PRAGMA journal_mode=WAL")
+                return
+            except sqlite3.OperationalError as e:
+                if "locked" not in str(e) or k == WAL_TRIES - 1:
+                    raise
+                time.sleep(min(0.01 * (k + 1), 0.5))
 
     @contextlib.contextmanager
     def _errors(self, doing: str) -> Iterator[None]:
@@ -461,12 +478,22 @@ class ResultStore:
 
     def _create_schema(self) -> None:
         """pathpref's tables in a new file; in one write transaction that first looks whether
-        another sweep, started at the same moment on the same new file, made them already."""
+        another sweep, started at the same moment on the same new file, made them already.
+
+        Those tables are checked on this connection, not by opening the file again: closing
+        any descriptor of a file drops every POSIX lock the process holds on it, this
+        connection's shared lock included, and the other sweep, closing last, would then
+        take itself for the last connection, fold the WAL into the file and delete it while
+        this one still writes there (its episodes lost)."""
         c = self.conn
         c.execute("BEGIN IMMEDIATE")
         if c.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]:
             c.rollback()
-            check_results_file(self.path)  # the other sweep's tables must be pathpref's
+            version = schema_version(c, self.path)  # the other sweep's: pathpref's tables
+            if version != SCHEMA_VERSION:
+                raise ConfigError(f"{self.path} was made by another pathpref at the same "
+                                  f"moment (schema {version}, this version writes "
+                                  f"{SCHEMA_VERSION}); use a new --db path")
             return
         with c:
             c.execute(META_SQL)
