@@ -288,3 +288,36 @@ def test_an_interrupted_sweep_releases_its_claims(tmp_path, monkeypatch):
         run_sweep(specs, str(db), workers=1, progress=False)
     with ResultStore(db) as st:
         assert [r["status"] for r in st.episodes()] == ["ok"]
+
+
+def test_asking_for_wal_journaling_is_bounded(monkeypatch):
+    """``PRAGMA journal_mode=WAL`` refused as "locked" (another sweep opening the file) is
+    asked again, then succeeds; refused for good it is asked exactly WAL_TRIES times and the
+    refusal raised (no endless wait); any other error is raised at once."""
+    from pathpref.experiments import store as store_mod
+
+    class Conn:
+        def __init__(self, refusals, message="database is locked"):
+            self.calls, self.refusals, self.message = 0, refusals, message
+
+        def execute(self, sql):
+            self.calls += 1
+            if self.calls <= self.refusals:
+                raise sqlite3.OperationalError(self.message)
+
+    class Fake:
+        pass
+
+    monkeypatch.setattr(store_mod.time, "sleep", lambda s: None)
+    f = Fake()
+    f.conn = Conn(2)
+    ResultStore._wal(f)
+    assert f.conn.calls == 3
+    f.conn = Conn(10**6)
+    with pytest.raises(sqlite3.OperationalError, match="locked"):
+        ResultStore._wal(f)
+    assert f.conn.calls == store_mod.WAL_TRIES
+    f.conn = Conn(10**6, "disk I/O error")
+    with pytest.raises(sqlite3.OperationalError, match="disk"):
+        ResultStore._wal(f)
+    assert f.conn.calls == 1

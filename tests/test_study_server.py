@@ -32,6 +32,20 @@ PUSHES = ROOT / "examples" / "pushes_demo.json"
 WAIT_S = 120.0
 
 
+
+def keep_alive(ws, stop: threading.Event) -> None:
+    """The driver's page saying "alive" every 0.1 s until ``stop`` (or the server closes)."""
+
+    def alive():
+        while not stop.is_set():
+            try:
+                ws.send('{"type": "alive"}')
+            except Exception:  # noqa: BLE001 - the server closed at the end
+                return
+            time.sleep(0.1)
+
+    threading.Thread(target=alive, daemon=True).start()
+
 def wait_for(cond, timeout_s: float = WAIT_S) -> bool:
     end = time.perf_counter() + timeout_s
     while time.perf_counter() < end:
@@ -273,15 +287,7 @@ def test_trial_pauses_while_the_page_is_gone_and_goes_on_when_it_returns(tmp_pat
     assert role == "driver"
     stop = threading.Event()
 
-    def alive():
-        while not stop.is_set():
-            try:
-                ws.send('{"type": "alive"}')
-            except Exception:  # noqa: BLE001 - the server closed at the end
-                return
-            time.sleep(0.1)
-
-    threading.Thread(target=alive, daemon=True).start()
+    keep_alive(ws, stop)
     th.join(WAIT_S)
     stop.set()
     assert "error" not in box, box.get("error")
@@ -453,14 +459,6 @@ def test_observers_see_the_planned_path_the_driver_only_when_the_belief_is_shown
     stop = threading.Event()
     got: dict[str, list] = {"driver": [], "observer": []}
 
-    def alive():
-        while not stop.is_set():
-            try:
-                drv.send('{"type": "alive"}')
-            except Exception:  # noqa: BLE001 - the server closed at the end
-                return
-            time.sleep(0.1)
-
     def read(ws, who):
         try:
             while True:
@@ -474,7 +472,7 @@ def test_observers_see_the_planned_path_the_driver_only_when_the_belief_is_shown
                for ws, who in ((drv, "driver"), (obs, "observer"))]
     for t in readers:
         t.start()
-    threading.Thread(target=alive, daemon=True).start()
+    keep_alive(drv, stop)
     assert wait_for(lambda: f._scene is not None)
     drv.send('{"type": "start"}')
     th.join(WAIT_S)

@@ -18,7 +18,8 @@ next. The circulation prior is a mixture, for a goal ``g`` with polytope ``r``::
 
       pi_gf(v, u) = (1 - EPS) [u = q_gf(v)] + EPS / deg(v)
 
-  (:data:`~.homotopy_prior.EPS`): a person mostly keeps the flow, now and then not;
+  (:data:`~.homotopy_prior.EPS`, :func:`~.homotopy_prior.exit_rows`): a person mostly keeps
+  the flow, now and then not;
   ``r`` itself and polytopes with no exit in ``q_gf`` have uniform rows.
 
 The posterior is exact and computed as the homotopy prior's
@@ -36,7 +37,7 @@ import numpy as np
 
 from ..geometry.circulation import circulations
 from ..geometry.following import consistent_preference
-from .homotopy_prior import EPS, HomotopyBelief
+from .homotopy_prior import HomotopyBelief, exit_rows
 
 #: the route prior's share ``a`` of the mixture (module docstring)
 TREE_SHARE = 0.3
@@ -58,19 +59,10 @@ class CirculationBelief(HomotopyBelief):
         world = self.model.world
         flows = circulations(world)
         valid = nbr >= 0
-        deg = valid.sum(axis=1)
-        uniform = valid / np.maximum(deg, 1)[:, None]
-        uniform[deg == 0, 0] = 1.0
         out = {}
         for r in np.unique(self.goal_polytope).tolist():
             trees = np.unique(np.array([consistent_preference(world, f, r)[0] for f in flows],
                                        dtype=np.int64).reshape(len(flows), -1), axis=0)
-            rows = []
-            for q in trees:
-                rw = (1.0 - EPS) * ((nbr == q[:, None]) & valid) + EPS * uniform
-                free = (q < 0) | (deg == 0)
-                rw[free] = uniform[free]
-                rw[r] = uniform[r]
-                rows.append(rw)
-            out[r] = rows
+            out[r] = [exit_rows(((nbr == q[:, None]) & valid).astype(float), q < 0, r, valid)
+                      for q in trees]
         return out

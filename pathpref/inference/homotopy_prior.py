@@ -62,6 +62,20 @@ def _logsumexp(a: np.ndarray, axis: int) -> np.ndarray:
         return np.squeeze(top, axis) + np.log(np.sum(np.exp(a - top), axis=axis))
 
 
+def exit_rows(p: np.ndarray, undefined: np.ndarray, r: int, valid: np.ndarray) -> np.ndarray:
+    """``(P, K)`` a component's exit rows ``(1 - EPS) p + EPS / deg(v)`` over each polytope's
+    neighbours (``valid``); uniform where the component says nothing (``undefined``) and at
+    the goal's polytope ``r``; a polytope with no neighbour gets slot 0 (never read)."""
+    deg = valid.sum(axis=1)
+    uniform = valid / np.maximum(deg, 1)[:, None]
+    uniform[deg == 0, 0] = 1.0
+    rows = (1.0 - EPS) * p + EPS * uniform
+    free = undefined | (deg == 0)
+    rows[free] = uniform[free]
+    rows[r] = uniform[r]
+    return rows
+
+
 class HomotopyBelief(RouteBelief):
     """Exact posterior over ``(g, theta)`` under the homotopy prior (module docstring).
 
@@ -116,19 +130,12 @@ class HomotopyBelief(RouteBelief):
     @staticmethod
     def _rows(phi: np.ndarray, r: int, nbr: np.ndarray, valid: np.ndarray) -> np.ndarray:
         """``(P, K)`` ``pi_c(v, .)`` from the way's potential ``phi`` (module docstring)."""
-        deg = valid.sum(axis=1)
         ph = np.where(valid, phi[np.maximum(nbr, 0)], np.inf)
         low = ph.min(axis=1, keepdims=True)
-        finite = np.isfinite(low[:, 0])
         with np.errstate(invalid="ignore"):
             e = np.where(valid & np.isfinite(ph), np.exp(-BETA * (ph - low)), 0.0)
         soft = e / np.where(e.sum(axis=1, keepdims=True) > 0, e.sum(axis=1, keepdims=True), 1)
-        uniform = valid / np.maximum(deg, 1)[:, None]
-        rows = (1.0 - EPS) * soft + EPS * uniform
-        rows[~finite] = uniform[~finite]
-        rows[r] = uniform[r]
-        rows[deg == 0, 0] = 1.0
-        return rows
+        return exit_rows(soft, ~np.isfinite(low[:, 0]), r, valid)
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
