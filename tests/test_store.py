@@ -226,6 +226,41 @@ def test_a_sweep_that_finds_the_tables_made_does_not_reopen_the_file(tmp_path, m
             st._create_schema()
 
 
+def test_a_second_store_on_a_held_file_does_not_reopen_it(tmp_path, monkeypatch):
+    """A second store on a file this process already holds (and ``inspect_results_file``,
+    ``report``'s check) reads no header through a new descriptor, whose closing would drop
+    the first store's POSIX locks (:data:`store._HELD`); once every store of the file is
+    closed the header is read again, and a file that is not SQLite is still refused."""
+    import builtins
+
+    from pathpref.experiments import store as store_mod
+
+    path = tmp_path / "r.sqlite"
+    real_open = builtins.open
+    opened = []
+
+    def watch(file, *args, **kwargs):
+        if str(file) == str(path):
+            opened.append(file)
+        return real_open(file, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "open", watch)
+    first = ResultStore(path)
+    with ResultStore(path) as second, ResultStore(path, create=False) as reader:
+        assert store_mod.inspect_results_file(path) == store_mod.SCHEMA_VERSION
+        assert second.episodes() == [] and reader.episodes() == []
+    assert opened == []
+    first.close()
+    first.close()  # closing twice releases the file once
+    assert store_mod._HELD == {}
+    assert store_mod.inspect_results_file(path) == store_mod.SCHEMA_VERSION
+    assert opened == [path]
+    other = tmp_path / "x.sqlite"
+    other.write_bytes(b"not a database at all, 40 bytes long...")
+    with pytest.raises(ConfigError, match="not SQLite"):
+        ResultStore(other)
+
+
 def test_stale_claims_are_taken_over_and_live_ones_left(tmp_path):
     """A claim of a process that is gone (a crashed sweep) is run on resume; a claim of a
     live sweep is left to it; a finished sweep leaves no claim behind; reports skip claims."""

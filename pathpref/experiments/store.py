@@ -233,10 +233,31 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     return version
 
 
+#: results files a :class:`ResultStore` of this process holds open, by ``(st_dev, st_ino)``:
+#: how many stores. POSIX drops all of a process's locks on a file when any descriptor of it
+#: is closed, so :func:`require_sqlite_file` never opens one of these to read its header (a
+#: store that did would make another process, closing its own connection, fold and delete the
+#: WAL the held store still writes to); SQLite's own connections share their locks.
+_HELD: dict[tuple[int, int], int] = {}
+
+
+def _file_id(path: str | Path) -> tuple[int, int] | None:
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    return st.st_dev, st.st_ino
+
+
 def require_sqlite_file(path: str | Path, missing_ok: bool = False) -> bool:
     """:func:`require_regular_file`, and False for an empty file; else the file must start with
-    the SQLite header."""
-    if not require_regular_file(path, missing_ok) or os.stat(path).st_size == 0:
+    the SQLite header. A file a store of this process holds (:data:`_HELD`) is one, and is not
+    opened again."""
+    if not require_regular_file(path, missing_ok):
+        return False
+    if _file_id(path) in _HELD:
+        return True
+    if os.stat(path).st_size == 0:
         return False
     try:
         with open(path, "rb") as f:
@@ -440,15 +461,18 @@ class ResultStore:
                          else open_readonly(self.path))
         except sqlite3.Error as e:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
-        if not create:
-            return
-        with self._errors("open"):
-            self._wal()
-            self.conn.execute("PRAGMA synchronous=NORMAL")
-            if not existing:
-                self._create_schema()
-            elif create:
-                self._complete_schema()
+        self._held = None
+        if create:
+            with self._errors("open"):
+                self._wal()
+                self.conn.execute("PRAGMA synchronous=NORMAL")
+                if not existing:
+                    self._create_schema()
+                else:
+                    self._complete_schema()
+        self._held = _file_id(self.path)
+        if self._held is not None:
+            _HELD[self._held] = _HELD.get(self._held, 0) + 1
 
     def _wal(self) -> None:
         """``PRAGMA journal_mode=WAL``. Switching a file's journal mode needs it alone, and
@@ -651,8 +675,13 @@ class ResultStore:
             return [dict(zip(names, r, strict=True)) for r in cur]
 
     def close(self) -> None:
-        """Close the database connection."""
+        """Close the database connection (and release the file, :data:`_HELD`)."""
         self.conn.close()
+        held, self._held = getattr(self, "_held", None), None
+        if held is not None:
+            left = _HELD.pop(held) - 1
+            if left:
+                _HELD[held] = left
 
     def __enter__(self) -> ResultStore:
         return self
