@@ -80,6 +80,10 @@ REFACTOR_AFTER = 64
 #: ... or sooner on a large block, when the correction's columns (``8 |U|`` bytes each, one
 #: per removal, :class:`_Block`) would pass this many bytes (:func:`_refactor_after`)
 BLOCK_BYTES = 16 * 2**20
+#: a split of more unobserved rows than this holds the first-entry distribution ``H`` only at
+#: the heads of its observed polytopes' slots (:class:`_Split`, "lean"): ``8 |U| (|S| + 1)``
+#: bytes per goal otherwise, 12 MB per observed polytope for the 10 goals of a 500 x 500 map
+LEAN_ROWS = 32_768
 
 
 def components(neighbors: list[np.ndarray]) -> np.ndarray:
@@ -270,7 +274,14 @@ class _Split:
 
     Built from a factorisation of ``L_UU`` (this constructor) or from the split of ``S``
     without one polytope (:meth:`extend`, a push in a polytope not yet observed), whose
-    ``L_UU`` is then held as an earlier factor and a low-rank correction (:class:`_Block`)."""
+    ``L_UU`` is then held as an earlier factor and a low-rank correction (:class:`_Block`).
+
+    **Lean splits** (``|U|`` above :data:`LEAN_ROWS`): only the rows of ``H`` the heads read
+    are held, those of the unobserved neighbours of ``S`` (``O(|S|^2 K)`` numbers instead of
+    ``|U| (|S| + 1)``); a row not held is ``H(u, .) = (L_UU^-1 e_u)^T B`` (``L_UU``
+    symmetric), one solve, needed only for the new heads when ``v`` joins ``S``
+    (:meth:`_with_v`). Smaller blocks hold every row: the rank-one update of the whole ``H``
+    costs less than those solves there."""
 
     def __init__(self, minor: _Minor, neighbors: list[np.ndarray], S: tuple):
         k = len(S)
@@ -289,6 +300,7 @@ class _Split:
         self.block = None
         H = np.zeros((n, k + 1))
         self.logdet_u = 0.0
+        self.lean = n > LEAN_ROWS
         if n:
             src, dst = minor.src, minor.dst  # every slot of the component's members
             in_u = unobserved[src]
@@ -304,16 +316,33 @@ class _Split:
             if lu is not None:
                 self.block = _Block(lu, n)
                 H = np.maximum(lu.solve(B), 0.0)
-        self.Ht = np.ascontiguousarray(H.T)  # (k + 1, n): a row per column of H
+        #: lean: ``Ht`` holds the rows of the unobserved heads of ``S``'s slots only, column
+        #: ``hcol[u]`` for factor row ``u`` (-1: not held); dense: every row, ``hcol`` None
+        self.hcol = None
+        if self.lean:
+            kept = self._kept(S, neighbors, u_index)
+            self.hcol = _positions(kept, n)
+            H = H[kept]
+        self.Ht = np.ascontiguousarray(H.T)  # (k + 1, rows held): a row per column of H
         K = max((len(nb) for nb in neighbors), default=1)
         self.K = max(K, 1)
-        self.heads, self.n_slots = self._heads(S, neighbors, state, self.Ht)
+        self.heads, self.n_slots = self._heads(S, neighbors, state, self.Ht, self.hcol)
 
-    def _heads(self, S, neighbors, state: np.ndarray, Ht: np.ndarray):
+    @staticmethod
+    def _kept(S, neighbors, u_index: np.ndarray) -> np.ndarray:
+        """The factor rows (sorted) of the unobserved heads of the slots of ``S``: the rows
+        of ``H`` a lean split holds (the only ones :meth:`_heads` reads)."""
+        if not len(S):
+            return np.zeros(0, np.int64)
+        y = u_index[np.concatenate([np.asarray(neighbors[v], dtype=np.int64) for v in S])]
+        return np.unique(y[y >= 0])
+
+    def _heads(self, S, neighbors, state: np.ndarray, Ht: np.ndarray, hcol):
         """``(heads (len(S), K, m), n_slots)``: for each slot of each state, where the walk
         first enters the states or ``r`` (``m`` columns, ``state[]`` numbering them) after
         stepping to its head: a unit vector for a state or ``r``, the head's row of ``H``
-        otherwise (``Ht``: ``H`` transposed)."""
+        otherwise (``Ht``: ``H`` transposed, factor row ``u`` at column ``hcol[u]``, or at
+        ``u`` when ``hcol`` is None)."""
         heads = np.zeros((len(S), self.K, Ht.shape[0]))
         n_slots = np.array([len(neighbors[v]) for v in S], dtype=np.int64)
         if not len(S):
@@ -323,31 +352,65 @@ class _Split:
         y = np.concatenate([np.asarray(neighbors[v], dtype=np.int64) for v in S])
         known = state[y] >= 0
         heads[i[known], s[known], state[y[known]]] = 1.0
-        heads[i[~known], s[~known]] = Ht[:, self.u_index[y[~known]]].T
+        u = self.u_index[y[~known]]
+        heads[i[~known], s[~known]] = Ht[:, u if hcol is None else hcol[u]].T
         return heads, n_slots
 
-    def _with_v(self, v: int, p: int):
-        """``(H'^T, g_vv, raw)``: the first-entry distribution into ``S``, ``v`` and ``r`` from
-        each unobserved polytope, for an unobserved ``v`` put at column ``p`` (``S``'s columns
-        after it and ``r``'s move one on), from the column ``g = L_UU^-1 e_v``
-        (:meth:`_Block.column`; ``raw``: the factor's column it was corrected from, for
+    def _row(self, iu: int, col: np.ndarray, neighbors) -> np.ndarray:
+        """``H(u, .)`` for factor row ``iu`` given ``col = L_UU^-1 e_u``: the row held, or
+        (a lean split's other rows) ``col^T B`` by symmetry of ``L_UU`` (``B[w, j]``: the
+        slots from unobserved ``w`` into state ``j``, nonzero next to ``S`` and ``r`` only;
+        clipped at 0 as the rows held are)."""
+        if self.hcol is None:
+            return self.Ht[:, iu]
+        if self.hcol[iu] >= 0:
+            return self.Ht[:, self.hcol[iu]]
+        m = self.Ht.shape[0]
+        states = np.flatnonzero(self.state >= 0)  # S and r
+        w = np.concatenate([np.asarray(neighbors[x], dtype=np.int64) for x in states])
+        j = np.repeat(self.state[states], [len(neighbors[x]) for x in states])
+        iw = self.u_index[w]
+        ok = iw >= 0
+        return np.maximum(np.bincount(j[ok], weights=col[iw[ok]], minlength=m), 0.0)
+
+    def _with_v(self, v: int, p: int, neighbors):
+        """``(H'^T, hcol', g_vv, raw)``: the first-entry distribution into ``S``, ``v`` and
+        ``r`` from each unobserved polytope, for an unobserved ``v`` put at column ``p``
+        (``S``'s columns after it and ``r``'s move one on), from the column ``g = L_UU^-1
+        e_v`` (:meth:`_Block.column`; ``raw``: the factor's column it was corrected from, for
         :meth:`_Block.without`): with ``h(y) = P_y(reach v before leaving U) = g_y / g_v``,
         ``H'(y, .) = H(y, .) - h(y) H(v, .)`` on ``S`` and ``r`` and ``h(y)`` on ``v`` (strong
-        Markov at the visit to ``v``). Rows of polytopes observed since the factor are kept
-        (stale, never read: their ``u_index`` is -1)."""
+        Markov at the visit to ``v``). Dense: every row (those of polytopes observed since the
+        factor are kept, stale, never read: their ``u_index`` is -1). Lean: the rows of the
+        heads of ``S + {v}``; a head of ``v`` not held before costs one more solve
+        (:meth:`_row`)."""
         iv = int(self.u_index[v])
         col, raw = self.block.column(iv)
-        h = np.clip(col / col[iv], 0.0, 1.0)
-        Hv = self.Ht[:, iv]
-        m = self.Ht.shape[0]
-        Ht = np.empty((m + 1, self.Ht.shape[1]))
+        Hv = self._row(iv, col, neighbors)
+        if self.hcol is None:
+            h, old, hcol = np.clip(col / col[iv], 0.0, 1.0), self.Ht, None
+        else:
+            held = np.flatnonzero(self.hcol >= 0)
+            nb = self.u_index[np.asarray(neighbors[v], dtype=np.int64)]
+            new = np.setdiff1d(nb[nb >= 0], held)
+            kept = np.union1d(held, new)
+            kept = kept[kept != iv]
+            hcol = _positions(kept, self.hcol.shape[0])
+            old = np.empty((self.Ht.shape[0], len(kept)))
+            old[:, hcol[held[held != iv]]] = self.Ht[:, self.hcol[held[held != iv]]]
+            for iu in new.tolist():
+                if iu != iv:
+                    old[:, hcol[iu]] = self._row(iu, self.block.column(iu)[0], neighbors)
+            h = np.clip(col[kept] / col[iv], 0.0, 1.0)
+        m = old.shape[0]
+        Ht = np.empty((m + 1, old.shape[1]))
         for lo, hi, at in ((0, p, 0), (p, m, p + 1)):  # contiguous rows, no temporaries
             out = Ht[at: at + hi - lo]
             np.multiply(Hv[lo:hi, None], h[None, :], out=out)
-            np.subtract(self.Ht[lo:hi], out, out=out)
+            np.subtract(old[lo:hi], out, out=out)
         Ht[p] = h
         np.maximum(Ht, 0.0, out=Ht)
-        return Ht, float(col[iv]), raw
+        return Ht, hcol, float(col[iv]), raw
 
     def with_state(self, v: int, S: tuple, neighbors: list[np.ndarray]):
         """The heads and slot counts of the chain on ``S + (v,)`` for an unobserved ``v``
@@ -356,11 +419,11 @@ class _Split:
         if self.block is None:
             return None
         k = len(S)
-        H, _, _ = self._with_v(v, k)
+        H, hcol, _, _ = self._with_v(v, k, neighbors)
         state = self.state.copy()
         state[self.state == k] = k + 1  # r moves one column on
         state[v] = k
-        return self._heads((*S, v), neighbors, state, H)
+        return self._heads((*S, v), neighbors, state, H, hcol)
 
     def extend(self, v: int, neighbors: list[np.ndarray]) -> _Split:
         """The split of ``S + {v}`` (sorted) for an unobserved ``v``, without a factorisation:
@@ -374,11 +437,12 @@ class _Split:
         if self.block is None or len(self.block.removed) >= _refactor_after(self.block.n0):
             return _Split(self.minor, neighbors, S)
         p = S.index(v)
-        H, g_vv, raw = self._with_v(v, p)
+        H, hcol, g_vv, raw = self._with_v(v, p, neighbors)
         if not (np.isfinite(g_vv) and g_vv > 0):
             return _Split(self.minor, neighbors, S)
         out = object.__new__(_Split)
         out.minor, out.S, out.K, out.n, out.Ht = self.minor, S, self.K, self.n - 1, H
+        out.lean, out.hcol = self.lean, hcol
         out.state = state = self.state.copy()
         state[state >= p] += 1  # the states after v and r move one column on
         state[v] = p
@@ -386,7 +450,7 @@ class _Split:
         out.u_index[v] = -1
         out.logdet_u = self.logdet_u + float(np.log(g_vv))
         out.block = self.block.without(int(self.u_index[v]), raw)
-        out.heads, out.n_slots = out._heads(S, neighbors, state, H)
+        out.heads, out.n_slots = out._heads(S, neighbors, state, H, hcol)
         return out
 
 
@@ -473,6 +537,13 @@ class _Minor:
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
+
+
+def _positions(rows: np.ndarray, n: int) -> np.ndarray:
+    """``(n,)`` each of the sorted ``rows``' position in it, -1 elsewhere."""
+    out = -np.ones(n, np.int64)
+    out[rows] = np.arange(len(rows))
+    return out
 
 
 def _refactor_after(n0: int) -> int:

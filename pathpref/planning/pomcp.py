@@ -284,6 +284,7 @@ class POMCP:
         if kept is not None and np.array_equal(kept[0], goal_cdf) and \
                 self._same_rows(kept[1], kept[2], observed, cdf):
             return kept[3], kept[4]
+        self._kept_pool = kept = None  # freed before the new pool is drawn
         m = self.pool_size()
         mixture = getattr(belief, "particles", None)
         if mixture is None:
