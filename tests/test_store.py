@@ -230,7 +230,8 @@ def test_a_second_store_on_a_held_file_does_not_reopen_it(tmp_path, monkeypatch)
     """A second store on a file this process already holds (and ``inspect_results_file``,
     ``report``'s check) reads no header through a new descriptor, whose closing would drop
     the first store's POSIX locks (:data:`store._HELD`); once every store of the file is
-    closed the header is read again, and a file that is not SQLite is still refused."""
+    closed (or collected unclosed) the header is read again, and a file that is not SQLite is
+    still refused."""
     import builtins
 
     from pathpref.experiments import store as store_mod
@@ -250,11 +251,19 @@ def test_a_second_store_on_a_held_file_does_not_reopen_it(tmp_path, monkeypatch)
         assert store_mod.inspect_results_file(path) == store_mod.SCHEMA_VERSION
         assert second.episodes() == [] and reader.episodes() == []
     assert opened == []
+    key = store_mod._file_id(path)
+    assert store_mod._HELD[key] == 1
     first.close()
     first.close()  # closing twice releases the file once
-    assert store_mod._HELD == {}
+    assert key not in store_mod._HELD
     assert store_mod.inspect_results_file(path) == store_mod.SCHEMA_VERSION
     assert opened == [path]
+    forgotten = ResultStore(path)  # a store never closed releases the file when collected
+    assert store_mod._HELD[key] == 1
+    del forgotten
+    import gc
+    gc.collect()
+    assert key not in store_mod._HELD
     other = tmp_path / "x.sqlite"
     other.write_bytes(b"not a database at all, 40 bytes long...")
     with pytest.raises(ConfigError, match="not SQLite"):

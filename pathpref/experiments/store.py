@@ -33,6 +33,7 @@ import socket
 import sqlite3
 import stat
 import time
+import weakref
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -239,6 +240,13 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
 #: store that did would make another process, closing its own connection, fold and delete the
 #: WAL the held store still writes to); SQLite's own connections share their locks.
 _HELD: dict[tuple[int, int], int] = {}
+
+
+def _release(held: tuple[int, int]) -> None:
+    """One store of the file ``held`` is closed (:data:`_HELD`)."""
+    left = _HELD.pop(held, 0) - 1
+    if left > 0:
+        _HELD[held] = left
 
 
 def _file_id(path: str | Path) -> tuple[int, int] | None:
@@ -461,7 +469,7 @@ class ResultStore:
                          else open_readonly(self.path))
         except sqlite3.Error as e:
             raise ConfigError(f"cannot open results database {self.path}: {e}") from None
-        self._held = None
+        self._release = None
         if create:
             with self._errors("open"):
                 self._wal()
@@ -470,9 +478,10 @@ class ResultStore:
                     self._create_schema()
                 else:
                     self._complete_schema()
-        self._held = _file_id(self.path)
-        if self._held is not None:
-            _HELD[self._held] = _HELD.get(self._held, 0) + 1
+        held = _file_id(self.path)
+        if held is not None:  # released by close() or when the store is collected
+            _HELD[held] = _HELD.get(held, 0) + 1
+            self._release = weakref.finalize(self, _release, held)
 
     def _wal(self) -> None:
         """``PRAGMA journal_mode=WAL``. Switching a file's journal mode needs it alone, and
@@ -677,11 +686,8 @@ class ResultStore:
     def close(self) -> None:
         """Close the database connection (and release the file, :data:`_HELD`)."""
         self.conn.close()
-        held, self._held = getattr(self, "_held", None), None
-        if held is not None:
-            left = _HELD.pop(held) - 1
-            if left:
-                _HELD[held] = left
+        if getattr(self, "_release", None) is not None:
+            self._release()  # once: a finalizer runs at most once
 
     def __enter__(self) -> ResultStore:
         return self
