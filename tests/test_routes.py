@@ -674,11 +674,10 @@ def test_sparse_factor_keeps_superlu_when_it_pivots_off_the_diagonal():
 
 
 def test_kept_pool_rows_compare_as_the_whole_walk_table(simple):
-    """The walk rows are held compactly (:meth:`POMCP.preference_cdf`: the observed
-    polytopes' rows, the uniform row for every other) and equal the whole ``(G, P, K)`` table
-    built row by row. The root pool is kept with the rows of the polytopes observed when it
-    was drawn only (:meth:`POMCP._same_rows`); the comparison agrees with ``np.array_equal``
-    of the whole tables in every case: unchanged; an observed row changed; a polytope
+    """The root pool is kept with the walk rows of the polytopes observed when it was drawn
+    only (:meth:`POMCP._same_rows`); the comparison agrees with ``np.array_equal`` of the
+    whole ``(G, P, K)`` table in every case (every row of a polytope not observed is the
+    uniform one, :meth:`POMCP.preference_cdf`): unchanged; an observed row changed; a polytope
     observed then and not now; a newly observed polytope whose rows are still uniform (equal
     tables: reuse) or not."""
     from pathpref.planning.pomcp import POMCP
@@ -692,35 +691,22 @@ def test_kept_pool_rows_compare_as_the_whole_walk_table(simple):
     for s, h in ((0, 2), (17, 5)):
         belief.update(s, h)
     observed = np.asarray(belief.observed_polytopes(), dtype=np.int64)
-    P = simple.n_polytopes
-    full = np.broadcast_to(planner._uniform_cdf, (len(goals), *planner._uniform_cdf.shape)).copy()
-    for v in observed.tolist():
-        cond = belief.local_given_goal(v)
-        full[:, v, : cond.shape[1]] = np.cumsum(cond, axis=1)
     cdf = planner.preference_cdf(belief)
-    assert np.array_equal(planner.cdf_rows(cdf, np.arange(P)), full)
-    assert cdf[0].shape == (len(goals), len(observed), full.shape[2])
-
-    def compact(table, obs):
-        row_of = -np.ones(P, np.int64)
-        row_of[obs] = np.arange(len(obs))
-        return table[:, obs].copy(), row_of, planner._uniform_cdf
-
-    kept_rows = full[:, observed].copy()
-    others = [v for v in range(P) if v not in observed.tolist()]
-    cases = [(full.copy(), observed)]
-    changed = full.copy()
+    kept_rows = cdf[:, observed].copy()
+    others = [v for v in range(simple.n_polytopes) if v not in observed.tolist()]
+    cases = [(cdf.copy(), observed)]
+    changed = cdf.copy()
     changed[1, observed[0], 0] *= 0.5
     cases.append((changed, observed))
-    changed = full.copy()  # observed then, not now: its rows back to uniform
+    changed = cdf.copy()  # observed then, not now: its rows back to uniform
     changed[:, observed[0]] = planner._uniform_cdf[observed[0]]
     cases.append((changed, observed[1:]))
-    cases.append((full.copy(), np.sort(np.r_[observed, others[1]])))  # uniform rows: equal
-    changed = full.copy()
+    cases.append((cdf.copy(), np.sort(np.r_[observed, others[1]])))  # uniform rows: equal
+    changed = cdf.copy()
     changed[2, others[1], 0] *= 0.5
     cases.append((changed, np.sort(np.r_[observed, others[1]])))
-    got = [planner._same_rows(observed, kept_rows, obs, compact(c, obs)) for c, obs in cases]
-    assert got == [np.array_equal(full, c) for c, _ in cases] == [True, False, False, True,
+    got = [planner._same_rows(observed, kept_rows, obs, c) for c, obs in cases]
+    assert got == [np.array_equal(cdf, c) for c, _ in cases] == [True, False, False, True,
                                                                   False]
 
 

@@ -102,10 +102,10 @@ def _clock():
 @nb.njit(cache=True, inline="always")
 def _theta(v, gi, q, nbr, pref_cdf, theta, stamp):
     """Slot ``k`` of the preferred neighbour of ``v`` in simulation ``q``, drawn lazily from
-    ``P(p_v | g)`` (cumulative rows ``pref_cdf``, :func:`.tree.sample_slot`) under the
-    independent prior; under the route prior every slot was set at the start of the simulation
-    (:func:`tree_pool`): ``theta`` is then the particle's row of the pool and ``stamp`` all
-    :data:`FIXED` (nothing drawn or copied per simulation)."""
+    ``P(p_v | g)`` (cumulative ``pref_cdf[gi, v]``) under the independent prior; under the route
+    prior every slot was set at the start of the simulation (:func:`tree_pool`): ``theta`` is
+    then the particle's row of the pool and ``stamp`` all :data:`FIXED` (nothing drawn or
+    copied per simulation)."""
     if stamp[v] != q and stamp[v] != FIXED:
         stamp[v] = q
         theta[v] = sample_slot(v, gi, nbr, pref_cdf)
@@ -150,8 +150,7 @@ def _wilson(nbr, pref_cdf, gi, r, comp, fixed, row, in_tree, walk, budget):
 def tree_pool(nbr, pref_cdf, goal_cdf, root, comp, m, seed, budget):
     """``m`` exact draws of ``(g, theta)`` from the route-prior posterior
     (:mod:`pathpref.inference.routes`): ``g`` from ``goal_cdf``, then ``theta`` by Wilson's
-    algorithm, ``pref_cdf`` holding the walk's rows (compact, :func:`.tree.sample_slot`): from
-    each polytope not yet in the tree,
+    algorithm, ``pref_cdf[g]`` holding the walk's rows: from each polytope not yet in the tree,
     a random walk until it meets the tree, loop-erased, joins it (the goal's polytope
     ``root[g]`` first, with no exit, slot -1). Polytopes outside the goal's component (and
     without neighbours) are drawn independently from their rows.

@@ -217,38 +217,16 @@ class POMCP:
             self.moves = rollout_moves(self.next_cell, self.cost, self.blocked, self.cross_slot,
                                        self.ctg, self.dist)
 
-    def preference_cdf(self, belief: Belief) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The cumulative per-polytope rows ``T_v(g, k)`` normalised: ``P(p_v = N(v)[k] | g)``
-        under the independent prior, the rows of Wilson's walk under the route prior
-        (:mod:`pathpref.inference.routes`). Held compactly, ``(rows, row_of, uniform)``: the
-        observed polytopes' rows ``(G, |observed|, K)`` (row ``row_of[v]``, -1 for the others,
-        whose row is the goal-independent uniform one, ``uniform[v]``), not a ``(G, P, K)``
-        table (150 MB per decision on a 500 x 500 map); :func:`.tree.sample_slot` reads it."""
-        observed = np.asarray(belief.observed_polytopes(), dtype=np.int64)
-        return self._compact(observed, [belief.local_given_goal(int(v)) for v in observed])
-
-    def _compact(self, observed: np.ndarray, conds: list[np.ndarray]):
-        """``(rows, row_of, uniform)`` (:meth:`preference_cdf`) with the rows of ``observed``
-        the cumulative sums of ``conds`` over each polytope's first slots (the uniform row's
-        ``1``s after them)."""
+    def preference_cdf(self, belief: Belief) -> np.ndarray:
+        """``(G, P, K)`` cumulative per-polytope rows ``T_v(g, k)`` normalised (uniform where
+        never observed): ``P(p_v = N(v)[k] | g)`` under the independent prior, the rows of
+        Wilson's walk under the route prior (:mod:`pathpref.inference.routes`)."""
         G = len(self.goal_cells)
-        rows = np.broadcast_to(self._uniform_cdf[observed],
-                               (G, len(observed), self._uniform_cdf.shape[1])).copy()
-        for i, cond in enumerate(conds):
-            rows[:, i, : cond.shape[1]] = np.cumsum(cond, axis=1)
-        row_of = -np.ones(len(self.nbr), np.int64)
-        row_of[observed] = np.arange(len(observed))
-        return rows, row_of, self._uniform_cdf
-
-    def cdf_rows(self, cdf, polytopes: np.ndarray) -> np.ndarray:
-        """``(G, len(polytopes), K)``: the rows of the compact ``cdf`` (:meth:`preference_cdf`)
-        of ``polytopes``, uniform ones included."""
-        rows, row_of, uniform = cdf
-        r = row_of[polytopes]
-        out = np.broadcast_to(uniform[polytopes], (rows.shape[0], len(polytopes),
-                                                   uniform.shape[1])).copy()
-        out[:, r >= 0] = rows[:, r[r >= 0]]
-        return out
+        cdf = np.broadcast_to(self._uniform_cdf, (G, *self._uniform_cdf.shape)).copy()
+        for v in belief.observed_polytopes():
+            cond = belief.local_given_goal(v)
+            cdf[:, v, : cond.shape[1]] = np.cumsum(cond, axis=1)
+        return cdf
 
     def search(self, cell: int, belief: Belief, depth: int, seed: int,
                history: list[tuple[int, int]] = (), pushes: tuple[int, int] = (1, 1)
@@ -316,21 +294,22 @@ class POMCP:
             if m_tree:
                 tg, ts = self._trees(belief, tree_cdf, cdf, m_tree, seed)
                 goals, slots = np.concatenate([tg, goals]), np.concatenate([ts, slots])
-        self._kept_pool = (goal_cdf.copy(), observed, self.cdf_rows(cdf, observed), goals, slots)
+        self._kept_pool = (goal_cdf.copy(), observed, cdf[:, observed].copy(), goals, slots)
         self.pools_drawn += 1
         return goals, slots
 
     def _same_rows(self, kept_v: np.ndarray, kept_rows: np.ndarray, observed: np.ndarray,
-                   cdf) -> bool:
-        """True when ``cdf`` (:meth:`preference_cdf`) equals, exactly, the walk rows a pool was
-        drawn from, kept as the rows ``kept_rows`` of the polytopes ``kept_v`` observed then.
-        Every other row of either is the uniform one, so the two are equal iff they agree on
-        the polytopes observed then or now."""
+                   cdf: np.ndarray) -> bool:
+        """True when ``cdf`` equals, exactly, the walk rows a pool was drawn from, kept as the
+        rows ``kept_rows`` of the polytopes ``kept_v`` observed then. Every other row of
+        either is the uniform one (:meth:`preference_cdf`), so the two ``(G, P, K)`` arrays
+        are equal iff they agree on the polytopes observed then or now; the kept rows cost
+        ``G K`` numbers per observed polytope, not ``G P K``."""
         both = np.union1d(kept_v, observed)
-        then = np.broadcast_to(self._uniform_cdf[both], (cdf[0].shape[0], len(both),
-                                                         self._uniform_cdf.shape[1])).copy()
+        then = np.broadcast_to(self._uniform_cdf[both], (cdf.shape[0], len(both), cdf.shape[2]))
+        then = then.copy()
         then[:, np.searchsorted(both, kept_v)] = kept_rows
-        return bool(np.array_equal(then, self.cdf_rows(cdf, both)))
+        return bool(np.array_equal(then, cdf[:, both]))
 
     def _trees(self, belief: Belief, goal_cdf: np.ndarray, cdf: np.ndarray, m: int,
                seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -387,9 +366,5 @@ class POMCP:
                       dtype=np.int64)
         return hv, hk
 
-    def _dummy_cdf(self):
-        """A compact cdf of all ones (:meth:`preference_cdf`), for the searches that draw no
-        preference."""
-        K = self._uniform_cdf.shape[1]
-        return (np.ones((len(self.goal_cells), 1, K)), np.zeros(len(self.nbr), np.int64),
-                self._uniform_cdf)
+    def _dummy_cdf(self) -> np.ndarray:
+        return np.ones((len(self.goal_cells), *self._uniform_cdf.shape))

@@ -46,21 +46,13 @@ def sample_index(cdf):
 
 @nb.njit(cache=True, inline="always")
 def sample_slot(v, gi, nbr, pref_cdf):
-    """Slot ``k`` of ``p_v = N(v)[k]`` drawn from ``P(p_v | g)``, over ``v``'s neighbours
-    only. ``pref_cdf = (rows, row_of, uniform)`` holds the cumulative rows compactly
-    (:meth:`~.pomcp.POMCP.preference_cdf`): goal ``gi``'s row ``rows[gi, row_of[v]]`` for a
-    polytope with one (``row_of[v] >= 0``), else the goal-independent ``uniform[v]``."""
-    rows, row_of, uniform = pref_cdf
+    """Slot ``k`` of ``p_v = N(v)[k]`` drawn from ``P(p_v | g)`` (cumulative ``pref_cdf[gi,
+    v]``, over ``v``'s neighbours only)."""
     u = np.random.random()
     k = 0
     K = nbr.shape[1]
-    r = row_of[v]
-    if r >= 0:
-        while k < K - 1 and nbr[v, k + 1] >= 0 and u > rows[gi, r, k]:
-            k += 1
-    else:
-        while k < K - 1 and nbr[v, k + 1] >= 0 and u > uniform[v, k]:
-            k += 1
+    while k < K - 1 and nbr[v, k + 1] >= 0 and u > pref_cdf[gi, v, k]:
+        k += 1
     return k
 
 
