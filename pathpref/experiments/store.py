@@ -686,7 +686,7 @@ class ResultStore:
     def close(self) -> None:
         """Close the database connection (and release the file, :data:`_HELD`)."""
         self.conn.close()
-        if getattr(self, "_release", None) is not None:
+        if self._release is not None:
             self._release()  # once: a finalizer runs at most once
 
     def __enter__(self) -> ResultStore:

@@ -300,7 +300,6 @@ class _Split:
         self.block = None
         H = np.zeros((n, k + 1))
         self.logdet_u = 0.0
-        self.lean = n > LEAN_ROWS
         if n:
             src, dst = minor.src, minor.dst  # every slot of the component's members
             in_u = unobserved[src]
@@ -319,7 +318,7 @@ class _Split:
         #: lean: ``Ht`` holds the rows of the unobserved heads of ``S``'s slots only, column
         #: ``hcol[u]`` for factor row ``u`` (-1: not held); dense: every row, ``hcol`` None
         self.hcol = None
-        if self.lean:
+        if n > LEAN_ROWS:
             kept = self._kept(S, neighbors, u_index)
             self.hcol = _positions(kept, n)
             H = H[kept]
@@ -327,6 +326,11 @@ class _Split:
         K = max((len(nb) for nb in neighbors), default=1)
         self.K = max(K, 1)
         self.heads, self.n_slots = self._heads(S, neighbors, state, self.Ht, self.hcol)
+
+    @property
+    def lean(self) -> bool:
+        """Whether this split holds ``H`` at the heads only (class docstring)."""
+        return self.hcol is not None
 
     @staticmethod
     def _kept(S, neighbors, u_index: np.ndarray) -> np.ndarray:
@@ -356,22 +360,26 @@ class _Split:
         heads[i[~known], s[~known]] = Ht[:, u if hcol is None else hcol[u]].T
         return heads, n_slots
 
-    def _row(self, iu: int, col: np.ndarray, neighbors) -> np.ndarray:
+    def _boundary(self, neighbors) -> tuple[np.ndarray, np.ndarray]:
+        """``(w, j)``: the nonzeros of ``B`` (one per slot from unobserved factor row ``w``
+        into state ``j``, ``S`` or ``r``), read from the states' own slots (the graph is
+        symmetric)."""
+        states = np.flatnonzero(self.state >= 0)  # S and r
+        w = self.u_index[np.concatenate([np.asarray(neighbors[x], dtype=np.int64)
+                                         for x in states])]
+        j = np.repeat(self.state[states], [len(neighbors[x]) for x in states])
+        return w[w >= 0], j[w >= 0]
+
+    def _row(self, iu: int, col: np.ndarray, boundary) -> np.ndarray:
         """``H(u, .)`` for factor row ``iu`` given ``col = L_UU^-1 e_u``: the row held, or
-        (a lean split's other rows) ``col^T B`` by symmetry of ``L_UU`` (``B[w, j]``: the
-        slots from unobserved ``w`` into state ``j``, nonzero next to ``S`` and ``r`` only;
-        clipped at 0 as the rows held are)."""
+        (a lean split's other rows) ``col^T B`` by symmetry of ``L_UU`` (``boundary``: the
+        nonzeros of ``B``, :meth:`_boundary`; clipped at 0 as the rows held are)."""
         if self.hcol is None:
             return self.Ht[:, iu]
         if self.hcol[iu] >= 0:
             return self.Ht[:, self.hcol[iu]]
-        m = self.Ht.shape[0]
-        states = np.flatnonzero(self.state >= 0)  # S and r
-        w = np.concatenate([np.asarray(neighbors[x], dtype=np.int64) for x in states])
-        j = np.repeat(self.state[states], [len(neighbors[x]) for x in states])
-        iw = self.u_index[w]
-        ok = iw >= 0
-        return np.maximum(np.bincount(j[ok], weights=col[iw[ok]], minlength=m), 0.0)
+        w, j = boundary
+        return np.maximum(np.bincount(j, weights=col[w], minlength=self.Ht.shape[0]), 0.0)
 
     def _with_v(self, v: int, p: int, neighbors):
         """``(H'^T, hcol', g_vv, raw)``: the first-entry distribution into ``S``, ``v`` and
@@ -386,7 +394,8 @@ class _Split:
         (:meth:`_row`)."""
         iv = int(self.u_index[v])
         col, raw = self.block.column(iv)
-        Hv = self._row(iv, col, neighbors)
+        boundary = None if self.hcol is None else self._boundary(neighbors)
+        Hv = self._row(iv, col, boundary)
         if self.hcol is None:
             h, old, hcol = np.clip(col / col[iv], 0.0, 1.0), self.Ht, None
         else:
@@ -400,7 +409,7 @@ class _Split:
             old[:, hcol[held[held != iv]]] = self.Ht[:, self.hcol[held[held != iv]]]
             for iu in new.tolist():
                 if iu != iv:
-                    old[:, hcol[iu]] = self._row(iu, self.block.column(iu)[0], neighbors)
+                    old[:, hcol[iu]] = self._row(iu, self.block.column(iu)[0], boundary)
             h = np.clip(col[kept] / col[iv], 0.0, 1.0)
         m = old.shape[0]
         Ht = np.empty((m + 1, old.shape[1]))
@@ -442,7 +451,7 @@ class _Split:
             return _Split(self.minor, neighbors, S)
         out = object.__new__(_Split)
         out.minor, out.S, out.K, out.n, out.Ht = self.minor, S, self.K, self.n - 1, H
-        out.lean, out.hcol = self.lean, hcol
+        out.hcol = hcol
         out.state = state = self.state.copy()
         state[state >= p] += 1  # the states after v and r move one column on
         state[v] = p
