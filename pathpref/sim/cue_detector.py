@@ -283,6 +283,11 @@ class FilteredCueDetector(CueDetector):
         # sum of squares within a few): the onset rule has nothing to do
         if idle and ex * ex + ey * ey < 0.98 * self.on_n * self.on_n:
             return None
+        return self._decide(ex, ey)
+
+    def _decide(self, ex: float, ey: float) -> Cue | None:
+        """The rest of :meth:`update` for ``e = (ex, ey)`` once the idle test did not
+        answer: the onset rule, or the settle rule and the hysteresis of an active cue."""
         e = np.array([ex, ey])
         mag = float(np.hypot(ex, ey))
         if not self.active:

@@ -91,14 +91,7 @@ class DecisionStep:
             b.detector.reset()
             self.cue = cue
         elif phase == MOVE:
-            cue = b.substep()
-            t = b.data.time
-            if cue is not None and b.stop_on_cue:
-                b.target = b.scene.cell_centre(b.cell)  # stop here: the planner replans
-            elif not ((t - self._t0 >= self._min_s and
-                       b.controller.settled(self._pos, self._vel, b.target) and
-                       not b.yielding()) or t >= self._t_end):
-                return False
+            return self._move_ended(b.substep())
         elif phase == HOLD:
             cue = b.substep()
             if not (cue is not None and self._until_cue) and b.data.time < self._t_end:
@@ -109,8 +102,28 @@ class DecisionStep:
         self.phase = None
         return True
 
+    def _move_ended(self, cue) -> bool:
+        """The move's end check after a physics step that gave ``cue`` (module docstring);
+        True (and no phase under way) when the move ended."""
+        b = self.base
+        t = b.data.time
+        if cue is not None and b.stop_on_cue:
+            b.target = b.scene.cell_centre(b.cell)  # stop here: the planner replans
+        elif not ((t - self._t0 >= self._min_s and
+                   b.controller.settled(self._pos, self._vel, b.target) and
+                   not b.yielding()) or t >= self._t_end):
+            return False
+        self.phase = None
+        return True
+
     def run(self) -> DecisionStep:
-        """Advance until the phase under way ends (a blocking caller)."""
-        while not self.advance():
-            pass
-        return self
+        """Advance until the phase under way ends (a blocking caller). The steps of a move
+        with nothing pushing go through the compiled kernel of :mod:`.coasting` where it
+        applies (the same numbers), the others through :meth:`advance`."""
+        coaster = self.base.coaster
+        while True:
+            if coaster is not None and self.phase == MOVE and coaster.ready():
+                if coaster.move(self):
+                    return self
+            elif self.advance():
+                return self

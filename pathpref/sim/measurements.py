@@ -67,6 +67,11 @@ class Measurements:
         if force is not self._f_measured:  # the estimator holds its estimate between samples
             self._f_measured = force
             self.peak_force = max(self.peak_force, math.hypot(force[0], force[1]))
+        self._contacts(data, v_prev)
+
+    def _contacts(self, data: mujoco.MjData, v_prev: tuple[float, float]) -> None:
+        """The contact part of :meth:`update`: contacts with the static world this step,
+        ``v_prev`` the base's velocity at the step before."""
         n = data.ncon
         touching = False
         if n > 0:

@@ -48,6 +48,7 @@ from ..episode.body import Felt
 from ..episode.physics import GUIDANCE_EVIDENCE_S, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..errors import ConfigError, EpisodeError
 from ..geometry.grid import heading_to_action
+from .coasting import Coaster
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue, CueDetector
 from .decision import DecisionStep
@@ -143,6 +144,17 @@ class MobileBase:
         #: leave xfrc_applied to someone else (the viewer's mouse perturbation) when no
         #: simulated push is active
         self.external_forces = False
+        self._coaster: Coaster | None = None
+
+    @property
+    def coaster(self) -> Coaster | None:
+        """The compiled steps of a move with nothing pushing (:mod:`.coasting`) when they
+        apply to this base as it is set up now, else None."""
+        if not Coaster.applies(self):
+            return None
+        if self._coaster is None:
+            self._coaster = Coaster(self)
+        return self._coaster
 
     # the sensing chain's parts, as the base's callers read them
     @property
@@ -284,8 +296,12 @@ class MobileBase:
         # x . 0 is NaN exactly when x holds a NaN or an infinity, and so is the sum of two
         if not math.isfinite(self._qpos.dot(self._zero_q) + self._qvel.dot(self._zero_v)):
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
-        sensing = self.sensing
-        cue = sensing.read(d)
+        return self._after_read(self.sensing.read(d), push)
+
+    def _after_read(self, cue: Cue | None, push: HumanPush | None) -> Cue | None:
+        """The rest of :meth:`substep` once the sensing chain gave ``cue``: the cue stream,
+        the measurements and the ``on_substep`` hooks."""
+        d, sensing = self.data, self.sensing
         if cue is not None or self._onset is not None or self.guidance is not None or \
                 sensing.under_way:
             self._track_onset(cue)

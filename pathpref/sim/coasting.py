@@ -1,0 +1,419 @@
+"""A move with no push under way, compiled: the same physics steps at a fraction of the Python.
+
+95 % of a physical episode's steps are a base driving to a cell with nobody pushing it
+(``docs/physics.md``, section 11). Each is, in Python: the profiled controller's law, one
+``mj_step``, the realistic sensor's window (with the extra mass's inertia), every fifth step a
+sensor sample (drift and noise drawn, the estimator's inertial compensation and bias
+tracking), the detector's low-pass and idle calibration, the measurements and the move's end
+check. :func:`_coast` runs these steps in one numba call, operation for operation as
+:meth:`~.mobile_base.MobileBase.substep` and :meth:`~.decision.DecisionStep.advance` do them
+(the methods it mirrors are named at each part), with the C functions of :mod:`.native` (the
+same ``mj_step``, the same BLAS kernels, CPython's ``hypot``) and the sensor's own NumPy
+``Generator`` (numba draws the same normals from the same bit generator). So an episode is the
+same bit for bit whichever path runs it: ``tests/test_coasting.py`` runs episodes both ways
+and compares every state, cue and metric exactly.
+
+The kernel hands back to Python, before or within a step, whenever something it does not
+mirror may happen: the detector's force is not clearly below its onset threshold (the onset
+rule and the cue stream run in Python from there on, :data:`DETECT`), the base touches
+something (the contact measurements, :data:`CONTACTS`), or the move ends (:data:`END`:
+settled, or its time is up). It runs only where it applies (:meth:`Coaster.applies`,
+:meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase` on the profiled
+controller's float path, the faulty sensor without thermal drift and its estimator, the
+filtered detector idle, no pushes, guidance, hooks or external forces. Every other step takes
+the Python path (the control-rate tasks too: they advance one physics step per call).
+``PATHPREF_COMPILED_STEPS=0`` turns it off.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections import deque
+
+import numba as nb
+import numpy as np
+
+from . import native
+from .native import (
+    OBJ_BODY,
+    hypot,
+    matTvec,
+    matvec,
+    mj_jacBodyCom,
+    mj_objectAcceleration,
+    mj_step,
+    norm,
+)
+
+#: hand-back reasons of :func:`_coast`
+READY, END, DETECT, CONTACTS, DIVERGED = range(5)
+#: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
+#: measurements, the detector's hand-back ``e`` and the velocity a contact met
+(S0, S1, S2, NEXT_T, WINDOW_S, FRESH, QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK,
+ PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, N_FS) = range(23)
+#: constants: controller, sensor, estimator, detector, the move
+(KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, MASS,
+ BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, ALPHA, BETA, GAMMA, BASE_ON, BASE_OFF, ON_K, OFF_K,
+ T0, MIN_S, T_END, STILL, N_CS) = range(29)
+#: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
+(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, COMPENSATE, DRIFT,
+ E_HEAD, E_LEN, D_HEAD, D_LEN, N_IS) = range(20)
+#: the queues' capacity: the estimator keeps at most quiet_s / dt + 1 samples, the detector
+#: hold_s / dt + 1
+QUEUE_SLACK = 4
+GRAVITY_Z = 9.81  # estimator.GRAVITY_UP
+
+
+@nb.njit(cache=True)
+def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sbias, held,
+           acc6, ma, xbuf, ebias, mark, jac, dv, eacc, eforce, epend, f, baseline, dpend, rng,
+           fs, cs, ns, max_steps):
+    """Physics steps of the move phase until a hand-back (module docstring); returns
+    ``(reason, steps)``. ``held``, ``eacc``, ``eforce`` receive the last sample, estimator
+    acceleration and estimate; the state arrays are updated in place."""
+    nq, nv = qpos.shape[0], qvel.shape[0]
+    qcap, dcap = epend.shape[0], dpend.shape[0]
+    tmp3 = np.empty(3)
+    res = np.empty(3)
+    vel = np.empty(3)
+    err = np.empty(2)
+    for step in range(max_steps):
+        # --- MobileBase._control, float path: ProfiledController.goal_xy and ramp_xy
+        px, py = qpos[ns[IX]], qpos[ns[IY]]
+        ex, ey = target[0] - px, target[1] - py
+        d = hypot(ex, ey)
+        if d < 1e-9:
+            gx, gy = 0.0, 0.0
+        else:
+            speed = cs[V_MAX]
+            if cs[KP] * d < speed:
+                speed = cs[KP] * d
+            s = math.sqrt(2.0 * cs[BRAKE] * cs[A_MAX] * d)
+            if s < speed:
+                speed = s
+            k = speed / d
+            gx, gy = ex * k, ey * k
+        stp = cs[A_MAX] * cs[C_DT]
+        lx, ly = last[0], last[1]
+        dx, dy = gx - lx, gy - ly
+        n = hypot(dx, dy)
+        if n > stp:
+            dx, dy = dx * stp / n, dy * stp / n
+        lx, ly = lx + dx, ly + dy
+        last[0], last[1] = lx, ly
+        ctrl[ns[A0]], ctrl[ns[A1]], ctrl[ns[A2]] = lx, ly, -cs[K_YAW] * qpos[ns[IYAW]]
+        # --- mj_step and the divergence check
+        mj_step(mp, dp)
+        for i in range(nq):
+            if not math.isfinite(qpos[i]):
+                return DIVERGED, step + 1
+        for i in range(nv):
+            if not math.isfinite(qvel[i]):
+                return DIVERGED, step + 1
+        t = time[0]
+        # --- FaultySensor.read: the window's sum, with the extra mass's inertia
+        a = ns[SADR]
+        r0, r1, r2 = sensordata[a], sensordata[a + 1], sensordata[a + 2]
+        if cs[EXTRA_M] == 0.0:
+            fs[S0] += r0
+            fs[S1] += r1
+            fs[S2] += r2
+        else:
+            mj_objectAcceleration(mp, dp, OBJ_BODY, ns[BODY], acc6.ctypes.data, 0)
+            for i in range(3):
+                ma[i] = acc6[3 + i] * cs[EXTRA_M]
+            matTvec(R, ma, xbuf)
+            fs[S0] += r0 + xbuf[0]
+            fs[S1] += r1 + xbuf[1]
+            fs[S2] += r2 + xbuf[2]
+        ns[COUNT] += 1
+        if fs[NEXT_T] == -math.inf:
+            fs[NEXT_T] = t
+        fresh = t >= fs[NEXT_T] - 1e-9
+        fs[FRESH] = 1.0 if fresh else 0.0
+        measured = False
+        if fresh:
+            cnt = ns[COUNT]
+            fs[WINDOW_S] = cnt * cs[DT]
+            m0, m1, m2 = fs[S0] / cnt, fs[S1] / cnt, fs[S2] / cnt
+            # FaultySensor._emit (no thermal offset: Coaster.ready)
+            if ns[DRIFT]:
+                z0 = rng.standard_normal()
+                z1 = rng.standard_normal()
+                sbias[0] += cs[DRIFT_STEP] * z0
+                sbias[1] += cs[DRIFT_STEP] * z1
+            if cs[NOISE] > 0.0:
+                n0 = cs[NOISE] * rng.standard_normal()
+                n1 = cs[NOISE] * rng.standard_normal()
+                n2 = cs[NOISE] * rng.standard_normal()
+            else:
+                n0 = n1 = n2 = 0.0
+            held[0] = m0 + sbias[0] + n0
+            held[1] = m1 + sbias[1] + n1
+            held[2] = m2 + sbias[2] + n2
+            fs[S0] = fs[S1] = fs[S2] = 0.0
+            ns[COUNT] = 0
+            while fs[NEXT_T] <= t + 1e-9:
+                fs[NEXT_T] += cs[PERIOD]
+            # ForceEstimator.update (cue idle, fresh) with ForceEstimator.acceleration
+            window = fs[WINDOW_S]
+            mj_jacBodyCom(mp, dp, jac.ctypes.data, 0, ns[BODY])
+            for i in range(nv):
+                dv[i] = qvel[i] - mark[i]
+            for i in range(nv):
+                dv[i] = dv[i] / window
+            for i in range(nv):
+                mark[i] = qvel[i]
+            matvec(jac, dv, eacc)
+            # ForceEstimator.expected: R^T m (a + g)
+            for i in range(3):
+                ai = eacc[i] if ns[COMPENSATE] else 0.0
+                tmp3[i] = cs[MASS] * (ai + (GRAVITY_Z if i == 2 else 0.0))
+            matTvec(R, tmp3, res)
+            for i in range(3):
+                res[i] = held[i] - res[i]
+            matvec(jac, qvel, vel)
+            still = norm(vel) < cs[STILL_MPS] and norm(eacc) < cs[STILL_MPS2]
+            if still:
+                fs[QUIET] += window
+                if ns[E_LEN] == qcap:
+                    return DIVERGED, step + 1  # pragma: no cover - capacity is a bound
+                j = (ns[E_HEAD] + ns[E_LEN]) % qcap
+                epend[j, 0], epend[j, 1], epend[j, 2] = res[0], res[1], res[2]
+                ns[E_LEN] += 1
+            else:
+                fs[QUIET] = 0.0
+                ns[E_LEN] = 0
+                ns[E_HEAD] = 0
+            fs[AT_REST] = 1.0 if fs[QUIET] >= cs[QUIET_S] - 1e-12 else 0.0
+            w = window / (cs[BIAS_TAU] + window)
+            if not w < 1.0:
+                w = 1.0
+            while ns[E_LEN] * window > cs[QUIET_S] + 1e-12:
+                j = ns[E_HEAD]
+                for i in range(3):
+                    ebias[i] += w * (epend[j, i] - ebias[i])
+                ns[E_HEAD] = (j + 1) % qcap
+                ns[E_LEN] -= 1
+            for i in range(3):
+                tmp3[i] = res[i] - ebias[i]
+            matvec(R, tmp3, res)
+            eforce[0], eforce[1] = -res[0], -res[1]
+            measured = True
+        # --- FilteredCueDetector.update, idle (the estimate held between samples)
+        x, y = eforce[0], eforce[1]
+        if math.isfinite(x) and math.isfinite(y):
+            fx, fy = f[0], f[1]
+            fx, fy = fx + cs[ALPHA] * (x - fx), fy + cs[ALPHA] * (y - fy)
+            f[0], f[1] = fx, fy
+            # FilteredCueDetector._calibrate
+            if fs[AT_REST] == 0.0:
+                ns[D_LEN] = 0
+                ns[D_HEAD] = 0
+            else:
+                if ns[D_LEN] == dcap:
+                    return DIVERGED, step + 1  # pragma: no cover - capacity is a bound
+                j = (ns[D_HEAD] + ns[D_LEN]) % dcap
+                dpend[j, 0], dpend[j, 1] = fx, fy
+                ns[D_LEN] += 1
+                learnt = False
+                while ns[D_LEN] > ns[HOLD_N]:
+                    j = ns[D_HEAD]
+                    qx, qy = dpend[j, 0], dpend[j, 1]
+                    ns[D_HEAD] = (j + 1) % dcap
+                    ns[D_LEN] -= 1
+                    bx, by = baseline[0], baseline[1]
+                    ex, ey = qx - bx, qy - by
+                    if ex * ex + ey * ey < fs[OFF] * fs[OFF]:
+                        fs[VAR] += cs[BETA] * (0.5 * (ex * ex + ey * ey) - fs[VAR])
+                        learnt = True
+                    baseline[0], baseline[1] = bx + cs[GAMMA] * ex, by + cs[GAMMA] * ey
+                if learnt:  # FilteredCueDetector._thresholds
+                    sigma = math.sqrt(fs[VAR])
+                    on = cs[ON_K] * sigma
+                    fs[ON] = on if on > cs[BASE_ON] else cs[BASE_ON]
+                    off = cs[OFF_K] * sigma
+                    fs[OFF] = off if off > cs[BASE_OFF] else cs[BASE_OFF]
+            ex, ey = fx - baseline[0], fy - baseline[1]
+            if not ex * ex + ey * ey < 0.98 * fs[ON] * fs[ON]:
+                fs[EX], fs[EY] = ex, ey
+                return DETECT, step + 1  # the onset rule, in Python
+        # --- Measurements.update (nothing pushes: Coaster.ready)
+        if ns[MEASURE]:
+            vx, vy = qvel[ns[VX]], qvel[ns[VY]]
+            span = t - fs[T_PREV]
+            if cs[DT] > span:
+                span = cs[DT]
+            acc = hypot(vx - fs[VPX], vy - fs[VPY]) / span
+            fs[VPX_OLD], fs[VPY_OLD] = fs[VPX], fs[VPY]
+            fs[VPX], fs[VPY], fs[T_PREV] = vx, vy, t
+            if acc > fs[PEAK_PUSHED]:
+                fs[PEAK_PUSHED] = acc
+            if acc > fs[PEAK]:
+                fs[PEAK] = acc
+            if measured:
+                h = hypot(eforce[0], eforce[1])
+                if h > fs[PEAK_FORCE]:
+                    fs[PEAK_FORCE] = h
+            if ncon[0] > 0:
+                return CONTACTS, step + 1
+            fs[TOUCHING] = 0.0
+        # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
+        # as nothing pushes) or time up
+        if t - cs[T0] >= cs[MIN_S]:
+            tol = cs[TOL]
+            if not (abs(target[0] - qpos[ns[IX]]) > 1.01 * tol or
+                    abs(target[1] - qpos[ns[IY]]) > 1.01 * tol):
+                err[0], err[1] = target[0] - qpos[ns[IX]], target[1] - qpos[ns[IY]]
+                if norm(err) < tol and norm(qvel[ns[VX]:ns[VX] + 2]) < cs[STILL]:
+                    return END, step + 1
+        if t >= cs[T_END]:
+            return END, step + 1
+    return READY, max_steps
+
+
+def enabled() -> bool:
+    """Compiled steps are on (``PATHPREF_COMPILED_STEPS`` is not ``0``) and available."""
+    return native.AVAILABLE and os.environ.get("PATHPREF_COMPILED_STEPS", "1") != "0"
+
+
+class Coaster:
+    """Runs the move phase of one base through :func:`_coast` (module docstring)."""
+
+    #: the most steps one kernel call takes before it hands back (a bound; a move is shorter)
+    MAX_STEPS = 1_000_000
+
+    def __init__(self, base):
+        self.base = base
+        self._data = None
+
+    @staticmethod
+    def applies(base) -> bool:
+        """The base's kind and setup are the ones the kernel mirrors (module docstring)."""
+        from .controller import ProfiledController
+        from .cue_detector import FilteredCueDetector
+        from .mobile_base import MobileBase
+
+        s, c = base.sensing, base.controller
+        return (enabled() and type(base) is MobileBase and s.sensor_model is not None
+                and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
+                and type(c) is ProfiledController and base.guidance is None)
+
+    def ready(self) -> bool:
+        """The next step is one the kernel mirrors: nothing pushes, no hook, no cue under way."""
+        b = self.base
+        s = b.sensing
+        f = s.faulty
+        return (not b.pushes and not b.pre_substep and not b.on_substep
+                and not b.external_forces and b._onset is None and not s.under_way
+                and f is not None and f._held is not None and s.estimator._qvel_mark is not None
+                and b._float_for is b.controller and b._float_control
+                and (not b.measure or b.measurements._f_measured is s.force_estimate))
+
+    def _bind(self) -> None:
+        b = self.base
+        d = self.data = b.data
+        self._time, self._ncon = native.scalar_views(d)
+        self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
+        m = b.model
+        self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
+        self._dv = np.zeros(m.nv)
+        self._data = d
+
+    def move(self, step) -> bool:
+        """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
+        kernel and, after a hand-back within a step, the rest of that step in Python; True
+        when the phase ended."""
+        b = self.base
+        if self._data is not b.data:
+            self._bind()
+        s, c, m = b.sensing, b.controller, b.measurements
+        f, est, det = s.faulty, s.estimator, s.detector
+        spec, cfg = f.spec, est.config
+        fs = np.zeros(N_FS)
+        fs[S0:S2 + 1] = f._sum
+        fs[NEXT_T], fs[WINDOW_S], fs[FRESH] = f._next_t, f.window_s, float(f.fresh)
+        fs[QUIET], fs[AT_REST] = est.quiet, float(est.at_rest)
+        fs[VAR], fs[ON], fs[OFF] = det.var, det.on_n, det.off_n
+        fs[VPX], fs[VPY] = m._v_prev
+        fs[T_PREV], fs[PEAK], fs[PEAK_PUSHED] = m._t_prev, m.peak_accel, m.peak_accel_pushed
+        fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, float(m._touching)
+        cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
+                       f.period, f._drift_step,
+                       spec.noise_n, f._extra_m, est.mass, cfg.bias_tau_s, cfg.still_mps,
+                       cfg.still_mps2, cfg.quiet_s, det._alpha, det._beta, det._gamma,
+                       det.base_on_n, det.base_off_n, det.on_k, det.off_k, step._t0,
+                       step._min_s, step._t_end, c.still_mps])
+        qcap = int(cfg.quiet_s / f.dt) + QUEUE_SLACK
+        epend = np.zeros((max(qcap, len(est._pending) + 1), 3))
+        for i, r in enumerate(est._pending):
+            epend[i] = r
+        dpend = np.zeros((max(det._hold_n + QUEUE_SLACK, len(det._pending) + 1), 2))
+        for i, p in enumerate(det._pending):
+            dpend[i] = p
+        ix, iy, iyaw = b._float_adr
+        a0, a1, a2 = b._float_act
+        ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
+                       s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
+                       int(cfg.compensate_inertia), int(spec.drift_n_per_sqrt_s > 0), 0,
+                       len(est._pending), 0,
+                       len(det._pending)], dtype=np.int64)
+        b._anchor = None
+        if not b.external_forces:
+            b._wrench().fill(0.0)
+        held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
+        d = self.data
+        reason, _ = _coast(b.model._address, d._address, self._time, self._ncon, b._qpos,
+                           b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
+                           f.bias, held, self._acc6, self._ma, self._x, est.bias,
+                           est._qvel_mark, est._jac, self._dv, eacc, eforce, epend, det.f,
+                           det.baseline, dpend, f.rng, fs, cs, ns, self.MAX_STEPS)
+        # --- the state back into the Python objects
+        f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
+        f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
+        f.fresh, f.window_s = bool(fs[FRESH]), float(fs[WINDOW_S])
+        if not np.array_equal(held, f._held, equal_nan=True):
+            f._held = held
+        new_estimate = not np.array_equal(eforce, est.force, equal_nan=True) or \
+            not np.array_equal(eacc, est.acc, equal_nan=True)
+        if new_estimate:
+            est.acc, est.force = eacc, eforce
+            s.force_estimate = est.force
+        est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
+        est._pending = deque(epend[(int(ns[E_HEAD]) + k) % len(epend)].copy()
+                             for k in range(int(ns[E_LEN])))
+        det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
+        det._pending = deque((float(dpend[(int(ns[D_HEAD]) + k) % len(dpend), 0]),
+                              float(dpend[(int(ns[D_HEAD]) + k) % len(dpend), 1]))
+                             for k in range(int(ns[D_LEN])))
+        if b.measure:
+            m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
+            m.peak_accel, m.peak_accel_pushed = float(fs[PEAK]), float(fs[PEAK_PUSHED])
+            m.peak_force, m._touching = float(fs[PEAK_FORCE]), bool(fs[TOUCHING])
+            m._f_measured = s.force_estimate
+        if self._time[0] != d.time:  # pragma: no cover - the views are checked when bound
+            raise RuntimeError("the compiled step's time view lost MjData's time")
+        return self._hand_back(reason, step, fs)
+
+    def _hand_back(self, reason: int, step, fs: np.ndarray) -> bool:
+        """Finish the step the kernel handed back within (Python), then the move's end check;
+        True when the phase ended."""
+        from ..errors import EpisodeError
+
+        b = self.base
+        if reason == DIVERGED:
+            raise EpisodeError(f"simulation diverged at t = {b.data.time:.3f} s "
+                               "(non-finite state)")
+        if reason == READY:
+            return False
+        if reason == END:
+            step.phase = None
+            return True
+        cue = None
+        if reason == DETECT:
+            cue = b.sensing.detector._decide(float(fs[EX]), float(fs[EY]))
+            cue = b._after_read(cue, None)
+        elif reason == CONTACTS:
+            b.measurements._contacts(b.data, (float(fs[VPX_OLD]), float(fs[VPY_OLD])))
+        return step._move_ended(cue)

@@ -1,0 +1,203 @@
+"""The C functions a compiled physics loop calls, the very ones the Python path calls.
+
+A numba kernel that steps MuJoCo and does the robot's arithmetic gives the same numbers as the
+Python loop only if every operation is the same IEEE operation in the same order. So:
+
+* MuJoCo's ``mj_step``, ``mj_objectAcceleration`` and ``mj_jacBodyCom`` are called by symbol
+  from the ``libmujoco`` the Python bindings loaded (the same library, on the ``MjModel`` and
+  ``MjData`` the bindings hold, through their ``_address``);
+* matrix-vector and dot products go to the ``cblas_dgemv`` and ``cblas_ddot`` of NumPy's own
+  OpenBLAS with the arguments NumPy passes for ``ndarray.dot`` (a C-ordered ``A`` row-major, a
+  transposed view column-major), so they pick the same CPU kernel (FMA or not) as NumPy;
+* :func:`hypot` is CPython's ``math.hypot`` of two floats (``vector_norm``: lossless scaling,
+  Dekker's products and a differential correction), not the C library's ``hypot``, which
+  differs in the last bit on about 1 in 200 inputs.
+
+``MjData``'s scalar ``time`` and ``ncon`` are not arrays in the bindings; :func:`scalar_views`
+finds their byte offsets in the struct once (the offsets whose values follow the bindings'
+attributes through changed states; everything scanned lies before the struct's ``qpos``
+pointer) and returns one-element NumPy views of them.
+
+:data:`AVAILABLE` is False (with :data:`WHY`) when a library or a symbol is missing: the
+callers then keep their Python path.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import glob
+import math
+import os
+
+import mujoco
+import numba as nb
+import numpy as np
+from numba import types
+
+#: mjtObj's mjOBJ_BODY
+OBJ_BODY = int(mujoco.mjtObj.mjOBJ_BODY)
+#: CBLAS's order and transpose codes
+ROW_MAJOR, COL_MAJOR, NO_TRANS = 101, 102, 111
+
+
+def _libraries() -> tuple[str, str]:
+    mj = glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*"))
+    blas = glob.glob(os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs",
+                                  "libscipy_openblas64_*.so"))
+    if len(mj) != 1 or len(blas) != 1:
+        raise OSError(f"libmujoco {mj} / NumPy's OpenBLAS {blas} not found exactly once")
+    return mj[0], blas[0]
+
+
+try:
+    from llvmlite import binding as _llvm
+
+    for _lib in _libraries():
+        _llvm.load_library_permanently(_lib)
+    AVAILABLE, WHY = True, ""
+except (OSError, RuntimeError) as exc:  # pragma: no cover - depends on the wheels installed
+    AVAILABLE, WHY = False, str(exc)
+
+_ptr, _i32, _i64, _f64 = types.voidptr, types.int32, types.int64, types.float64
+mj_step = types.ExternalFunction("mj_step", types.void(_ptr, _ptr))
+mj_objectAcceleration = types.ExternalFunction(
+    "mj_objectAcceleration", types.void(_ptr, _ptr, _i32, _i32, _ptr, _i32))
+mj_jacBodyCom = types.ExternalFunction("mj_jacBodyCom",
+                                       types.void(_ptr, _ptr, _ptr, _ptr, _i32))
+_dgemv = types.ExternalFunction(
+    "scipy_cblas_dgemv64_",
+    types.void(_i32, _i32, _i64, _i64, _f64, _ptr, _i64, _ptr, _i64, _f64, _ptr, _i64))
+_ddot = types.ExternalFunction("scipy_cblas_ddot64_", _f64(_i64, _ptr, _i64, _ptr, _i64))
+
+
+@nb.njit(cache=True, inline="always")
+def matvec(A, x, y):
+    """``y = A x`` for a C-ordered ``A`` (``A.dot(x)``: row-major ``gemv``)."""
+    m, n = A.shape
+    _dgemv(ROW_MAJOR, NO_TRANS, m, n, 1.0, A.ctypes.data, n, x.ctypes.data, 1, 0.0,
+           y.ctypes.data, 1)
+
+
+@nb.njit(cache=True, inline="always")
+def matTvec(A, x, y):
+    """``y = A^T x`` for a C-ordered square ``A`` (``A.T.dot(x)``: NumPy sees a Fortran-ordered
+    matrix and calls a column-major ``gemv`` on ``A``'s memory)."""
+    m, n = A.shape
+    _dgemv(COL_MAJOR, NO_TRANS, n, m, 1.0, A.ctypes.data, n, x.ctypes.data, 1, 0.0,
+           y.ctypes.data, 1)
+
+
+@nb.njit(cache=True, inline="always")
+def norm(v):
+    """``sqrt(v . v)`` as :func:`pathpref.sim.controller.norm` computes it (``ddot``)."""
+    return math.sqrt(_ddot(v.shape[0], v.ctypes.data, 1, v.ctypes.data, 1))
+
+
+@nb.njit(cache=True, inline="always")
+def _split(x):
+    t = x * 134217729.0  # Veltkamp's constant, 2^27 + 1 (Dekker 5.5, 5.6)
+    hi = t - (t - x)
+    return hi, x - hi
+
+
+@nb.njit(cache=True, inline="always")
+def _mul(x, y):
+    """``x y`` as an unevaluated sum ``hi + lo`` (Dekker 5.12)."""
+    xh, xl = _split(x)
+    yh, yl = _split(y)
+    p = xh * yh
+    q = xh * yl + xl * yh
+    z = p + q
+    return z, p - z + q + xl * yl
+
+
+@nb.njit(cache=True)
+def hypot(x, y):
+    """CPython's ``math.hypot(x, y)`` (``vector_norm`` of 3.11), bit for bit: with ``m`` the
+    larger magnitude scaled to ``[0.5, 1)`` by a power of two, the sum of squares is kept as
+    ``1 + csum`` with two error terms, ``h = sqrt(sum)`` corrected once by
+    ``(sum - h^2) / (2 h)``, then scaled back."""
+    ax, ay = abs(x), abs(y)
+    if math.isinf(ax) or math.isinf(ay):
+        return math.inf
+    if math.isnan(ax) or math.isnan(ay):
+        return math.nan
+    mx = max(ax, ay)
+    if mx == 0.0:
+        return mx
+    e = math.frexp(mx)[1]
+    if e < -1023:  # subnormal: CPython scales by DBL_MIN first
+        dmin = 2.2250738585072014e-308
+        return dmin * hypot(x / dmin, y / dmin)
+    scale = math.ldexp(1.0, -e)
+    csum, frac1, frac2 = 1.0, 0.0, 0.0
+    for v in (ax, ay):
+        ph, pl = _mul(v * scale, v * scale)
+        s = csum + ph
+        frac2 += (csum - s) + ph
+        csum = s
+        frac1 += pl
+    h = math.sqrt(csum - 1.0 + (frac1 + frac2))
+    ph, pl = _mul(-h, h)
+    s = csum + ph
+    frac2 += (csum - s) + ph
+    csum = s
+    frac1 += pl
+    h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
+    return h / scale
+
+
+def _struct_head(data: mujoco.MjData) -> bytes:
+    """The bytes of ``data``'s struct before its ``qpos`` pointer (all inside the struct)."""
+    target, base, chunks = data.qpos.ctypes.data, data._address, []
+    for k in range(1 << 16):  # 256 bytes at a time (the struct's pointers that follow qpos's
+        # take more): at most 16 MB, far beyond the scalars
+        chunk = ctypes.string_at(base + 256 * k, 256)
+        hit = np.flatnonzero(np.frombuffer(chunk, dtype=np.uint64) == target)
+        if len(hit):
+            return b"".join(chunks) + chunk[: int(hit[0]) * 8]
+        chunks.append(chunk)
+    raise RuntimeError("MjData's qpos pointer not found in its struct")
+
+
+def _find_offsets() -> tuple[int, int]:
+    """The byte offsets of ``time`` (float64) and ``ncon`` (int32) in ``mjData``: the only
+    offsets whose values equal the bindings' attributes in every one of several states (two
+    overlapping spheres, then apart; different times)."""
+    bodies = "".join(f'<body pos="{0.05 * i} 0 0"><freejoint/><geom size=".1"/></body>'
+                     for i in range(4))
+    xml = f"<mujoco><worldbody>{bodies}</worldbody></mujoco>"
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    t_off = c_off = None
+    for k, spread in enumerate((1.0, 0.0, 1.0, 5.0)):
+        data.qpos[0::7] = spread * np.arange(4) * 0.05
+        mujoco.mj_forward(model, data)
+        data.time = 98765.4321 + 7.0 * k
+        head = _struct_head(data)
+        f = np.frombuffer(head[: len(head) // 8 * 8], np.float64)
+        n = np.frombuffer(head[: len(head) // 4 * 4], np.int32)
+        t = set((np.flatnonzero(f == data.time) * 8).tolist())
+        c = set((np.flatnonzero(n == data.ncon) * 4).tolist())
+        t_off = t if t_off is None else t_off & t
+        c_off = c if c_off is None else c_off & c
+    if t_off is None or len(t_off) != 1 or c_off is None or len(c_off) != 1:
+        raise RuntimeError(f"MjData's time / ncon offsets not unique: {t_off} / {c_off}")
+    return t_off.pop(), c_off.pop()
+
+
+_OFFSETS: tuple[int, int] | None = None
+
+
+def scalar_views(data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
+    """One-element views of ``data.time`` (float64) and ``data.ncon`` (int32) in the struct
+    (valid while ``data`` lives; checked against the bindings' attributes)."""
+    global _OFFSETS
+    if _OFFSETS is None:
+        _OFFSETS = _find_offsets()
+    t_off, c_off = _OFFSETS
+    time = np.ctypeslib.as_array((ctypes.c_double * 1).from_address(data._address + t_off))
+    ncon = np.ctypeslib.as_array((ctypes.c_int32 * 1).from_address(data._address + c_off))
+    if time[0] != data.time or ncon[0] != data.ncon:
+        raise RuntimeError("MjData's time / ncon views disagree with the bindings")
+    return time, ncon

@@ -1,0 +1,196 @@
+"""The compiled steps of a move (:mod:`pathpref.sim.coasting`) give the Python path's numbers,
+bit for bit: whole episodes, and each way the kernel hands back (a detector that fires, a
+base that hits a wall, a state that is not finite), run with the kernel on and off on the same
+machine; the C functions it calls (:mod:`pathpref.sim.native`) against what NumPy and CPython
+compute."""
+
+from __future__ import annotations
+
+import math
+import os
+import pickle
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco  # noqa: E402
+import numba as nb  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
+from pathpref.episode import EpisodeSpec, Physics  # noqa: E402
+from pathpref.episode.runner import EpisodeRunner  # noqa: E402
+from pathpref.errors import EpisodeError  # noqa: E402
+from pathpref.geometry.world import load_world  # noqa: E402
+from pathpref.sim import coasting, native  # noqa: E402
+from pathpref.sim.body import scene_for  # noqa: E402
+from pathpref.sim.controller import ProfiledController  # noqa: E402
+from pathpref.sim.mobile_base import MobileBase  # noqa: E402
+from pathpref.sim.sensing import SensorModel  # noqa: E402
+
+pytestmark = pytest.mark.skipif(not native.AVAILABLE, reason=f"no native calls: {native.WHY}")
+
+
+@pytest.fixture
+def reasons(monkeypatch):
+    """Counts the kernel's hand-back reasons (and steps) while the test runs."""
+    seen = {"steps": 0}
+    kernel = coasting._coast
+
+    def counted(*args):
+        reason, steps = kernel(*args)
+        seen[reason] = seen.get(reason, 0) + 1
+        seen["steps"] += steps
+        return reason, steps
+
+    monkeypatch.setattr(coasting, "_coast", counted)
+    return seen
+
+
+def _both(monkeypatch, run):
+    """``run()`` with the compiled steps off, then on: the two results."""
+    out = []
+    for flag in ("0", "1"):
+        monkeypatch.setenv("PATHPREF_COMPILED_STEPS", flag)
+        out.append(run())
+    return out
+
+
+def _state(base) -> bytes:
+    """Everything a step changes, as bytes (exact comparison)."""
+    d, s = base.data, base.sensing
+    return pickle.dumps((
+        d.time, d.qpos.tobytes(), d.qvel.tobytes(), d.ctrl.tobytes(),
+        [(f.cell, f.heading, f.t_felt, f.t_cue, f.peak_n, f.impulse) for f in base.felt],
+        sorted(base.physical_metrics().items()), base.controller.last.tobytes(),
+        s.force_estimate.tobytes(), s.estimator.bias.tobytes(), s.estimator.quiet,
+        s.estimator.at_rest, [r.tobytes() for r in s.estimator._pending],
+        s.faulty.bias.tobytes(), s.faulty._sum, s.faulty._count, s.faulty._next_t,
+        s.faulty._held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
+        s.detector.var, s.detector.on_n, s.detector.off_n, list(s.detector._pending),
+        s.detector.active, s.faulty.rng.bit_generator.state["state"]))
+
+
+@pytest.mark.parametrize("map_name,instance", [("simple", 0), ("simple", 3), ("office", 1)])
+def test_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons, map_name, instance):
+    """A realistic physical episode (``Physics()``: faulty sensor, estimator, filtered
+    detector, measurements): the same final state, cues, metrics and noise stream."""
+    def run():
+        spec = EpisodeSpec.single(map_name, "path_preference", 5, seed=11, instance=instance,
+                                  sim="mujoco", t_max=12, physics=Physics().to_json())
+        runner = EpisodeRunner(spec)
+        while not runner.done:
+            runner.step()
+        return _state(runner.body.base), [(s.t, s.x, s.y, s.action) for s in runner.result.log]
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+    assert reasons["steps"] > 1000  # the kernel ran most of the moves
+
+
+def _base(detector=None):
+    world = load_world("simple")
+    base = MobileBase(scene_for(world), sensor_model=SensorModel.realistic(),
+                      rng=np.random.default_rng(7), detector=detector)
+    base.controller = ProfiledController()
+    base.measure = True
+    base.reset(world.cell((3, 3)))
+    return base, world
+
+
+def test_a_detector_that_fires_mid_move_hands_back_the_same(monkeypatch, reasons):
+    """A hair-trigger detector (2.5 N onset, not scaled to the noise) under 2 N noise fires in
+    moves: the onset rule and the cues run in Python from the step the kernel handed back."""
+    def run():
+        base, world = _base({"on_n": 2.5, "off_n": 1.5, "on_k": 0.0, "off_k": 0.0})
+        for cell in ((8, 3), (8, 8), (3, 8), (3, 3)):
+            base.move_to(world.cell(cell))
+        return _state(base), len(base.felt)
+
+    off, on = _both(monkeypatch, run)
+    assert off == on and off[1] > 0
+    assert reasons.get(coasting.DETECT, 0) > 0
+
+
+def test_a_base_against_a_wall_hands_back_the_same(monkeypatch, reasons):
+    """A target beyond the map's wall: the base drives into it until the move's time limit;
+    the contact measurements run in Python at each step with a contact."""
+    def run():
+        base, world = _base()
+        step = base.decision.move(world.cell((1, 1)), limit_s=4.0)
+        base.target = np.array([-1.0, -1.0])  # outside the walls
+        step.run()
+        return _state(base), base.physical_metrics()["collisions"]
+
+    off, on = _both(monkeypatch, run)
+    assert off == on and off[1] >= 1
+    assert reasons.get(coasting.CONTACTS, 0) > 0
+
+
+def test_a_state_that_is_not_finite_ends_the_same(monkeypatch):
+    """A NaN velocity before a move: whatever MuJoCo and the base make of it (an error or a
+    state), the same with the kernel."""
+    def run():
+        base, world = _base()
+        base.substep()  # the float path decided, the first step taken in Python
+        base.data.qvel[0] = np.nan
+        try:
+            base.move_to(world.cell((5, 3)))
+        except EpisodeError as exc:
+            return str(exc)
+        return _state(base)
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+
+
+def test_hypot_is_cpythons():
+    """CPython's ``math.hypot``, exactly, over magnitudes from subnormal to huge (the C
+    library's ``hypot`` differs on about 1 in 200 of these) and the special values."""
+    rng = np.random.default_rng(0)
+    pairs = rng.normal(size=(200_000, 2)) * 10.0 ** rng.uniform(-320, 300, size=(200_000, 2))
+    special = [0.0, -0.0, 5e-324, 1e-310, 1.0, math.inf, -math.inf, math.nan, 1.7e308]
+    pairs = np.concatenate([pairs, [(a, b) for a in special for b in special]])
+    many = nb.njit(lambda p: [native.hypot(p[i, 0], p[i, 1]) for i in range(len(p))])
+    got = np.array(many(pairs))
+    want = np.array([math.hypot(a, b) for a, b in pairs])
+    assert np.array_equal(got, want, equal_nan=True)
+
+
+def test_blas_products_are_numpys():
+    """``A x``, ``A^T x`` and ``sqrt(v . v)`` through NumPy's OpenBLAS give ``ndarray.dot``'s
+    bits (the kernel NumPy picks for this CPU, FMA or not)."""
+    @nb.njit
+    def products(A, x, y, yt, v):
+        native.matvec(A, x, y)
+        if A.shape[0] == A.shape[1]:
+            native.matTvec(A, x[: A.shape[0]], yt)
+        return native.norm(v)
+
+    rng = np.random.default_rng(1)
+    for n in (3, 3, 3, 7, 9):
+        for _ in range(2000):
+            A = rng.normal(size=(3, n)) * 10.0 ** rng.uniform(-3, 3)
+            x, v = rng.normal(size=n), rng.normal(size=rng.integers(2, 4))
+            y, yt = np.empty(3), np.empty(3)
+            r = products(A, x, y, yt, v)
+            assert np.array_equal(y, A.dot(x))
+            if n == 3:
+                assert np.array_equal(yt, A.T.dot(x))
+            assert r == math.sqrt(v.dot(v))
+
+
+def test_scalar_views_follow_mjdata():
+    """The views of ``time`` and ``ncon`` read what the bindings read, through steps and
+    contacts."""
+    xml = ('<mujoco><worldbody><geom type="plane" size="5 5 .1"/>'
+           '<body pos="0 0 .3"><freejoint/><geom size=".1"/></body></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    time, ncon = native.scalar_views(data)
+    seen = set()
+    for _ in range(400):
+        mujoco.mj_step(model, data)
+        assert time[0] == data.time and ncon[0] == data.ncon
+        seen.add(int(data.ncon))
+    assert seen == {0, 1}  # it fell onto the plane
