@@ -71,13 +71,18 @@ def _state(base) -> bytes:
         s.detector.active, s.faulty.rng.bit_generator.state["state"]))
 
 
-@pytest.mark.parametrize("map_name,instance", [("simple", 0), ("simple", 3), ("office", 1)])
-def test_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons, map_name, instance):
+@pytest.mark.parametrize("map_name,instance,timing", [
+    ("simple", 0, "decision"), ("simple", 3, "decision"), ("office", 1, "decision"),
+    ("simple", 1, "interval"), ("office", 2, "corrective")])
+def test_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons, map_name, instance,
+                                                   timing):
     """A realistic physical episode (``Physics()``: faulty sensor, estimator, filtered
-    detector, measurements): the same final state, cues, metrics and noise stream."""
+    detector, measurements; pushes at decisions, or at any time from the simulated human, the
+    kernel running up to each push): the same final state, cues, metrics and noise stream."""
     def run():
+        physics = Physics() if timing == "decision" else Physics.of(timing=timing)
         spec = EpisodeSpec.single(map_name, "path_preference", 5, seed=11, instance=instance,
-                                  sim="mujoco", t_max=12, physics=Physics().to_json())
+                                  sim="mujoco", t_max=12, physics=physics.to_json())
         runner = EpisodeRunner(spec)
         while not runner.done:
             runner.step()

@@ -20,7 +20,8 @@ something (the contact measurements, :data:`CONTACTS`), or the move ends (:data:
 settled, or its time is up). It runs only where it applies (:meth:`Coaster.applies`,
 :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase` on the profiled
 controller's float path, the faulty sensor without thermal drift and its estimator, the
-filtered detector idle, no pushes, guidance, hooks or external forces. Every other step takes
+filtered detector idle, no pushes, guidance or external forces, no hook but a quiet one (the
+simulated human of pushes at any time runs the kernel up to its next push). Every other step takes
 the Python path (the control-rate tasks too: they advance one physics step per call).
 ``PATHPREF_COMPILED_STEPS=0`` turns it off.
 """
@@ -55,7 +56,7 @@ READY, END, DETECT, CONTACTS, DIVERGED = range(5)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, MASS,
  BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, ALPHA, BETA, GAMMA, BASE_ON, BASE_OFF, ON_K, OFF_K,
- T0, MIN_S, T_END, STILL, N_CS) = range(29)
+ T0, MIN_S, T_END, STILL, T_STOP, N_CS) = range(30)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, COMPENSATE, DRIFT,
  E_HEAD, E_LEN, D_HEAD, D_LEN, N_IS) = range(20)
@@ -79,6 +80,8 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
     vel = np.empty(3)
     err = np.empty(2)
     for step in range(max_steps):
+        if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
+            return READY, step
         # --- MobileBase._control, float path: ProfiledController.goal_xy and ramp_xy
         px, py = qpos[ns[IX]], qpos[ns[IY]]
         ex, ey = target[0] - px, target[1] - py
@@ -300,12 +303,23 @@ class Coaster:
                 and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
                 and type(c) is ProfiledController and base.guidance is None)
 
+    def _quiet_until(self) -> float:
+        """The time before which every ``pre_substep`` hook does nothing (each says so with a
+        ``quiet_until()``, e.g. :class:`~.pushing_human.PushingHuman`; -inf: one cannot)."""
+        t = math.inf
+        for hook in self.base.pre_substep:
+            quiet = getattr(hook, "quiet_until", None)
+            t = min(t, -math.inf if quiet is None else quiet())
+        return t
+
     def ready(self) -> bool:
-        """The next step is one the kernel mirrors: nothing pushes, no hook, no cue under way."""
+        """The next step is one the kernel mirrors: nothing pushes, no ``on_substep`` hook,
+        every ``pre_substep`` hook quiet now, no cue under way."""
         b = self.base
         s = b.sensing
         f = s.faulty
-        return (not b.pushes and not b.pre_substep and not b.on_substep
+        return (not b.pushes and not b.on_substep
+                and (not b.pre_substep or b.data.time < self._quiet_until())
                 and not b.external_forces and b._onset is None and not s.under_way
                 and f is not None and f._held is not None and s.estimator._qvel_mark is not None
                 and b._float_for is b.controller and b._float_control
@@ -344,7 +358,7 @@ class Coaster:
                        spec.noise_n, f._extra_m, est.mass, cfg.bias_tau_s, cfg.still_mps,
                        cfg.still_mps2, cfg.quiet_s, det._alpha, det._beta, det._gamma,
                        det.base_on_n, det.base_off_n, det.on_k, det.off_k, step._t0,
-                       step._min_s, step._t_end, c.still_mps])
+                       step._min_s, step._t_end, c.still_mps, self._quiet_until()])
         qcap = int(cfg.quiet_s / f.dt) + QUEUE_SLACK
         epend = np.zeros((max(qcap, len(est._pending) + 1), 3))
         for i, r in enumerate(est._pending):

@@ -25,6 +25,7 @@ robot heads the wrong way (:class:`~pathpref.episode.physics.HumanModel` holds t
 
 from __future__ import annotations
 
+import math
 from collections import deque
 from collections.abc import Callable
 
@@ -104,6 +105,11 @@ class PushingHuman:
         if self.rng.random() < chance and self.next_t is None:
             delay = max(0.05, p.reaction_s * (1.0 + 0.25 * self.rng.standard_normal()))
             self.next_t = float(self.base.data.time) + delay
+
+    def quiet_until(self) -> float:
+        """The simulated time before which :meth:`__call__` does nothing (the next push's
+        start; infinity while none is due): the compiled steps of :mod:`.coasting` run to it."""
+        return math.inf if self.next_t is None else self.next_t
 
     def __call__(self, base) -> None:
         """Before a physics step: begin a push when one is due."""
