@@ -132,9 +132,11 @@ def test_a_base_against_a_wall_hands_back_the_same(monkeypatch, reasons):
     assert reasons.get(coasting.CONTACTS, 0) > 0
 
 
-def test_a_state_that_is_not_finite_ends_the_same(monkeypatch):
+def test_a_state_that_is_not_finite_ends_the_same(monkeypatch, tmp_path):
     """A NaN velocity before a move: whatever MuJoCo and the base make of it (an error or a
-    state), the same with the kernel."""
+    state; MuJoCo resets the data and logs a warning to ``MUJOCO_LOG.TXT`` in the working
+    directory, here a temporary one), the same with the kernel."""
+    monkeypatch.chdir(tmp_path)
     def run():
         base, world = _base()
         base.substep()  # the float path decided, the first step taken in Python
