@@ -201,3 +201,23 @@ def test_scalar_views_follow_mjdata():
         assert time[0] == data.time and ncon[0] == data.ncon
         seen.add(int(data.ncon))
     assert seen == {0, 1}  # it fell onto the plane
+
+
+@pytest.mark.parametrize("task,physics,coasts", [
+    ("navigate", Physics(), True),
+    ("navigate", None, False),  # legacy: ideal sensor, plain detector
+    ("navigate", Physics.of(base="diffdrive"), False),
+    ("carry", Physics(), False),
+    ("navigate", Physics.of(timing="guidance"), False),
+])
+def test_only_the_setups_it_mirrors_coast(task, physics, coasts):
+    """The kernel runs for the plain base with the realistic chain only; the differential
+    drive, the arm, the legacy sensing and guidance keep the Python path."""
+    from pathpref.sim.body import base_params, build_base
+
+    world = load_world("simple")
+    scene = scene_for(world, task=task, base=None if physics is None else base_params(physics))
+    base = build_base(scene, task, physics, np.random.default_rng(0))
+    if physics is not None and physics.human.timing == "guidance":
+        base.enable_guidance(2.0, 20.0)
+    assert (base.coaster is not None) is coasts

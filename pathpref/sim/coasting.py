@@ -36,6 +36,8 @@ import numba as nb
 import numpy as np
 
 from . import native
+from .controller import ProfiledController
+from .cue_detector import FilteredCueDetector
 from .native import (
     OBJ_BODY,
     hypot,
@@ -293,13 +295,10 @@ class Coaster:
 
     @staticmethod
     def applies(base) -> bool:
-        """The base's kind and setup are the ones the kernel mirrors (module docstring)."""
-        from .controller import ProfiledController
-        from .cue_detector import FilteredCueDetector
-        from .mobile_base import MobileBase
-
+        """The base's setup is one the kernel mirrors (module docstring; the base checks its
+        own kind: a plain :class:`~.mobile_base.MobileBase`)."""
         s, c = base.sensing, base.controller
-        return (enabled() and type(base) is MobileBase and s.sensor_model is not None
+        return (enabled() and s.sensor_model is not None
                 and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
                 and type(c) is ProfiledController and base.guidance is None)
 

@@ -149,8 +149,8 @@ class MobileBase:
     @property
     def coaster(self) -> Coaster | None:
         """The compiled steps of a move with nothing pushing (:mod:`.coasting`) when they
-        apply to this base as it is set up now, else None."""
-        if not Coaster.applies(self):
+        apply to this base as it is set up now, else None (a subclass steps otherwise)."""
+        if type(self) is not MobileBase or not Coaster.applies(self):
             return None
         if self._coaster is None:
             self._coaster = Coaster(self)
