@@ -221,3 +221,33 @@ def test_only_the_setups_it_mirrors_coast(task, physics, coasts):
     if physics is not None and physics.human.timing == "guidance":
         base.enable_guidance(2.0, 20.0)
     assert (base.coaster is not None) is coasts
+
+
+def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
+    """The kernel hands back within the step whose force crosses the detector's onset: the
+    rest of that step (the onset rule, the measurements of its force) runs in Python. Stopped
+    right there, the two paths agree, the peak push estimate included. Without the low-pass
+    (``tau_s`` 0) the estimate crosses at a sensor sample: a new estimate, the largest so far,
+    that only that step's measurement sees."""
+    settings = {"on_n": 2.5, "off_n": 1.5, "on_k": 0.0, "off_k": 0.0, "tau_s": 0.0}
+
+    def start():
+        base, world = _base(settings)
+        step = base.decision.move(world.cell((8, 3)), limit_s=3.0)
+        base.substep()  # the float path decided
+        return base, step
+
+    monkeypatch.setenv("PATHPREF_COMPILED_STEPS", "1")
+    seen = []
+    kernel = coasting._coast
+    monkeypatch.setattr(coasting, "_coast", lambda *a: seen.append(kernel(*a)) or seen[-1])
+    base, step = start()
+    assert base.coaster.ready()
+    base.coaster.move(step)
+    assert seen[0][0] == coasting.DETECT and base.faulty.fresh
+    t_on, on = base.data.time, _state(base)
+    monkeypatch.setenv("PATHPREF_COMPILED_STEPS", "0")
+    base, step = start()
+    while base.data.time < t_on:
+        step.advance()
+    assert base.data.time == t_on and _state(base) == on

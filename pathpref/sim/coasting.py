@@ -404,7 +404,10 @@ class Coaster:
             m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
             m.peak_accel, m.peak_accel_pushed = float(fs[PEAK]), float(fs[PEAK_PUSHED])
             m.peak_force, m._touching = float(fs[PEAK_FORCE]), bool(fs[TOUCHING])
-            m._f_measured = s.force_estimate
+            if not (reason == DETECT and new_estimate and f.fresh):
+                # measured by the kernel (a step handed back at an onset is measured in
+                # Python, with a new estimate if its sample gave one)
+                m._f_measured = s.force_estimate
         if self._time[0] != d.time:  # pragma: no cover - the views are checked when bound
             raise RuntimeError("the compiled step's time view lost MjData's time")
         return self._hand_back(reason, step, fs)
