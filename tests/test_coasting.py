@@ -71,6 +71,7 @@ def _state(base) -> bytes:
         s.detector.active, s.faulty.rng.bit_generator.state["state"]))
 
 
+@pytest.mark.cross_cpu
 @pytest.mark.parametrize("map_name,instance,timing", [
     ("simple", 0, "decision"), ("simple", 3, "decision"), ("office", 1, "decision"),
     ("simple", 1, "interval"), ("office", 2, "corrective")])
@@ -103,6 +104,7 @@ def _base(detector=None):
     return base, world
 
 
+@pytest.mark.cross_cpu
 def test_a_detector_that_fires_mid_move_hands_back_the_same(monkeypatch, reasons):
     """A hair-trigger detector (2.5 N onset, not scaled to the noise) under 2 N noise fires in
     moves: the onset rule and the cues run in Python from the step the kernel handed back."""
@@ -117,6 +119,7 @@ def test_a_detector_that_fires_mid_move_hands_back_the_same(monkeypatch, reasons
     assert reasons.get(coasting.DETECT, 0) > 0
 
 
+@pytest.mark.cross_cpu
 def test_a_base_against_a_wall_hands_back_the_same(monkeypatch, reasons):
     """A target beyond the map's wall: the base drives into it until the move's time limit;
     the contact measurements run in Python at each step with a contact."""
@@ -164,6 +167,7 @@ def test_hypot_is_cpythons():
     assert np.array_equal(got, want, equal_nan=True)
 
 
+@pytest.mark.cross_cpu
 def test_blas_products_are_numpys():
     """``A x``, ``A^T x`` and ``sqrt(v . v)`` through NumPy's OpenBLAS give ``ndarray.dot``'s
     bits (the kernel NumPy picks for this CPU, FMA or not)."""
@@ -223,6 +227,7 @@ def test_only_the_setups_it_mirrors_coast(task, physics, coasts):
     assert (base.coaster is not None) is coasts
 
 
+@pytest.mark.cross_cpu
 def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
     """The kernel hands back within the step whose force crosses the detector's onset: the
     rest of that step (the onset rule, the measurements of its force) runs in Python. Stopped
