@@ -28,7 +28,7 @@ from pathpref.sim.controller import ProfiledController  # noqa: E402
 from pathpref.sim.mobile_base import MobileBase  # noqa: E402
 from pathpref.sim.sensing import SensorModel  # noqa: E402
 
-pytestmark = pytest.mark.skipif(not native.AVAILABLE, reason=f"no native calls: {native.WHY}")
+pytestmark = pytest.mark.skipif(not native.ready(), reason=f"no compiled path: {native.WHY}")
 
 
 @pytest.fixture

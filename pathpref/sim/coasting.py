@@ -280,7 +280,7 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
 
 def enabled() -> bool:
     """Compiled steps are on (``PATHPREF_COMPILED_STEPS`` is not ``0``) and available."""
-    return native.AVAILABLE and os.environ.get("PATHPREF_COMPILED_STEPS", "1") != "0"
+    return os.environ.get("PATHPREF_COMPILED_STEPS", "1") != "0" and native.ready()
 
 
 class Coaster:

@@ -18,8 +18,8 @@ finds their byte offsets in the struct once (the offsets whose values follow the
 attributes through changed states; everything scanned lies before the struct's ``qpos``
 pointer) and returns one-element NumPy views of them.
 
-:data:`AVAILABLE` is False (with :data:`WHY`) when a library or a symbol is missing: the
-callers then keep their Python path.
+:func:`ready` is False (with :data:`WHY`) when a library, a symbol or an offset is missing:
+the callers then keep their Python path.
 """
 
 from __future__ import annotations
@@ -49,10 +49,17 @@ def _libraries() -> tuple[str, str]:
     return mj[0], blas[0]
 
 
+#: the symbols the kernels call, by library (checked before numba is asked to link them)
+SYMBOLS = (("mj_step", "mj_objectAcceleration", "mj_jacBodyCom"),
+           ("scipy_cblas_dgemv64_", "scipy_cblas_ddot64_"))
+
 try:
     from llvmlite import binding as _llvm
 
-    for _lib in _libraries():
+    for _lib, _names in zip(_libraries(), SYMBOLS, strict=True):
+        _missing = [n for n in _names if not hasattr(ctypes.CDLL(_lib), n)]
+        if _missing:
+            raise OSError(f"{os.path.basename(_lib)} lacks {', '.join(_missing)}")
         _llvm.load_library_permanently(_lib)
     AVAILABLE, WHY = True, ""
 except (OSError, RuntimeError) as exc:  # pragma: no cover - depends on the wheels installed
@@ -189,12 +196,25 @@ def _find_offsets() -> tuple[int, int]:
 _OFFSETS: tuple[int, int] | None = None
 
 
+def ready() -> bool:
+    """Whether the compiled path can run here: the libraries and symbols found
+    (:data:`AVAILABLE`) and ``MjData``'s offsets found (once per process; else :data:`WHY`
+    says why and the callers keep their Python path)."""
+    global _OFFSETS, AVAILABLE, WHY
+    if AVAILABLE and _OFFSETS is None:
+        try:
+            _OFFSETS = _find_offsets()
+        except RuntimeError as exc:  # pragma: no cover - another MuJoCo's struct
+            AVAILABLE, WHY = False, str(exc)
+    return AVAILABLE
+
+
 def scalar_views(data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
     """One-element views of ``data.time`` (float64) and ``data.ncon`` (int32) in the struct
-    (valid while ``data`` lives; checked against the bindings' attributes)."""
-    global _OFFSETS
-    if _OFFSETS is None:
-        _OFFSETS = _find_offsets()
+    (valid while ``data`` lives; checked against the bindings' attributes; call after
+    :func:`ready`)."""
+    if not ready():
+        raise RuntimeError(f"no compiled path here: {WHY}")
     t_off, c_off = _OFFSETS
     time = np.ctypeslib.as_array((ctypes.c_double * 1).from_address(data._address + t_off))
     ncon = np.ctypeslib.as_array((ctypes.c_int32 * 1).from_address(data._address + c_off))
