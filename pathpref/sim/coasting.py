@@ -278,6 +278,11 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
     return READY, max_steps
 
 
+def _queue(ring: np.ndarray, head: int, n: int) -> np.ndarray:
+    """The ``n`` rows of a ring buffer from ``head`` on, oldest first (a new array)."""
+    return ring[(head + np.arange(n)) % len(ring)]
+
+
 def enabled() -> bool:
     """Compiled steps are on (``PATHPREF_COMPILED_STEPS`` is not ``0``) and available."""
     return os.environ.get("PATHPREF_COMPILED_STEPS", "1") != "0" and native.ready()
@@ -360,11 +365,11 @@ class Coaster:
                        step._min_s, step._t_end, c.still_mps, self._quiet_until()])
         qcap = int(cfg.quiet_s / f.dt) + QUEUE_SLACK
         epend = np.zeros((max(qcap, len(est._pending) + 1), 3))
-        for i, r in enumerate(est._pending):
-            epend[i] = r
+        if est._pending:
+            epend[: len(est._pending)] = est._pending
         dpend = np.zeros((max(det._hold_n + QUEUE_SLACK, len(det._pending) + 1), 2))
-        for i, p in enumerate(det._pending):
-            dpend[i] = p
+        if det._pending:
+            dpend[: len(det._pending)] = det._pending
         ix, iy, iyaw = b._float_adr
         a0, a1, a2 = b._float_act
         ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
@@ -394,12 +399,10 @@ class Coaster:
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
         est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
-        est._pending = deque(epend[(int(ns[E_HEAD]) + k) % len(epend)].copy()
-                             for k in range(int(ns[E_LEN])))
+        est._pending = deque(_queue(epend, int(ns[E_HEAD]), int(ns[E_LEN])))
         det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
-        det._pending = deque((float(dpend[(int(ns[D_HEAD]) + k) % len(dpend), 0]),
-                              float(dpend[(int(ns[D_HEAD]) + k) % len(dpend), 1]))
-                             for k in range(int(ns[D_LEN])))
+        rows = _queue(dpend, int(ns[D_HEAD]), int(ns[D_LEN]))
+        det._pending = deque(zip(rows[:, 0].tolist(), rows[:, 1].tolist(), strict=True))
         if b.measure:
             m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
             m.peak_accel, m.peak_accel_pushed = float(fs[PEAK]), float(fs[PEAK_PUSHED])
