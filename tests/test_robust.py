@@ -253,3 +253,64 @@ def test_goal_known_plans_with_a_one_hot_goal():
         runner.step()
     assert runner.result.goal_reached
     assert runner.policy.belief.goal_marginal()[runner.instance.true_goal] == 1.0
+
+
+def test_waiting_preset_is_the_robust_one_plus_waiting():
+    """``robust-wait`` differs from ``robust`` in ``wait_for_pushes`` only; the default robust
+    search does not wait."""
+    from dataclasses import replace
+
+    wait = get_preset("robust-wait")
+    assert wait.wait_for_pushes and not ROBUST.wait_for_pushes
+    assert replace(wait, name="robust", wait_for_pushes=False) == ROBUST
+
+
+def test_simulated_headings_follow_the_likelihood(simple):
+    """The search's simulated push (:func:`guided._heading`) draws heading ``h`` with
+    probability ``P(h | s, g, p_v) / sum_h' P(h' | s, g, p_v)``, for every slot of a cell:
+    200,000 draws per slot within 5 standard errors of each probability."""
+    import numba as nb
+
+    from pathpref.planning.guided import _heading
+
+    goals = np.array([simple.cell((1, 8)), simple.cell((9, 2))])
+    lik = ObservationModel.build(simple, goals).cell_likelihood
+    s = simple.cell((4, 2))
+
+    @nb.njit
+    def draws(s, gi, kv, G, flat, off, slots, n, seed):
+        np.random.seed(seed)
+        out = np.zeros(8, np.int64)
+        for _ in range(n):
+            out[_heading(s, gi, kv, G, flat, off, slots)] += 1
+        return out
+
+    n = 200_000
+    for gi in range(2):
+        for kv in range(int(lik.slots[s])):
+            p = lik[s][:, gi, kv] / lik[s][:, gi, kv].sum()
+            got = draws(s, gi, kv, 2, lik.flat, lik.offsets.astype(np.int64),
+                        lik.slots.astype(np.int64), n, 7) / n
+            assert np.all(np.abs(got - p) <= 5 * np.sqrt(p * (1 - p) / n) + 1e-12), (gi, kv)
+
+
+def test_waiting_adds_the_stay_move_and_bounded_nodes(simple):
+    """With a route-prior belief and a push expected every step, the waiting search tries the
+    stay move (the cell's first blocked move) at a cell beside a wall, the default search never
+    does; a simulation adds at most two nodes (a heading's, an action's)."""
+    goals = np.array([simple.cell((9, 9)), simple.cell((9, 1))])
+    model = ObservationModel.build(simple, goals)
+    s = simple.cell((1, 4))  # beside the west wall: W, SW, NW blocked
+    blocked = simple.motion.blocked[s]
+    stay = int(np.flatnonzero(blocked)[0])
+    b = RouteBelief(model)
+    b.update(s, ACTION_NAMES.index("E"))
+    rewards = ROBUST.path_preference.for_mission(30)
+    plain = POMCP(simple, goals, rewards, queries=2000, tables=model.tables)
+    wait = POMCP(simple, goals, rewards, queries=2000, tables=model.tables,
+                 likelihood=model.cell_likelihood)
+    r0 = plain.search(s, b, 30, 3, [], (1, 1))
+    r1 = wait.search(s, b, 30, 3, [], (1, 1))
+    assert r0.visits[blocked].sum() == 0
+    assert r1.visits[stay] > 0 and r1.visits[blocked].sum() == r1.visits[stay]
+    assert r1.nodes <= 2 * 2000 + 1 and r0.nodes <= 2000 + 1

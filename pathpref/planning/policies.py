@@ -128,7 +128,9 @@ class PlannerPolicy(Policy):
         self.planner = POMCP(ctx.world, ctx.model.goals, rewards.for_mission(ctx.t_max),
                              queries=p.queries, c=p.ucb_c,
                              tables=ctx.model.tables if robust else None,
-                             budget_ms=p.time_budget_ms if robust else 0.0)
+                             budget_ms=p.time_budget_ms if robust else 0.0,
+                             likelihood=ctx.model.cell_likelihood
+                             if robust and p.wait_for_pushes else None)
         self.history: list[tuple[int, int]] = []
         self.input_steps: list[int] = []
 

@@ -27,6 +27,7 @@ from ..errors import ConfigError, EpisodeError
 from ..geometry.world import World
 from ..inference.belief import Belief
 from ..inference.costs import CostTables
+from ..inference.human import CellTable
 from ..inference.routes import components
 from .guided import observed_first_trees, rollout_moves, search_robust, tree_pool
 from .pomdp import Rewards
@@ -176,10 +177,15 @@ class POMCP:
             :mod:`pathpref.planning.guided` (guided rollouts, scaled exploration, preferred
             crossings paid once per episode); None is the paper's search.
         budget_ms: wall-time budget per decision for the robust search (0: ``queries`` only).
+        likelihood: the human model's per-cell heading likelihood
+            (:attr:`~pathpref.inference.human.ObservationModel.cell_likelihood`); given, the
+            robust search waits for the pushes it expects (:mod:`.guided`, 7;
+            :attr:`~.pomdp.Preset.wait_for_pushes`).
     """
 
     def __init__(self, world: World, goals: np.ndarray, rewards: Rewards, queries: int = 5000,
-                 c: float = 1.0, tables: CostTables | None = None, budget_ms: float = 0.0):
+                 c: float = 1.0, tables: CostTables | None = None, budget_ms: float = 0.0,
+                 likelihood: CellTable | None = None):
         m = world.motion
         self.world = world
         self.rewards = rewards
@@ -203,6 +209,14 @@ class POMCP:
                               "reward, the paper's search with the additive one")
         self.tables = tables
         self.budget_s = float(budget_ms) / 1000.0
+        #: the heading likelihood's flat table, offsets and slot counts (empty: no waiting)
+        self.wait = likelihood is not None
+        if likelihood is None:
+            self._lik = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
+        else:
+            self._lik = (np.ascontiguousarray(likelihood.flat, dtype=np.float64),
+                         np.asarray(likelihood.offsets, dtype=np.int64),
+                         np.asarray(likelihood.slots, dtype=np.int64))
         #: the last root pool and the distribution it was drawn from (:meth:`_pool`)
         self._kept_pool: tuple | None = None
         self.pools_drawn = 0
@@ -247,7 +261,7 @@ class POMCP:
                 self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
                 r.use_preference, int(seed) % (2**32), self.budget_s,
                 *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1),
-                TIE_Z, self.moves)
+                TIE_Z, self.moves, *self._lik, self.wait)
             return SearchResult(int(a), visits, values, int(nodes), int(done))
         a, visits, values, nodes = _search(
             self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,

@@ -1,0 +1,92 @@
+"""Two presets on the same episodes: strict, homotopy-level and goal-reached counts per map and
+ΔT, and the exact two-sided sign test on the discordant pairs of strict success.
+
+    .venv/bin/python scripts/paired_presets.py --presets robust robust-wait --delta-t 1 5 \\
+        --instances 6 --runs 4 --workers 2 \\
+        --maps classroom office simple examples/maps/atrium.json examples/maps/hall.json \\
+               examples/maps/lab.json examples/maps/warehouse.json
+
+Every episode is ``path_preference`` with the consistent human (the spec of ``pathpref
+evaluate --seed 0``: instance ``i``, run ``r``), so the two presets see the same start, goals,
+true goal and human draws; a pair is discordant when one preset succeeds and the other does
+not. ``--out FILE`` writes every episode's outcome as JSON lines.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from collections import defaultdict
+from concurrent.futures import ProcessPoolExecutor
+from math import comb
+from pathlib import Path
+
+os.environ.setdefault("MUJOCO_GL", "disable")
+
+
+def one(job: tuple[str, str, int, int, int]) -> dict:
+    """One episode ``(preset, map, delta_t, instance, run)``: its outcome."""
+    from pathpref.episode import EpisodeSpec
+    from pathpref.episode.runner import run_episode
+
+    preset, map_name, dt, inst, run = job
+    r = run_episode(EpisodeSpec.single(map_name, "path_preference", dt, seed=0, instance=inst,
+                                       run=run, human="consistent", preset=preset))
+    return {"preset": preset, "map": map_name, "delta_t": dt, "instance": inst, "run": run,
+            "success": bool(r.success), "homotopy": bool(r.homotopy_success),
+            "reached": bool(r.goal_reached), "steps": int(r.steps), "inputs": int(r.inputs)}
+
+
+def sign_test(wins: int, losses: int) -> float:
+    """Exact two-sided sign test of ``wins`` against ``losses`` (p of a split this uneven)."""
+    n = wins + losses
+    if n == 0:
+        return 1.0
+    tail = sum(comb(n, i) for i in range(min(wins, losses) + 1)) / 2 ** n
+    return min(1.0, 2 * tail)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--presets", nargs=2, default=["robust", "robust-wait"])
+    ap.add_argument("--maps", nargs="+", default=["classroom"])
+    ap.add_argument("--delta-t", nargs="+", type=int, default=[1, 5])
+    ap.add_argument("--instances", type=int, default=6)
+    ap.add_argument("--runs", type=int, default=4)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", type=Path)
+    args = ap.parse_args(argv)
+    a, b = args.presets
+    jobs = [(p, m, dt, i, r) for m in args.maps for dt in args.delta_t
+            for i in range(args.instances) for r in range(args.runs) for p in (a, b)]
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = list(pool.map(one, jobs, chunksize=4))
+    if args.out:
+        args.out.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    by = {(r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]): r for r in rows}
+    cells: dict = defaultdict(lambda: defaultdict(int))
+    for m in args.maps:
+        for dt in args.delta_t:
+            for i in range(args.instances):
+                for r in range(args.runs):
+                    x, y = by[(a, m, dt, i, r)], by[(b, m, dt, i, r)]
+                    for key in [(Path(m).stem, dt), ("all", dt)]:
+                        c = cells[key]
+                        c["n"] += 1
+                        for k in ("success", "homotopy", "reached"):
+                            c[f"{k}_a"] += x[k]
+                            c[f"{k}_b"] += y[k]
+                        c["b_wins"] += y["success"] and not x["success"]
+                        c["a_wins"] += x["success"] and not y["success"]
+    print(f"{a} -> {b} (counts of n; discordant strict pairs: {b} wins / {a} wins, sign test)")
+    for (m, dt), c in sorted(cells.items(), key=lambda kv: (kv[0][0] == "all", kv[0])):
+        print(f"{m:>10} ΔT={dt}: n={c['n']:3d} strict {c['success_a']:3d} -> "
+              f"{c['success_b']:3d}, homotopy {c['homotopy_a']:3d} -> {c['homotopy_b']:3d}, "
+              f"reached {c['reached_a']:3d} -> {c['reached_b']:3d}; "
+              f"{c['b_wins']}/{c['a_wins']}, p = {sign_test(c['b_wins'], c['a_wins']):.3f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
