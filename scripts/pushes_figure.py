@@ -53,7 +53,7 @@ def run_map(map_name: str, db: Path, args, human: list[tuple[str, int, str]]) ->
     for _, dt, rule in human:
         specs += sweep_specs(map_name, METHODS, [dt], args.instances, args.runs,
                              seed=args.seed, human="consistent", queries=args.queries or None,
-                             push_rule=rule)
+                             push_rule=rule, preset=args.preset)
     counts = run_sweep(specs, str(db), workers=args.workers, progress=False)
     print(f"{map_name}: {counts['ran']} run, {counts['skipped']} already there, "
           f"{counts['seconds']} s", flush=True)
@@ -137,6 +137,8 @@ def main() -> None:
     ap.add_argument("--queries", type=int, default=200,
                     help="POMCP queries per decision (0: the robust preset's own)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--preset", default="robust", help="the preset of every sweep "
+                    "(robust, or robust-wait: the search that waits for pushes)")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--delta-t", type=int, nargs="+", default=[1, 5])
     ap.add_argument("--corrective", nargs="+", default=["corrective delay=1 miss=0.2"],
@@ -166,7 +168,7 @@ def main() -> None:
     panels["examples/maps (4 plans pooled)"] = points(
         [r for e in EXAMPLES for r in rows[e]], human)
     queries = args.queries or "its own"
-    title = (f"Success against pushes per episode: robust preset, {queries} queries, "
+    title = (f"Success against pushes per episode: {args.preset} preset, {queries} queries, "
              f"consistent human, {args.instances} instances x {args.runs} runs per map")
     figure(panels, human, Path(args.out), title)
     out_json = Path(args.json) if args.json else Path(args.out).with_suffix(".json")
