@@ -9,7 +9,9 @@
 Every episode is ``path_preference`` with the consistent human (the spec of ``pathpref
 evaluate --seed 0``: instance ``i``, run ``r``), so the two presets see the same start, goals,
 true goal and human draws; a pair is discordant when one preset succeeds and the other does
-not. ``--out FILE`` writes every episode's outcome as JSON lines.
+not. The episodes run through the project's sweep (:func:`pathpref.experiments.sweep.run_sweep`)
+into ``--db`` (resumable: a rerun skips what is there); ``--out FILE`` writes every episode's
+outcome as JSON lines.
 """
 
 from __future__ import annotations
@@ -18,24 +20,13 @@ import argparse
 import json
 import os
 from collections import defaultdict
-from concurrent.futures import ProcessPoolExecutor
 from math import comb
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 
-
-def one(job: tuple[str, str, int, int, int]) -> dict:
-    """One episode ``(preset, map, delta_t, instance, run)``: its outcome."""
-    from pathpref.episode import EpisodeSpec
-    from pathpref.episode.runner import run_episode
-
-    preset, map_name, dt, inst, run = job
-    r = run_episode(EpisodeSpec.single(map_name, "path_preference", dt, seed=0, instance=inst,
-                                       run=run, human="consistent", preset=preset))
-    return {"preset": preset, "map": map_name, "delta_t": dt, "instance": inst, "run": run,
-            "success": bool(r.success), "homotopy": bool(r.homotopy_success),
-            "reached": bool(r.goal_reached), "steps": int(r.steps), "inputs": int(r.inputs)}
+from pathpref.experiments.store import ResultStore  # noqa: E402
+from pathpref.experiments.sweep import run_sweep, sweep_specs  # noqa: E402
 
 
 def sign_test(wins: int, losses: int) -> float:
@@ -55,13 +46,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--instances", type=int, default=6)
     ap.add_argument("--runs", type=int, default=4)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--db", default="paired.sqlite", help="the sweep's database (resumable)")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
     a, b = args.presets
-    jobs = [(p, m, dt, i, r) for m in args.maps for dt in args.delta_t
-            for i in range(args.instances) for r in range(args.runs) for p in (a, b)]
-    with ProcessPoolExecutor(args.workers) as pool:
-        rows = list(pool.map(one, jobs, chunksize=4))
+    specs = [s for m in args.maps for p in (a, b)
+             for s in sweep_specs(m, ["path_preference"], args.delta_t, args.instances,
+                                  args.runs, seed=0, human="consistent", preset=p)]
+    run_sweep(specs, args.db, workers=args.workers)
+    wanted = {(s.preset, s.map, s.delta_t, s.instance, s.run) for s in specs}
+    with ResultStore(args.db, create=False) as store:
+        rows = [{"preset": r["preset"], "map": r["map"], "delta_t": r["delta_t"],
+                 "instance": r["instance"], "run": r["run"], "success": bool(r["success"]),
+                 "homotopy": bool(r["homotopy_success"]), "reached": bool(r["goal_reached"]),
+                 "steps": r["steps"], "inputs": r["inputs"]}
+                for r in store.episodes() if r["status"] == "ok"
+                and (r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]) in wanted]
     if args.out:
         args.out.write_text("".join(json.dumps(r) + "\n" for r in rows))
     by = {(r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]): r for r in rows}

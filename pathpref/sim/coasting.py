@@ -331,7 +331,7 @@ class Coaster:
 
     def _bind(self) -> None:
         b = self.base
-        d = self.data = b.data
+        d = b.data
         self._time, self._ncon = native.scalar_views(d)
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
         m = b.model
@@ -381,7 +381,7 @@ class Coaster:
         if not b.external_forces:
             b._wrench().fill(0.0)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
-        d = self.data
+        d = self._data
         reason, _ = _coast(b.model._address, d._address, self._time, self._ncon, b._qpos,
                            b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
                            f.bias, held, self._acc6, self._ma, self._x, est.bias,
