@@ -15,7 +15,7 @@ from pathpref.geometry.world import load_world
 from pathpref.inference.belief import GoalBelief, PreferenceBelief
 from pathpref.inference.human import ObservationModel
 from pathpref.inference.routes import RouteBelief
-from pathpref.planning.guided import _pick_target, rollout_moves
+from pathpref.planning.guided import _pick_target, reach_table, rollout_moves
 from pathpref.planning.guided import _root_choice as _choice
 from pathpref.planning.pomcp import POMCP
 from pathpref.planning.pomdp import get_preset
@@ -69,7 +69,8 @@ def _root_choice(planner, s, n, q, sq, z):
     return _choice(s, np.asarray(n, np.int64), np.asarray(q, float), np.asarray(sq, float),
                    planner.next_cell, planner.cost, planner.blocked, planner.cross_slot,
                    planner.cell_poly, np.ones(1), planner.ctg, planner.dist,
-                   np.zeros((0, len(planner.nbr)), np.int64), z, 0.95)
+                   np.zeros((0, len(planner.nbr)), np.int64), z,
+                   reach_table(planner.dist, 0.95))
 
 
 def test_root_choice_breaks_only_statistical_ties(simple):
@@ -102,14 +103,16 @@ def test_rollout_target_weighs_probability_against_distance():
     p = np.array([0.5, 0.3, 0.2, 0.0, 0.4])
     dist = np.array([[10.0], [2.0], [0.5], [1.0], [np.inf]])
     visited = -np.ones(5, np.int64)
-    assert _pick_target(0, 7, visited, p, dist, 0.9) == 1
+    reach = reach_table(dist, 0.9)
+    assert reach[4, 0] == 0.0 and abs(reach[1, 0] - 0.81) < 1e-15
+    assert _pick_target(0, 7, visited, p, dist, reach) == 1
     visited[1] = 7
-    assert _pick_target(0, 7, visited, p, dist, 0.9) == 2
+    assert _pick_target(0, 7, visited, p, dist, reach) == 2
     visited[2] = 7
-    assert _pick_target(0, 7, visited, p, dist, 0.9) == 0
+    assert _pick_target(0, 7, visited, p, dist, reach) == 0
     visited[0] = 7
-    assert _pick_target(0, 7, visited, p, dist, 0.9) == -1
-    assert _pick_target(0, 8, visited, p, dist, 0.9) == 1  # marks of another simulation
+    assert _pick_target(0, 7, visited, p, dist, reach) == -1
+    assert _pick_target(0, 8, visited, p, dist, reach) == 1  # marks of another simulation
 
 
 def test_rollout_moves_are_the_shortest_moves_or_the_preferred_face(simple):

@@ -29,7 +29,7 @@ from ..inference.belief import Belief
 from ..inference.costs import CostTables
 from ..inference.human import CellTable
 from ..inference.routes import components
-from .guided import observed_first_trees, rollout_moves, search_robust, tree_pool
+from .guided import observed_first_trees, reach_table, rollout_moves, search_robust, tree_pool
 from .pomdp import Rewards
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
@@ -83,13 +83,32 @@ def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goa
             pref_cdf, s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref, seed):
     np.random.seed(seed)
     n_node, n_sa, q_sa, child = new_tree(queries)
-    n_nodes = 1
     P = nbr.shape[0]
     theta = -np.ones(P, np.int64)
     stamp = -np.ones(P, np.int64)
     path_node = np.zeros(depth + 1, np.int64)
     path_a = np.zeros(depth + 1, np.int64)
     path_r = np.zeros(depth + 1)
+    n_nodes = _simulate(
+        (next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly),
+        (goal_cdf, pref_cdf), (n_node, n_sa, q_sa, child),
+        (theta, stamp, path_node, path_a, path_r),
+        s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref)
+    return best_root_action(n_sa, q_sa), n_sa[0].copy(), q_sa[0].copy(), n_nodes
+
+
+@nb.njit(cache=True, _nrt=False)
+def _simulate(world, belief, nodes, scratch, s0, depth, queries, c, discount, Rg, Rp, Rn,
+              use_pref):
+    """The simulations of :func:`_search` on its arrays (grouped in tuples); returns the
+    number of nodes. Compiled without reference counting (it allocates nothing; the caller
+    owns every array for the whole call): the counts numba updates around an inlined
+    helper's array arguments cost as much as the search itself."""
+    next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly = world
+    goal_cdf, pref_cdf = belief
+    n_node, n_sa, q_sa, child = nodes
+    theta, stamp, path_node, path_a, path_r = scratch
+    n_nodes = 1
     for q in range(queries):
         gi = sample_index(goal_cdf)
         s = s0
@@ -149,7 +168,7 @@ def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goa
             n_node[nd] += 1
             n_sa[nd, b] += 1
             q_sa[nd, b] += (ret - q_sa[nd, b]) / n_sa[nd, b]
-    return best_root_action(n_sa, q_sa), n_sa[0].copy(), q_sa[0].copy(), n_nodes
+    return n_nodes
 
 
 @dataclass
@@ -230,6 +249,7 @@ class POMCP:
             self.component = components(world.graph.neighbors)
             self.moves = rollout_moves(self.next_cell, self.cost, self.blocked, self.cross_slot,
                                        self.ctg, self.dist)
+            self.reach = reach_table(self.dist, float(rewards.discount))
 
     def preference_cdf(self, belief: Belief) -> np.ndarray:
         """``(G, P, K)`` cumulative per-polytope rows ``T_v(g, k)`` normalised (uniform where
@@ -261,7 +281,7 @@ class POMCP:
                 self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
                 r.use_preference, int(seed) % (2**32), self.budget_s,
                 *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1),
-                TIE_Z, self.moves, *self._lik, self.wait)
+                TIE_Z, self.moves, *self._lik, self.wait, self.reach)
             return SearchResult(int(a), visits, values, int(nodes), int(done))
         a, visits, values, nodes = _search(
             self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,

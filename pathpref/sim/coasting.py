@@ -68,19 +68,15 @@ QUEUE_SLACK = 4
 GRAVITY_Z = 9.81  # estimator.GRAVITY_UP
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, _nrt=False)
 def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sbias, held,
            acc6, ma, xbuf, ebias, mark, jac, dv, eacc, eforce, epend, f, baseline, dpend, rng,
-           fs, cs, ns, max_steps):
+           fs, cs, ns, tmp3, res, vel, err, max_steps):
     """Physics steps of the move phase until a hand-back (module docstring); returns
     ``(reason, steps)``. ``held``, ``eacc``, ``eforce`` receive the last sample, estimator
     acceleration and estimate; the state arrays are updated in place."""
     nq, nv = qpos.shape[0], qvel.shape[0]
     qcap, dcap = epend.shape[0], dpend.shape[0]
-    tmp3 = np.empty(3)
-    res = np.empty(3)
-    vel = np.empty(3)
-    err = np.empty(2)
     for step in range(max_steps):
         if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
@@ -337,6 +333,8 @@ class Coaster:
         m = b.model
         self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
         self._dv = np.zeros(m.nv)
+        #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
+        self._tmp = (np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(2))
         self._data = d
 
     def move(self, step) -> bool:
@@ -386,7 +384,8 @@ class Coaster:
                            b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
                            f.bias, held, self._acc6, self._ma, self._x, est.bias,
                            est._qvel_mark, est._jac, self._dv, eacc, eforce, epend, det.f,
-                           det.baseline, dpend, f.rng, fs, cs, ns, self.MAX_STEPS)
+                           det.baseline, dpend, f.rng, fs, cs, ns, *self._tmp,
+                           self.MAX_STEPS)
         # --- the state back into the Python objects
         f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
         f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
