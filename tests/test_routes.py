@@ -218,15 +218,16 @@ def test_get_preset_takes_and_checks_the_prior():
                             "homotopy or circulation")
 
 
-def _draw_all_observed_first(planner, belief, n, seed):
-    """``n`` trees all drawn by the fallback (observed exits first, then Wilson): budget 0."""
+def _draw_all_observed_first(planner, belief, n, seed, budget=10**6):
+    """``n`` trees all drawn by the fallback (observed exits first, then Wilson, its walk
+    stage given ``budget`` steps at first): budget 0 in the first sampler."""
     from pathpref.planning.guided import tree_pool
 
     cdf = planner.preference_cdf(belief)
     g, slots, over = tree_pool(planner.nbr, cdf, np.cumsum(belief.goal_marginal()),
                                planner.goal_poly, planner.component, n, seed, 0)
     assert over.all()  # budget 0: every tree goes to the fallback
-    slots[over] = planner._observed_first(belief, g[over], cdf, seed, 10**6)
+    slots[over] = planner._observed_first(belief, g[over], cdf, seed, budget)
     return g, slots
 
 
@@ -274,6 +275,29 @@ def test_observed_first_trees_match_exact_posterior():
     assert len(belief.observed_polytopes()) >= 4
     planner = POMCP(world, goals, get_preset("robust").path_preference, tables=model.tables)
     g, slots = _draw_all_observed_first(planner, belief, 20000, 3)
+    assert _assert_draws_match(world, belief, g, slots) >= 1
+
+
+def test_doubled_walk_budgets_keep_the_draws_exact():
+    """A walk stage that passes its budget is drawn again with twice the budget. Started at a
+    quarter of the polytopes (fewer steps than a tree has edges: the first stages always
+    fail), every tree is still drawn and the draws still follow the exact route posterior:
+    which stage is kept depends only on its number of steps, independent of its tree."""
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    world = random_world(11)
+    rng = np.random.default_rng(5)
+    goals = rng.choice(world.n_cells, size=3, replace=False)
+    model = ObservationModel.build(world, goals, normalize=True)
+    belief = RouteBelief(model)
+    for s, h in observations(world, model, rng, 12):
+        belief.update(s, h)
+    planner = POMCP(world, goals, get_preset("robust").path_preference, tables=model.tables)
+    unobserved = world.n_polytopes - len(belief.observed_polytopes())
+    g, slots = _draw_all_observed_first(planner, belief, 20000, 7,
+                                        budget=max(1, world.n_polytopes // 4))
+    assert world.n_polytopes // 4 < unobserved - 1  # the first stage cannot finish a tree
     assert _assert_draws_match(world, belief, g, slots) >= 1
 
 
@@ -410,8 +434,8 @@ def test_ping_pong_pushes_keep_decisions_bounded(simple):
 
 def test_observed_first_walk_stage_gives_up_with_one_line(simple):
     """The fallback's walk over the unobserved polytopes is bounded too: with no step allowed
-    it is tried ``WALK_TRIES`` times per tree and the decision fails with one EpisodeError line
-    (recorded as a failed episode), never loops."""
+    it is tried ``WALK_TRIES`` times per tree (a budget of 0 doubles to 0) and the decision
+    fails with one EpisodeError line (recorded as a failed episode), never loops."""
     from pathpref.errors import EpisodeError
     from pathpref.planning.pomcp import POMCP
     from pathpref.planning.pomdp import get_preset
@@ -420,7 +444,8 @@ def test_observed_first_walk_stage_gives_up_with_one_line(simple):
     model = ObservationModel.build(simple, goals, normalize=True)
     belief = RouteBelief(model)
     planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
-    with pytest.raises(EpisodeError, match="passed 0 steps 16 times") as e:
+    with pytest.raises(EpisodeError, match=r"passed its budget 8 times \(0 steps, doubled each "
+                                           r"time up to 0\) for 4 of 4 trees") as e:
         planner._observed_first(belief, np.zeros(4, np.int64), planner.preference_cdf(belief),
                                 0, 0)
     assert "\n" not in str(e.value)

@@ -47,8 +47,10 @@ SIMS_PER_TREE = 32
 #: 9 ``P`` on ``classroom``)
 WALK_STEPS_PER_POLYTOPE = 64
 WALK_STEPS_MIN = 4096
-#: walk stages over the unobserved polytopes (uniform rows) tried per tree before giving up
-WALK_TRIES = 16
+#: walk stages over the unobserved polytopes (uniform rows) tried per tree before giving up,
+#: each with twice the budget of the one before (:func:`.guided.observed_first_trees`): at
+#: most ``255`` budgets per tree (1.8 million steps on a 49-polytope plan)
+WALK_TRIES = 8
 #: robust search: root moves within this many standard errors of the best mean return count
 #: as tied, and the rollout heuristic picks among them (:func:`.guided._root_choice`)
 TIE_Z = 1.0
@@ -382,8 +384,10 @@ class POMCP:
                                          (int(seed) + 2) % (2**32), budget, WALK_TRIES)
         if not ok.all():
             raise EpisodeError(
-                f"the route sampler's walk over the unobserved polytopes passed {budget} steps "
-                f"{WALK_TRIES} times for {int((~ok).sum())} of {len(ok)} trees (P = {P})")
+                f"the route sampler's walk over the unobserved polytopes passed its budget "
+                f"{WALK_TRIES} times ({budget} steps, doubled each time up to "
+                f"{budget * 2 ** (WALK_TRIES - 1)}) for {int((~ok).sum())} of {len(ok)} trees "
+                f"(P = {P})")
         return slots
 
     def _known(self, belief: Belief) -> np.ndarray:
