@@ -11,7 +11,8 @@ evaluate --seed 0``: instance ``i``, run ``r``), so the two presets see the same
 true goal and human draws; a pair is discordant when one preset succeeds and the other does
 not. The episodes run through the project's sweep (:func:`pathpref.experiments.sweep.run_sweep`)
 into ``--db`` (resumable: a rerun skips what is there); ``--out FILE`` writes every episode's
-outcome as JSON lines.
+outcome as JSON lines. An episode that failed (an error, recorded by the sweep) counts as a
+failure on every measure and is listed; ``--retry-failed`` runs failed episodes again.
 """
 
 from __future__ import annotations
@@ -48,20 +49,26 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--db", default="paired.sqlite", help="the sweep's database (resumable)")
     ap.add_argument("--out", type=Path)
+    ap.add_argument("--retry-failed", action="store_true", help="re-run failed episodes")
     args = ap.parse_args(argv)
     a, b = args.presets
     specs = [s for m in args.maps for p in (a, b)
              for s in sweep_specs(m, ["path_preference"], args.delta_t, args.instances,
                                   args.runs, seed=0, human="consistent", preset=p)]
-    run_sweep(specs, args.db, workers=args.workers)
+    run_sweep(specs, args.db, workers=args.workers, retry_failed=args.retry_failed)
     wanted = {(s.preset, s.map, s.delta_t, s.instance, s.run) for s in specs}
     with ResultStore(args.db, create=False) as store:
         rows = [{"preset": r["preset"], "map": r["map"], "delta_t": r["delta_t"],
                  "instance": r["instance"], "run": r["run"], "success": bool(r["success"]),
                  "homotopy": bool(r["homotopy_success"]), "reached": bool(r["goal_reached"]),
-                 "steps": r["steps"], "inputs": r["inputs"]}
-                for r in store.episodes() if r["status"] == "ok"
-                and (r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]) in wanted]
+                 "steps": r["steps"], "inputs": r["inputs"], "status": r["status"]}
+                for r in store.episodes()
+                if (r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]) in wanted]
+    for r in rows:
+        if r["status"] != "ok":  # a failed episode is a failure on every measure
+            r.update(success=False, homotopy=False, reached=False)
+            print(f"failed episode (counted as a failure): {r['preset']} {r['map']} "
+                  f"ΔT={r['delta_t']} instance {r['instance']} run {r['run']}")
     if args.out:
         args.out.write_text("".join(json.dumps(r) + "\n" for r in rows))
     by = {(r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]): r for r in rows}

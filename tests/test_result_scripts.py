@@ -1,5 +1,6 @@
-"""The results pages' table scripts (scripts/outcome_table.py, scripts/back_crossings.py) on a small
-real sweep: their figures agree with the database's own columns, counted here independently."""
+"""The results pages' table scripts (scripts/outcome_table.py, scripts/back_crossings.py,
+scripts/paired_presets.py) on a small real sweep: their figures agree with the database's own
+columns, counted here independently."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathpref.experiments.sweep import run_sweep, sweep_specs
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 import back_crossings  # noqa: E402
 import outcome_table  # noqa: E402
+import paired_presets  # noqa: E402
 
 
 def _sweep(tmp_path) -> Path:
@@ -62,3 +64,34 @@ def test_outcome_table_counts_failed_episodes_as_failures(tmp_path, capsys):
     assert outcome_table.main([str(db), "--exclude-failed"]) == 0
     out = capsys.readouterr().out
     assert "| compliant | 0.43 / 0.43 / 0.00 |" in out and "3 failed episodes, left out" in out
+
+
+def test_paired_presets_counts_a_failed_episode_as_a_failure(tmp_path, capsys):
+    """Two presets on the same two episodes of ``simple``; then one episode of the second is
+    marked failed (as the sweep records an error): the pair table counts it as a failure on
+    every measure and names it, and ``--retry-failed`` runs it again."""
+    db = tmp_path / "p.sqlite"
+    argv = ["--maps", "simple", "--delta-t", "1", "--instances", "1", "--runs", "2",
+            "--workers", "1", "--db", str(db)]
+    assert paired_presets.main(argv) == 0
+    con = sqlite3.connect(db)
+    ok = dict(con.execute("SELECT preset || run, success FROM episodes").fetchall())
+    assert len(ok) == 4
+    con.execute("UPDATE episodes SET status = 'failed', success = 0, goal_reached = 0, "
+                "homotopy_success = 0, reason = 'EpisodeError: injected' "
+                "WHERE preset = 'robust-wait' AND run = 0")
+    con.commit()
+    con.close()
+    capsys.readouterr()
+    assert paired_presets.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "failed episode (counted as a failure): robust-wait simple ΔT=1 instance 0 run 0" \
+        in out
+    wait_ok = ok["robust-wait1"]
+    assert f"strict {ok['robust0'] + ok['robust1']:3d} -> {wait_ok:3d}," in out
+    assert paired_presets.main([*argv, "--retry-failed"]) == 0
+    out = capsys.readouterr().out
+    assert "failed episode" not in out
+    con = sqlite3.connect(db)
+    assert con.execute("SELECT count(*) FROM episodes WHERE status != 'ok'").fetchone()[0] == 0
+    con.close()
