@@ -20,6 +20,8 @@ import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
 from pathpref.episode import EpisodeSpec, Physics  # noqa: E402
 from pathpref.episode.runner import EpisodeRunner  # noqa: E402
 
+#: the planner the traces were recorded with (the default preset then)
+TRACE_PRESET = "robust"
 #: (label, map, task, seed, instance, t_max, physics as JSON, "" legacy)
 EPISODES = [
     ("navigate realistic", "simple", "navigate", 11, 0, 10, Physics().to_json()),
@@ -36,10 +38,10 @@ EPISODES = [
 TASKS = [
     ("navigate_control realistic", "navigate_control",
      {"map": "simple", "method": "path_preference", "delta_t": 1, "seed": 3, "queries": 20,
-      "physics": None}, 150),
+      "preset": TRACE_PRESET, "physics": None}, 150),
     ("navigate_control legacy", "navigate_control",
      {"map": "simple", "method": "path_preference", "delta_t": 1, "seed": 4, "queries": 20,
-      "physics": "legacy"}, 150),
+      "preset": TRACE_PRESET, "physics": "legacy"}, 150),
 ]
 
 
@@ -47,7 +49,8 @@ def episode(row) -> dict:
     """One physical episode's trace (module docstring)."""
     label, world, task, seed, instance, t_max, physics = row
     spec = EpisodeSpec.single(world, "path_preference", 5, seed=seed, instance=instance,
-                              sim="mujoco", t_max=t_max, physics=physics, robot=task)
+                              sim="mujoco", t_max=t_max, physics=physics, robot=task,
+                              preset=TRACE_PRESET)
     runner = EpisodeRunner(spec)
     while not runner.done:
         runner.step()

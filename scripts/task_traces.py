@@ -14,12 +14,13 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import numpy as np  # noqa: E402
 from pathpref_tasks import load  # noqa: E402
 
-#: (task, load kwargs, steps)
+#: (task, load kwargs, steps); recorded with the ``robust`` preset (the default then)
 CASES = [
     ("navigate", {"map": "simple", "method": "path_preference", "delta_t": 2, "seed": 5,
-                  "queries": 50, "t_max": 6, "physics": "legacy"}, 7),
+                  "queries": 50, "t_max": 6, "physics": "legacy", "preset": "robust"}, 7),
     ("navigate_control", {"map": "simple", "method": "path_preference", "delta_t": 1,
-                          "seed": 1, "queries": 20, "physics": "legacy"}, 60),
+                          "seed": 1, "queries": 20, "physics": "legacy", "preset": "robust"},
+     60),
 ]
 
 
