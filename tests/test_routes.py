@@ -258,10 +258,9 @@ def _assert_draws_match(world, belief, g, slots, min_draws=1000):
     return tested
 
 
-def test_observed_first_trees_match_exact_posterior():
-    """The fallback sampler (the observed polytopes' exits drawn jointly from their exact
-    conditionals, then Wilson's walk over the rest) draws from the exact route posterior, on a
-    random floor plan with many observed polytopes (every tree forced through it)."""
+def _observed_plan():
+    """A random floor plan (seed 11), 3 goal candidates and a route belief after 12 pushes,
+    with a robust planner on it: the fallback sampler's test case."""
     from pathpref.planning.pomcp import POMCP
     from pathpref.planning.pomdp import get_preset
 
@@ -272,8 +271,16 @@ def test_observed_first_trees_match_exact_posterior():
     belief = RouteBelief(model)
     for s, h in observations(world, model, rng, 12):
         belief.update(s, h)
-    assert len(belief.observed_polytopes()) >= 4
     planner = POMCP(world, goals, get_preset("robust").path_preference, tables=model.tables)
+    return world, belief, planner
+
+
+def test_observed_first_trees_match_exact_posterior():
+    """The fallback sampler (the observed polytopes' exits drawn jointly from their exact
+    conditionals, then Wilson's walk over the rest) draws from the exact route posterior, on a
+    random floor plan with many observed polytopes (every tree forced through it)."""
+    world, belief, planner = _observed_plan()
+    assert len(belief.observed_polytopes()) >= 4
     g, slots = _draw_all_observed_first(planner, belief, 20000, 3)
     assert _assert_draws_match(world, belief, g, slots) >= 1
 
@@ -283,17 +290,7 @@ def test_doubled_walk_budgets_keep_the_draws_exact():
     quarter of the polytopes (fewer steps than a tree has edges: the first stages always
     fail), every tree is still drawn and the draws still follow the exact route posterior:
     which stage is kept depends only on its number of steps, independent of its tree."""
-    from pathpref.planning.pomcp import POMCP
-    from pathpref.planning.pomdp import get_preset
-
-    world = random_world(11)
-    rng = np.random.default_rng(5)
-    goals = rng.choice(world.n_cells, size=3, replace=False)
-    model = ObservationModel.build(world, goals, normalize=True)
-    belief = RouteBelief(model)
-    for s, h in observations(world, model, rng, 12):
-        belief.update(s, h)
-    planner = POMCP(world, goals, get_preset("robust").path_preference, tables=model.tables)
+    world, belief, planner = _observed_plan()
     unobserved = world.n_polytopes - len(belief.observed_polytopes())
     g, slots = _draw_all_observed_first(planner, belief, 20000, 7,
                                         budget=max(1, world.n_polytopes // 4))

@@ -83,6 +83,9 @@ def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goa
 @nb.njit(cache=True)
 def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goal_cdf,
             pref_cdf, s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref, seed):
+    """The paper's PO-UCT (module docstring): its tree and buffers, the simulations
+    (:func:`_simulate`), the best root action; returns ``(action, root visits, root values,
+    nodes)``."""
     np.random.seed(seed)
     n_node, n_sa, q_sa, child = new_tree(queries)
     P = nbr.shape[0]
