@@ -56,7 +56,14 @@ from pathpref.inference.human import ObservationModel, SimulatedHuman  # noqa: E
 from pathpref.inference.routes import RouteBelief  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-SEEDS = {"open": range(9001, 9007), "loop": range(9101, 9107)}
+#: the held-out plan sets: ``open`` and ``loop`` drawn for the priors (above); ``check-open``
+#: and ``check-loop`` drawn the same ways for the crossing check (scripts/paired_presets.py,
+#: docs/robust.md "Look before crossing"), before any episode was run on them
+SEEDS = {"open": range(9001, 9007), "loop": range(9101, 9107),
+         "check-open": range(9201, 9207), "check-loop": range(9301, 9307)}
+#: what each set was held out for (written into its plans' descriptions)
+HELD_OUT_FOR = {"open": "the homotopy prior", "loop": "the circulation prior",
+                "check-open": "the crossing check", "check-loop": "the crossing check"}
 PUSHES = (0, 1, 2, 4, 8)
 #: the beliefs compared, by ``--prior`` name
 BELIEFS = {"routes": lambda model, start: RouteBelief(model),
@@ -64,21 +71,21 @@ BELIEFS = {"routes": lambda model, start: RouteBelief(model),
 
 
 def held_out_plan(seed: int, kind: str = "open") -> dict:
-    """The held-out plan of ``seed`` (module docstring)."""
+    """The held-out plan of ``seed`` of the plan set ``kind`` (:data:`SEEDS`; module
+    docstring): a loop preference for the ``loop`` sets, an open route otherwise."""
     raw = random_floor_plan(24, 16, 7, n_boxes=2, seed=seed, size_range=(1.5, 4.0),
                             name=f"heldout_{seed}")
-    if kind == "loop":
-        return {**with_loop_preference(raw), "description": "held out for the circulation "
-                "prior (scripts/homotopy_prior_eval.py); never used to choose its settings"}
+    why = (f"held out for {HELD_OUT_FOR[kind]} (scripts/homotopy_prior_eval.py); never used "
+           "to choose its settings")
+    if kind.endswith("loop"):
+        return {**with_loop_preference(raw), "description": why}
     labels, _ = four_connected_components(free_cell_mask(parse_map(raw)))
     biggest = np.bincount(labels[labels > 0]).argmax()
     xs, ys = np.nonzero(labels == biggest)
     rng = np.random.default_rng(seed)
     pick = rng.choice(len(xs), size=4, replace=False)
     route = [[int(xs[k]) + 1, int(ys[k]) + 1] for k in pick]
-    return {**raw, "description": "held out for the homotopy prior (scripts/"
-            "homotopy_prior_eval.py); never used to choose its settings",
-            "preference": {"route": route, "closed": False}}
+    return {**raw, "description": why, "preference": {"route": route, "closed": False}}
 
 
 def route_logprob(belief, world, g: int, exits: list[tuple[int, int]]) -> float:

@@ -117,7 +117,7 @@ def _first_from() -> np.ndarray:
     return out
 
 
-_FIRST_FROM = _first_from()
+FIRST_FROM = _first_from()
 #: the stamp of a preference slot set before the simulation (:func:`_theta`)
 FIXED = -2
 
@@ -366,7 +366,7 @@ def _rollout_action(s, tgt, gi, q, blocked, cross_slot, cell_poly, nbr, pref_cdf
         kv = _theta(v, gi, q, nbr, pref_cdf, theta, stamp)
     # the first move of the set ``moves[s, kv + 1, tgt]`` from a random offset on (the offset
     # itself when the set is empty: no free move, the robot stays whatever it does)
-    return _FIRST_FROM[moves[s, kv + 1, tgt], np.random.randint(8)]
+    return FIRST_FROM[moves[s, kv + 1, tgt], np.random.randint(8)]
 
 
 @nb.njit(cache=True, inline="always")

@@ -36,6 +36,7 @@ from ..inference.homotopy_prior import HomotopyBelief
 from ..inference.human import ObservationModel
 from ..inference.rationality import GammaBelief
 from ..inference.routes import RouteBelief
+from .crossing import check_crossing
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
 
@@ -144,8 +145,13 @@ class PlannerPolicy(Policy):
         depth = self.ctx.t_max - t + 1
         if heading is not None:
             self.input_steps.append(t)
-        return self.planner.search(cell, self.belief, depth, self._seed(), self.history,
-                                   self.expected_pushes(t)).action
+        pushes = self.expected_pushes(t)
+        res = self.planner.search(cell, self.belief, depth, self._seed(), self.history, pushes)
+        if self.ctx.preset.check_crossings and self.planner.tables is not None \
+                and len(self.input_steps) >= 2:  # the pushes' interval is known (crossing)
+            return check_crossing(self.planner, self.belief, self.ctx.model.cell_likelihood,
+                                  res, cell, depth, pushes)
+        return res.action
 
     def expected_pushes(self, t: int) -> tuple[int, int]:
         """``(next, every)``: in how many steps the human is expected to push next, and how

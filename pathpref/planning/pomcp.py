@@ -296,6 +296,12 @@ class POMCP:
         )
         return SearchResult(int(a), visits, values, int(nodes), self.queries)
 
+    def root_particles(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(goal indices, preference slots)`` of the root particles the last robust search
+        started from (:meth:`_pool`), or None when it drew none (the independent prior)."""
+        kept = self._kept_pool
+        return None if kept is None or len(kept[3]) == 0 else (kept[3], kept[4])
+
     def pool_size(self) -> int:
         """Root particles per decision: ``m = min(TREE_POOL, ceil(queries / SIMS_PER_TREE))``.
         Each simulation starts from one particle drawn uniformly, so a particle is the start of

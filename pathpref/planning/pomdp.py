@@ -81,6 +81,10 @@ class Preset:
             headings of the pushes it expects and may stand still for one (a move into a
             wall), so a plan can wait for what the next push says (:mod:`.guided`, 7);
             the ``robust-wait`` preset.
+        check_crossings: where the robust search's move leaves the robot's polytope, check it
+            exactly against waiting for the next pushes (value of information of the
+            crossing against the time it costs, :mod:`.crossing`; route-prior beliefs); the
+            ``robust-check`` preset.
 
     This is the one home of every planner setting: an episode resolves its preset with its
     overrides once (:func:`get_preset`) and policies read nothing else.
@@ -98,6 +102,7 @@ class Preset:
     time_budget_ms: float = 0.0
     prior: str = "independent"
     wait_for_pushes: bool = False
+    check_crossings: bool = False
 
 
 #: the preference priors of the path-preference belief (:attr:`Preset.prior`)
@@ -138,6 +143,10 @@ PRESETS: dict[str, Preset] = {
 #: more strict successes at both input rates, on the maps it was made on and on twelve
 #: held-out plans (docs/robust.md, "Waiting for a push")
 PRESETS["robust-wait"] = replace(PRESETS["robust"], name="robust-wait", wait_for_pushes=True)
+#: robust-wait whose crossings are checked against waiting for the next pushes
+#: (Preset.check_crossings; docs/robust.md, "Look before crossing")
+PRESETS["robust-check"] = replace(PRESETS["robust-wait"], name="robust-check",
+                                  check_crossings=True)
 
 #: the preset of applications (render, demo, interact, tasks, studies, evaluate without
 #: --preset); the tables of docs/robust.md name the preset they were made with

@@ -1,0 +1,147 @@
+"""Look before crossing: an exact check of the robust search's move where it leaves a polytope
+(:attr:`~.pomdp.Preset.check_crossings`, the ``robust-check`` preset).
+
+The robust search (:mod:`.guided`) values waiting for a push only through the simulations
+that happen to branch on it, so near a face whose preference it is unsure of, its root values
+are close and noisy and the robot often gambles on one face. The crossing itself is a
+one-shot decision whose value of information can be computed exactly from the belief, so it
+is checked here, after the search, whenever the search's move ``a`` takes the robot at cell
+``s`` from its polytope ``v`` into a neighbour ``u``:
+
+* ``P = P(p_v = u | o)``, the probability that the crossing is the preferred one;
+* ``E_k = sum over heading sequences h_1..h_k of max_e P(p_v = e, h_1..h_k | o)``, the
+  expected probability of the best exit once ``k`` more pushes are felt at ``s``
+  (:func:`best_exit_after_pushes`): exact under ``P(g, p_v | o)`` (the belief's
+  :meth:`~pathpref.inference.belief.Belief.joint`) and the human model's heading likelihood
+  ``P(h | s, g, p_v)`` normalised over the 8 headings, the headings of different pushes
+  independent given ``(g, p_v)``; ``E_0 = max_e P(p_v = e | o) >= P``, and ``E_k`` is
+  non-decreasing in ``k`` (a posterior's expected maximum never falls);
+* ``w_k = next + (k - 1) every``, the steps until the ``k``-th push the policy expects
+  (:meth:`~.policies.PlannerPolicy.expected_pushes`: the last interval between two pushes; the
+  check runs only once two were felt, since before that the interval is a guess, and a guess
+  of one step makes a robot pushed every 5 wait 5 steps for nothing);
+* ``F(w)``, the share of the search's root particles ``(g_j, theta_j)`` whose preferred route
+  from ``s`` (:func:`route_steps`: the rollouts' walk toward ``g_j`` through ``theta_j``'s
+  exits) still reaches ``g_j`` in the ``depth - w`` steps left after waiting ``w``.
+
+A success reached after a crossing that was not preferred is worth ``rho`` of one that was
+(:attr:`~.pomdp.Rewards.goal_after_violation`), so crossing now is worth, up to a factor both
+options share, ``F(0) (rho + (1 - rho) P)``, and waiting for ``k`` pushes, then crossing by the
+best exit, ``F(w_k) gamma^w_k (rho + (1 - rho) E_k)``. The robot waits when the best ``k`` in
+``1..`` :data:`LOOKAHEAD_PUSHES` beats crossing now; it then takes the root move of highest mean
+return among those the search tried that stay in ``v`` (its stay move under
+:attr:`~.pomdp.Preset.wait_for_pushes`), or stands still (:data:`~pathpref.geometry.grid.STAY`)
+if it tried none. The approximations are stated: the route times follow the rollout policy,
+feasibility and the crossing's correctness are treated as independent, and the pushes are
+taken at ``s`` (the robot waits within ``v``).
+
+Bounds: ``8^k`` heading sequences for ``k <= LOOKAHEAD_PUSHES`` (4096 rows of ``G deg(v)``);
+a route walk takes at most ``depth + 1`` steps per particle.
+"""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from ..geometry.grid import STAY
+from .guided import FIRST_FROM
+
+#: the most pushes the check looks ahead (``8^k`` heading sequences)
+LOOKAHEAD_PUSHES = 4
+
+
+def best_exit_after_pushes(joint: np.ndarray, likelihood: np.ndarray, k_max: int) -> np.ndarray:
+    """``(k_max + 1,)`` ``E_0..E_k_max``: the expected probability of the most probable exit
+    after ``k`` pushes (module docstring). ``joint``: ``(G, K)`` ``P(g, p_v = e | o)``;
+    ``likelihood``: ``(8, G, K)`` ``P(h | s, g, p_v = e)`` (each ``(g, e)`` column is
+    normalised over the headings here; an all-zero column stays zero)."""
+    joint = np.asarray(joint, dtype=np.float64)
+    lik = np.asarray(likelihood, dtype=np.float64)
+    lik = lik / np.maximum(lik.sum(axis=0, keepdims=True), 1e-300)
+    out = np.empty(k_max + 1)
+    m = joint[None]  # (sequences, G, K): P(g, e, h_1..h_k | o)
+    out[0] = float(m.sum(axis=1).max(axis=1).sum())
+    for k in range(1, k_max + 1):
+        m = (m[:, None] * lik[None]).reshape(-1, *joint.shape)
+        m = m[m.any(axis=(1, 2))]  # sequences of probability zero add nothing
+        out[k] = float(m.sum(axis=1).max(axis=1).sum())
+    return out
+
+
+@nb.njit(cache=True)
+def route_steps(cell, depth, pool_g, pool_theta, goal_cells, cell_poly, next_cell, moves):
+    """``(m,)`` the steps particle ``j``'s preferred route takes from ``cell`` to its goal
+    ``goal_cells[pool_g[j]]``, walking the rollout moves (:func:`.guided.rollout_moves`,
+    the first of tied moves) through its exits ``pool_theta[j]``; ``depth + 1`` where the walk
+    does not arrive within ``depth`` steps (or is stuck)."""
+    m = pool_g.shape[0]
+    out = np.empty(m, np.int64)
+    for j in range(m):
+        g = pool_g[j]
+        s = cell
+        steps = 0
+        while s != goal_cells[g] and steps <= depth:
+            kv = pool_theta[j, cell_poly[s]]
+            s2 = next_cell[s, FIRST_FROM[moves[s, kv + 1, g], 0]]
+            if s2 == s:
+                steps = depth + 1
+                break
+            s = s2
+            steps += 1
+        out[j] = steps if s == goal_cells[g] else depth + 1
+    return out
+
+
+def wait_value(p_cross: float, best_exit: np.ndarray, feasible: np.ndarray,
+               waits: np.ndarray, rho: float, discount: float) -> tuple[float, int]:
+    """``(gain, k)``: the best ``F(w_k) gamma^w_k (rho + (1 - rho) E_k)`` over ``k >= 1``
+    divided by crossing now's ``F(0) (rho + (1 - rho) P)`` (module docstring), and its ``k``.
+    ``best_exit``: ``E_0..E_K``; ``feasible``: ``F(0), F(w_1)..F(w_K)``; ``waits``:
+    ``0, w_1..w_K``. A ratio above 1 says wait; 0 when crossing now is worth nothing."""
+    now = feasible[0] * (rho + (1.0 - rho) * p_cross)
+    if now <= 0.0:
+        return 0.0, 0
+    later = feasible[1:] * discount ** waits[1:] * (rho + (1.0 - rho) * best_exit[1:])
+    k = int(np.argmax(later))
+    return float(later[k] / now), k + 1
+
+
+def check_crossing(planner, belief, likelihood, result, cell: int, depth: int,
+                   pushes: tuple[int, int]) -> int:
+    """The move to make instead of ``result.action`` if waiting for pushes is worth more than
+    crossing now (module docstring); ``result.action`` itself otherwise, and whenever the move
+    stays in its polytope or the search had no root particles (the independent prior).
+    ``planner``: the robust :class:`~.pomcp.POMCP` that produced ``result`` from ``cell``
+    with ``depth`` steps left; ``likelihood``: the human model's
+    :attr:`~pathpref.inference.human.ObservationModel.cell_likelihood`; ``pushes``:
+    ``(next, every)`` as the search was given them."""
+    a = int(result.action)
+    if a == STAY:
+        return a
+    v = int(planner.cell_poly[cell])
+    u = int(planner.cell_poly[planner.next_cell[cell, a]])
+    slots = [int(x) for x in planner.nbr[v] if x >= 0]
+    particles = planner.root_particles()
+    if u == v or u not in slots or particles is None:
+        return a
+    joint = belief.joint(v)
+    p_cross = float(joint[:, slots.index(u)].sum())
+    best_exit = best_exit_after_pushes(joint, likelihood[cell], LOOKAHEAD_PUSHES)
+    if best_exit[-1] <= p_cross:  # nothing a push could say would change the exit
+        return a
+    nxt, every = max(int(pushes[0]), 1), max(int(pushes[1]), 1)
+    waits = np.array([0] + [nxt + (k - 1) * every for k in range(1, LOOKAHEAD_PUSHES + 1)])
+    times = route_steps(int(cell), int(depth), *particles, planner.goal_cells,
+                        planner.cell_poly, planner.next_cell, planner.moves)
+    feasible = np.array([(times + w <= depth).mean() for w in waits])
+    r = planner.rewards
+    gain, _ = wait_value(p_cross, best_exit, feasible, waits, r.goal_after_violation, r.discount)
+    if gain <= 1.0:
+        return a
+    best, best_q = STAY, -np.inf
+    for b in range(8):
+        if result.visits[b] > 0 and planner.cell_poly[planner.next_cell[cell, b]] == v \
+                and result.values[b] > best_q:
+            best, best_q = b, float(result.values[b])
+    return best
