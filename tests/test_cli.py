@@ -183,6 +183,7 @@ def test_bench_json_keys():
     for k in ("arrangement_build_s", "belief_update_ms", "pomcp_decision_ms",
               "pomcp_queries_per_s", "route_update_ms"):
         assert m[k] > 0
+    assert m["crossing_check_ms"] is None or m["crossing_check_ms"] > 0
     ph = res["physics"]
     assert ph["cue_sector_accuracy_no_noise"] == 1.0 and ph["cue_sector_accuracy"] >= 0.9
     assert ph["false_cues_per_hour"] == 0 and ph["episode_s"] > 0 and ph["render_fps"] > 0

@@ -8,10 +8,9 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
 
 from pathpref.episode import EpisodeSpec, run_episode
+from pathpref.geometry.following import preference_following_distance
 from pathpref.geometry.grid import STAY
 from pathpref.inference.belief import PreferenceBelief
 from pathpref.inference.human import ObservationModel
@@ -106,18 +105,6 @@ def _searched(world, goals, cell, pushes=(1, 1)):
     return planner, belief, model
 
 
-def _steps_following(world, pref: np.ndarray, goal: int) -> np.ndarray:
-    """Fewest steps from each cell to ``goal`` leaving each polytope only toward ``pref``."""
-    m = world.motion
-    n = world.n_cells
-    src = np.repeat(np.arange(n), 8)
-    dst = m.next_cell.ravel()
-    v, w = world.cell_polytope[src], world.cell_polytope[dst]
-    ok = ~m.blocked.ravel() & ((v == w) | (pref[v] < 0) | (pref[v] == w))
-    rev = csr_matrix((np.ones(ok.sum()), (dst[ok], src[ok])), shape=(n, n))
-    return dijkstra(rev, directed=True, indices=goal)
-
-
 def test_route_steps_follow_each_particles_preference(simple):
     """Each particle's walk arrives within the time and takes at least as many steps as the
     fewest that leave every polytope only toward the particle's preferred neighbour (a walk
@@ -133,7 +120,8 @@ def test_route_steps_follow_each_particles_preference(simple):
     nbr = planner.nbr
     for j in range(len(pool_g)):
         pref = np.where(pool_theta[j] >= 0, nbr[np.arange(len(nbr)), pool_theta[j]], -1)
-        assert steps[j] >= _steps_following(simple, pref, goals[pool_g[j]])[s] - 1e-9, j
+        fewest = preference_following_distance(simple, pref, goals[pool_g[j]], steps=True)
+        assert steps[j] >= fewest[s] - 1e-9, j
     short = route_steps(s, int(steps.min()) - 1, pool_g, pool_theta, planner.goal_cells,
                         planner.cell_poly, planner.next_cell, planner.moves)
     assert np.all(short == steps.min())  # depth + 1 for every particle

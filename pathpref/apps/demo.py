@@ -16,8 +16,8 @@ and ``oracle``; the first 30 are the sweep's episodes, so the rates reproduce it
 one episode per method of the paper (:func:`film_index`: not picked for its outcome) rendered in
 MuJoCo with force cues. The corrective human exists in the grid world only, so the MuJoCo
 episodes use the periodic human at ΔT = :data:`FILM_DELTA_T` on the same instance (``--sim
-grid``: the corrective episodes, no video). Preset: ``robust``; ``--preset paper`` for the
-paper's planner.
+grid``: the corrective episodes, no video). Preset: the default
+(:data:`~pathpref.planning.pomdp.DEFAULT_PRESET`); ``--preset paper`` for the paper's planner.
 
 Writes to the output folder:
 

@@ -17,9 +17,11 @@ from .grid import STAY
 from .world import World
 
 
-def preference_following_distance(world: World, pref: np.ndarray, goal: int) -> np.ndarray:
+def preference_following_distance(world: World, pref: np.ndarray, goal: int,
+                                  steps: bool = False) -> np.ndarray:
     """``(n,)`` length of the shortest path from each cell to ``goal`` that leaves each polytope
-    ``v`` only toward ``pref[v]`` (any way when ``pref[v] < 0``); inf where none exists."""
+    ``v`` only toward ``pref[v]`` (any way when ``pref[v] < 0``); inf where none exists.
+    ``steps``: count moves (each 1) instead of the moves' costs."""
     m = world.motion
     n = world.n_cells
     src = np.repeat(np.arange(n), 8)
@@ -27,7 +29,8 @@ def preference_following_distance(world: World, pref: np.ndarray, goal: int) -> 
     v, w = world.cell_polytope[src], world.cell_polytope[dst]
     ok = ~m.blocked.ravel() & ((v == w) | (pref[v] < 0) | (pref[v] == w))
     # reversed graph: an edge t -> s for every allowed move s -> t, so one search from the goal
-    rev = csr_matrix((m.cost.ravel()[ok], (dst[ok], src[ok])), shape=(n, n))
+    weight = np.ones(ok.sum()) if steps else m.cost.ravel()[ok]
+    rev = csr_matrix((weight, (dst[ok], src[ok])), shape=(n, n))
     return dijkstra(rev, directed=True, indices=goal)
 
 

@@ -150,7 +150,7 @@ PRESETS["robust-check"] = replace(PRESETS["robust-wait"], name="robust-check",
 
 #: the preset of applications (render, demo, interact, tasks, studies, evaluate without
 #: --preset); the tables of docs/robust.md name the preset they were made with
-DEFAULT_PRESET = "robust-wait"
+DEFAULT_PRESET = "robust-check"
 
 
 def get_preset(name: str, **overrides) -> Preset:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import platform
 import time
+from dataclasses import replace
 from statistics import median
 from typing import Any
 
@@ -17,6 +18,7 @@ from ...geometry.world import World
 from ...inference.belief import GoalBelief, PreferenceBelief
 from ...inference.human import ObservationModel
 from ...inference.routes import RouteBelief
+from ...planning.crossing import check_crossing
 from ...planning.pomcp import POMCP
 from ...planning.pomdp import get_preset
 
@@ -103,17 +105,35 @@ def bench_route_update(model: ObservationModel, pushes: int = 40, seed: int = 0
             "route_update_observed_polytopes": len(belief.observed_polytopes())}
 
 
+def _check_times(planner: POMCP, belief, model: ObservationModel, res, start: int,
+                 depth: int) -> list[float]:
+    """Seconds of the crossing check (:func:`~pathpref.planning.crossing.check_crossing`,
+    the default preset's) of every move from ``start`` into another polytope, as if the search
+    ``res`` had chosen it, a push expected every step."""
+    m, cp = planner.world.motion, planner.cell_poly
+    out = []
+    for a in range(8):
+        if m.blocked[start, a] or cp[m.next_cell[start, a]] == cp[start]:
+            continue
+        t = time.perf_counter()
+        check_crossing(planner, belief, model.cell_likelihood, replace(res, action=a), start,
+                       depth, (1, 1))
+        out.append(time.perf_counter() - t)
+    return out
+
+
 def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
     """First-decision POMCP time: 5000 queries at depth T_max, median over random instances.
     The robust search is timed from the robust preset's belief after one push (the route
     prior: the posterior's solve and the Wilson particles, :meth:`POMCP.pool_size`, are in
-    the time)."""
+    the time); after it, the crossing check of each move from the start into another polytope
+    (``crossing_check_ms``; None where no start had one)."""
     preset = get_preset("paper")
     robust = get_preset("robust")
     depth = world.spec.t_max
     n = 5 if quick else 20
     rng = np.random.default_rng(seed + 1)
-    t_pp, t_go, t_rb, t_rb_go = [], [], [], []
+    t_pp, t_go, t_rb, t_rb_go, t_ck = [], [], [], [], []
     for i in range(n + 1):
         goals = rng.choice(world.n_cells, size=10, replace=False)
         start = int(rng.integers(world.n_cells))
@@ -131,9 +151,12 @@ def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> 
              GoalBelief(model), t_rb_go),
         ):
             t = time.perf_counter()
-            planner.search(start, belief, depth, seed=i)
+            res = planner.search(start, belief, depth, seed=i)
             if i > 0:  # the first search compiles or loads the kernel
                 out.append(time.perf_counter() - t)
+            if out is t_rb:
+                checks = _check_times(planner, belief, model, res, start, depth)
+                t_ck += checks if i > 0 else []
     return {
         "pomcp_queries": preset.queries,
         "pomcp_depth": depth,
@@ -144,6 +167,7 @@ def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> 
         "paper_pomcp_decision_ms": paper.solve_ms(name),
         "robust_decision_ms": 1e3 * median(t_rb),
         "robust_goal_only_decision_ms": 1e3 * median(t_rb_go),
+        "crossing_check_ms": 1e3 * median(t_ck) if t_ck else None,
     }
 
 

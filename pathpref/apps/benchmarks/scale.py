@@ -189,10 +189,10 @@ def bench_map_500(queries: int = 1000) -> dict[str, Any]:
 def bench_scale(queries: int = 1000, map_500: bool = True) -> dict[str, Any]:
     """Large-map figures: the 200 x 200 floor plan's setup time and peak memory and the route
     prior's update on it (:func:`.maps.bench_route_update`; fresh process), one
-    path-preference episode on it per preset (``paper``, ``robust`` and the default,
-    ``robust-wait``: CPU seconds and peak RSS with the likelihood tables, each in a fresh
-    process; ``map_200_episode_s``, its steps, goal and ``map_200_episode_peak_mb`` are the
-    default preset's, as ``EpisodeSpec`` runs it),
+    path-preference episode on it per preset (``paper``, ``robust``, ``robust-wait`` and the
+    default, :data:`~pathpref.planning.pomdp.DEFAULT_PRESET`: CPU seconds and peak RSS with the
+    likelihood tables, each in a fresh process; ``map_200_episode_s``, its steps, goal and
+    ``map_200_episode_peak_mb`` are the default preset's, as ``EpisodeSpec`` runs it),
     the 40 x 40 rotated maps' reachable fraction and (``map_500``) :func:`bench_map_500`."""
     import json
     import subprocess
@@ -207,8 +207,9 @@ def bench_scale(queries: int = 1000, map_500: bool = True) -> dict[str, Any]:
     res: dict[str, Any] = {"map_200_setup_s": float(out[0]), "map_200_peak_mb": float(out[1]),
                            "map_200_route_update_ms": float(out[2]),
                            "map_200_route_update_mean_ms": float(out[3])}
-    # one episode per preset, each in a fresh process (its peak RSS is the episode's)
-    for preset in dict.fromkeys(("paper", "robust", DEFAULT_PRESET)):
+    # one episode per preset, each in a fresh process (its peak RSS is the episode's); every
+    # preset that has been the default keeps its keys
+    for preset in dict.fromkeys(("paper", "robust", "robust-wait", DEFAULT_PRESET)):
         code = ("from pathpref.apps.benchmarks.scale import _episode_child; "
                 f"_episode_child({preset!r}, {int(queries)})")
         ep = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True,
