@@ -154,7 +154,7 @@ DEFAULT_PRESET = "robust-check"
 
 
 def get_preset(name: str, **overrides) -> Preset:
-    """A preset by name (``paper``, ``original`` or ``robust``), with optional field overrides."""
+    """A preset of :data:`PRESETS` by name, with optional field overrides."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
     if overrides.get("prior") not in (None, *PRIORS):
