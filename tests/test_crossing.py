@@ -208,3 +208,24 @@ def test_the_check_waits_for_the_push_interval_and_replays(monkeypatch):
         (again.goal_reached, again.success, again.steps)
     assert first.steps > 0 and len(calls) == 2 * n_first
     assert all(p[1] == 3 for p in calls)  # the interval ΔT = 3, never the first guess (1, 1)
+
+
+def test_the_check_is_bounded_in_its_worst_cases():
+    """A walk that circles without reaching its goal, or is stuck, stops after ``depth + 1``
+    steps whatever ``depth``; the heading sum at its largest (every heading possible, so no
+    sequence is pruned; 10 goals, 12 exits) still gives probabilities in ``[E_0, 1]``."""
+    n = 50
+    ring = np.repeat(((np.arange(n) + 1) % n)[:, None], 8, axis=1)  # every move: one cell on
+    stuck = np.repeat(np.arange(n)[:, None], 8, axis=1)  # every move: stay
+    moves = np.zeros((n, 2, 1), np.uint8)
+    goal_cells, cell_poly = np.array([n + 7]), np.zeros(n, np.int64)  # a goal never reached
+    pool_g, pool_theta = np.zeros(3, np.int64), -np.ones((3, 1), np.int64)
+    for nxt in (ring, stuck):
+        for depth in (5, 10**6):
+            got = route_steps(0, depth, pool_g, pool_theta, goal_cells, cell_poly, nxt, moves)
+            assert np.all(got == depth + 1)
+    rng = np.random.default_rng(2)
+    joint = rng.dirichlet(np.ones(120)).reshape(10, 12)
+    e = best_exit_after_pushes(joint, rng.random((8, 10, 12)) + 0.01, LOOKAHEAD_PUSHES)
+    assert e[0] == pytest.approx(joint.sum(axis=0).max()) and np.all(e <= 1 + 1e-12)
+    assert np.all(np.diff(e) >= -1e-12)
