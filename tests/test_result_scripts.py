@@ -4,6 +4,7 @@ columns, counted here independently."""
 
 from __future__ import annotations
 
+import json
 import sqlite3
 import sys
 from pathlib import Path
@@ -95,3 +96,33 @@ def test_paired_presets_counts_a_failed_episode_as_a_failure(tmp_path, capsys):
     con = sqlite3.connect(db)
     assert con.execute("SELECT count(*) FROM episodes WHERE status != 'ok'").fetchone()[0] == 0
     con.close()
+
+
+def test_heldout_eval_splits_every_failure(tmp_path):
+    """scripts/heldout_eval.py on one generated plan (compliant and oracle, 2 x 2, ΔT = 5):
+    the plan file is the generator's, and per method the outcome columns add up to n and
+    equal the database's own flags, counted here."""
+    import heldout_eval
+
+    db, out = tmp_path / "h.sqlite", tmp_path / "h.md"
+    assert heldout_eval.main(["--open", "9001", "--plans", str(tmp_path / "plans"),
+                              "--presets", "robust", "--methods", "compliant", "oracle",
+                              "--delta-t", "5", "--instances", "2", "--runs", "2",
+                              "--workers", "1", "--db", str(db), "--out", str(out)]) == 0
+    stored = Path(__file__).resolve().parents[1] / "docs/results/heldout_plans/heldout_9001.json"
+    assert json.loads((tmp_path / "plans/heldout_open_9001.json").read_text())["obstacles"] == \
+        json.loads(stored.read_text())["obstacles"]
+    con = sqlite3.connect(db)
+    rows = con.execute("SELECT method, success, goal_reached, homotopy_success FROM episodes"
+                       ).fetchall()
+    con.close()
+    text = out.read_text()
+    for method in ("compliant", "oracle"):
+        rs = [r for r in rows if r[0] == method]
+        timeout = sum(1 for r in rs if not r[2])
+        wrong = sum(1 for r in rs if r[2] and not r[3])
+        order = sum(1 for r in rs if r[2] and r[3] and not r[1])
+        assert len(rs) == 4 and timeout + wrong + order + sum(r[1] for r in rs) == 4
+        line = next(x for x in text.splitlines() if x.startswith(f"| 5 | {method} |"))
+        cols = [c.strip() for c in line.strip("|").split("|")]
+        assert cols[2] == "4" and [int(c) for c in cols[6:10]] == [timeout, wrong, order, 0]

@@ -25,15 +25,16 @@ is checked here, after the search, whenever the search's move ``a`` takes the ro
   exits) still reaches ``g_j`` in the ``depth - w`` steps left after waiting ``w``.
 
 A success reached after a crossing that was not preferred is worth ``rho`` of one that was
-(:attr:`~.pomdp.Rewards.goal_after_violation`), so crossing now is worth, up to a factor both
-options share, ``F(0) (rho + (1 - rho) P)``, and waiting for ``k`` pushes, then crossing by the
-best exit, ``F(w_k) gamma^w_k (rho + (1 - rho) E_k)``. The robot waits when the best ``k`` in
-``1..`` :data:`LOOKAHEAD_PUSHES` beats crossing now; it then takes the root move of highest mean
-return among those the search tried that stay in ``v`` (its stay move under
-:attr:`~.pomdp.Preset.wait_for_pushes`), or stands still (:data:`~pathpref.geometry.grid.STAY`)
-if it tried none. The approximations are stated: the route times follow the rollout policy,
-feasibility and the crossing's correctness are treated as independent, and the pushes are
-taken at ``s`` (the robot waits within ``v``).
+(:attr:`~.pomdp.Rewards.goal_after_violation`; with an arrival share ``a > 0``,
+:attr:`~.pomdp.Rewards.arrival`, ``rho`` here is :func:`effective_rho`, ``a + (1 - a) rho``),
+so crossing now is worth, up to a factor both options share, ``F(0) (rho + (1 - rho) P)``, and
+waiting for ``k`` pushes, then crossing by the best exit, ``F(w_k) gamma^w_k (rho + (1 - rho)
+E_k)``. The robot waits when the best ``k`` in ``1..`` :data:`LOOKAHEAD_PUSHES` beats crossing
+now; it then takes the root move of highest mean return among those the search tried that stay
+in ``v`` (its stay move under :attr:`~.pomdp.Preset.wait_for_pushes`), or stands still
+(:data:`~pathpref.geometry.grid.STAY`) if it tried none. The approximations are stated: the
+route times follow the rollout policy, feasibility and the crossing's correctness are treated
+as independent, and the pushes are taken at ``s`` (the robot waits within ``v``).
 
 Bounds: ``8^k`` heading sequences for ``k <= LOOKAHEAD_PUSHES`` (4096 rows of ``G deg(v)``);
 a route walk takes at most ``depth + 1`` steps per particle.
@@ -70,27 +71,56 @@ def best_exit_after_pushes(joint: np.ndarray, likelihood: np.ndarray, k_max: int
 
 
 @nb.njit(cache=True)
-def route_steps(cell, depth, pool_g, pool_theta, goal_cells, cell_poly, next_cell, moves):
-    """``(m,)`` the steps particle ``j``'s preferred route takes from ``cell`` to its goal
-    ``goal_cells[pool_g[j]]``, walking the rollout moves (:func:`.guided.rollout_moves`,
-    the first of tied moves) through its exits ``pool_theta[j]``; ``depth + 1`` where the walk
-    does not arrive within ``depth`` steps (or is stuck)."""
+def route_walks(cell, depth, pool_g, pool_theta, goal_cells, cell_poly, next_cell, moves,
+                weight):
+    """The preferred route of each root particle ``j`` from ``cell`` to its goal
+    ``goal_cells[pool_g[j]]``, walking the rollout moves (:func:`.guided.rollout_moves`, the
+    first of tied moves) through its exits ``pool_theta[j]``. Returns ``(steps, crossings,
+    first)``, each ``(m,)``: the steps the walk takes (``depth + 1`` where it does not arrive
+    within ``depth`` steps, or is stuck), the sum of ``weight[v]`` over the polytopes ``v``
+    the walk leaves (with ``weight`` all 1: its polytope changes), and its first move (-1 at
+    the goal). At most ``depth + 1`` steps
+    per particle."""
     m = pool_g.shape[0]
     out = np.empty(m, np.int64)
+    crossings = np.zeros(m)
+    first = -np.ones(m, np.int64)
     for j in range(m):
         g = pool_g[j]
         s = cell
         steps = 0
         while s != goal_cells[g] and steps <= depth:
             kv = pool_theta[j, cell_poly[s]]
-            s2 = next_cell[s, FIRST_FROM[moves[s, kv + 1, g], 0]]
+            a = FIRST_FROM[moves[s, kv + 1, g], 0]
+            s2 = next_cell[s, a]
             if s2 == s:
                 steps = depth + 1
                 break
+            if steps == 0:
+                first[j] = a
+            if cell_poly[s2] != cell_poly[s]:
+                crossings[j] += weight[cell_poly[s]]
             s = s2
             steps += 1
         out[j] = steps if s == goal_cells[g] else depth + 1
-    return out
+    return out, crossings, first
+
+
+def route_steps(cell, depth, pool_g, pool_theta, goal_cells, cell_poly, next_cell, moves):
+    """``(m,)`` the steps of each particle's preferred route from ``cell``
+    (:func:`route_walks`' first output)."""
+    weight = np.ones(len(pool_theta[0]) if len(pool_theta) else 1)
+    return route_walks(cell, depth, pool_g, pool_theta, goal_cells, cell_poly, next_cell,
+                       moves, weight)[0]
+
+
+def effective_rho(rewards) -> float:
+    """What a success after one wrong crossing is worth against a strict one:
+    ``a + (1 - a) rho`` (:attr:`~.pomdp.Rewards.arrival` ``a``, ``rho``:
+    :attr:`~.pomdp.Rewards.goal_after_violation`); ``rho`` itself when ``a = 0``."""
+    a = float(rewards.arrival)
+    return float(rewards.goal_after_violation) if a == 0.0 else \
+        a + (1.0 - a) * float(rewards.goal_after_violation)
 
 
 def wait_value(p_cross: float, best_exit: np.ndarray, feasible: np.ndarray,
@@ -136,7 +166,7 @@ def check_crossing(planner, belief, likelihood, result, cell: int, depth: int,
                         planner.cell_poly, planner.next_cell, planner.moves)
     feasible = np.array([(times + w <= depth).mean() for w in waits])
     r = planner.rewards
-    gain, _ = wait_value(p_cross, best_exit, feasible, waits, r.goal_after_violation, r.discount)
+    gain, _ = wait_value(p_cross, best_exit, feasible, waits, effective_rho(r), r.discount)
     if gain <= 1.0:
         return a
     best, best_q = STAY, -np.inf

@@ -16,8 +16,11 @@ its root states come from and how it searches differ.
    equal): between pushes the decisions reuse it.
    Under the independent prior, ``g ~ P(g | o)`` and each ``p_v ~ P(p_v | g, o)`` are drawn
    lazily per simulation, as in the paper's search.
-1. **Success reward.** A simulation earns ``R_g gamma^(L-1) rho^n`` when it reaches the sampled
-   goal at its ``L``-th step, ``n`` the number of transitions, in the simulation or earlier in
+1. **Success reward.** A simulation earns ``R_g gamma^(L-1) (a + (1 - a) rho^n)`` when it
+   reaches the sampled goal at its ``L``-th step (``a``: :attr:`~.pomdp.Rewards.arrival`, the
+   share of the goal's value that arriving earns whatever the route; 0 in the ``robust``,
+   ``robust-wait`` and ``robust-check`` presets, whose reward is then ``R_g gamma^(L-1)
+   rho^n``), ``n`` the number of transitions, in the simulation or earlier in
    the episode (the search is given the episode's transitions), that left a *known* polytope
    ``v`` by a face other than the sampled ``p_v`` (``rho``:
    :attr:`~.pomdp.Rewards.goal_after_violation`). No other reward. Each violation costs its own
@@ -403,12 +406,14 @@ def _stay_move(s, blocked):
 @nb.njit(cache=True)
 def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cells, goal_cdf,
                   pref_cdf, known, ctg, dist, hist_v, hist_k, s0, depth, queries, c, discount,
-                  Rg, rho, use_pref, seed, budget_s, pool_g, pool_theta, push_next,
+                  reward, use_pref, seed, budget_s, pool_g, pool_theta, push_next,
                   push_every, tie_z, moves, lik_flat, lik_off, lik_slots, wait, reach):
     """PO-UCT of the module docstring; returns
-    ``(best action, root visits, root values, nodes, queries run)``. ``wait``: branch on the
-    expected pushes' headings (``lik_*``: the heading likelihood's :class:`CellTable` arrays)
-    and offer the stay move (module docstring, 7)."""
+    ``(best action, root visits, root values, nodes, queries run)``. ``reward``:
+    ``(R_g, rho, a)``, the goal's value, the factor per violation and the share ``a`` of the
+    goal's value that arriving earns whatever the route (module docstring, 1). ``wait``:
+    branch on the expected pushes' headings (``lik_*``: the heading likelihood's
+    :class:`CellTable` arrays) and offer the stay move (module docstring, 7)."""
     np.random.seed(seed)
     t0 = _clock()
     tree = pool_g.shape[0] > 0
@@ -440,7 +445,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
         (n_node, n_sa, q_sa, child, heard),
         (theta, stamp, fixed, made_q, told_q, cand, p_goal, visited_q, path_node, path_a,
          root_sq),
-        s0, depth, queries, c, discount, Rg, rho, use_pref, budget_s, push_next, push_every,
+        s0, depth, queries, c, discount, reward, use_pref, budget_s, push_next, push_every,
         wait, t0)
     a = _root_choice(s0, n_sa[0], q_sa[0], root_sq, next_cell, cost, blocked, cross_slot,
                      cell_poly, p_goal, ctg, dist, pool_theta, tie_z, reach)
@@ -448,7 +453,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
 
 
 @nb.njit(cache=True, _nrt=False)
-def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discount, Rg, rho,
+def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discount, reward,
               use_pref, budget_s, push_next, push_every, wait, t0):
     """The simulations of :func:`search_robust`, on its arrays (grouped in tuples); returns
     ``(nodes, queries run)``. Compiled without reference counting: it allocates nothing,
@@ -461,6 +466,9 @@ def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discoun
     n_node, n_sa, q_sa, child, heard = nodes
     theta, stamp, fixed, made_q, told_q, cand, p_goal, visited_q, path_node, path_a, root_sq = \
         scratch
+    Rg, rho, arrive = reward
+    g_any = Rg * arrive  # what arriving earns whatever the route (0: the strict reward)
+    g_rest = Rg * (1.0 - arrive)
     tree = pool_g.shape[0] > 0
     G = goal_cells.shape[0]
     n_nodes = 1
@@ -558,7 +566,7 @@ def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discoun
                 visited_q[cand[s]] = q
             if done:
                 # the goal pays at step L - 1 (counted from 0 at the root)
-                ret = Rg * discount ** (L - 1) * rho ** viol
+                ret = g_rest * discount ** (L - 1) * rho ** viol + g_any * discount ** (L - 1)
                 break
             if not in_tree and L + dist[gi, s] > depth:
                 break  # the goal is out of reach: the return is 0 whatever the rollout does

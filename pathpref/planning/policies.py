@@ -39,6 +39,7 @@ from ..inference.routes import RouteBelief
 from .crossing import check_crossing
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
+from .slack import WaitBudget
 
 
 @dataclass
@@ -134,6 +135,7 @@ class PlannerPolicy(Policy):
                              if robust and p.wait_for_pushes else None)
         self.history: list[tuple[int, int]] = []
         self.input_steps: list[int] = []
+        self.waits = WaitBudget() if robust and p.budget_waits else None
 
     def enter(self, v_from: int, v_to: int) -> None:
         """Record the transition (the robust search scores the episode's history)."""
@@ -147,11 +149,15 @@ class PlannerPolicy(Policy):
             self.input_steps.append(t)
         pushes = self.expected_pushes(t)
         res = self.planner.search(cell, self.belief, depth, self._seed(), self.history, pushes)
+        a = res.action
         if self.ctx.preset.check_crossings and self.planner.tables is not None \
                 and len(self.input_steps) >= 2:  # the pushes' interval is known (crossing)
-            return check_crossing(self.planner, self.belief, self.ctx.model.cell_likelihood,
-                                  res, cell, depth, pushes)
-        return res.action
+            a = check_crossing(self.planner, self.belief, self.ctx.model.cell_likelihood,
+                               res, cell, depth, pushes)
+        if self.waits is not None:
+            a = self.waits.decide(self.planner, self.belief, self.ctx.model.cell_likelihood,
+                                  a, cell, depth, pushes)
+        return a
 
     def expected_pushes(self, t: int) -> tuple[int, int]:
         """``(next, every)``: in how many steps the human is expected to push next, and how

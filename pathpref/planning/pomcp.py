@@ -283,7 +283,8 @@ class POMCP:
                 self.next_cell, self.cost, self.blocked, self.cross_slot, self.cell_poly,
                 self.nbr, self.goal_cells, goal_cdf, cdf, self._known(belief), self.ctg,
                 self.dist, *self._history(history), int(cell), int(max(depth, 1)),
-                self.queries, self.c, r.discount, r.goal, r.goal_after_violation,
+                self.queries, self.c, r.discount,
+                (float(r.goal), float(r.goal_after_violation), float(r.arrival)),
                 r.use_preference, int(seed) % (2**32), self.budget_s,
                 *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1),
                 TIE_Z, self.moves, *self._lik, self.wait, self.reach)

@@ -41,6 +41,12 @@ class Rewards:
     #: success reward only: what reaching the goal is worth after a non-preferred transition,
     #: as a fraction ``rho`` of ``goal``
     goal_after_violation: float = 0.1
+    #: success reward only: the share ``a`` of ``goal`` that reaching the goal earns whatever
+    #: the route; the goal then pays ``goal (a + (1 - a) rho^n)`` after ``n`` violations, so
+    #: the expected return is ``a P(goal) + (1 - a) E[rho^n; goal]``: with ``a = 1/2`` it is
+    #: ``(P(goal) + w P(strict)) / 2`` with ``w = 1`` up to the ``rho`` terms (a time-out
+    #: is never preferred to arriving by another route). 0: the strict reward ``rho^n``.
+    arrival: float = 0.0
 
     def for_mission(self, t_max: int) -> Rewards:
         """These rewards with the discount resolved for a mission of ``t_max`` steps."""
@@ -85,6 +91,9 @@ class Preset:
             exactly against waiting for the next pushes (value of information of the
             crossing against the time it costs, :mod:`.crossing`; route-prior beliefs); the
             ``robust-check`` preset.
+        budget_waits: wait for pushes only within a budget of the time slack per crossing,
+            standing still while waiting, and commit to the most probable route otherwise
+            (:mod:`.slack`; route-prior beliefs); the ``robust-slack`` preset.
 
     This is the one home of every planner setting: an episode resolves its preset with its
     overrides once (:func:`get_preset`) and policies read nothing else.
@@ -103,6 +112,7 @@ class Preset:
     prior: str = "independent"
     wait_for_pushes: bool = False
     check_crossings: bool = False
+    budget_waits: bool = False
 
 
 #: the preference priors of the path-preference belief (:attr:`Preset.prior`)
@@ -147,6 +157,14 @@ PRESETS["robust-wait"] = replace(PRESETS["robust"], name="robust-wait", wait_for
 #: (Preset.check_crossings; docs/robust.md, "Look before crossing")
 PRESETS["robust-check"] = replace(PRESETS["robust-wait"], name="robust-check",
                                   check_crossings=True)
+
+#: robust-check whose goal is worth reaching by any route (Rewards.arrival = 0.2: value
+#: 0.2 (P(goal) + 4 P(strict)) up to the rho terms) and whose waits are budgeted over the
+#: route's crossings
+#: (Preset.budget_waits; docs/robust.md, "Never stall")
+PRESETS["robust-slack"] = replace(
+    PRESETS["robust-check"], name="robust-slack", budget_waits=True,
+    path_preference=replace(PRESETS["robust-check"].path_preference, arrival=0.2))
 
 #: the preset of applications (render, demo, interact, tasks, studies, evaluate without
 #: --preset); the tables of docs/robust.md name the preset they were made with

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from ...episode.runner import EpisodeRunner
+from ...episode.spec import EpisodeSpec
 from ...experiments import paper
 from ...geometry.maps import load_map
 from ...geometry.world import World
@@ -20,7 +22,7 @@ from ...inference.human import ObservationModel
 from ...inference.routes import RouteBelief
 from ...planning.crossing import check_crossing
 from ...planning.pomcp import POMCP
-from ...planning.pomdp import get_preset
+from ...planning.pomdp import DEFAULT_PRESET, get_preset
 
 
 # --- maps: setup, belief, POMCP ------------------------------------------------------------
@@ -65,6 +67,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         t_goal.append(time.perf_counter() - t)
     planning = bench_pomcp(world, name, quick=quick, seed=seed)
     routes = bench_route_update(model, pushes=20 if quick else 40, seed=seed)
+    decisions = bench_default_decisions(name, episodes=2 if quick else 6, seed=seed)
     return {
         "polytopes": world.n_polytopes,
         "edges": world.graph.n_edges,
@@ -78,6 +81,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         "belief_updates": n_upd,
         "paper_belief_update_ms": paper.update_ms(name),
         **planning,
+        **decisions,
         **routes,
     }
 
@@ -103,6 +107,29 @@ def bench_route_update(model: ObservationModel, pushes: int = 40, seed: int = 0
             "route_update_mean_ms": 1e3 * float(np.mean(out)),
             "route_update_pushes": pushes,
             "route_update_observed_polytopes": len(belief.observed_polytopes())}
+
+
+def bench_default_decisions(name: str, episodes: int = 6, seed: int = 0) -> dict[str, Any]:
+    """CPU time of every decision step of ``episodes`` grid episodes of ``path_preference``
+    under the default preset (:data:`~pathpref.planning.pomdp.DEFAULT_PRESET`: search, crossing
+    check, wait budget and the belief update of the step's push), the consistent human, a
+    push every 5 steps: median, 95th percentile and maximum in ms. The first episode also
+    compiles or loads the kernels: it is run once before the timed ones."""
+    out: list[float] = []
+    for i in range(episodes + 1):
+        spec = EpisodeSpec.single(name, "path_preference", 5, seed=seed, instance=i,
+                                  human="consistent", preset=DEFAULT_PRESET)
+        runner = EpisodeRunner(spec)
+        while not runner.done:
+            t = time.process_time()
+            runner.step()
+            if i > 0:
+                out.append(time.process_time() - t)
+    return {"default_preset": DEFAULT_PRESET,
+            "default_decision_ms": 1e3 * median(out),
+            "default_decision_p95_ms": 1e3 * float(np.percentile(out, 95)),
+            "default_decision_max_ms": 1e3 * max(out),
+            "default_decisions": len(out)}
 
 
 def _check_times(planner: POMCP, belief, model: ObservationModel, res, start: int,
