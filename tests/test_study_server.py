@@ -495,3 +495,46 @@ def test_observers_see_the_planned_path_the_driver_only_when_the_belief_is_shown
         assert path[-1] in cands and m["probs"][cands.index(path[-1])] >= best - 1e-4
         steps.add(m["step"])
     assert len(steps) >= 2  # states from more than one decision step
+
+
+def test_a_process_holding_every_slot_never_locks_the_page_out():
+    """Issue 47: a local process that keeps every connection slot full (idle sockets, opened
+    again as they are closed) cannot keep the session's page out: the page and its WebSocket
+    get in on every one of 6 tries, and a page that got in is never the one closed."""
+    f = BrowserFrontEnd(port=0, max_connections=4, open_timeout_s=30.0)
+    stop = threading.Event()
+    held: list[socket.socket] = []
+
+    def hold() -> None:  # a new idle socket every 20 ms, 400 at most (bounded)
+        for _ in range(400):
+            if stop.is_set():
+                return
+            try:
+                held.append(socket.create_connection(("127.0.0.1", f.port), timeout=WAIT_S))
+            except OSError:
+                pass
+            time.sleep(0.02)
+
+    th = threading.Thread(target=hold, daemon=True)
+    try:
+        for _ in range(8):  # every slot taken before the page comes
+            held.append(socket.create_connection(("127.0.0.1", f.port), timeout=WAIT_S))
+        assert wait_for(lambda: f.refused_connections >= 4)
+        th.start()
+        driver, role = page(f)
+        assert role == "driver"
+        for _ in range(6):  # the page reloaded 6 times (an observer each time)
+            assert get(f"http://127.0.0.1:{f.port}/?token={f.token}") == 200
+            ws, role = page(f)
+            assert role == "observer"
+            time.sleep(0.2)  # the holder opens about 10 more sockets meanwhile
+            ws.close()
+        assert f.refused_connections > 20
+        assert driver.ping().wait(WAIT_S)  # the page that got in is still served
+        driver.close()
+    finally:
+        stop.set()
+        th.join(WAIT_S)
+        for s in held:
+            s.close()
+        f.close()
