@@ -538,3 +538,59 @@ def test_a_process_holding_every_slot_never_locks_the_page_out():
         for s in held:
             s.close()
         f.close()
+
+
+def test_answers_only_for_the_trial_just_ended_once_and_one_calibration_per_step(tmp_path):
+    """Issue 47: from the driving page, NASA-TLX answers for trials that do not exist, sent
+    before or during a trial, or a second answer, are not stored: each trial keeps the answer
+    given after it ended; 3000 calibrate messages make at most one row per write (one per
+    decision step, and one before and after each trial)."""
+    import sqlite3
+
+    from pathpref.study.controls import TLX_SCALES
+
+    study = parse_study({"questionnaire": "nasa-tlx",
+                         "trials": [{**TRIAL, "name": "a", "time_limit_s": 2},
+                                    {**TRIAL, "name": "b", "time_limit_s": 2}]})
+    f = BrowserFrontEnd(port=0)
+    db = tmp_path / "p.sqlite"
+    th, box = _run_in_thread(study, "p1", db, f)
+    ws, role = page(f)
+    assert role == "driver"
+    stop = threading.Event()
+    keep_alive(ws, stop)
+
+    def tlx(k: int, v: int) -> str:
+        return json.dumps({"type": "tlx", "trial": k, "scores": dict.fromkeys(TLX_SCALES, v)})
+
+    cal = json.dumps({"type": "calibrate", "rest": [0.0, 0.0], "reach": 1.0, "device": "x"})
+    try:
+        assert wait_for(lambda: f._scene is not None and f._status == "waiting")
+        for k in range(1, 501):  # 500 answers for trials that exist or not, before any
+            ws.send(tlx(k, 1))
+        for _ in range(1500):
+            ws.send(cal)
+        ws.send('{"type": "start"}')
+        assert wait_for(lambda: f._status == "running")
+        ws.send(tlx(1, 2))  # during the trial
+        for _ in range(1500):
+            ws.send(cal)
+        assert wait_for(lambda: f._status == "done")
+        ws.send(tlx(2, 3))  # a pre-answer of the next trial
+        ws.send(tlx(1, 40))  # the real answer
+        ws.send(tlx(1, 4))  # a second one
+        assert wait_for(lambda: f._status == "waiting")
+        ws.send('{"type": "start"}')
+        assert wait_for(lambda: f._status == "finished")
+        ws.send(tlx(2, 60))
+        th.join(WAIT_S)
+    finally:
+        stop.set()
+        f.close()
+    assert "error" not in box, box.get("error")
+    c = sqlite3.connect(db)
+    got = c.execute("SELECT trial, name, mental, raw_tlx FROM study_tlx ORDER BY trial")
+    assert got.fetchall() == [(1, "a", 40, 40.0), (2, "b", 60, 60.0)]
+    steps = sum(r["steps"] for r in box["rows"])
+    n_cal = c.execute("SELECT count(*) FROM study_calibrations").fetchone()[0]
+    assert 1 <= n_cal <= steps + 4

@@ -16,12 +16,14 @@ or not, is refused with one line naming the process that holds the lock, and not
 deleted. All checks (participant, lock, existing trials, study file) run before a front end
 is made, so a refused command serves no page and prints no URL.
 
-**Gamepad calibration** (:class:`~.controls.StickCalibration`): every calibration the
-participant's front end accepts becomes a row of ``study_calibrations`` (time, the trial under
-way or next, device, rest, reach, dead zone, maximum force).
+**Gamepad calibration** (:class:`~.controls.StickCalibration`): the calibration the
+participant's front end accepted last becomes a row of ``study_calibrations`` (time, the trial
+under way or next, device, rest, reach, dead zone, maximum force) at the next write: one per
+decision step at most, however many the page sends.
 
 **Questionnaire** (the study's ``questionnaire``: ``nasa-tlx``): the front end asks it after
-every trial; each answer becomes a row of ``study_tlx`` (trial position and name, time, the six
+every trial; the answer about the trial just ended, once (:meth:`~.controls.Controls.ask_tlx`),
+becomes a row of ``study_tlx`` (trial position and name, time, the six
 scales, and the raw TLX: their mean).
 
 Both arrive on the front end's thread (the browser's server); they are queued and written by
@@ -159,13 +161,19 @@ class Session:
                               f"study file ({existing[0]['study']}); resume with that file")
 
     def _record_calibration(self, cal) -> None:
-        """Queue a gamepad calibration (any thread; :meth:`_flush` writes it)."""
+        """Queue a gamepad calibration (any thread; :meth:`_flush` writes it). Once per
+        step: a calibration still queued is replaced by the newer one, so a flush (one per
+        decision step, and one before and after each trial) writes one at most."""
         row = calibration_row(cal, self.position, _utc())
         with self._queue_lock:
+            self._queue = [q for q in self._queue if q[0] != "calibration"]
             self._queue.append(("calibration", row))
 
     def _record_tlx(self, k: int, scores: dict[str, int]) -> None:
-        """Queue the NASA-TLX answers after trial ``k`` (any thread)."""
+        """Queue the NASA-TLX answers after trial ``k`` (any thread): only the trial just
+        ended (the session's current position) is answered, the rest is dropped."""
+        if k != self.position:
+            return
         order = self.study.order_for(self.participant)
         name = order[k - 1].name if 1 <= k <= len(order) else None
         with self._queue_lock:
