@@ -594,3 +594,62 @@ def test_answers_only_for_the_trial_just_ended_once_and_one_calibration_per_step
     steps = sum(r["steps"] for r in box["rows"])
     n_cal = c.execute("SELECT count(*) FROM study_calibrations").fetchone()[0]
     assert 1 <= n_cal <= steps + 4
+
+
+# --- issue 47: side files never followed through a link; a full disk is one line ---------
+def _demo_rerun(db: Path, participant: str, position: int) -> Path:
+    from pathpref.study.conduct import rerun_path
+    from pathpref.study.plan import load_study
+
+    study = load_study(STUDY)
+    return rerun_path(db, participant, position, study.order_for(participant)[position - 1])
+
+
+@pytest.mark.parametrize("side", ["lock", "rerun"])
+def test_a_symlinked_side_file_is_refused_and_its_target_untouched(tmp_path, capsys, side):
+    """A symbolic link planted at ``DB.P.lock`` or at a trial's rerun file: one line, exit 2,
+    the link's target unchanged, nothing recorded."""
+    db = tmp_path / "s.sqlite"
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me\n")
+    link = db.with_name(f"{db.name}.p.lock") if side == "lock" else _demo_rerun(db, "p", 2)
+    link.parent.mkdir(exist_ok=True)
+    link.symlink_to(target)
+    assert main(["study", "run", str(STUDY), "--participant", "p", "--db", str(db),
+                 "--script", str(PUSHES)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "symbolic link" in err and str(link) in err, err
+    assert target.read_text() == "keep me\n" and link.is_symlink()
+    assert not db.exists()
+    assert not db.with_name(f"{db.name}.p.lock").exists() or side == "lock"
+
+
+def test_a_full_disk_in_a_trial_is_one_line_and_resume_runs_it_again(tmp_path, capsys,
+                                                                     monkeypatch):
+    """SQLite's 'database or disk is full' at the third write of trial 1: one line, exit 2,
+    no rerun file of that trial, no lock left; --resume then runs both trials."""
+    from pathpref.experiments.trials import TrialWriter
+
+    real = TrialWriter.write
+    calls = {"n": 0}
+
+    def write(self, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise sqlite3.OperationalError("database or disk is full")
+        return real(self, *a, **k)
+
+    monkeypatch.setattr(TrialWriter, "write", write)
+    db = tmp_path / "s.sqlite"
+    argv = ["study", "run", str(STUDY), "--participant", "p", "--db", str(db), "--script",
+            str(PUSHES)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no space left on device in trial 1" in err, err
+    assert "--resume" in err
+    assert not _demo_rerun(db, "p", 1).exists()
+    assert not db.with_name(f"{db.name}.p.lock").exists()
+    monkeypatch.setattr(TrialWriter, "write", real)
+    assert main([*argv, "--resume"]) == 0
+    rows = sqlite3.connect(db).execute("SELECT trial, status FROM trials").fetchall()
+    assert sorted(rows) == [(1, "done"), (2, "done")]

@@ -6,10 +6,15 @@ unfinished is deleted and run again, and finished trials are skipped), and runs 
 participant's trials (:meth:`~.plan.Study.order_for`) through a :class:`FrontEnd`: the browser
 (:mod:`.server`), the MuJoCo viewer (:mod:`.viewer`) or a scripted participant
 (:mod:`.script`). Every trial gets a rerun file beside the database:
-``DB_STEM.rerun/PARTICIPANT-K-NAME.rrd``.
+``DB_STEM.rerun/PARTICIPANT-K-NAME.rrd`` (a symbolic link at that name is refused before the
+session starts, never written through; a trial that fails leaves none).
+
+**A full disk** (the database or the rerun file) ends the session with one line; the trial
+under way stays unfinished and ``--resume`` runs it again.
 
 **One live session per participant.** :class:`Session` takes an exclusive ``flock`` on
-``DB.PARTICIPANT.lock`` beside the database before it reads or deletes anything, and holds it
+``DB.PARTICIPANT.lock`` beside the database (opened with ``O_NOFOLLOW``: a symbolic link there
+is refused, never followed) before it reads or deletes anything, and holds it
 until the session ends (the operating system drops it when the process dies, so a killed
 session never blocks its ``--resume``). A second session of the same participant, ``--resume``
 or not, is refused with one line naming the process that holds the lock, and nothing is
@@ -35,9 +40,12 @@ as JSON lines beside the database (:mod:`.answers`).
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 import re
+import sqlite3
+import stat
 import threading
 import time
 from datetime import UTC, datetime
@@ -98,6 +106,29 @@ def rerun_path(db: str | Path, participant: str, position: int, trial: Trial) ->
     return db.with_name(db.stem + ".rerun") / f"{participant}-{position:02d}-{name}.rrd"
 
 
+def check_rerun_path(path: Path) -> Path:
+    """A trial's rerun file is written only as a file of its own: a symbolic link (or
+    anything but a regular file) at its name is refused with one line, before any work."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return path
+    except OSError as e:
+        raise ConfigError(f"cannot write the rerun file {path}: {e.strerror}") from None
+    if stat.S_ISLNK(st.st_mode) or not stat.S_ISREG(st.st_mode):
+        raise ConfigError(f"the rerun file {path} is a symbolic link or not a regular file; "
+                          "delete it (pathpref writes its own)")
+    return path
+
+
+def disk_full(e: BaseException) -> bool:
+    """An error of a full disk or quota: OSError ENOSPC/EDQUOT, SQLite's 'database or disk
+    is full'."""
+    if isinstance(e, OSError):
+        return e.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+    return isinstance(e, sqlite3.Error) and "database or disk is full" in str(e)
+
+
 def lock_path(db: str | Path, participant: str) -> Path:
     """The lock file of ``participant``'s sessions in ``db`` (module docstring)."""
     db = Path(db)
@@ -122,11 +153,18 @@ class Session:
 
     def _lock(self) -> None:
         for _ in range(3):  # the holder may unlink the file between our open and our flock
-            try:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:  # never through a link: a planted symlink would have its target truncated
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
             except OSError as e:
+                if e.errno == errno.ELOOP:
+                    raise ConfigError(f"the session lock {self.path} is a symbolic link; "
+                                      "delete it (pathpref makes its own)") from None
                 raise ConfigError(f"cannot create the session lock {self.path}: {e.strerror}; "
                                   "give a --db in a writable folder") from None
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                os.close(fd)
+                raise ConfigError(f"the session lock {self.path} is not a regular file; "
+                                  "delete it (pathpref makes its own)")
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -148,6 +186,8 @@ class Session:
         raise ConfigError(f"cannot lock {self.path}: it keeps changing; try again")
 
     def _check(self) -> None:
+        for position, trial in enumerate(self.study.order_for(self.participant), start=1):
+            check_rerun_path(rerun_path(self.db, self.participant, position, trial))
         if not self.db.exists():
             return
         with ResultStore(self.db) as store:
@@ -235,9 +275,19 @@ class Session:
                               front, log, between=lambda: self._flush(writer))
                     self._flush(writer)
                 return writer.trials()
+            except Exception as e:
+                if not disk_full(e):
+                    raise
+                raise ConfigError(
+                    f"cannot write {db}: no space left on device"
+                    + (f" in trial {self.position}, left unfinished" if self.position else "")
+                    + "; free some space and run the same command with --resume") from None
             finally:
                 try:
                     self._flush(writer)
+                except Exception as e:  # the first error is the one to tell
+                    if not disk_full(e):
+                        raise
                 finally:
                     store.close()
         finally:
@@ -265,6 +315,7 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
     front.begin_trial(position, total, runner)
     rerun = rerun_path(db, participant, position, trial)
     rerun.parent.mkdir(parents=True, exist_ok=True)
+    check_rerun_path(rerun)
     writer.begin(position, {
         "name": trial.name, "study_index": trial.index, "study": study.path,
         "study_hash": study.hash,
@@ -278,13 +329,22 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
         "physics": trial.physics, "robot": trial.robot})
     recorder = TrialRecorder(writer, position, runner, rerun)
     wall = time.perf_counter()
-    while not runner.done:
-        runner.decide()
-        recorder.after_decision()
-        front.after_decision(runner)
-        if between is not None:
-            between()
-    outcome = recorder.finish() | {"wall_s": time.perf_counter() - wall}
+    try:
+        while not runner.done:
+            runner.decide()
+            recorder.after_decision()
+            front.after_decision(runner)
+            if between is not None:
+                between()
+        outcome = recorder.finish() | {"wall_s": time.perf_counter() - wall}
+    except BaseException:  # the trial stays unfinished (--resume runs it again): no rerun file
+        if recorder.rerun is not None:
+            try:
+                recorder.rerun.close()
+            except Exception:  # noqa: BLE001, S110 - the first error is the one to tell
+                pass
+        rerun.unlink(missing_ok=True)
+        raise
     writer.finish(position, outcome)
     front.end_trial(runner, outcome)
     log(f"{participant} trial {position}/{total} ({trial.name}): {outcome['outcome']} in "
