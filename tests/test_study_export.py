@@ -336,3 +336,48 @@ def test_export_of_a_tampered_row_is_one_line_and_leaves_nothing(demo_db, tmp_pa
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and named in err and "changed outside pathpref" in err, err
     assert not (tmp_path / "x").exists()
+
+
+# --- issue 47: report and replay on tampered study rows ------------------------------------
+TAMPERED_TRIALS = [
+    ("candidates = '[[2, 9'", "has candidates = '[[2, 9'"),
+    ("seed = -1", "has seed = -1, not an integer >= 0"),
+    ("goal = '[1, 1]'", "has goal = '[1, 1]', not one of the trial's candidates"),
+    ("trial = 1e30", "has trial = 1e+30, not an integer"),
+    ("condition = '{not json'", "has condition = '{not json'"),
+    ("success = NULL", "has success = NULL"),
+    ("success = 5", "has success = 5, not 0 or 1"),
+    ("success = 'x'", "has success = 'x', not an integer"),
+]
+
+
+def _tampered(demo_db, tmp_path, change: str) -> Path:
+    db = tmp_path / "t.sqlite"
+    shutil.copy(demo_db, db)
+    with sqlite3.connect(db) as c:
+        c.execute(f"UPDATE trials SET {change} WHERE trial = 1")
+    return db
+
+
+@pytest.mark.parametrize("change, named", TAMPERED_TRIALS)
+def test_report_on_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, change,
+                                                    named):
+    db = _tampered(demo_db, tmp_path, change)
+    csv_out = tmp_path / "r.csv"
+    assert main(["report", str(db), "--csv", str(csv_out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err and "changed outside pathpref" in err, err
+    assert "trials row (participant 'demo'" in err
+    assert not csv_out.exists() and not (tmp_path / "r-study.csv").exists()
+
+
+@pytest.mark.parametrize("change, named", [t for t in TAMPERED_TRIALS
+                                           if not t[0].startswith("trial =")])
+def test_replay_of_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, change, named):
+    db = _tampered(demo_db, tmp_path, change)
+    out = tmp_path / "t.mp4"
+    assert main(["replay", str(db), "--participant", "demo", "--trial", "1", "--out",
+                 str(out), "--width", "32", "--height", "24"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err, err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["t.sqlite"]
