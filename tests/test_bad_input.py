@@ -751,3 +751,38 @@ def test_a_belief_that_breaks_is_one_line_not_a_warning_per_step(capfd, monkeypa
     assert res.status == "failed" and res.reason.startswith("EpisodeError: belief became")
     out = capfd.readouterr()
     assert out.err == "" and out.out == ""
+
+
+# --- issue 47: --policy names a module, whatever the module does on import ----------------
+@pytest.mark.parametrize("policy, source, msg", [
+    ("./pol.py:act", None, "is not a module name"),
+    ("/tmp/pol.py:act", None, "is not a module name"),
+    ("pol.py:act", None, "is not a module name"),
+    ("pol_raises_47:act", "raise RuntimeError('no GPU')\n",
+     "module 'pol_raises_47' failed on import: RuntimeError: no GPU"),
+    ("pol_exits_47:act", "raise SystemExit('bye')\n",
+     "module 'pol_exits_47' failed on import: SystemExit: bye"),
+])
+def test_policy_module_problems_are_one_line(tmp_path, monkeypatch, policy, source, msg):
+    import re
+    import sys
+
+    from pathpref.apps.film import load_policy
+
+    if source is not None:
+        (tmp_path / f"{policy.split(':')[0]}.py").write_text(source)
+        monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        with pytest.raises(ConfigError, match=re.escape(msg)) as e:
+            load_policy(policy)
+    finally:
+        sys.modules.pop(policy.split(":")[0], None)
+    assert "\n" not in str(e.value) and str(e.value).startswith("--policy")
+
+
+def test_render_with_a_path_as_policy_is_one_line(tmp_path, capsys):
+    out = tmp_path / "v.mp4"
+    assert main(["render", "--map", "simple", "--task", "navigate_control", "--out", str(out),
+                 "--policy", "./my_policy.py:act", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is not a module name" in err and not out.exists()
