@@ -786,3 +786,18 @@ def test_render_with_a_path_as_policy_is_one_line(tmp_path, capsys):
                  "--policy", "./my_policy.py:act", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "is not a module name" in err and not out.exists()
+
+
+@pytest.mark.parametrize("width, height", [(1, 500), (500, 1), (4, 4)])
+def test_map_draw_clamps_the_figure(tmp_path, width, height):
+    """Issue 47: a 1 x 500 map drew a 1170 x 585,000 px PNG (4.5 GB); now every side is at
+    most MAX_FIGURE_IN inches (1560 px) and at least MIN_FIGURE_IN."""
+    from PIL import Image
+
+    from pathpref.viz.mapdraw import MAX_FIGURE_IN, MIN_FIGURE_IN
+
+    m = write(tmp_path / "thin.json", {"name": "thin", "width": width, "height": height})
+    out = tmp_path / "thin.png"
+    assert main(["map", "draw", m, "--out", str(out)]) == 0
+    w, h = Image.open(out).size
+    assert MIN_FIGURE_IN * 130 - 1 <= min(w, h) and max(w, h) <= MAX_FIGURE_IN * 130 + 1
