@@ -801,3 +801,36 @@ def test_map_draw_clamps_the_figure(tmp_path, width, height):
     assert main(["map", "draw", m, "--out", str(out)]) == 0
     w, h = Image.open(out).size
     assert MIN_FIGURE_IN * 130 - 1 <= min(w, h) and max(w, h) <= MAX_FIGURE_IN * 130 + 1
+
+
+@pytest.mark.parametrize("exists", [False, True])
+def test_examples_on_a_full_disk_leave_nothing_and_the_retry_works(tmp_path, capsys,
+                                                                   monkeypatch, exists):
+    """Issue 47: ENOSPC halfway through a file (after two whole ones): one line naming the
+    destination file (not the source), nothing left in DEST (a new DEST is gone), and the
+    same command then copies everything."""
+    import errno
+    import shutil
+
+    real = shutil.copyfile
+    calls = {"n": 0}
+
+    def copyfile(src, dst, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            Path(dst).write_bytes(b"half a fi")
+            raise OSError(errno.ENOSPC, "No space left on device", str(src))
+        return real(src, dst, *a, **k)
+
+    dest = tmp_path / "ex"
+    if exists:
+        dest.mkdir()
+    monkeypatch.setattr(shutil, "copyfile", copyfile)
+    assert main(["examples", str(dest)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no space left on device" in err and str(dest) in err
+    assert "nothing was copied" in err and "examples/" not in err.split(str(dest))[0]
+    assert (list(dest.iterdir()) == []) if exists else not dest.exists()
+    monkeypatch.setattr(shutil, "copyfile", real)
+    assert main(["examples", str(dest)]) == 0
+    assert (dest / "tutorial.py").is_file()
