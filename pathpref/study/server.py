@@ -426,9 +426,10 @@ class BrowserFrontEnd:
         self.publish()
         last = self.position == self.total
         self.last_outcome = {k: outcome[k] for k in ("outcome", "time_s", "pushes")}
+        if self.questionnaire:  # asked before the page can see the trial ended
+            self.controls.ask_tlx(self.position)
         self._set_scene("finished" if last else "done", self.last_outcome)
         if self.questionnaire:  # the answers come before the next trial (or the end)
-            self.controls.ask_tlx(self.position)
             self._await(lambda: self.position in self.controls.tlx, self.start_limit_s,
                         f"no questionnaire answer after trial {self.position} for "
                         f"{self.start_limit_s:g} s (the trial is recorded); run the same "
