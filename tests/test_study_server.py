@@ -624,13 +624,17 @@ def test_a_symlinked_side_file_is_refused_and_its_target_untouched(tmp_path, cap
     assert not db.with_name(f"{db.name}.p.lock").exists() or side == "lock"
 
 
+@pytest.mark.parametrize("where", ["database", "rerun"])
 def test_a_full_disk_in_a_trial_is_one_line_and_resume_runs_it_again(tmp_path, capsys,
-                                                                     monkeypatch):
-    """SQLite's 'database or disk is full' at the third write of trial 1: one line, exit 2,
-    no rerun file of that trial, no lock left; --resume then runs both trials."""
+                                                                     monkeypatch, where):
+    """SQLite's 'database or disk is full' at the third write of trial 1, or the rerun SDK's
+    error of a full disk (its text as rerun 0.41 gives it) when the trial's file is opened:
+    one line naming the file, exit 2, no rerun file of that trial, no lock left; --resume
+    then runs both trials."""
     from pathpref.experiments.trials import TrialWriter
+    from pathpref.study import record
 
-    real = TrialWriter.write
+    real, real_logger = TrialWriter.write, record.RerunLogger
     calls = {"n": 0}
 
     def write(self, *a, **k):
@@ -639,17 +643,28 @@ def test_a_full_disk_in_a_trial_is_one_line_and_resume_runs_it_again(tmp_path, c
             raise sqlite3.OperationalError("database or disk is full")
         return real(self, *a, **k)
 
-    monkeypatch.setattr(TrialWriter, "write", write)
+    class FullLogger:
+        def __init__(self, world, goals, true_goal, out, **kwargs):
+            Path(out).write_bytes(b"RRF2 half")
+            raise RuntimeError("Failed to encode LogMsg: Failed to write: No space left on "
+                               "device (os error 28)")
+
+    if where == "database":
+        monkeypatch.setattr(TrialWriter, "write", write)
+    else:
+        monkeypatch.setattr(record, "RerunLogger", FullLogger)
     db = tmp_path / "s.sqlite"
     argv = ["study", "run", str(STUDY), "--participant", "p", "--db", str(db), "--script",
             str(PUSHES)]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no space left on device in trial 1" in err, err
-    assert "--resume" in err
+    named = db if where == "database" else _demo_rerun(db, "p", 1)
+    assert f"cannot write {named}:" in err and "--resume" in err
     assert not _demo_rerun(db, "p", 1).exists()
     assert not db.with_name(f"{db.name}.p.lock").exists()
     monkeypatch.setattr(TrialWriter, "write", real)
+    monkeypatch.setattr(record, "RerunLogger", real_logger)
     assert main([*argv, "--resume"]) == 0
     rows = sqlite3.connect(db).execute("SELECT trial, status FROM trials").fetchall()
     assert sorted(rows) == [(1, "done"), (2, "done")]

@@ -123,10 +123,14 @@ def check_rerun_path(path: Path) -> Path:
 
 def disk_full(e: BaseException) -> bool:
     """An error of a full disk or quota: OSError ENOSPC/EDQUOT, SQLite's 'database or disk
-    is full'."""
+    is full', the rerun SDK's RuntimeError '... No space left on device (os error 28)'."""
     if isinstance(e, OSError):
         return e.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
-    return isinstance(e, sqlite3.Error) and "database or disk is full" in str(e)
+    if isinstance(e, sqlite3.Error):
+        return "database or disk is full" in str(e)
+    return isinstance(e, RuntimeError) and (
+        f"(os error {errno.ENOSPC})" in str(e)
+        or f"(os error {getattr(errno, 'EDQUOT', errno.ENOSPC)})" in str(e))
 
 
 def lock_path(db: str | Path, participant: str) -> Path:
@@ -278,8 +282,12 @@ class Session:
             except Exception as e:
                 if not disk_full(e):
                     raise
+                what = db
+                if isinstance(e, RuntimeError) and self.position:  # the rerun SDK's
+                    what = rerun_path(db, participant, self.position,
+                                      study.order_for(participant)[self.position - 1])
                 raise ConfigError(
-                    f"cannot write {db}: no space left on device"
+                    f"cannot write {what}: no space left on device"
                     + (f" in trial {self.position}, left unfinished" if self.position else "")
                     + "; free some space and run the same command with --resume") from None
             finally:
@@ -327,9 +335,10 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
         "route": dumps(trial.route), "time_limit_s": trial.time_limit_s, "seed": study.seed,
         "rerun": str(rerun), "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "physics": trial.physics, "robot": trial.robot})
-    recorder = TrialRecorder(writer, position, runner, rerun)
+    recorder: TrialRecorder | None = None
     wall = time.perf_counter()
     try:
+        recorder = TrialRecorder(writer, position, runner, rerun)
         while not runner.done:
             runner.decide()
             recorder.after_decision()
@@ -337,15 +346,12 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
             if between is not None:
                 between()
         outcome = recorder.finish() | {"wall_s": time.perf_counter() - wall}
+        writer.finish(position, outcome)
     except BaseException:  # the trial stays unfinished (--resume runs it again): no rerun file
-        if recorder.rerun is not None:
-            try:
-                recorder.rerun.close()
-            except Exception:  # noqa: BLE001, S110 - the first error is the one to tell
-                pass
+        if recorder is not None and recorder.rerun is not None:
+            recorder.rerun.abandon()
         rerun.unlink(missing_ok=True)
         raise
-    writer.finish(position, outcome)
     front.end_trial(runner, outcome)
     log(f"{participant} trial {position}/{total} ({trial.name}): {outcome['outcome']} in "
         f"{outcome['time_s']:.1f} s, {outcome['pushes']} pushes, {outcome['cues']} cues, "
