@@ -371,8 +371,9 @@ def test_report_on_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, c
     assert not csv_out.exists() and not (tmp_path / "r-study.csv").exists()
 
 
-@pytest.mark.parametrize("change, named", [t for t in TAMPERED_TRIALS
-                                           if not t[0].startswith("trial =")])
+@pytest.mark.parametrize("change, named", [
+    t if not t[0].startswith("trial =") else (t[0], "has no trial 1 of participant 'demo'")
+    for t in TAMPERED_TRIALS])
 def test_replay_of_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, change, named):
     db = _tampered(demo_db, tmp_path, change)
     out = tmp_path / "t.mp4"
