@@ -13,7 +13,7 @@ A package declares them in its metadata, e.g.::
 
 Entry points are read when a name is looked up and not found among the built-in ones (a
 built-in name always wins), so a broken package breaks only the name it provides, with one
-line naming the entry point.
+line naming the entry point: whatever its import raises, ``SystemExit`` (``exit()``) included.
 """
 
 from __future__ import annotations
@@ -41,6 +41,9 @@ def load(group: str, name: str) -> Any | None:
     ep = found[0]
     try:
         return ep.load()
-    except Exception as e:  # noqa: BLE001 - any failure of another package's code
+    except (Exception, SystemExit) as e:  # noqa: BLE001 - any failure of another package's
+        # code, its exit() too: pathpref ends with its own one line, never the plug-in's
+        text = " ".join(str(e).split())[:200]
         raise ConfigError(f"entry point {name!r} of group {group} ({ep.value}) failed to "
-                          f"load: {type(e).__name__}: {e}") from None
+                          f"load: {type(e).__name__}: {text}; fix or uninstall the package "
+                          "that declares it") from None

@@ -751,3 +751,86 @@ def test_a_belief_that_breaks_is_one_line_not_a_warning_per_step(capfd, monkeypa
     assert res.status == "failed" and res.reason.startswith("EpisodeError: belief became")
     out = capfd.readouterr()
     assert out.err == "" and out.out == ""
+
+
+# --- issue 47: --policy names a module, whatever the module does on import ----------------
+@pytest.mark.parametrize("policy, source, msg", [
+    ("./pol.py:act", None, "is not a module name"),
+    ("/tmp/pol.py:act", None, "is not a module name"),
+    ("pol.py:act", None, "is not a module name"),
+    ("pol_raises_47:act", "raise RuntimeError('no GPU')\n",
+     "module 'pol_raises_47' failed on import: RuntimeError: no GPU"),
+    ("pol_exits_47:act", "raise SystemExit('bye')\n",
+     "module 'pol_exits_47' failed on import: SystemExit: bye"),
+])
+def test_policy_module_problems_are_one_line(tmp_path, monkeypatch, policy, source, msg):
+    import re
+    import sys
+
+    from pathpref.apps.film import load_policy
+
+    if source is not None:
+        (tmp_path / f"{policy.split(':')[0]}.py").write_text(source)
+        monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        with pytest.raises(ConfigError, match=re.escape(msg)) as e:
+            load_policy(policy)
+    finally:
+        sys.modules.pop(policy.split(":")[0], None)
+    assert "\n" not in str(e.value) and str(e.value).startswith("--policy")
+
+
+def test_render_with_a_path_as_policy_is_one_line(tmp_path, capsys):
+    out = tmp_path / "v.mp4"
+    assert main(["render", "--map", "simple", "--task", "navigate_control", "--out", str(out),
+                 "--policy", "./my_policy.py:act", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is not a module name" in err and not out.exists()
+
+
+@pytest.mark.parametrize("width, height", [(1, 500), (500, 1), (4, 4)])
+def test_map_draw_clamps_the_figure(tmp_path, width, height):
+    """Issue 47: a 1 x 500 map drew a 1170 x 585,000 px PNG (4.5 GB); now every side is at
+    most MAX_FIGURE_IN inches (1560 px) and at least MIN_FIGURE_IN."""
+    from PIL import Image
+
+    from pathpref.viz.mapdraw import MAX_FIGURE_IN, MIN_FIGURE_IN
+
+    m = write(tmp_path / "thin.json", {"name": "thin", "width": width, "height": height})
+    out = tmp_path / "thin.png"
+    assert main(["map", "draw", m, "--out", str(out)]) == 0
+    w, h = Image.open(out).size
+    assert MIN_FIGURE_IN * 130 - 1 <= min(w, h) and max(w, h) <= MAX_FIGURE_IN * 130 + 1
+
+
+@pytest.mark.parametrize("exists", [False, True])
+def test_examples_on_a_full_disk_leave_nothing_and_the_retry_works(tmp_path, capsys,
+                                                                   monkeypatch, exists):
+    """Issue 47: ENOSPC halfway through a file (after two whole ones): one line naming the
+    destination file (not the source), nothing left in DEST (a new DEST is gone), and the
+    same command then copies everything."""
+    import errno
+    import shutil
+
+    real = shutil.copyfile
+    calls = {"n": 0}
+
+    def copyfile(src, dst, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            Path(dst).write_bytes(b"half a fi")
+            raise OSError(errno.ENOSPC, "No space left on device", str(src))
+        return real(src, dst, *a, **k)
+
+    dest = tmp_path / "ex"
+    if exists:
+        dest.mkdir()
+    monkeypatch.setattr(shutil, "copyfile", copyfile)
+    assert main(["examples", str(dest)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no space left on device" in err and str(dest) in err
+    assert "nothing was copied" in err and "examples/" not in err.split(str(dest))[0]
+    assert (list(dest.iterdir()) == []) if exists else not dest.exists()
+    monkeypatch.setattr(shutil, "copyfile", real)
+    assert main(["examples", str(dest)]) == 0
+    assert (dest / "tutorial.py").is_file()

@@ -78,3 +78,29 @@ def test_bad_plugins_are_one_line_errors(example_package):
         run_episode(EpisodeSpec.single("simple", "compliant", 5, sim="nowhere", t_max=3))
     with pytest.raises(ConfigError, match="unknown method 'nothing'"):
         resolve_methods(["nothing"])
+
+
+@pytest.mark.parametrize("source, named", [
+    ("raise SystemExit('bye from the plug-in')\n", "SystemExit: bye from the plug-in"),
+    ("import sys\nsys.exit(1)\n", "SystemExit: 1"),
+    ("raise RuntimeError('broken\\non two lines')\n", "RuntimeError: broken on two lines"),
+])
+def test_a_plugin_that_exits_or_raises_on_import_is_one_line(tmp_path, monkeypatch, capsys,
+                                                            source, named):
+    """Issue 47: a plug-in whose import calls ``exit()`` (or raises) no longer ends pathpref
+    with its own status and text: exit 2, one line naming the entry point, nothing made."""
+    from pathpref.apps.cli import main
+
+    install_package(tmp_path, monkeypatch, "pathpref_quitting_plugin", source,
+                    "[pathpref.methods]\nquitter = pathpref_quitting_plugin:Q\n")
+    db = tmp_path / "r.sqlite"
+    try:
+        assert main(["evaluate", "--methods", "quitter", "--delta-t", "5", "--instances",
+                     "1", "--runs", "1", "--workers", "1", "--db", str(db),
+                     "--no-progress"]) == 2
+    finally:
+        sys.modules.pop("pathpref_quitting_plugin", None)
+        METHODS.pop("quitter", None)
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("pathpref: error: entry point 'quitter'")
+    assert named in err and not db.exists()

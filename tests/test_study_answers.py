@@ -184,10 +184,59 @@ def test_an_older_database_with_json_lines_still_reports_and_imports(recorded, t
         assert import_legacy(TrialWriter(store.conn, "s1"), old) == (0, 0)  # once only
     assert load_answers(old) == (new_cal, new_tlx)  # from the tables: nothing counted twice
     (tmp_path / "old.sqlite.s1.tlx.jsonl").write_text('{"trial": 1, "scores": {}}\n')
-    from pathpref.errors import ConfigError
+    assert load_answers(old) == (new_cal, new_tlx)  # issue 47: a bad line is skipped, named
+    assert "old.sqlite.s1.tlx.jsonl:1 skipped: not a NASA-TLX" in capsys.readouterr().err
 
-    with pytest.raises(ConfigError, match=r"old.sqlite.s1.tlx.jsonl:1 is not a NASA-TLX"):
-        load_answers(old)
+
+BAD_LINES = [b'{"utc": "x", "trial": Infinity, "name": "a", "scores": {}}',
+             b'{"utc": "x", "trial": 2, "name": "\xff\xfe", "scores": {}} \xff',
+             b'{"utc": "x", "trial": 1e300, "name": "a", "scores": {"mental": 1}}',
+             b'{"utc": "x", "trial": 2, "sco']
+
+
+def test_bad_lines_of_old_answer_files_are_skipped_and_named(recorded, tmp_path, capsys):
+    """Issue 47: ``"trial": Infinity``, invalid UTF-8, 1e300 and a truncated line in a
+    participant's JSON-lines file: ``report``, ``study export`` and a resumed session go on,
+    each bad line named once; another participant's bad file is not even read by s1's
+    export."""
+    from pathpref.study.conduct import run_study
+    from pathpref.study.script import PushScript, ScriptedFrontEnd
+
+    db, _ = recorded
+    old = _legacy_copy(db, tmp_path)
+    tlx_file = tmp_path / "old.sqlite.s1.tlx.jsonl"
+    good = tlx_file.read_bytes()
+    n_good = good.count(b"\n")
+    tlx_file.write_bytes(good + b"\n".join(BAD_LINES))  # the last one truncated, no newline
+    cal_file = tmp_path / "old.sqlite.s1.calibration.jsonl"
+    cal_file.write_bytes(cal_file.read_bytes() + b'{"utc": "x", "trial": 1, "device": "d", '
+                         b'"rest": [1e300, 0], "reach": 1, "deadzone": 0.15, '
+                         b'"max_force_n": 60}\n')
+    (tmp_path / "old.sqlite.p2.tlx.jsonl").write_bytes(b"\xff" * 10 + b"\n{]\n")
+
+    def named(err: str) -> None:
+        for n in range(n_good + 1, n_good + 5):
+            assert f"old.sqlite.s1.tlx.jsonl:{n} skipped" in err
+        assert "old.sqlite.s1.calibration.jsonl:2 skipped" in err
+        assert "Traceback" not in err
+
+    assert main(["report", str(old), "--csv", str(tmp_path / "r.csv")]) == 0
+    out, err = capsys.readouterr()
+    named(err)
+    assert "old.sqlite.p2.tlx.jsonl:1 skipped" in err and "| participant | s1 | 4 |" in out
+    assert main(["study", "export", str(old), "--participant", "s1", "--out",
+                 str(tmp_path / "x"), "--no-mcap"]) == 0
+    err = capsys.readouterr().err
+    named(err)
+    assert "p2" not in err
+    with open(tmp_path / "x" / "s1" / "tlx.csv") as f:
+        assert len(list(csv.DictReader(f))) == 4
+    study, raw = _study(tmp_path)
+    rows = run_study(study, "s1", old, ScriptedFrontEnd(PushScript(_script(raw))),
+                     resume=True, log=lambda m: None)
+    assert [r["status"] for r in rows] == ["done"] * 4
+    named(capsys.readouterr().err)
+    assert sqlite3.connect(old).execute("SELECT count(*) FROM study_tlx").fetchone() == (4,)
 
 
 def test_push_file_tlx_is_checked(tmp_path):

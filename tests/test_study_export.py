@@ -269,3 +269,116 @@ def test_parquet_row_groups_bound_the_buffer(tmp_path, monkeypatch):
     assert export._write_table(tmp_path, "e", cols, [], ("csv", "parquet")) == {
         "e.csv": 0, "e.parquet": 0}
     assert pq.read_table(tmp_path / "e.parquet").column_names == ["participant", "k", "x"]
+
+
+# --- issue 47: an export is written whole or not at all ----------------------------------
+def _export(db, out, *extra) -> int:
+    return main(["study", "export", str(db), "--participant", "demo", "--out", str(out),
+                 *extra])
+
+
+def _tree(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
+def test_full_disk_during_an_export_leaves_nothing(demo_db, tmp_path, capsys, monkeypatch):
+    """ENOSPC while the MCAP files are written (after every table): one line, exit 2; a new
+    --out folder is gone, and an earlier export in an existing one is unchanged."""
+    import errno
+
+    from pathpref.study import export
+
+    assert _export(demo_db, tmp_path / "old", "--no-mcap") == 0
+    before = _tree(tmp_path / "old")
+    capsys.readouterr()
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(export, "write_mcap", full)
+    for out in (tmp_path / "new", tmp_path / "old"):
+        assert _export(demo_db, out) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("pathpref: error: cannot write ")
+        assert "no space left on device" in err and "nothing was written" in err
+    assert not (tmp_path / "new").exists()
+    assert _tree(tmp_path / "old") == before  # no temporary folder, nothing replaced
+
+
+def test_export_out_that_is_a_file_is_one_line(demo_db, tmp_path, capsys):
+    f = tmp_path / "file.txt"
+    f.write_text("keep")
+    assert _export(demo_db, f) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "is not a folder" in err
+    assert f.read_text() == "keep" and sorted(tmp_path.iterdir()) == [f]
+
+
+@pytest.mark.parametrize("change, named", [
+    ("UPDATE trials SET candidates = '[[2, 9], [5' WHERE trial = 1", "has candidates ="),
+    ("UPDATE trial_beliefs SET goals = '[0.1, 0.2, 0.3, 0.4]' WHERE trial = 1 AND k = 0",
+     "has goals ="),
+    ("UPDATE trials SET started_utc = 'yesterday' WHERE trial = 2", "has started_utc ="),
+    ("UPDATE trial_forces SET fx = 'strong' WHERE trial = 1 AND k = 5", "has fx = 'strong'"),
+    ("UPDATE trial_forces SET time_s = 1e308 WHERE trial = 2 AND k = 3", "has time_s = 1e+308"),
+    ("UPDATE trial_steps SET time_s = 1e308 WHERE trial = 2 AND t = 1", "has time_s = 1e+308"),
+    ("UPDATE trials SET trial = 1e30 WHERE trial = 2", "has trial = 1e+30"),
+])
+@pytest.mark.parametrize("fmt", ["csv", "both"])
+def test_export_of_a_tampered_row_is_one_line_and_leaves_nothing(demo_db, tmp_path, capsys,
+                                                                 change, named, fmt):
+    db = tmp_path / "t.sqlite"
+    shutil.copy(demo_db, db)
+    with sqlite3.connect(db) as c:
+        c.execute(change)
+    assert _export(db, tmp_path / "x", "--format", fmt) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err and "changed outside pathpref" in err, err
+    assert not (tmp_path / "x").exists()
+
+
+# --- issue 47: report and replay on tampered study rows ------------------------------------
+TAMPERED_TRIALS = [
+    ("candidates = '[[2, 9'", "has candidates = '[[2, 9'"),
+    ("seed = -1", "has seed = -1, not an integer >= 0"),
+    ("goal = '[1, 1]'", "has goal = '[1, 1]', not one of the trial's candidates"),
+    ("trial = 1e30", "has trial = 1e+30, not an integer"),
+    ("condition = '{not json'", "has condition = '{not json'"),
+    ("success = NULL", "has success = NULL"),
+    ("success = 5", "has success = 5, not 0 or 1"),
+    ("success = 'x'", "has success = 'x', not an integer"),
+]
+
+
+def _tampered(demo_db, tmp_path, change: str) -> Path:
+    db = tmp_path / "t.sqlite"
+    shutil.copy(demo_db, db)
+    with sqlite3.connect(db) as c:
+        c.execute(f"UPDATE trials SET {change} WHERE trial = 1")
+    return db
+
+
+@pytest.mark.parametrize("change, named", TAMPERED_TRIALS)
+def test_report_on_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, change,
+                                                    named):
+    db = _tampered(demo_db, tmp_path, change)
+    csv_out = tmp_path / "r.csv"
+    assert main(["report", str(db), "--csv", str(csv_out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err and "changed outside pathpref" in err, err
+    assert "trials row (participant 'demo'" in err
+    assert not csv_out.exists() and not (tmp_path / "r-study.csv").exists()
+
+
+@pytest.mark.parametrize("change, named", [
+    t if not t[0].startswith("trial =") else (t[0], "has no trial 1 of participant 'demo'")
+    for t in TAMPERED_TRIALS])
+def test_replay_of_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, change, named):
+    db = _tampered(demo_db, tmp_path, change)
+    out = tmp_path / "t.mp4"
+    assert main(["replay", str(db), "--participant", "demo", "--trial", "1", "--out",
+                 str(out), "--width", "32", "--height", "24"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err, err
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["t.sqlite"]

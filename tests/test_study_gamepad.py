@@ -114,10 +114,19 @@ def test_tlx_answers_are_checked():
                 {k: v for k, v in good.items() if k != "effort"}, {**good, "fun": 3}):
         assert not c.handle(json.dumps({"type": "tlx", "trial": 1, "scores": bad}))
     assert not c.handle(json.dumps({"type": "tlx", "trial": 0, "scores": good}))
+    # issue 47: nothing is accepted before the question is asked, nor about another trial
+    assert not c.handle(json.dumps({"type": "tlx", "trial": 2, "scores": good}))
+    c.ask_tlx(2)
+    assert not c.handle(json.dumps({"type": "tlx", "trial": 3, "scores": good}))
     assert c.handle(json.dumps({"type": "tlx", "trial": 2, "scores": good}))
-    assert c.handle(json.dumps({"type": "tlx", "trial": 2, "scores": {**good, "effort": 0}}))
+    assert not c.handle(json.dumps({"type": "tlx", "trial": 2,
+                                    "scores": {**good, "effort": 0}}))
     assert got == [(2, good)] and c.tlx == {2: good}  # the first answer stands
-    assert c.ignored == 5
+    assert c.ignored == 8
+    c.ask_tlx(3)
+    c.reset()  # the next trial began: the question is closed
+    assert not c.handle(json.dumps({"type": "tlx", "trial": 3, "scores": good}))
+    assert got == [(2, good)]
 
 
 def test_study_file_questionnaire_field():

@@ -495,3 +495,176 @@ def test_observers_see_the_planned_path_the_driver_only_when_the_belief_is_shown
         assert path[-1] in cands and m["probs"][cands.index(path[-1])] >= best - 1e-4
         steps.add(m["step"])
     assert len(steps) >= 2  # states from more than one decision step
+
+
+def test_a_process_holding_every_slot_never_locks_the_page_out():
+    """Issue 47: a local process that keeps every connection slot full (idle sockets, opened
+    again as they are closed) cannot keep the session's page out: the page and its WebSocket
+    get in on every one of 6 tries, and a page that got in is never the one closed."""
+    f = BrowserFrontEnd(port=0, max_connections=4, open_timeout_s=30.0)
+    stop = threading.Event()
+    held: list[socket.socket] = []
+
+    def hold() -> None:  # a new idle socket every 20 ms, 400 at most (bounded)
+        for _ in range(400):
+            if stop.is_set():
+                return
+            try:
+                held.append(socket.create_connection(("127.0.0.1", f.port), timeout=WAIT_S))
+            except OSError:
+                pass
+            time.sleep(0.02)
+
+    th = threading.Thread(target=hold, daemon=True)
+    try:
+        for _ in range(8):  # every slot taken before the page comes
+            held.append(socket.create_connection(("127.0.0.1", f.port), timeout=WAIT_S))
+        assert wait_for(lambda: f.refused_connections >= 4)
+        th.start()
+        driver, role = page(f)
+        assert role == "driver"
+        for _ in range(6):  # the page reloaded 6 times (an observer each time)
+            assert get(f"http://127.0.0.1:{f.port}/?token={f.token}") == 200
+            ws, role = page(f)
+            assert role == "observer"
+            time.sleep(0.2)  # the holder opens about 10 more sockets meanwhile
+            ws.close()
+        assert f.refused_connections > 20
+        assert driver.ping().wait(WAIT_S)  # the page that got in is still served
+        driver.close()
+    finally:
+        stop.set()
+        th.join(WAIT_S)
+        for s in held:
+            s.close()
+        f.close()
+
+
+def test_answers_only_for_the_trial_just_ended_once_and_one_calibration_per_step(tmp_path):
+    """Issue 47: from the driving page, NASA-TLX answers for trials that do not exist, sent
+    before or during a trial, or a second answer, are not stored: each trial keeps the answer
+    given after it ended; 3000 calibrate messages make at most one row per write (one per
+    decision step, and one before and after each trial)."""
+    import sqlite3
+
+    from pathpref.study.controls import TLX_SCALES
+
+    study = parse_study({"questionnaire": "nasa-tlx",
+                         "trials": [{**TRIAL, "name": "a", "time_limit_s": 2},
+                                    {**TRIAL, "name": "b", "time_limit_s": 2}]})
+    f = BrowserFrontEnd(port=0)
+    db = tmp_path / "p.sqlite"
+    th, box = _run_in_thread(study, "p1", db, f)
+    ws, role = page(f)
+    assert role == "driver"
+    stop = threading.Event()
+    keep_alive(ws, stop)
+
+    def tlx(k: int, v: int) -> str:
+        return json.dumps({"type": "tlx", "trial": k, "scores": dict.fromkeys(TLX_SCALES, v)})
+
+    cal = json.dumps({"type": "calibrate", "rest": [0.0, 0.0], "reach": 1.0, "device": "x"})
+    try:
+        assert wait_for(lambda: f._scene is not None and f._status == "waiting")
+        for k in range(1, 501):  # 500 answers for trials that exist or not, before any
+            ws.send(tlx(k, 1))
+        for _ in range(1500):
+            ws.send(cal)
+        ws.send('{"type": "start"}')
+        assert wait_for(lambda: f._status == "running")
+        ws.send(tlx(1, 2))  # during the trial
+        for _ in range(1500):
+            ws.send(cal)
+        assert wait_for(lambda: f._status == "done")
+        ws.send(tlx(2, 3))  # a pre-answer of the next trial
+        ws.send(tlx(1, 40))  # the real answer
+        ws.send(tlx(1, 4))  # a second one
+        assert wait_for(lambda: f._status == "waiting")
+        ws.send('{"type": "start"}')
+        assert wait_for(lambda: f._status == "finished")
+        ws.send(tlx(2, 60))
+        th.join(WAIT_S)
+    finally:
+        stop.set()
+        f.close()
+    assert "error" not in box, box.get("error")
+    c = sqlite3.connect(db)
+    got = c.execute("SELECT trial, name, mental, raw_tlx FROM study_tlx ORDER BY trial")
+    assert got.fetchall() == [(1, "a", 40, 40.0), (2, "b", 60, 60.0)]
+    steps = sum(r["steps"] for r in box["rows"])
+    n_cal = c.execute("SELECT count(*) FROM study_calibrations").fetchone()[0]
+    assert 1 <= n_cal <= steps + 4
+
+
+# --- issue 47: side files never followed through a link; a full disk is one line ---------
+def _demo_rerun(db: Path, participant: str, position: int) -> Path:
+    from pathpref.study.conduct import rerun_path
+    from pathpref.study.plan import load_study
+
+    study = load_study(STUDY)
+    return rerun_path(db, participant, position, study.order_for(participant)[position - 1])
+
+
+@pytest.mark.parametrize("side", ["lock", "rerun"])
+def test_a_symlinked_side_file_is_refused_and_its_target_untouched(tmp_path, capsys, side):
+    """A symbolic link planted at ``DB.P.lock`` or at a trial's rerun file: one line, exit 2,
+    the link's target unchanged, nothing recorded."""
+    db = tmp_path / "s.sqlite"
+    target = tmp_path / "precious.txt"
+    target.write_text("keep me\n")
+    link = db.with_name(f"{db.name}.p.lock") if side == "lock" else _demo_rerun(db, "p", 2)
+    link.parent.mkdir(exist_ok=True)
+    link.symlink_to(target)
+    assert main(["study", "run", str(STUDY), "--participant", "p", "--db", str(db),
+                 "--script", str(PUSHES)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "symbolic link" in err and str(link) in err, err
+    assert target.read_text() == "keep me\n" and link.is_symlink()
+    assert not db.exists()
+    assert not db.with_name(f"{db.name}.p.lock").exists() or side == "lock"
+
+
+@pytest.mark.parametrize("where", ["database", "rerun"])
+def test_a_full_disk_in_a_trial_is_one_line_and_resume_runs_it_again(tmp_path, capsys,
+                                                                     monkeypatch, where):
+    """SQLite's 'database or disk is full' at the third write of trial 1, or the rerun SDK's
+    error of a full disk (its text as rerun 0.41 gives it) when the trial's file is opened:
+    one line naming the file, exit 2, no rerun file of that trial, no lock left; --resume
+    then runs both trials."""
+    from pathpref.experiments.trials import TrialWriter
+    from pathpref.study import record
+
+    real, real_logger = TrialWriter.write, record.RerunLogger
+    calls = {"n": 0}
+
+    def write(self, *a, **k):
+        calls["n"] += 1
+        if calls["n"] == 3:
+            raise sqlite3.OperationalError("database or disk is full")
+        return real(self, *a, **k)
+
+    class FullLogger:
+        def __init__(self, world, goals, true_goal, out, **kwargs):
+            Path(out).write_bytes(b"RRF2 half")
+            raise RuntimeError("Failed to encode LogMsg: Failed to write: No space left on "
+                               "device (os error 28)")
+
+    if where == "database":
+        monkeypatch.setattr(TrialWriter, "write", write)
+    else:
+        monkeypatch.setattr(record, "RerunLogger", FullLogger)
+    db = tmp_path / "s.sqlite"
+    argv = ["study", "run", str(STUDY), "--participant", "p", "--db", str(db), "--script",
+            str(PUSHES)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no space left on device in trial 1" in err, err
+    named = db if where == "database" else _demo_rerun(db, "p", 1)
+    assert f"cannot write {named}:" in err and "--resume" in err
+    assert not _demo_rerun(db, "p", 1).exists()
+    assert not db.with_name(f"{db.name}.p.lock").exists()
+    monkeypatch.setattr(TrialWriter, "write", real)
+    monkeypatch.setattr(record, "RerunLogger", real_logger)
+    assert main([*argv, "--resume"]) == 0
+    rows = sqlite3.connect(db).execute("SELECT trial, status FROM trials").fetchall()
+    assert sorted(rows) == [(1, "done"), (2, "done")]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sqlite3
 import sys
 from collections.abc import Sequence
 
@@ -347,7 +348,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # e.g. `pathpref report db | head`
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
-    except OSError as e:  # a full disk while writing: one line, not a traceback
+    except (OSError, sqlite3.Error) as e:  # a full disk while writing: one line
         if not is_disk_full(e):
             raise
         print(f"pathpref: error: {write_error(getattr(e, 'filename', None) or 'output', e)}",

@@ -4,13 +4,17 @@ training example, the example maps and demo files) into a folder, from the insta
 
 from __future__ import annotations
 
+import errno
 import importlib.util
+import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import pathpref
 
 from ..errors import ConfigError
+from .checks import new_file_mode
 
 #: what is copied: the example files by suffix, in the top folder and ``maps/``
 SUFFIXES = (".py", ".json")
@@ -37,7 +41,12 @@ def example_files(root: Path) -> list[Path]:
 
 def copy_examples(dest: str | Path) -> list[Path]:
     """Copy every example file into ``dest`` (made when missing); refuses, before copying
-    anything, when one of them exists there already. The files written."""
+    anything, when one of them exists there already. The files written.
+
+    Whole or nothing: each file is copied to a temporary name beside its target
+    (``tempfile.mkstemp``) and renamed onto it; on any failure (a full disk) every file and
+    folder this call made is removed and one line names the destination file that failed,
+    so the same command can simply be run again."""
     root, dest = examples_root(), Path(dest)
     files = example_files(root)
     if dest.exists() and not dest.is_dir():
@@ -45,8 +54,34 @@ def copy_examples(dest: str | Path) -> list[Path]:
     clash = next((f for f in files if (dest / f).exists()), None)
     if clash is not None:
         raise ConfigError(f"{str(dest / clash)!r} exists already; give a new or empty folder")
-    out = []
-    for f in files:
-        (dest / f).parent.mkdir(parents=True, exist_ok=True)
-        out.append(Path(shutil.copyfile(root / f, dest / f)))
+    made: list[Path] = []  # folders this call created, outermost first
+    out: list[Path] = []
+    target = dest
+    tmp: str | None = None
+    try:
+        for f in files:
+            target = dest / f
+            missing = [d for d in (target.parent, *target.parent.parents) if not d.exists()]
+            for d in reversed(missing):
+                d.mkdir()
+                made.append(d)
+            fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.name}.")
+            os.close(fd)
+            shutil.copyfile(root / f, tmp)
+            os.chmod(tmp, new_file_mode())
+            os.replace(tmp, target)
+            tmp = None
+            out.append(target)
+    except OSError as e:
+        for path in [*out, *([Path(tmp)] if tmp else [])]:
+            Path(path).unlink(missing_ok=True)
+        for d in reversed(made):
+            try:
+                d.rmdir()
+            except OSError:
+                pass
+        reason = ("no space left on device; free some space and run again"
+                  if e.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+                  else (e.strerror or str(e)))
+        raise ConfigError(f"cannot write {target}: {reason} (nothing was copied)") from None
     return out

@@ -12,6 +12,7 @@ decision step of 4.1 s is 2.05 s of video at ``speed`` 2 and a push is seen as i
 from __future__ import annotations
 
 import importlib
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -19,24 +20,38 @@ from typing import Any
 from ..errors import ConfigError
 from .rollout import VIDEO_FPS
 
+#: a module name ``--policy`` imports: dotted Python identifiers (never a path)
+MODULE_RE = re.compile(r"[A-Za-z_]\w*(\.[A-Za-z_]\w*)*")
 #: the most environment steps filmed (a control-rate episode's default time limit is far less)
 MAX_STEPS = 100_000
 
 
 def load_policy(text: str) -> Callable[[Any], Any]:
     """The callable ``module:function`` names (``module`` importable, dotted names allowed
-    after the colon); a one-line ConfigError otherwise."""
+    after the colon); a one-line ConfigError otherwise, naming the module: a path given as
+    the module, an import that fails or raises anything (``SystemExit`` included)."""
     mod, sep, name = str(text).partition(":")
     if not (sep and mod and name):
         raise ConfigError(f"--policy must be module:function (a callable of a dm_env "
                           f"TimeStep returning an action), got {str(text)[:60]!r}")
+    if not MODULE_RE.fullmatch(mod) or mod.endswith(".py"):
+        raise ConfigError(f"--policy: {mod[:60]!r} is not a module name (dotted Python "
+                          "identifiers, not a file path); put its folder on PYTHONPATH and "
+                          "give module:function, e.g. my_policies:act")
     try:
         obj: Any = importlib.import_module(mod)
     except ImportError as e:
         raise ConfigError(f"--policy: cannot import module {mod!r} ({e}); put it on "
                           f"PYTHONPATH") from None
+    except (Exception, SystemExit) as e:  # noqa: BLE001 - the module's own code failed
+        text = " ".join(str(e).split())[:200]
+        raise ConfigError(f"--policy: module {mod!r} failed on import: "
+                          f"{type(e).__name__}: {text}; fix the module") from None
     for part in name.split("."):
-        obj = getattr(obj, part, None)
+        try:
+            obj = getattr(obj, part, None)
+        except (Exception, SystemExit):  # noqa: BLE001 - a module's __getattr__ failed
+            obj = None
         if obj is None:
             raise ConfigError(f"--policy: module {mod!r} has no {name!r}")
     if not callable(obj):

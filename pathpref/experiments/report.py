@@ -379,15 +379,17 @@ def mean_interval(values: list[float], z_level: float = 0.975) -> tuple[float, f
 
 def load_trials(db: str | Path) -> list[dict[str, Any]]:
     """Every finished study trial of ``db`` (none when it has no study tables), each with
-    ``push_peak_n``: the mean peak force of its pushes (N; None without a push)."""
+    ``push_peak_n``: the mean peak force of its pushes (N; None without a push). A row
+    changed outside pathpref is one error line (:mod:`.trial_rows`)."""
+    from .trial_rows import check_trial_row
     from .trials import has_study_tables, read_rows
 
     with ResultStore(db, create=False) as store:
         try:
             if not has_study_tables(store.conn):
                 return []
-            rows = read_rows(store.conn, "trials", "WHERE status = 'done' ORDER BY "
-                             "participant, trial")
+            rows = [check_trial_row(r, db) for r in read_rows(
+                store.conn, "trials", "WHERE status = 'done' ORDER BY participant, trial")]
             peaks = {(p, k): v for p, k, v in store.conn.execute(
                 "SELECT participant, trial, avg(peak_n) FROM trial_pushes "
                 "GROUP BY participant, trial")}

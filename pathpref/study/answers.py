@@ -14,6 +14,14 @@ database (``DB.PARTICIPANT.calibration.jsonl``, ``DB.PARTICIPANT.tlx.jsonl``). T
 too: a participant's calibrations from the file when the table has none of theirs, a TLX answer
 when the table has none for that trial; a session (``study run``) imports its participant's
 lines into the tables before its first trial by the same rule, so nothing is counted twice.
+**A bad line is skipped and named**, never fatal: a line that is not UTF-8, not a JSON object
+(a truncated line), holds a non-finite number (``Infinity``, ``1e300`` where a whole number
+belongs) or is not a record of its kind is left out with one warning line on stderr
+(``pathpref: warning: FILE:N skipped: ...``; the first :data:`MAX_WARNINGS` of a file, then
+their count); the file's other lines still count. Reading stops after
+:data:`MAX_LEGACY_LINES` lines (with a warning) and a line longer than
+:data:`MAX_LINE_BYTES` is skipped unread. An export reads only its participant's files, so
+one participant's bad file never touches another's export.
 """
 
 from __future__ import annotations
@@ -21,17 +29,23 @@ from __future__ import annotations
 import glob
 import json
 import math
+import sys
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import TrialWriter, has_study_tables, missing_study_tables, read_rows
 from .controls import MAX_FORCE_N, STICK_DEADZONE, TLX_SCALES
 
-#: a legacy JSON-lines file longer than this many lines is refused (one line per answer)
+#: a legacy JSON-lines file is read up to this many lines (one line per answer)
 MAX_LEGACY_LINES = 100_000
+#: a legacy line longer than this (bytes) is skipped unread
+MAX_LINE_BYTES = 64 * 1024
+#: bad lines of one file named one warning each; the rest are counted in one more line
+MAX_WARNINGS = 5
+#: a trial position in a legacy record is at most this
+MAX_TRIAL = 100_000
 
 
 def calibration_path(db: str | Path, participant: str) -> Path:
@@ -62,65 +76,125 @@ def tlx_row(scores: dict[str, int], name: str | None, utc: str) -> dict[str, Any
             "raw_tlx": sum(int(scores[k]) for k in TLX_SCALES) / len(TLX_SCALES)}
 
 
-def _legacy_lines(path: Path) -> list[tuple[int, dict]]:
-    """The JSON objects of a legacy file with their line numbers (none when it is absent)."""
+class _Skipped:
+    """The bad lines of one legacy file: each named in a warning (the first
+    :data:`MAX_WARNINGS`), the rest counted at :meth:`done`."""
+
+    def __init__(self, path: Path):
+        self.path, self.n = path, 0
+
+    def __call__(self, line: int, why: str) -> None:
+        self.n += 1
+        if self.n <= MAX_WARNINGS:
+            print(f"pathpref: warning: {self.path}:{line} skipped: {why}; fix or delete the "
+                  "line", file=sys.stderr)
+
+    def done(self) -> None:
+        if self.n > MAX_WARNINGS:
+            print(f"pathpref: warning: {self.path}: {self.n - MAX_WARNINGS} more bad lines "
+                  "skipped", file=sys.stderr)
+
+
+def _no_constant(name: str):
+    raise ValueError(f"{name} is not a number pathpref writes")
+
+
+def _legacy_lines(path: Path, skip: _Skipped) -> list[tuple[int, dict]]:
+    """The JSON objects of a legacy file with their line numbers (none when it is absent);
+    a bad line goes to ``skip`` (module docstring)."""
     if not path.is_file():
         return []
     out = []
-    with open(path, encoding="utf-8") as f:
-        for n, line in enumerate(f, start=1):
+    with open(path, "rb") as f:
+        n = 0
+        while True:
+            raw = f.readline(MAX_LINE_BYTES + 1)
+            if not raw:
+                break
+            n += 1
             if n > MAX_LEGACY_LINES:
-                raise ConfigError(f"{path} has over {MAX_LEGACY_LINES} lines; it is not a "
-                                  "session's record: move it away")
-            if not line.strip():
+                skip(n, f"the file has over {MAX_LEGACY_LINES} lines; the rest is not read")
+                break
+            if len(raw) > MAX_LINE_BYTES:
+                while raw and not raw.endswith(b"\n"):  # the rest of the long line
+                    raw = f.readline(MAX_LINE_BYTES)
+                skip(n, f"longer than {MAX_LINE_BYTES} bytes")
                 continue
             try:
-                obj = json.loads(line)
+                text = raw.decode("utf-8")
+            except UnicodeDecodeError:
+                skip(n, "not UTF-8 text")
+                continue
+            if not text.strip():
+                continue
+            try:
+                obj = json.loads(text, parse_constant=_no_constant)
             except (ValueError, RecursionError):
                 obj = None
             if not isinstance(obj, dict):
-                raise ConfigError(f"{path}:{n} is not a JSON object; fix or delete the line")
+                skip(n, "not a JSON object (a truncated line?)")
+                continue
             out.append((n, obj))
     return out
 
 
+def _whole(v, lo: int, hi: int) -> int:
+    if not isinstance(v, int) or isinstance(v, bool) or not lo <= v <= hi:
+        raise ValueError
+    return v
+
+
+def _finite(v, bound: float = 1e6) -> float:
+    if not isinstance(v, int | float) or isinstance(v, bool) or not abs(v) <= bound:
+        raise ValueError  # NaN fails the comparison too
+    return float(v)
+
+
 def legacy_calibrations(db: str | Path, participant: str) -> list[dict[str, Any]]:
     """The participant's calibrations in the legacy file, as ``study_calibrations`` rows
-    (``k`` in file order)."""
+    (``k`` in file order); bad lines skipped and named (module docstring)."""
     path = calibration_path(db, participant)
+    skip = _Skipped(path)
     rows = []
-    for n, o in _legacy_lines(path):
+    for n, o in _legacy_lines(path, skip):
         try:
-            rest = [float(v) for v in o["rest"]]
-            row = {"utc": str(o["utc"]), "trial": int(o["trial"]), "device": str(o["device"]),
-                   "rest_x": rest[0], "rest_y": rest[1], "reach": float(o["reach"]),
-                   "deadzone": float(o["deadzone"]), "max_force_n": float(o["max_force_n"])}
+            rest = [_finite(v, 1.5) for v in o["rest"]]
+            if len(rest) != 2 or not isinstance(o["utc"], str) or \
+                    not isinstance(o["device"], str):
+                raise ValueError
+            row = {"utc": o["utc"], "trial": _whole(o["trial"], 0, MAX_TRIAL),
+                   "device": o["device"], "rest_x": rest[0], "rest_y": rest[1],
+                   "reach": _finite(o["reach"]), "deadzone": _finite(o["deadzone"]),
+                   "max_force_n": _finite(o["max_force_n"])}
         except (KeyError, TypeError, ValueError, IndexError):
-            raise ConfigError(f"{path}:{n} is not a calibration record (utc, trial, device, "
-                              "rest, reach, deadzone, max_force_n); fix or delete the line"
-                              ) from None
+            skip(n, "not a calibration record (utc, trial, device, rest, reach, deadzone, "
+                 "max_force_n)")
+            continue
         rows.append({"participant": participant, "k": len(rows), **row})
+    skip.done()
     return rows
 
 
 def legacy_tlx(db: str | Path, participant: str) -> list[dict[str, Any]]:
     """The participant's NASA-TLX answers in the legacy file, as ``study_tlx`` rows (the first
-    answer of a trial counts, as in the session)."""
+    answer of a trial counts, as in the session); bad lines skipped and named."""
     path = tlx_path(db, participant)
+    skip = _Skipped(path)
     rows: dict[int, dict[str, Any]] = {}
-    for n, o in _legacy_lines(path):
+    for n, o in _legacy_lines(path, skip):
         try:
-            scores = {k: int(o["scores"][k]) for k in TLX_SCALES}
-            if not all(0 <= v <= 100 for v in scores.values()):
+            scores = {k: _whole(o["scores"][k], 0, 100) for k in TLX_SCALES}
+            trial = _whole(o["trial"], 1, MAX_TRIAL)
+            name = o.get("name")
+            if not (name is None or isinstance(name, str)) or not isinstance(o["utc"], str):
                 raise ValueError
-            trial = int(o["trial"])
-            row = tlx_row(scores, None if o.get("name") is None else str(o["name"]),
-                          str(o["utc"]))
+            row = tlx_row(scores, name, o["utc"])
         except (KeyError, TypeError, ValueError):
-            raise ConfigError(f"{path}:{n} is not a NASA-TLX record (utc, trial, name, scores "
-                              f"{', '.join(TLX_SCALES)} in 0..100); fix or delete the line"
-                              ) from None
+            skip(n, f"not a NASA-TLX record (utc, trial, name, scores {', '.join(TLX_SCALES)} "
+                 "whole numbers in 0..100)")
+            continue
         rows.setdefault(trial, {"participant": participant, "trial": trial, **row})
+    skip.done()
     return [rows[k] for k in sorted(rows)]
 
 
@@ -172,23 +246,35 @@ def import_legacy(writer: TrialWriter, db: str | Path) -> tuple[int, int]:
     return len(new_cal), len(new_tlx)
 
 
-def load_answers(db: str | Path) -> tuple[list[dict], list[dict]]:
+def load_answers(db: str | Path, participant: str | None = None
+                 ) -> tuple[list[dict], list[dict]]:
     """Every calibration and NASA-TLX answer of ``db`` (the tables, and the legacy files
-    beside it by :func:`merged`), read without changing the file."""
+    beside it by :func:`merged`), or only ``participant``'s (their rows and their files
+    alone), read without changing the file. The table rows are checked
+    (:mod:`pathpref.experiments.trial_rows`)."""
+    from ..experiments.trial_rows import checked
+
     cal_rows: list[dict] = []
     tlx_rows: list[dict] = []
+    where, args = ("WHERE participant = ?", (participant,)) if participant else ("", ())
     with ResultStore(db, create=False) as store:
         c = store.conn
         if has_study_tables(c):
             absent = missing_study_tables(c)
             if "study_calibrations" not in absent:
-                cal_rows = read_rows(c, "study_calibrations")
+                cal_rows = list(checked("study_calibrations",
+                                        read_rows(c, "study_calibrations", where, args), db))
             if "study_tlx" not in absent:
-                tlx_rows = read_rows(c, "study_tlx")
-    cal = merged(cal_rows, {p: legacy_calibrations(db, p)
-                            for p in _legacy_participants(db, "calibration")}, "calibration")
-    tlx = merged(tlx_rows, {p: legacy_tlx(db, p) for p in _legacy_participants(db, "tlx")},
-                 "tlx")
+                tlx_rows = list(checked("study_tlx", read_rows(c, "study_tlx", where, args),
+                                        db))
+
+    def who(kind: str) -> list[str]:
+        have = _legacy_participants(db, kind)
+        return have if participant is None else [p for p in have if p == participant]
+
+    cal = merged(cal_rows, {p: legacy_calibrations(db, p) for p in who("calibration")},
+                 "calibration")
+    tlx = merged(tlx_rows, {p: legacy_tlx(db, p) for p in who("tlx")}, "tlx")
     return cal, tlx
 
 

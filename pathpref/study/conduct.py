@@ -6,22 +6,29 @@ unfinished is deleted and run again, and finished trials are skipped), and runs 
 participant's trials (:meth:`~.plan.Study.order_for`) through a :class:`FrontEnd`: the browser
 (:mod:`.server`), the MuJoCo viewer (:mod:`.viewer`) or a scripted participant
 (:mod:`.script`). Every trial gets a rerun file beside the database:
-``DB_STEM.rerun/PARTICIPANT-K-NAME.rrd``.
+``DB_STEM.rerun/PARTICIPANT-K-NAME.rrd`` (a symbolic link at that name is refused before the
+session starts, never written through; a trial that fails leaves none).
+
+**A full disk** (the database or the rerun file) ends the session with one line; the trial
+under way stays unfinished and ``--resume`` runs it again.
 
 **One live session per participant.** :class:`Session` takes an exclusive ``flock`` on
-``DB.PARTICIPANT.lock`` beside the database before it reads or deletes anything, and holds it
+``DB.PARTICIPANT.lock`` beside the database (opened with ``O_NOFOLLOW``: a symbolic link there
+is refused, never followed) before it reads or deletes anything, and holds it
 until the session ends (the operating system drops it when the process dies, so a killed
 session never blocks its ``--resume``). A second session of the same participant, ``--resume``
 or not, is refused with one line naming the process that holds the lock, and nothing is
 deleted. All checks (participant, lock, existing trials, study file) run before a front end
 is made, so a refused command serves no page and prints no URL.
 
-**Gamepad calibration** (:class:`~.controls.StickCalibration`): every calibration the
-participant's front end accepts becomes a row of ``study_calibrations`` (time, the trial under
-way or next, device, rest, reach, dead zone, maximum force).
+**Gamepad calibration** (:class:`~.controls.StickCalibration`): the calibration the
+participant's front end accepted last becomes a row of ``study_calibrations`` (time, the trial
+under way or next, device, rest, reach, dead zone, maximum force) at the next write: one per
+decision step at most, however many the page sends.
 
 **Questionnaire** (the study's ``questionnaire``: ``nasa-tlx``): the front end asks it after
-every trial; each answer becomes a row of ``study_tlx`` (trial position and name, time, the six
+every trial; the answer about the trial just ended, once (:meth:`~.controls.Controls.ask_tlx`),
+becomes a row of ``study_tlx`` (trial position and name, time, the six
 scales, and the raw TLX: their mean).
 
 Both arrive on the front end's thread (the browser's server); they are queued and written by
@@ -33,9 +40,12 @@ as JSON lines beside the database (:mod:`.answers`).
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import os
 import re
+import sqlite3
+import stat
 import threading
 import time
 from datetime import UTC, datetime
@@ -96,6 +106,33 @@ def rerun_path(db: str | Path, participant: str, position: int, trial: Trial) ->
     return db.with_name(db.stem + ".rerun") / f"{participant}-{position:02d}-{name}.rrd"
 
 
+def check_rerun_path(path: Path) -> Path:
+    """A trial's rerun file is written only as a file of its own: a symbolic link (or
+    anything but a regular file) at its name is refused with one line, before any work."""
+    try:
+        st = os.lstat(path)
+    except FileNotFoundError:
+        return path
+    except OSError as e:
+        raise ConfigError(f"cannot write the rerun file {path}: {e.strerror}") from None
+    if stat.S_ISLNK(st.st_mode) or not stat.S_ISREG(st.st_mode):
+        raise ConfigError(f"the rerun file {path} is a symbolic link or not a regular file; "
+                          "delete it (pathpref writes its own)")
+    return path
+
+
+def disk_full(e: BaseException) -> bool:
+    """An error of a full disk or quota: OSError ENOSPC/EDQUOT, SQLite's 'database or disk
+    is full', the rerun SDK's RuntimeError '... No space left on device (os error 28)'."""
+    if isinstance(e, OSError):
+        return e.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+    if isinstance(e, sqlite3.Error):
+        return "database or disk is full" in str(e)
+    return isinstance(e, RuntimeError) and (
+        f"(os error {errno.ENOSPC})" in str(e)
+        or f"(os error {getattr(errno, 'EDQUOT', errno.ENOSPC)})" in str(e))
+
+
 def lock_path(db: str | Path, participant: str) -> Path:
     """The lock file of ``participant``'s sessions in ``db`` (module docstring)."""
     db = Path(db)
@@ -120,11 +157,18 @@ class Session:
 
     def _lock(self) -> None:
         for _ in range(3):  # the holder may unlink the file between our open and our flock
-            try:
-                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:  # never through a link: a planted symlink would have its target truncated
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW, 0o644)
             except OSError as e:
+                if e.errno == errno.ELOOP:
+                    raise ConfigError(f"the session lock {self.path} is a symbolic link; "
+                                      "delete it (pathpref makes its own)") from None
                 raise ConfigError(f"cannot create the session lock {self.path}: {e.strerror}; "
                                   "give a --db in a writable folder") from None
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                os.close(fd)
+                raise ConfigError(f"the session lock {self.path} is not a regular file; "
+                                  "delete it (pathpref makes its own)")
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
@@ -146,6 +190,8 @@ class Session:
         raise ConfigError(f"cannot lock {self.path}: it keeps changing; try again")
 
     def _check(self) -> None:
+        for position, trial in enumerate(self.study.order_for(self.participant), start=1):
+            check_rerun_path(rerun_path(self.db, self.participant, position, trial))
         if not self.db.exists():
             return
         with ResultStore(self.db) as store:
@@ -159,13 +205,19 @@ class Session:
                               f"study file ({existing[0]['study']}); resume with that file")
 
     def _record_calibration(self, cal) -> None:
-        """Queue a gamepad calibration (any thread; :meth:`_flush` writes it)."""
+        """Queue a gamepad calibration (any thread; :meth:`_flush` writes it). Once per
+        step: a calibration still queued is replaced by the newer one, so a flush (one per
+        decision step, and one before and after each trial) writes one at most."""
         row = calibration_row(cal, self.position, _utc())
         with self._queue_lock:
+            self._queue = [q for q in self._queue if q[0] != "calibration"]
             self._queue.append(("calibration", row))
 
     def _record_tlx(self, k: int, scores: dict[str, int]) -> None:
-        """Queue the NASA-TLX answers after trial ``k`` (any thread)."""
+        """Queue the NASA-TLX answers after trial ``k`` (any thread): only the trial just
+        ended (the session's current position) is answered, the rest is dropped."""
+        if k != self.position:
+            return
         order = self.study.order_for(self.participant)
         name = order[k - 1].name if 1 <= k <= len(order) else None
         with self._queue_lock:
@@ -227,9 +279,23 @@ class Session:
                               front, log, between=lambda: self._flush(writer))
                     self._flush(writer)
                 return writer.trials()
+            except Exception as e:
+                if not disk_full(e):
+                    raise
+                what = db
+                if isinstance(e, RuntimeError) and self.position:  # the rerun SDK's
+                    what = rerun_path(db, participant, self.position,
+                                      study.order_for(participant)[self.position - 1])
+                raise ConfigError(
+                    f"cannot write {what}: no space left on device"
+                    + (f" in trial {self.position}, left unfinished" if self.position else "")
+                    + "; free some space and run the same command with --resume") from None
             finally:
                 try:
                     self._flush(writer)
+                except Exception as e:  # the first error is the one to tell
+                    if not disk_full(e):
+                        raise
                 finally:
                     store.close()
         finally:
@@ -257,6 +323,7 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
     front.begin_trial(position, total, runner)
     rerun = rerun_path(db, participant, position, trial)
     rerun.parent.mkdir(parents=True, exist_ok=True)
+    check_rerun_path(rerun)
     writer.begin(position, {
         "name": trial.name, "study_index": trial.index, "study": study.path,
         "study_hash": study.hash,
@@ -268,16 +335,23 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
         "route": dumps(trial.route), "time_limit_s": trial.time_limit_s, "seed": study.seed,
         "rerun": str(rerun), "started_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "physics": trial.physics, "robot": trial.robot})
-    recorder = TrialRecorder(writer, position, runner, rerun)
+    recorder: TrialRecorder | None = None
     wall = time.perf_counter()
-    while not runner.done:
-        runner.decide()
-        recorder.after_decision()
-        front.after_decision(runner)
-        if between is not None:
-            between()
-    outcome = recorder.finish() | {"wall_s": time.perf_counter() - wall}
-    writer.finish(position, outcome)
+    try:
+        recorder = TrialRecorder(writer, position, runner, rerun)
+        while not runner.done:
+            runner.decide()
+            recorder.after_decision()
+            front.after_decision(runner)
+            if between is not None:
+                between()
+        outcome = recorder.finish() | {"wall_s": time.perf_counter() - wall}
+        writer.finish(position, outcome)
+    except BaseException:  # the trial stays unfinished (--resume runs it again): no rerun file
+        if recorder is not None and recorder.rerun is not None:
+            recorder.rerun.abandon()
+        rerun.unlink(missing_ok=True)
+        raise
     front.end_trial(runner, outcome)
     log(f"{participant} trial {position}/{total} ({trial.name}): {outcome['outcome']} in "
         f"{outcome['time_s']:.1f} s, {outcome['pushes']} pushes, {outcome['cues']} cues, "

@@ -16,7 +16,11 @@ into the force on the robot's handle (a :class:`~.session.PushSource`) or a requ
   (:func:`stick_force`); refused before a calibration;
 * ``{"type": "tlx", "trial": k, "scores": {"mental": 55, ...}}``: the NASA-TLX answers after
   trial ``k``: the six scales of :data:`TLX_SCALES`, whole numbers 0..100 (raw, unweighted
-  TLX).
+  TLX). **Only the trial just ended, once**: an answer counts only while the front end asks
+  it (:meth:`Controls.ask_tlx`, after trial ``k`` ended, until the next trial begins) and only
+  for that ``k``; the first valid one closes the question. An answer before or during a
+  trial, for another trial, or a second one is ignored (it can neither replace the real
+  answer nor skip a questionnaire).
 
 **The stick rule.** With the calibration's rest position ``(rx, ry)`` and reach ``r`` (the
 largest deflection the participant reached from rest), the deflection is
@@ -142,6 +146,8 @@ class Controls:
         self.calibration: StickCalibration | None = None
         #: questionnaire answers by trial position; hooks told of each (the session records)
         self.tlx: dict[int, dict[str, int]] = {}
+        #: the trial whose questionnaire is asked now (None: no answer is accepted)
+        self.asking: int | None = None
         self.on_tlx: list = []
         #: told of every accepted calibration (the session records it)
         self.on_calibration: list = []
@@ -228,10 +234,18 @@ class Controls:
                 self._ignore("tlx needs trial k and scores " + ", ".join(TLX_SCALES)
                              + " (whole numbers 0..100)")
                 return False
-            if k not in self.tlx:
-                self.tlx[k] = {n: scores[n] for n in TLX_SCALES}
-                for hook in self.on_tlx:
-                    hook(k, self.tlx[k])
+            with self._lock:
+                asked = self.asking == k and k not in self.tlx
+                if asked:
+                    self.asking = None
+                    self.tlx[k] = {n: scores[n] for n in TLX_SCALES}
+            if not asked:
+                self._ignore(f"tlx for trial {k}, but " + (
+                    "no questionnaire is asked now" if self.asking is None
+                    else f"the questionnaire asks about trial {self.asking}"))
+                return False
+            for hook in self.on_tlx:
+                hook(k, self.tlx[k])
         elif kind == "stick":
             ax, ay = msg.get("ax"), msg.get("ay")
             if self.calibration is None:
@@ -252,8 +266,14 @@ class Controls:
             return False
         return True
 
+    def ask_tlx(self, k: int) -> None:
+        """Accept the questionnaire's answer about trial ``k`` (it just ended), once."""
+        with self._lock:
+            self.asking = int(k)
+
     def reset(self) -> None:
-        """Between trials: no push, not started."""
+        """Between trials: no push, not started, no questionnaire asked."""
         with self._lock:
             self._force = np.zeros(2)
+            self.asking = None
         self.started.clear()

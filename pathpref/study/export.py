@@ -30,17 +30,33 @@ Into ``OUT/PARTICIPANT/``:
 
 Rows are read from the database a chunk at a time and written as they come (no table is held
 in memory), so a 3600 s trial (1.8 million force rows) exports in bounded memory.
+
+**Whole or nothing.** Every file is written into a new temporary folder inside ``OUT``
+(``tempfile.mkdtemp``: ``.PARTICIPANT.XXXX``), which is renamed to ``OUT/PARTICIPANT`` when
+all are written (into an existing ``OUT/PARTICIPANT`` each file is moved with
+:func:`os.replace`; files there that the export does not write are kept). Every row is checked
+as it passes (:mod:`pathpref.experiments.trial_rows`): a row changed outside pathpref (a
+candidates column that is not JSON, a belief over a goal the trial lacks, a start time that
+is not one, a force that is text, a time of 1e308) is one error line naming the table, the row
+and the column. On that, on a full disk or any other failure, the temporary folder is removed
+(and ``OUT`` when the export made it): nothing is left behind.
 """
 
 from __future__ import annotations
 
 import csv
+import errno
 import json
+import os
+import shutil
+import stat
+import tempfile
 from datetime import datetime
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, PathprefError
 from ..experiments.store import ResultStore
+from ..experiments.trial_rows import MAX_TIME_S, check_goals, check_row, checked
 from ..experiments.trials import STUDY_TABLES, has_study_tables
 from ..sim.scene import CELL_SIZE_M
 from .answers import load_answers
@@ -79,13 +95,17 @@ def _rows(conn, table: str, participant: str, trial: int | None, order: str):
 
 
 def _stamp(t0_ns: int, time_s: float) -> tuple[int, dict]:
+    if not 0.0 <= time_s <= MAX_TIME_S:  # checked with its row first; never an overflow
+        raise ConfigError(f"a time of {time_s!r} s is out of 0..{MAX_TIME_S:g}")
     ns = t0_ns + int(round(time_s * 1e9))
     return ns, {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
-def write_mcap(conn, participant: str, trial: dict, out: Path) -> dict[str, int]:
-    """One trial (its ``trials`` row ``trial``) as an MCAP file (module docstring); the
-    number of messages per topic."""
+def write_mcap(conn, participant: str, trial: dict, out: Path,
+               db: str | Path = "database") -> dict[str, int]:
+    """One trial (its ``trials`` row ``trial``, checked) as an MCAP file (module docstring);
+    the number of messages per topic. Every row is checked as it is read (``db`` names the
+    file in the error)."""
     try:
         from mcap.writer import Writer
     except ImportError:
@@ -113,7 +133,8 @@ def write_mcap(conn, participant: str, trial: dict, out: Path) -> dict[str, int]
         applied = channel("/force/applied", WRENCH_SCHEMA)
         sensed = channel("/force/sensed", WRENCH_SCHEMA)
         zero = {"x": 0.0, "y": 0.0, "z": 0.0}
-        for r in _rows(conn, "trial_forces", participant, k, "k"):
+        for r in checked("trial_forces", _rows(conn, "trial_forces", participant, k, "k"),
+                         db):
             _, ts = _stamp(t0, r["time_s"])
             for cid, topic, fx, fy in ((applied, "/force/applied", r["fx"], r["fy"]),
                                        (sensed, "/force/sensed", r["sensed_fx"],
@@ -123,7 +144,7 @@ def write_mcap(conn, participant: str, trial: dict, out: Path) -> dict[str, int]
                                               "torque": zero})
         for table, topic in (("trial_pushes", "/pushes"), ("trial_cues", "/cues")):
             cid = channel(topic, _row_schema(f"pathpref.{table}", table))
-            for r in _rows(conn, table, participant, k, "k"):
+            for r in checked(table, _rows(conn, table, participant, k, "k"), db):
                 put(cid, topic, r["t_start"] if table == "trial_pushes" else r["time_s"], r)
         cands = json.loads(trial["candidates"])
         cid = channel("/belief", {"title": "pathpref.Belief", "type": "object", "properties": {
@@ -131,10 +152,10 @@ def write_mcap(conn, participant: str, trial: dict, out: Path) -> dict[str, int]
             "candidates": {"type": "array"}}})
         for r in _rows(conn, "trial_beliefs", participant, k, "k"):
             put(cid, "/belief", r["time_s"], {"cause": r["cause"],
-                                              "p": json.loads(r["goals"]),
+                                              "p": check_goals(r, len(cands), db),
                                               "candidates": cands})
         cid = channel("/pose", POSE_SCHEMA)
-        for r in _rows(conn, "trial_steps", participant, k, "t"):
+        for r in checked("trial_steps", _rows(conn, "trial_steps", participant, k, "t"), db):
             _, ts = _stamp(t0, r["time_s"])
             put(cid, "/pose", r["time_s"], {
                 "timestamp": ts, "frame_id": "world", "pose": {
@@ -215,9 +236,13 @@ def _write_table(folder: Path, stem: str, columns: list[tuple[str, str]], rows,
     try:
         for r in rows:
             w.write(r)
-    finally:
-        counts = w.close()
-    return counts
+    except BaseException:
+        try:
+            w.close()  # the temporary folder goes; the first error is the one to tell
+        except Exception:  # noqa: BLE001, S110
+            pass
+        raise
+    return w.close()
 
 
 def _formats(fmt: str) -> tuple[str, ...]:
@@ -234,55 +259,121 @@ def _formats(fmt: str) -> tuple[str, ...]:
     return out
 
 
+def _output_folder(out: Path, participant: str) -> Path:
+    """``OUT/PARTICIPANT``, refused (one line, nothing made) when ``OUT`` or it is not a
+    folder, or ``OUT``'s parent folder is missing."""
+    folder = out / participant
+    for path, what in ((out, "--out"), (folder, "--out's participant folder")):
+        try:
+            st = os.stat(path)
+        except FileNotFoundError:
+            continue
+        except OSError as e:
+            raise ConfigError(f"cannot write {what} {path}: {e.strerror or e}") from None
+        if not stat.S_ISDIR(st.st_mode):
+            raise ConfigError(f"{what} {path} exists and is not a folder; give a folder "
+                              "(existing or new)")
+    parent = out.parent if str(out.parent) else Path(".")
+    if not out.exists() and not parent.is_dir():
+        raise ConfigError(f"cannot write --out {out}: folder {parent} does not exist")
+    return folder
+
+
+def _write_failed(folder: Path, e: OSError) -> ConfigError:
+    if e.errno in (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)):
+        reason = "no space left on device; free some space and run again"
+    else:
+        reason = e.strerror or str(e)
+    return ConfigError(f"cannot write {folder}: {reason} (nothing was written)")
+
+
 def export_participant(db: str | Path, participant: str, out: str | Path,
                        mcap: bool = True, fmt: str = "csv") -> dict[str, int]:
     """Write ``participant``'s trials of ``db`` into ``out/participant/`` (module docstring) as
     CSV (``fmt="csv"``, the default), Parquet (``"parquet"``) or both; the number of rows per
-    table file and of MCAP files."""
+    table file and of MCAP files. Whole or nothing (module docstring)."""
     formats = _formats(fmt)
-    folder = Path(out) / participant
+    out = Path(out)
+    folder = _output_folder(out, participant)
     with ResultStore(db, create=False) as store:
         c = store.conn
         if not has_study_tables(c):
             raise ConfigError(f"{db} holds no study trials")
-        trials = list(_rows(c, "trials", participant, None, "trial"))
+        trials = list(checked("trials", _rows(c, "trials", participant, None, "trial"), db))
         if not trials:
             raise ConfigError(f"{db} has no trials of participant {participant!r}")
-        folder.mkdir(parents=True, exist_ok=True)
-        counts: dict[str, int] = {}
+        cal, tlx = load_answers(db, participant)
+        made_out = not out.exists()
+        tmp = None
+        try:
+            out.mkdir(exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(dir=out, prefix=f".{participant}."))
+            counts = _export_into(c, db, participant, trials, cal, tlx, tmp, mcap, formats)
+            if not folder.exists():
+                os.rename(tmp, folder)
+            else:
+                for f in sorted(tmp.iterdir()):
+                    os.replace(f, folder / f.name)
+                tmp.rmdir()
+        except OSError as e:
+            raise _write_failed(folder, e) from None
+        except PathprefError:
+            raise
+        except (ValueError, TypeError, OverflowError, KeyError) as e:  # a row no check foresaw
+            raise ConfigError(f"cannot export participant {participant!r} of {db}: "
+                              f"{type(e).__name__}: {str(e)[:120]}; a row was changed outside "
+                              "pathpref (nothing was written)") from None
+        finally:
+            if tmp is not None and tmp.exists():
+                shutil.rmtree(tmp, ignore_errors=True)
+            if made_out and out.is_dir() and not any(out.iterdir()):
+                out.rmdir()
+    return counts
 
-        def columns(table: str) -> list[tuple[str, str]]:
-            return list(next(c for t, c, _ in STUDY_TABLES if t == table))
 
-        for table, order in (("trials", "trial"), ("trial_steps", "trial, t"),
-                             ("trial_forces", "trial, k"), ("trial_pushes", "trial, k"),
-                             ("trial_cues", "trial, k")):
-            cols = columns(table)
-            stem = "trials" if table == "trials" else table[6:]
-            counts |= _write_table(folder, stem, cols, (
-                [r.get(col) for col, _ in cols]
-                for r in _rows(c, table, participant, None, order)), formats)
-        cands = {t["trial"]: json.loads(t["candidates"]) for t in trials}
+def _export_into(c, db, participant: str, trials: list[dict], cal: list[dict],
+                 tlx: list[dict], folder: Path, mcap: bool,
+                 formats: tuple[str, ...]) -> dict[str, int]:
+    """Every file of the export into ``folder`` (the temporary one); the counts."""
+    counts: dict[str, int] = {}
 
-        def beliefs():
-            for r in _rows(c, "trial_beliefs", participant, None, "trial, k"):
-                for g, p in enumerate(json.loads(r["goals"])):
-                    x, y = cands[r["trial"]][g]
-                    yield [participant, r["trial"], r["k"], r["time_s"], r["cause"], g, x, y, p]
+    def columns(table: str) -> list[tuple[str, str]]:
+        return list(next(c for t, c, _ in STUDY_TABLES if t == table))
 
-        counts |= _write_table(folder, "beliefs", [
-            ("participant", "TEXT"), ("trial", "INTEGER"), ("k", "INTEGER"),
-            ("time_s", "REAL"), ("cause", "TEXT"), ("goal", "INTEGER"), ("goal_x", "INTEGER"),
-            ("goal_y", "INTEGER"), ("p", "REAL")], beliefs(), formats)
-        cal, tlx = load_answers(db)
-        for table, stem, rows in (("study_calibrations", "calibration", cal),
-                                  ("study_tlx", "tlx", tlx)):
-            cols = columns(table)
-            counts |= _write_table(folder, stem, cols, (
-                [r[col] for col, _ in cols] for r in rows if r["participant"] == participant),
-                formats)
-        if mcap:
-            for t in trials:
-                write_mcap(c, participant, t, folder / f"trial-{t['trial']:02d}.mcap")
-            counts["mcap"] = len(trials)
+    for table, order in (("trials", "trial"), ("trial_steps", "trial, t"),
+                         ("trial_forces", "trial, k"), ("trial_pushes", "trial, k"),
+                         ("trial_cues", "trial, k")):
+        cols = columns(table)
+        stem = "trials" if table == "trials" else table[6:]
+        counts |= _write_table(folder, stem, cols, (
+            [r.get(col) for col, _ in cols]
+            for r in checked(table, _rows(c, table, participant, None, order), db)), formats)
+    cands = {t["trial"]: json.loads(t["candidates"]) for t in trials}
+
+    def beliefs():
+        for r in _rows(c, "trial_beliefs", participant, None, "trial, k"):
+            if r["trial"] not in cands:
+                check_row("trial_beliefs", r, db)
+                raise ConfigError(f"{db}: trial_beliefs row (participant {participant!r}, "
+                                  f"trial {r['trial']!r}, k {r['k']!r}) belongs to no trial; "
+                                  "the row was changed outside pathpref")
+            for g, p in enumerate(check_goals(r, len(cands[r["trial"]]), db)):
+                x, y = cands[r["trial"]][g]
+                yield [participant, r["trial"], r["k"], r["time_s"], r["cause"], g, x, y, p]
+
+    counts |= _write_table(folder, "beliefs", [
+        ("participant", "TEXT"), ("trial", "INTEGER"), ("k", "INTEGER"),
+        ("time_s", "REAL"), ("cause", "TEXT"), ("goal", "INTEGER"), ("goal_x", "INTEGER"),
+        ("goal_y", "INTEGER"), ("p", "REAL")], beliefs(), formats)
+    for table, stem, rows in (("study_calibrations", "calibration", cal),
+                              ("study_tlx", "tlx", tlx)):
+        cols = columns(table)
+        counts |= _write_table(folder, stem, cols, (
+            [r[col] for col, _ in cols]
+            for r in checked(table, (r for r in rows if r["participant"] == participant), db)),
+            formats)
+    if mcap:
+        for t in trials:
+            write_mcap(c, participant, t, folder / f"trial-{t['trial']:02d}.mcap", db)
+        counts["mcap"] = len(trials)
     return counts

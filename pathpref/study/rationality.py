@@ -36,6 +36,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
+from ..experiments.trial_rows import checked
 from ..experiments.trials import has_study_tables, read_rows
 from ..inference.human import ObservationModel, SimulatedHuman
 from .plan import Trial, trial_from_row
@@ -121,8 +122,10 @@ def participant_fits(db: str | Path) -> dict[str, RationalityFit]:
         c = store.conn
         if not has_study_tables(c):
             return {}
-        trials = read_rows(c, "trials", "WHERE status = 'done' ORDER BY participant, trial")
-        cues = read_rows(c, "trial_cues", "ORDER BY participant, trial, k")
+        trials = list(checked("trials", read_rows(
+            c, "trials", "WHERE status = 'done' ORDER BY participant, trial"), db))
+        cues = list(checked("trial_cues", read_rows(
+            c, "trial_cues", "ORDER BY participant, trial, k"), db))
     by_trial: dict[tuple[str, int], list[dict]] = {}
     for q in cues:
         by_trial.setdefault((q["participant"], q["trial"]), []).append(q)

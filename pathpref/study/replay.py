@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
+from ..experiments.trial_rows import check_trial_row, checked
 from ..experiments.trials import has_study_tables, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
@@ -124,16 +125,16 @@ def load_trial(db: str | Path, participant: str, trial: int
                 f"{db} has no trial {trial} of participant {participant!r}"
                 + (f" (it has trials {', '.join(map(str, have))})" if have else
                    " (no trials of that participant)"))
-        r = rows[0]
+        r = check_trial_row(rows[0], db)
         if r["status"] != "done":
             raise ConfigError(f"trial {trial} of {participant!r} did not finish; there is "
                               "nothing whole to replay")
-        forces = np.array([(f["fx"], f["fy"]) for f in read_rows(
+        forces = np.array([(f["fx"], f["fy"]) for f in checked("trial_forces", read_rows(
             c, "trial_forces", "WHERE participant = ? AND trial = ? ORDER BY k",
-            (participant, trial))], float)
-        steps = [(s["t"], s["x"], s["y"]) for s in read_rows(
+            (participant, trial)), db)], float).reshape(-1, 2)
+        steps = [(s["t"], s["x"], s["y"]) for s in checked("trial_steps", read_rows(
             c, "trial_steps", "WHERE participant = ? AND trial = ? ORDER BY t",
-            (participant, trial))]
+            (participant, trial)), db)]
         n_pushes, n_cues = (c.execute(
             f"SELECT count(*) FROM {t} WHERE participant = ? AND trial = ?",
             (participant, trial)).fetchone()[0] for t in ("trial_pushes", "trial_cues"))

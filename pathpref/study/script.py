@@ -194,6 +194,7 @@ class ScriptedFrontEnd:
         """Answer the questionnaire when the script has answers for this trial."""
         scores = self.script.tlx.get(runner.trial.name)
         if scores is not None:
+            self.controls.ask_tlx(self.position)
             self.controls.handle(json.dumps({"type": "tlx", "trial": self.position,
                                              "scores": scores}))
 

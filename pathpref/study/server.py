@@ -35,10 +35,15 @@ thread) publishes the state, and the driving page's messages go to
   begins.
 * *Questionnaire*: with the study's ``questionnaire`` the page asks it after every trial and
   the next trial (or the session's end) waits for the answer, bounded like Start.
-* *Bounded connections*: at most :data:`MAX_CONNECTIONS` TCP connections at a time (more are
-  closed as they are accepted), and a connection that has not finished its HTTP request or
-  WebSocket handshake within :data:`OPEN_TIMEOUT_S` is closed. Malformed messages are logged
-  within a rate limit (:class:`~.controls.Controls`).
+* *Bounded connections, nobody locked out*: at most :data:`MAX_CONNECTIONS` TCP connections
+  at a time, and a connection that has not finished its HTTP request or WebSocket handshake
+  within :data:`OPEN_TIMEOUT_S` is closed. A connection is *unproven* until its request has
+  passed the checks above (token, Host, Origin); one accepted over the cap closes the
+  *oldest unproven* connection (the newest when every other one is proven), never a proven
+  one. So a local process that holds every slot with idle or tokenless sockets loses them to
+  the participant's page, which sends its request at once and is proven before the holder can
+  open ``MAX_CONNECTIONS`` more. Malformed messages are logged within a rate limit
+  (:class:`~.controls.Controls`).
 
 Messages to the page: ``role`` (``driver`` or ``observer``) on connection; ``scene`` (the map,
 the trial: start, goal, route, candidates, whether the belief is shown, the time limit; the
@@ -140,6 +145,8 @@ class BrowserFrontEnd:
         self.driver = None
         self._driver_seen = 0.0
         self.open_connections = self.refused_connections = self.refused_requests = 0
+        #: connections whose request has not passed the checks yet, oldest first
+        self._unproven: dict = {}
         #: (trial position, wall seconds) of every pause of a trial
         self.pauses: list[tuple[int, float]] = []
         self._status = "waiting"
@@ -200,8 +207,10 @@ class BrowserFrontEnd:
             if host is None or origin != f"http://{host}":
                 self._refused(f"from origin {str(origin)[:60]}")
                 return connection.respond(HTTPStatus.FORBIDDEN, "wrong Origin\n")
+            self._unproven.pop(connection, None)  # the session's page: never evicted
             return None  # the WebSocket handshake goes on
         if path in ("/", "/index.html"):
+            self._unproven.pop(connection, None)
             from websockets.datastructures import Headers
             from websockets.http11 import Response
 
@@ -267,7 +276,9 @@ class BrowserFrontEnd:
                         self.clients.discard(ws)
 
     def _connection_class(self):
-        """The server's connections, capped at ``max_connections`` open at a time."""
+        """The server's connections, capped at ``max_connections`` open at a time; over the
+        cap the oldest unproven connection is closed (module docstring). Runs on the server's
+        loop only (``_unproven`` is an insertion-ordered dict used as a queue)."""
         from websockets.asyncio.server import ServerConnection
 
         front = self
@@ -275,16 +286,24 @@ class BrowserFrontEnd:
         class Capped(ServerConnection):
             def connection_made(self, transport) -> None:
                 super().connection_made(transport)
+                self._evicted = False
                 front.open_connections += 1
+                front._unproven[self] = None
                 if front.open_connections > front.max_connections:
+                    victim = next(iter(front._unproven))  # the oldest unproven (maybe self)
+                    del front._unproven[victim]
+                    victim._evicted = True
+                    front.open_connections -= 1
                     front.refused_connections += 1
                     if str(front.refused_connections).strip("0") == "1":
-                        log.warning("refused %d connection(s) over the cap of %d",
+                        log.warning("closed %d unproven connection(s) over the cap of %d",
                                     front.refused_connections, front.max_connections)
-                    transport.abort()
+                    victim.transport.abort()
 
             def connection_lost(self, exc) -> None:
-                front.open_connections -= 1
+                front._unproven.pop(self, None)
+                if not self._evicted:
+                    front.open_connections -= 1
                 super().connection_lost(exc)
 
         return Capped
@@ -407,6 +426,8 @@ class BrowserFrontEnd:
         self.publish()
         last = self.position == self.total
         self.last_outcome = {k: outcome[k] for k in ("outcome", "time_s", "pushes")}
+        if self.questionnaire:  # asked before the page can see the trial ended
+            self.controls.ask_tlx(self.position)
         self._set_scene("finished" if last else "done", self.last_outcome)
         if self.questionnaire:  # the answers come before the next trial (or the end)
             self._await(lambda: self.position in self.controls.tlx, self.start_limit_s,

@@ -43,6 +43,28 @@ def preference_arrows(world: World, pref: np.ndarray) -> list[tuple[np.ndarray, 
     return out
 
 
+#: the figure's longer side is at most this many inches (1560 px at the 130 dpi it is saved
+#: with), its shorter side at least :data:`MIN_FIGURE_IN`, whatever the map's shape
+MAX_FIGURE_IN = 12.0
+MIN_FIGURE_IN = 3.0
+#: at most about this many labelled ticks per axis (a cell each on small maps)
+MAX_TICKS = 40
+
+
+def figure_size(width: int, height: int) -> tuple[float, float]:
+    """Inches of a map's figure: 6 (maps up to 12 cells) or 9 across its width, the height
+    in proportion, then scaled so that the longer side is at most :data:`MAX_FIGURE_IN` and
+    each side at least :data:`MIN_FIGURE_IN` (a 1 x 500 map is 3 x 12 inches, not 9 x 4500)."""
+    size = 6.0 if max(width, height) <= 12 else 9.0
+    w, h = size, size * height / width
+    scale = min(1.0, MAX_FIGURE_IN / max(w, h))
+    return max(w * scale, MIN_FIGURE_IN), max(h * scale, MIN_FIGURE_IN)
+
+
+def _tick_step(n: int) -> int:
+    return max(1, -(-n // MAX_TICKS))
+
+
 def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = True,
              show_preference: bool = True, cell_values: np.ndarray | None = None):
     """Draw ``world`` on ``ax`` (a new figure when None) and return the axes.
@@ -51,8 +73,7 @@ def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = Tr
     """
     spec, arr = world.spec, world.arrangement
     if ax is None:
-        size = 6 if max(spec.width, spec.height) <= 12 else 9
-        _, ax = plt.subplots(figsize=(size, size * spec.height / spec.width))
+        _, ax = plt.subplots(figsize=figure_size(spec.width, spec.height))
     cmap = plt.get_cmap("tab20")
     for v, poly in enumerate(arr.polygons):
         if len(poly) >= 3:
@@ -85,8 +106,8 @@ def draw_map(world: World, ax=None, show_ids: bool = True, show_edges: bool = Tr
                     bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.8))
     ax.set_xlim(0, spec.width)
     ax.set_ylim(0, spec.height)
-    ax.set_xticks(np.arange(spec.width + 1))
-    ax.set_yticks(np.arange(spec.height + 1))
+    ax.set_xticks(np.arange(0, spec.width + 1, _tick_step(spec.width)))
+    ax.set_yticks(np.arange(0, spec.height + 1, _tick_step(spec.height)))
     ax.tick_params(labelsize=6)
     ax.grid(True, color="0.85", lw=0.5, zorder=0)
     ax.set_aspect("equal")

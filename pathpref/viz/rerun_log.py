@@ -168,3 +168,15 @@ class RerunLogger:
         """Flush and close the recording."""
         self.rec.flush()
         self.rec.disconnect()
+
+    def abandon(self, timeout_s: float = 1.0) -> None:
+        """Close the recording after a failure (its file is to be removed): the flush waits
+        at most ``timeout_s`` (a full disk never holds the caller), errors are dropped."""
+        try:
+            self.rec.flush(timeout_sec=timeout_s)
+        except Exception:  # noqa: BLE001, S110 - the failure that led here is the one to tell
+            pass
+        try:
+            self.rec.disconnect()
+        except Exception:  # noqa: BLE001, S110
+            pass
