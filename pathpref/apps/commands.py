@@ -98,7 +98,7 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
 # --- db -------------------------------------------------------------------------------------
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
     """``pathpref db upgrade``: migrate a results database to the current schema."""
-    from ..experiments.migrate import recompute_homotopy, upgrade_database
+    from ..experiments.migrate import recompute_homotopy, recompute_slack, upgrade_database
 
     remap = {}
     for item in args.map or []:
@@ -118,6 +118,11 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
         print(f"homotopy_success filled in for {h['recomputed']} older episodes from their "
               f"stored steps; {h['left']} left NULL (not measured: their map does not load "
               "as stored; point it with --map OLD=NEW)")
+    sl = recompute_slack(args.db, remap)
+    if sl["recomputed"] or sl["left"]:
+        print(f"slack filled in for {sl['recomputed']} older episodes from their instances; "
+              f"{sl['left']} left NULL (not measured: their map does not load as stored; "
+              "point it with --map OLD=NEW)")
     return 0
 
 

@@ -86,7 +86,14 @@ EPISODE_COLUMNS = {
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
     "human": "TEXT", "back_crossings": "INTEGER", "physics": "TEXT",
     "prior": "TEXT", "homotopy_success": "INTEGER", "push_rule": "TEXT",
+    "slack": "INTEGER",
 }
+#: episode columns added to schema 5 in place, after its release (at the end of the table, in
+#: this order): ``slack``, the time to spare of each episode
+#: (:func:`~pathpref.episode.results.route_slack`; NULL in older rows: not measured, or filled
+#: by ``pathpref db upgrade``: :func:`~.migrate.recompute_slack`). A schema 5 file without
+#: them reads as it is; opened for writing they are added
+LATE_EPISODE_COLUMNS = ("slack",)
 #: the columns of the steps table (the last added by schema 5) and its primary key
 STEP_COLUMNS = {
     "key": "TEXT", "t": "INTEGER", "x": "INTEGER", "y": "INTEGER", "action": "INTEGER",
@@ -224,7 +231,7 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     known = (*UPGRADABLE, *ADDITIVE, SCHEMA_VERSION)  # any other version is incompatible
     if version in known and (version >= STUDY_SCHEMA) != study:
         raise foreign(f"schema {version} {'with' if study else 'without'} the study tables")
-    if version == SCHEMA_VERSION and (columns != list(EPISODE_COLUMNS)
+    if version == SCHEMA_VERSION and (not episode_columns_ok(columns)
                                       or step_columns != list(STEP_COLUMNS)):
         lacking = [c for c in (*EPISODE_COLUMNS, *STEP_COLUMNS)
                    if c not in columns and c not in step_columns]
@@ -232,6 +239,21 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
             f"{path} was written by a development version of pathpref (schema "
             f"{SCHEMA_VERSION} without the columns {', '.join(lacking)}); use a new --db path")
     return version
+
+
+def episode_columns_ok(columns: Iterable[str]) -> bool:
+    """``columns`` (of a stored schema 5 ``episodes`` table) are pathpref's, the late ones
+    (:data:`LATE_EPISODE_COLUMNS`) possibly missing from the end."""
+    columns = list(columns)
+    every = list(EPISODE_COLUMNS)
+    return len(columns) >= len(every) - len(LATE_EPISODE_COLUMNS) and \
+        columns == every[:len(columns)]
+
+
+def missing_episode_columns(conn: sqlite3.Connection) -> list[str]:
+    """The late ``episodes`` columns (:data:`LATE_EPISODE_COLUMNS`) the file lacks."""
+    have = {r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")}
+    return [c for c in LATE_EPISODE_COLUMNS if c not in have]
 
 
 #: results files a :class:`ResultStore` of this process holds open, by ``(st_dev, st_ino)``:
@@ -538,7 +560,8 @@ class ResultStore:
     def _complete_schema(self) -> None:
         """Bring an :data:`ADDITIVE` (schema 3 or 4) file to this schema: add the missing
         episode and step columns (NULL in the old rows, see :data:`ADDITIVE`) and, to a schema
-        3 file, the study tables; to a schema 4 or 5 file the late ``trials`` columns and
+        3 file, the study tables; to a schema 5 file the late episode columns it lacks
+        (:data:`LATE_EPISODE_COLUMNS`); to a schema 4 or 5 file the late ``trials`` columns and
         study tables it lacks (:data:`~.trials.LATE_TRIAL_COLUMNS`,
         :data:`~.trials.LATE_STUDY_TABLES`)."""
         c = self.conn
@@ -546,9 +569,13 @@ class ResultStore:
         version = int(row[0])
         if version not in ADDITIVE:
             if version == SCHEMA_VERSION and (missing_trial_columns(c)
-                                              or missing_study_tables(c)):
+                                              or missing_study_tables(c)
+                                              or missing_episode_columns(c)):
                 c.execute("BEGIN IMMEDIATE")  # another process may be adding them now
                 with c:
+                    for name in missing_episode_columns(c):
+                        c.execute(f"ALTER TABLE episodes ADD COLUMN {name} "
+                                  f"{EPISODE_COLUMNS[name]}")
                     complete_trial_columns(c)
                     complete_study_tables(c)
             return
