@@ -99,7 +99,9 @@ class EpisodeRunner:
         gamma_h = spec.human_model.gamma_h  # the human's rationality, any body (grid too)
         human_model = model if gamma_h == model.gamma else \
             ObservationModel(world, model.tables, gamma_h, model.normalize)
-        self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
+        # the consistent human holds the goal's polytope (pathpref.geometry.following)
+        self.human = SimulatedHuman(human_model, inst.true_goal, self.pref,
+                                    hold=spec.human == "consistent")
         rule = parse_push_rule(spec.push_rule)
         if rule is not None and spec.sim != "grid":
             raise ConfigError(f"push_rule {spec.push_rule!r} is the grid's corrective human; "
