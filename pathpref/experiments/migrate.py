@@ -12,9 +12,10 @@ kept is the first successful one. The old file is kept beside the new one as
 ``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 or 4 -> 5
 only adds columns, in place: ``physics``, ``prior`` and ``push_rule`` (empty in old rows: the
 legacy physics, the independent prior and the periodic human they ran with), the
-``homotopy_success`` of each episode and the ``is_intervention`` of each step (NULL in old
-rows: not measured), and to a schema 3 file the (empty) study tables of :mod:`.trials`; every
-row and key stays as it was. A schema 2 file's rows get these columns empty too.
+``homotopy_success`` and ``slack`` of each episode and the ``is_intervention`` of each step
+(NULL in old rows: not measured; a schema 5 file without ``slack`` gets it in place too),
+and to a schema 3 file the (empty) study tables of :mod:`.trials`; every row and key stays as
+it was. A schema 2 file's rows get these columns empty too.
 
 **homotopy** (:func:`recompute_homotopy`, run by ``pathpref db upgrade`` after the schema is
 current) fills the NULL ``homotopy_success`` of old rows where it follows from what is stored,

@@ -58,8 +58,9 @@ from .trials import (
 #: the study tables (trials with people, :mod:`.trials`); 5: ``homotopy_success`` per episode,
 #: the human's push rule (``push_rule``; empty = the periodic human of older rows) and
 #: ``is_intervention`` per step (and, added later in place, the late ``trials`` columns
-#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`, and the late study tables
-#: of calibrations and NASA-TLX answers: :data:`~.trials.LATE_STUDY_TABLES`)
+#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`, the late study tables
+#: of calibrations and NASA-TLX answers: :data:`~.trials.LATE_STUDY_TABLES`, and the late
+#: episode column ``slack``: :data:`LATE_EPISODE_COLUMNS`)
 SCHEMA_VERSION = 5
 UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: older schemas whose tables are a subset of this one's: read as they are; opened for writing
