@@ -68,7 +68,8 @@ def _plans():
 def test_the_human_route_never_leaves_a_polytope_by_a_face_its_preference_forbids():
     """Property over plans and instances: every polytope change of the human's route leaves
     ``v`` toward ``q_v`` where ``q_v >= 0``, and leaves the goal's polytope only from a cell
-    that is not held (none, on these plans)."""
+    that is not held (none, on these plans); every polytope of the goal's component but ``r``
+    has a preference, and following it reaches ``r``."""
     checked = 0
     for path in _plans():
         world = load_world(path)
@@ -84,6 +85,15 @@ def test_the_human_route_never_leaves_a_polytope_by_a_face_its_preference_forbid
                     continue
                 assert q[v] < 0 or q[v] == w, (path, seed)
                 assert not (v == r and held[a]), (path, seed)
+            # wherever the robot may be pushed (r's component), a preference leads to r
+            P = world.n_polytopes
+            reach = np.isfinite(consistent_preference(world, world.require_preference(), r)[1])
+            for v in np.flatnonzero(reach):
+                u, hops = int(v), 0
+                while u != r and hops <= P:
+                    assert q[u] >= 0, (path, seed, v)
+                    u, hops = int(q[u]), hops + 1
+                assert u == r, (path, seed, v)
             checked += 1
     assert checked >= 60
 

@@ -147,3 +147,8 @@ def test_a_schema5_file_without_the_slack_column_reads_and_gets_it(tmp_path):
     assert recs[0]["slack_unmeasured_n"] == 1
     with ResultStore(db) as st:  # opened for writing: the column is added, NULL
         assert [r["slack"] for r in st.episodes()] == [None]
+    assert main(["db", "upgrade", str(db)]) == 0  # fills it, as the episode stores it now
+    with ResultStore(db, create=False) as st:
+        (row,) = st.episodes()
+    assert row["slack"] == EpisodeRunner(row_spec(row)).result.slack
+    assert row["slack"] == row["t_max"] - row["steps"]  # the oracle walks the route
