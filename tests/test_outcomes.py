@@ -152,3 +152,18 @@ def test_a_schema5_file_without_the_slack_column_reads_and_gets_it(tmp_path):
         (row,) = st.episodes()
     assert row["slack"] == EpisodeRunner(row_spec(row)).result.slack
     assert row["slack"] == row["t_max"] - row["steps"]  # the oracle walks the route
+
+
+def test_a_slack_pathpref_cannot_have_written_is_refused(tmp_path):
+    from pathpref.errors import ConfigError
+
+    db = tmp_path / "bad.sqlite"
+    assert main(["evaluate", "--map", "simple", "--preset", "paper", "--methods", "oracle",
+                 "--delta-t", "5", "--instances", "1", "--runs", "1", "--no-progress",
+                 "--db", str(db)]) == 0
+    c = sqlite3.connect(db)
+    with c:
+        c.execute("UPDATE episodes SET slack = 'x'")
+    c.close()
+    with pytest.raises(ConfigError, match="has slack = 'x', not an integer or NULL"):
+        load_records(db)

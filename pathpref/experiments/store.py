@@ -358,11 +358,12 @@ ROW_RULES = {
     "delta_t": "count", "queries": "count", "t_max": "count", "instance_seed": "seed",
     "ucb_c": "number",
     "normalize": "flag", "coupling": "flag", "success": "flag", "goal_reached": "flag",
-    "pref_followed": "flag", "homotopy_success": "flag or NULL",
+    "pref_followed": "flag", "homotopy_success": "flag or NULL", "slack": "integer or NULL",
 }
 _RULE_TEXT = {"text": "a string", "count": "an integer >= 1", "seed": "an integer >= 0",
               "number": "a finite number", "flag": "0 or 1",
-              "flag or NULL": "0, 1 or NULL (not measured)"}
+              "flag or NULL": "0, 1 or NULL (not measured)",
+              "integer or NULL": "an integer or NULL (not measured)"}
 
 
 def _breaks_rule(value: Any, rule: str) -> bool:
@@ -370,6 +371,8 @@ def _breaks_rule(value: Any, rule: str) -> bool:
         return not isinstance(value, str)
     if rule == "flag or NULL":
         return value is not None and _breaks_rule(value, "flag")
+    if rule == "integer or NULL":
+        return value is not None and (not isinstance(value, int) or isinstance(value, bool))
     if rule == "number":
         return not (isinstance(value, int | float) and math.isfinite(value))
     if not isinstance(value, int):
