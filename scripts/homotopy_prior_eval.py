@@ -43,12 +43,7 @@ from pathpref.experiments.report import wilson  # noqa: E402
 from pathpref.experiments.store import ResultStore  # noqa: E402
 from pathpref.experiments.sweep import run_sweep, sweep_specs  # noqa: E402
 from pathpref.geometry.following import consistent_preference, human_route  # noqa: E402
-from pathpref.geometry.generate import (  # noqa: E402
-    four_connected_components,
-    random_floor_plan,
-    with_loop_preference,
-)
-from pathpref.geometry.maps import free_cell_mask, parse_map  # noqa: E402
+from pathpref.geometry.generate import floor_plan  # noqa: E402
 from pathpref.geometry.world import load_world  # noqa: E402
 from pathpref.inference.circulation_prior import CirculationBelief  # noqa: E402
 from pathpref.inference.homotopy_prior import HomotopyBelief  # noqa: E402
@@ -72,20 +67,12 @@ BELIEFS = {"routes": lambda model, start: RouteBelief(model),
 
 def held_out_plan(seed: int, kind: str = "open") -> dict:
     """The held-out plan of ``seed`` of the plan set ``kind`` (:data:`SEEDS`; module
-    docstring): a loop preference for the ``loop`` sets, an open route otherwise."""
-    raw = random_floor_plan(24, 16, 7, n_boxes=2, seed=seed, size_range=(1.5, 4.0),
-                            name=f"heldout_{seed}")
+    docstring): :func:`~pathpref.geometry.generate.floor_plan` with a loop preference for the
+    ``loop`` sets, an open route otherwise."""
     why = (f"held out for {HELD_OUT_FOR[kind]} (scripts/homotopy_prior_eval.py); never used "
            "to choose its settings")
-    if kind.endswith("loop"):
-        return {**with_loop_preference(raw), "description": why}
-    labels, _ = four_connected_components(free_cell_mask(parse_map(raw)))
-    biggest = np.bincount(labels[labels > 0]).argmax()
-    xs, ys = np.nonzero(labels == biggest)
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(xs), size=4, replace=False)
-    route = [[int(xs[k]) + 1, int(ys[k]) + 1] for k in pick]
-    return {**raw, "description": why, "preference": {"route": route, "closed": False}}
+    return floor_plan(seed, "loop" if kind.endswith("loop") else "open",
+                      name=f"heldout_{seed}", description=why)
 
 
 def route_logprob(belief, world, g: int, exits: list[tuple[int, int]]) -> float:

@@ -8,7 +8,8 @@ back-crossings per episode (and the oracle's share), from one or more results da
 One column block per database (labelled by its preset), one row per method; an episode whose
 status is not ``ok`` (it failed to run) counts as a failure (no success, no goal) and the
 number of them is given below the table; ``--exclude-failed`` leaves them out of the rates
-instead. ``--ci`` adds the 95 % Wilson interval of each success rate.
+instead. ``--ci`` adds the 95 % Wilson interval of each success rate. A second table splits
+each cell's failures by why they failed (:mod:`pathpref.experiments.outcomes`).
 """
 
 from __future__ import annotations
@@ -18,11 +19,27 @@ import sqlite3
 import sys
 from pathlib import Path
 
+from pathpref.experiments.outcomes import failure_split
 from pathpref.experiments.report import wilson
 
 ORDER = ("compliant", "goal_only", "path_preference", "blended", "goal_known", "oracle")
 LABEL = {"goal_only": "goal only", "path_preference": "path preference",
          "blended": "path preference + blend"}
+
+
+def why(db: Path, exclude_failed: bool = False) -> dict[tuple[str, int], dict[str, int]]:
+    """``{(method, ΔT): failure split}`` of ``db`` (time-out, wrong side, out-of-order
+    crossing, not run: :func:`pathpref.experiments.outcomes.failure_split`)."""
+    con = sqlite3.connect(f"file:{db}?mode=ro", uri=True)
+    con.row_factory = sqlite3.Row
+    try:
+        rows = [dict(r) for r in con.execute("SELECT * FROM episodes WHERE status != 'running'")]
+    finally:
+        con.close()
+    groups: dict[tuple[str, int], list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["method"], r["delta_t"]), []).append(r)
+    return {k: failure_split(v, exclude_failed) for k, v in groups.items()}
 
 
 def cells(db: Path, exclude_failed: bool = False
@@ -78,6 +95,23 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\nsuccess / goal reached / back-crossings per episode; n = {sizes} per cell"
           + f"; {bad} failed episodes, "
           + ("left out" if args.exclude_failed else "counted as failures"))
+    splits = [why(db, args.exclude_failed) for db in args.dbs]
+    print("\n| why failed | " + " | ".join(f"{p} ΔT={dt}" for p, dt in cols) + " |")
+    print("|---" * (len(cols) + 1) + "|")
+    for m in methods:
+        out = []
+        for (_, c, _), split in zip(blocks, splits, strict=True):
+            for dt in sorted({d for _, d in c}):
+                f = split.get((m, dt))
+                out.append("-" if f is None else
+                           f"{f['time_out']} / {f['wrong_side']} / {f['out_of_order']}"
+                           + (f" (+{f['not_run']} not run)" if f["not_run"] else "")
+                           + (f" (+{f['unclassified']} unclassified)" if f["unclassified"]
+                              else ""))
+        print(f"| {LABEL.get(m, m)} | " + " | ".join(out) + " |")
+    print("\nfailed episodes: time-out / wrong side (goal reached the other way round) / "
+          "out-of-order crossing (right way round, a polytope left by a face the preference "
+          "forbids); unclassified: no homotopy_success stored (an older row)")
     return 0
 
 

@@ -12,7 +12,8 @@ true goal and human draws; a pair is discordant when one preset succeeds and the
 not. The episodes run through the project's sweep (:func:`pathpref.experiments.sweep.run_sweep`)
 into ``--db`` (resumable: a rerun skips what is there); ``--out FILE`` writes every episode's
 outcome as JSON lines. An episode that failed (an error, recorded by the sweep) counts as a
-failure on every measure and is listed; ``--retry-failed`` runs failed episodes again.
+failure on every measure and is listed; ``--retry-failed`` runs failed episodes again. Under
+each line, each preset's failures split by why (:mod:`pathpref.experiments.outcomes`).
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "disable")
 
+from pathpref.experiments.outcomes import FAILURE_KINDS, failure_kind  # noqa: E402
 from pathpref.experiments.store import ResultStore  # noqa: E402
 from pathpref.experiments.sweep import run_sweep, sweep_specs  # noqa: E402
 
@@ -61,7 +63,8 @@ def main(argv: list[str] | None = None) -> int:
         rows = [{"preset": r["preset"], "map": r["map"], "delta_t": r["delta_t"],
                  "instance": r["instance"], "run": r["run"], "success": bool(r["success"]),
                  "homotopy": bool(r["homotopy_success"]), "reached": bool(r["goal_reached"]),
-                 "steps": r["steps"], "inputs": r["inputs"], "status": r["status"]}
+                 "steps": r["steps"], "inputs": r["inputs"], "status": r["status"],
+                 "why": failure_kind(r), "slack": r.get("slack")}
                 for r in store.episodes()
                 if (r["preset"], r["map"], r["delta_t"], r["instance"], r["run"]) in wanted]
     for r in rows:
@@ -84,6 +87,9 @@ def main(argv: list[str] | None = None) -> int:
                         for k in ("success", "homotopy", "reached"):
                             c[f"{k}_a"] += x[k]
                             c[f"{k}_b"] += y[k]
+                        for kind in FAILURE_KINDS:
+                            c[f"{kind}_a"] += x["why"] == kind
+                            c[f"{kind}_b"] += y["why"] == kind
                         c["b_wins"] += y["success"] and not x["success"]
                         c["a_wins"] += x["success"] and not y["success"]
     print(f"{a} -> {b} (counts of n; discordant strict pairs: {b} wins / {a} wins, sign test)")
@@ -92,6 +98,9 @@ def main(argv: list[str] | None = None) -> int:
               f"{c['success_b']:3d}, homotopy {c['homotopy_a']:3d} -> {c['homotopy_b']:3d}, "
               f"reached {c['reached_a']:3d} -> {c['reached_b']:3d}; "
               f"{c['b_wins']}/{c['a_wins']}, p = {sign_test(c['b_wins'], c['a_wins']):.3f}")
+        print(" " * 17 + "why failed (time-out / wrong side / out-of-order / not run): "
+              + " -> ".join("/".join(str(c[f"{k}_{s}"]) for k in FAILURE_KINDS[1:4] + ("not_run",))
+                            for s in "ab"))
     return 0
 
 

@@ -8,7 +8,9 @@ repository keeps, with the command that wrote it. A database becomes one table p
 (map, simulator, preset, human, push rule, ΔT): per method the episodes ``n``, strict success
 ``k/n`` with its 95% Wilson interval, homotopy-level success (the goal reached through the
 preferred homotopy class) with its Wilson interval, the goal reached ``k/n`` and the mean
-pushes per episode (the ``inputs`` column). A failed episode (an error, a timeout) counts as a
+pushes per episode (the ``inputs`` column), and the failures by why they failed (time-out /
+wrong side / out-of-order crossing, + not run: :mod:`pathpref.experiments.outcomes`). A failed
+episode (an error, a timeout) counts as a
 failure and the table says how many failed. A result JSON becomes its own table with the
 intervals it stores. Every table names its command, ``n`` and its date: the date of the file's
 last commit (``git log -1 --format=%cs``), else its modification date marked "not committed".
@@ -29,6 +31,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from pathpref.experiments.outcomes import FAILURE_LABEL, failure_split
 from pathpref.experiments.report import METHOD_LABEL, METHOD_ORDER, wilson
 from pathpref.viz.plots import success_pushes_figure
 
@@ -132,11 +135,19 @@ def db_cells(db: Path) -> list[dict[str, Any]]:
             "SUM(success), SUM(homotopy_success), COUNT(homotopy_success), SUM(goal_reached), "
             "AVG(inputs), SUM(status != 'ok') FROM episodes "
             "GROUP BY map, sim, preset, human, push_rule, delta_t, method").fetchall()
+        con.row_factory = sqlite3.Row
+        split: dict[tuple, list[dict[str, Any]]] = {}
+        for r in con.execute(
+                "SELECT map, sim, preset, human, push_rule, delta_t, method, status, "
+                "goal_reached, violations, pref_followed, homotopy_success, success "
+                "FROM episodes"):
+            split.setdefault(tuple(r)[:7], []).append(dict(r))
     finally:
         con.close()
     cells = []
     for (map_, sim, preset, human, rule, dt, method, n, succ, hom, hom_n, reached, pushes,
          failed) in rows:
+        why = failure_split(split.get((map_, sim, preset, human, rule, dt, method), []))
         lo, hi = wilson(int(succ or 0), n)
         hlo, hhi = wilson(int(hom or 0), hom_n)
         cells.append({
@@ -146,7 +157,7 @@ def db_cells(db: Path) -> list[dict[str, Any]]:
             "delta_t": dt, "method": method, "n": n, "success": int(succ or 0),
             "success_ci": [lo, hi], "homotopy": int(hom or 0), "homotopy_n": hom_n,
             "homotopy_ci": [hlo, hhi], "goal_reached": int(reached or 0),
-            "pushes_per_episode": pushes, "failed": int(failed or 0)})
+            "pushes_per_episode": pushes, "failed": int(failed or 0), "why_failed": why})
     cells.sort(key=lambda c: (c["map"], c["sim"], c["preset"], c["human"], c["push_rule"],
                               c["delta_t"], _method_key(c["method"])))
     return cells
@@ -183,12 +194,25 @@ def db_section(cells: list[dict[str, Any]], source: str, date: str, title: str,
                   + (f", {failed} failed (counted as failures)" if failed else "") + ".", ""]
         lines += _table(
             ["method", "n", "success [95% CI]", "homotopy-level success [95% CI]",
-             "goal reached", "pushes/episode"],
+             "goal reached", "pushes/episode",
+             "failed: time-out / wrong side / out-of-order (+ not run)"],
             [[METHOD_LABEL.get(c["method"], c["method"]), str(c["n"]),
               rate(c["success"], c["n"]), rate(c["homotopy"], c["homotopy_n"]),
-              f"{c['goal_reached']}/{c['n']}", _num(c["pushes_per_episode"])] for c in group])
+              f"{c['goal_reached']}/{c['n']}", _num(c["pushes_per_episode"]),
+              why_cell(c.get("why_failed"))] for c in group])
         lines.append("")
     return lines
+
+
+def why_cell(why: dict[str, int] | None) -> str:
+    """A cell's failures by kind (:mod:`pathpref.experiments.outcomes`): ``t / w / o`` and the
+    rows not run or unclassified when there are any; ``–`` for cells stored before the split
+    (a database kept as its cells JSON)."""
+    if why is None:
+        return "–"
+    text = f"{why['time_out']} / {why['wrong_side']} / {why['out_of_order']}"
+    extra = [f"{why[k]} {FAILURE_LABEL[k]}" for k in ("not_run", "unclassified") if why[k]]
+    return text + (f" (+ {', '.join(extra)})" if extra else "")
 
 
 def _rel(path: Path) -> str:

@@ -13,7 +13,8 @@ BASE = {"map": "simple", "map_hash": "h0", "sim": "grid", "task": "navigate", "r
         "coupling": 1, "fixed": "", "start": "[0, 0]", "goals": "[[1, 1]]", "true_goal": 0,
         "status": "ok", "reason": "", "pref_followed": 1, "inputs": 1, "violations": 0,
         "wall_s": 0.1, "ucb_c": 1.0, "metrics": "{}", "time_budget_ms": 0.0, "human": "map",
-        "back_crossings": 0, "physics": "", "prior": "independent", "push_rule": ""}
+        "back_crossings": 0, "physics": "", "prior": "independent", "push_rule": "",
+        "slack": 20}
 
 
 def synthetic_db(path: str | Path, cells: dict[tuple[str, int], tuple[int, int]],

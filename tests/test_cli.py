@@ -306,3 +306,32 @@ def test_examples_are_copied_out_and_never_overwritten(tmp_path, capsys):
     assert (dest / "tutorial.py").read_text() == "# mine\n"
     assert main(["examples", str(dest / "tutorial.py")]) == 2
     assert "is a file" in capsys.readouterr().err
+
+
+def test_map_generate_writes_a_plan_that_loads_and_refuses_a_fragmented_one(tmp_path, capsys):
+    from pathpref.episode.instances import sample_instance
+    from pathpref.geometry.world import load_world
+
+    out = tmp_path / "plan.json"
+    assert main(["map", "generate", "--seed", "9001", "--out", str(out)]) == 0
+    plan = json.loads(out.read_text())
+    assert (plan["width"], plan["height"], plan["preference"]["closed"]) == (24, 16, False)
+    # the defaults are the held-out plans': the same obstacles and route as the stored one
+    stored = json.loads(Path("docs/results/heldout_plans/heldout_9001.json").read_text())
+    assert plan["obstacles"] == stored["obstacles"] and plan["preference"] == stored["preference"]
+    world = load_world(str(out))
+    inst = sample_instance(world, 3, 10, consistent=True, t_max=world.spec.t_max)
+    assert len(set(inst.goals)) == 10 and inst.start not in inst.goals
+    capsys.readouterr()
+    assert main(["map", "generate", "--seed", "5", "--route", "loop", "--rotated", "3",
+                 "--boxes", "1", "--width", "12", "--height", "10"]) == 0
+    loop = json.loads(capsys.readouterr().out)  # no --out: the JSON on stdout
+    assert loop["preference"]["closed"] is True and len(loop["obstacles"]) == 4
+    assert (loop["width"], loop["height"]) == (12, 10)
+    load_world(loop)
+    p = run("map", "generate", "--seed", "1", "--width", "8", "--height", "6", "--rotated",
+            "10", "--boxes", "3", "--sizes", "2", "4")
+    assert p.returncode == 2 and p.stderr.count("\n") == 1
+    assert "too fragmented to place a route: its largest free area has 9 cells" in p.stderr
+    p = run("map", "generate", "--width", "2")
+    assert p.returncode == 2 and "--width must be an integer in 4..1000, got 2" in p.stderr

@@ -145,7 +145,7 @@ def _schema4_file(path) -> None:
     from pathpref.experiments.store import EPISODE_COLUMNS, STEP_COLUMNS, episodes_sql
     from pathpref.experiments.trials import create_study_tables
 
-    old = [c for c in EPISODE_COLUMNS if c not in ("homotopy_success", "push_rule")]
+    old = [c for c in EPISODE_COLUMNS if c not in ("homotopy_success", "push_rule", "slack")]
     steps = [c for c in STEP_COLUMNS if c != "is_intervention"]
     c = sqlite3.connect(path)
     with c:

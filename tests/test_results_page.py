@@ -44,7 +44,7 @@ def test_page_rows_match_the_database(tmp_path):
 
     con = sqlite3.connect(db)
     rows = con.execute("SELECT method, delta_t, success, homotopy_success, goal_reached, "
-                       "inputs FROM episodes").fetchall()
+                       "inputs, violations FROM episodes").fetchall()
     con.close()
     assert len(rows) == 11
     for method, label, dt, n in (("compliant", "compliant", 5, 4), ("oracle", "oracle", 5, 4),
@@ -56,7 +56,11 @@ def test_page_rows_match_the_database(tmp_path):
         hlo, hhi = _wilson(h, n)
         row = (f"| {label} | {n} | {k}/{n} = {k / n:.2f} [{lo:.2f}, {hi:.2f}] | "
                f"{h}/{n} = {h / n:.2f} [{hlo:.2f}, {hhi:.2f}] | {g}/{n} | "
-               f"{sum(r[5] for r in mine) / n:.2f} |")
+               f"{sum(r[5] for r in mine) / n:.2f} | "
+               # failed: time-out / wrong side / out-of-order, counted from the flags
+               f"{sum(not r[4] for r in mine)} / "
+               f"{sum(r[4] and r[6] > 0 and not r[3] for r in mine)} / "
+               f"{sum(r[4] and r[6] > 0 and r[3] == 1 for r in mine)} |")
         section = page.split(f"a push every ΔT = {dt} steps")[1].split("###")[0]
         assert row in section, (row, section)
     assert "| oracle | 4 | 4/4 = 1.00" in page  # the consistent human's oracle never fails

@@ -88,8 +88,11 @@ def test_the_stored_row_of_an_episode_is_exact():
     import json
 
     from pathpref.episode import EpisodeSpec, result_row, run_episode
+    from pathpref.geometry.following import human_route
+    from pathpref.geometry.world import load_world
 
     spec = EpisodeSpec.single("simple", "compliant", 1, seed=4, queries=50, t_max=12)
+    world = load_world("simple")
     res = run_episode(spec)
     res.metrics = {"b": 2.0, "a": 1.0}
     row = result_row(res)
@@ -109,7 +112,10 @@ def test_the_stored_row_of_an_episode_is_exact():
             "success": int(res.goal_reached and res.violations == 0), "steps": res.steps,
             "inputs": res.steps,  # Delta_T = 1: one input before every step
             "violations": res.violations, "back_crossings": res.back_crossings,
-            "wall_s": res.wall_s, "metrics": '{"a": 1.0, "b": 2.0}'}
+            "wall_s": res.wall_s, "metrics": '{"a": 1.0, "b": 2.0}',
+            # T_max minus the moves of the human's route (the map's preference here)
+            "slack": 12 - (len(human_route(world, world.require_preference(),
+                                           res.instance.start, res.instance.goal_cell)) - 1)}
     assert row == want
     assert [res.log[0].x, res.log[0].y] == json.loads(row["start"])
     assert len(json.loads(row["goals"])) == 10 and row["inputs"] > 0

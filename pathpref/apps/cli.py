@@ -84,6 +84,29 @@ def build_parser() -> argparse.ArgumentParser:
     md.add_argument("--out", required=True, help="output image (.png, .pdf, .svg)")
     force_option(md)
     md.set_defaults(func=c.cmd_map_draw)
+    from ..geometry.generate import PLAN_DEFAULTS, ROUTE_KINDS
+
+    mg = msub.add_parser("generate", help="write a random floor plan with a preferred route "
+                         "(JSON) from a seed")
+    mg.add_argument("--seed", type=int, default=0, help="the plan's seed (default 0)")
+    mg.add_argument("--width", type=int, default=PLAN_DEFAULTS["width"],
+                    help=f"cells across (default {PLAN_DEFAULTS['width']})")
+    mg.add_argument("--height", type=int, default=PLAN_DEFAULTS["height"],
+                    help=f"cells up (default {PLAN_DEFAULTS['height']})")
+    mg.add_argument("--rotated", type=int, default=PLAN_DEFAULTS["rotated"],
+                    help=f"rectangles at random angles (default {PLAN_DEFAULTS['rotated']})")
+    mg.add_argument("--boxes", type=int, default=PLAN_DEFAULTS["boxes"],
+                    help=f"cell-aligned boxes (default {PLAN_DEFAULTS['boxes']})")
+    mg.add_argument("--sizes", type=float, nargs=2, metavar=("LO", "HI"),
+                    default=list(PLAN_DEFAULTS["size_range"]),
+                    help="obstacle sides are drawn in LO..HI cells (default "
+                    f"{PLAN_DEFAULTS['size_range'][0]:g} {PLAN_DEFAULTS['size_range'][1]:g})")
+    mg.add_argument("--route", choices=ROUTE_KINDS, default="open",
+                    help="open: through four waypoints of the largest free area; loop: a "
+                    "closed route round the map (default open)")
+    mg.add_argument("--name", help="the plan's name (default: random_WxH_Rr Bb_SEED)")
+    mg.add_argument("--out", help="the JSON file to write (default: print it)")
+    mg.set_defaults(func=c.cmd_map_generate)
 
     def episode_options(sp: argparse.ArgumentParser, preset: str = DEFAULT_PRESET,
                         sweep: bool = True) -> None:

@@ -95,10 +95,46 @@ def cmd_map_draw(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_map_generate(args: argparse.Namespace) -> int:
+    """``pathpref map generate``: a random floor plan with a preferred route, checked (it
+    loads, and an instance's start and goal candidates can be drawn on it), as JSON."""
+    from ..episode.instances import sample_instance
+    from ..geometry.generate import floor_plan
+    from ..geometry.world import load_world
+
+    for flag, value, low in (("--width", args.width, 4), ("--height", args.height, 4),
+                             ("--rotated", args.rotated, 0), ("--boxes", args.boxes, 0)):
+        if not low <= value <= 1000:
+            raise ConfigError(f"{flag} must be an integer in {low}..1000, got {value}")
+    lo, hi = args.sizes
+    if not 0 < lo <= hi:
+        raise ConfigError(f"--sizes LO HI must satisfy 0 < LO <= HI, got {lo:g} {hi:g}")
+    out = check_writable(args.out, "--out", (".json",)) if args.out else None
+    plan = floor_plan(args.seed, args.route, args.width, args.height, args.rotated, args.boxes,
+                      (lo, hi), name=args.name,
+                      description=f"pathpref map generate --seed {args.seed} --route "
+                      f"{args.route}")
+    world = load_world(plan)
+    try:
+        sample_instance(world, args.seed, 10, consistent=True, t_max=world.spec.t_max)
+    except ConfigError as e:
+        raise ConfigError(f"the plan of seed {args.seed} is too fragmented to place a route "
+                          f"with instances ({e}); try another --seed or fewer or smaller "
+                          "obstacles") from None
+    text = json.dumps(plan, indent=1) + "\n"
+    if out is None:
+        print(text, end="")
+    else:
+        atomic_output(out, lambda p: p.write_text(text))
+        print(f"wrote {out} ({world.n_polytopes} polytopes, {world.n_cells} free cells, "
+              f"{args.route} route)")
+    return 0
+
+
 # --- db -------------------------------------------------------------------------------------
 def cmd_db_upgrade(args: argparse.Namespace) -> int:
     """``pathpref db upgrade``: migrate a results database to the current schema."""
-    from ..experiments.migrate import recompute_homotopy, upgrade_database
+    from ..experiments.migrate import recompute_homotopy, recompute_slack, upgrade_database
 
     remap = {}
     for item in args.map or []:
@@ -118,6 +154,11 @@ def cmd_db_upgrade(args: argparse.Namespace) -> int:
         print(f"homotopy_success filled in for {h['recomputed']} older episodes from their "
               f"stored steps; {h['left']} left NULL (not measured: their map does not load "
               "as stored; point it with --map OLD=NEW)")
+    sl = recompute_slack(args.db, remap)
+    if sl["recomputed"] or sl["left"]:
+        print(f"slack filled in for {sl['recomputed']} older episodes from their instances; "
+              f"{sl['left']} left NULL (not measured: their map does not load as stored; "
+              "point it with --map OLD=NEW)")
     return 0
 
 

@@ -13,7 +13,10 @@ route's end, polytopes past the goal or on loops that miss it) takes the first m
 to ``r`` with the fewest departures from the map's preference, then the fewest polytope changes
 (ties: the map's exit, then the lowest index). Following ``q`` from anywhere in the component
 reaches ``r`` with no cycle: ``q`` lies in the support of the robust preset's route prior, and
-the human, the ``oracle`` and the success rule all use this one ``q``. (The map's preference
+the human, the ``oracle`` and the success rule all use this one ``q``. In ``r`` itself the human's
+route and pushes stay inside ``r`` wherever the goal can be reached without leaving it (the goal's
+polytope is held: :mod:`pathpref.geometry.following`), so the route never leaves a polytope by a
+face ``q`` forbids, nor the goal's polytope to come back to it. (The map's preference
 with the goal-only push in a route's end sent the human out of the end into polytopes pointing
 back along the route: back-and-forth pushes, mutual evidence in the belief.)
 

@@ -34,7 +34,10 @@ class EpisodeResult:
     (a polytope left by a face other than ``p_v``), and the episode ran (``status == "ok"``).
     ``homotopic``: the robot's path (start to goal) goes the same way round every obstacle as
     the human's route (:func:`~pathpref.geometry.following.human_route`, judged by
-    :func:`~pathpref.geometry.homotopy.same_class`); set when the goal is reached."""
+    :func:`~pathpref.geometry.homotopy.same_class`); set when the goal is reached.
+    ``slack``: the time to spare, ``T_max`` minus the moves of the human's route from the start
+    to the true goal (:func:`route_slack`); None where it was not measured (a failed episode's
+    placeholder, rows written before the column)."""
 
     spec: EpisodeSpec
     instance: Instance
@@ -50,6 +53,7 @@ class EpisodeResult:
     log: list[StepLog] = field(default_factory=list)
     metrics: dict[str, float] = field(default_factory=dict)
     homotopic: bool = False
+    slack: int | None = None
 
     @property
     def pref_followed(self) -> bool:
@@ -92,4 +96,14 @@ def result_row(res: EpisodeResult) -> dict[str, Any]:
         "back_crossings": res.back_crossings,
         "wall_s": res.wall_s,
         "metrics": json.dumps(res.metrics, sort_keys=True),
+        "slack": res.slack,
     }
+
+
+def route_slack(t_max: int, route: list[int]) -> int | None:
+    """The slack of an episode: ``T_max - (len(route) - 1)``, the decision steps to spare when
+    the robot walks the human's route (``route``: its cells, start to true goal, one move per
+    step; :func:`~pathpref.geometry.following.human_route`, which is the oracle's path whenever
+    the human's preference leads to the goal). Negative: even that route is out of time. None
+    for an empty route (the goal cannot be reached)."""
+    return int(t_max) - (len(route) - 1) if route else None

@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from ..errors import ConfigError, EpisodeError
+from ..geometry.following import human_route
 from ..geometry.grid import STAY
 from ..geometry.homotopy import route_homotopic
 from ..geometry.world import World
@@ -33,7 +34,7 @@ from .cache import cached_model, cached_world
 from .corrective import CorrectiveHuman, miss_stream, parse_push_rule
 from .instances import episode_instance, human_preference
 from .physics import DIRECTION_KAPPA
-from .results import EpisodeResult, StepLog
+from .results import EpisodeResult, StepLog, route_slack
 from .spec import EpisodeSpec
 
 
@@ -98,7 +99,9 @@ class EpisodeRunner:
         gamma_h = spec.human_model.gamma_h  # the human's rationality, any body (grid too)
         human_model = model if gamma_h == model.gamma else \
             ObservationModel(world, model.tables, gamma_h, model.normalize)
-        self.human = SimulatedHuman(human_model, inst.true_goal, self.pref)
+        # the consistent human holds the goal's polytope (pathpref.geometry.following)
+        self.human = SimulatedHuman(human_model, inst.true_goal, self.pref,
+                                    hold=spec.human == "consistent")
         rule = parse_push_rule(spec.push_rule)
         if rule is not None and spec.sim != "grid":
             raise ConfigError(f"push_rule {spec.push_rule!r} is the grid's corrective human; "
@@ -114,7 +117,8 @@ class EpisodeRunner:
         self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
             "start": world.cells[inst.start].tolist(),
             "goals": world.cells[list(inst.goals)].tolist(),
-        })
+        }, slack=route_slack(spec.t_max, human_route(world, self.pref, inst.start,
+                                                      inst.goal_cell)))
         self.goal_index = {g: k for k, g in enumerate(inst.goals)}
         self.cell = inst.start
         #: the last step's move (cell before, action, cell after; None before step 1)

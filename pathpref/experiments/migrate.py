@@ -12,9 +12,10 @@ kept is the first successful one. The old file is kept beside the new one as
 ``NAME.schema2.bak``; nothing is changed when any map cannot be loaded. Schema 3 or 4 -> 5
 only adds columns, in place: ``physics``, ``prior`` and ``push_rule`` (empty in old rows: the
 legacy physics, the independent prior and the periodic human they ran with), the
-``homotopy_success`` of each episode and the ``is_intervention`` of each step (NULL in old
-rows: not measured), and to a schema 3 file the (empty) study tables of :mod:`.trials`; every
-row and key stays as it was. A schema 2 file's rows get these columns empty too.
+``homotopy_success`` and ``slack`` of each episode and the ``is_intervention`` of each step
+(NULL in old rows: not measured; a schema 5 file without ``slack`` gets it in place too),
+and to a schema 3 file the (empty) study tables of :mod:`.trials`; every row and key stays as
+it was. A schema 2 file's rows get these columns empty too.
 
 **homotopy** (:func:`recompute_homotopy`, run by ``pathpref db upgrade`` after the schema is
 current) fills the NULL ``homotopy_success`` of old rows where it follows from what is stored,
@@ -24,6 +25,13 @@ row's map loads with its stored content hash and its instance, drawn again from 
 has the stored start, candidates and true goal. Any other row stays NULL (its map moved:
 ``--map OLD=NEW``). ``is_intervention`` is not recomputed (which steps had a push is not
 stored in old rows; the periodic human's are every ``Delta_T``, but a NULL stays honest).
+
+**slack** (:func:`recompute_slack`, run by ``pathpref db upgrade`` too) fills the NULL
+``slack`` of old rows that ran (``status = 'ok'``), exactly as the episode would have stored it
+(:func:`~pathpref.episode.results.route_slack` of the human's route), where the row's map loads
+with its stored content hash and its instance, drawn again from its seeds, matches the stored
+one: a search over the map's cells per row, nothing is run. Rows that did not run, or whose
+map moved, stay NULL (reports: *not measured*).
 
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
@@ -54,10 +62,15 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ..episode import EpisodeSpec, cached_map, cached_world
-from ..episode.instances import episode_instance, human_preference
+from ..episode.instances import Instance, episode_instance, human_preference
+from ..episode.results import route_slack
 from ..errors import ConfigError, PathprefError
+from ..geometry.following import human_route
 from ..geometry.homotopy import route_homotopic
+from ..geometry.world import World
 from .store import (
     ADDITIVE,
     EPISODE_COLUMNS,
@@ -127,6 +140,7 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
     path = Path(path)
     version, rows, steps = _read_old(path)
     if version == SCHEMA_VERSION:
+        ResultStore(path).close()  # adds the late columns a schema 5 file lacks
         return {"from": version, "to": version, "episodes": len(rows), "merged": 0,
                 "backup": None}
     if version in ADDITIVE:  # columns (and the study tables) added in place: no row changes
@@ -157,12 +171,11 @@ def upgrade_database(path: str | Path, map_paths: dict[str, str] | None = None
             "merged": len(rows) - len(kept), "backup": str(backup)}
 
 
-def _stored_homotopy(store: ResultStore, row: dict[str, Any], map_paths: dict[str, str]
-                     ) -> int | None:
-    """The ``homotopy_success`` of a stored episode from its row and step rows (module
-    docstring, **homotopy**); None when it cannot be known."""
-    if row["status"] != "ok" or not row["goal_reached"]:
-        return 0
+def _stored_instance(row: dict[str, Any], map_paths: dict[str, str]
+                     ) -> tuple[World, Instance, np.ndarray] | None:
+    """The world, instance and human preference of a stored episode, when its map loads with
+    its stored content hash and its instance, drawn again from its seeds, has the stored start,
+    candidates and true goal; else None."""
     spec = dataclasses.replace(row_spec(row), map=map_paths.get(row["map"], row["map"]))
     try:
         world = cached_world(spec.map)
@@ -177,11 +190,53 @@ def _stored_homotopy(store: ResultStore, row: dict[str, Any], map_paths: dict[st
             or json.dumps(cells[list(inst.goals)].tolist()) != row["goals"]
             or inst.true_goal != row["true_goal"]):
         return None
-    path = [(s["x"], s["y"]) for s in store.steps(row["key"])]
-    if len(path) != row["steps"] + 1 or list(path[-1]) != cells[inst.goal_cell].tolist():
+    return world, inst, human_preference(world, inst, free_goal, spec.human)
+
+
+def _stored_homotopy(store: ResultStore, row: dict[str, Any], map_paths: dict[str, str]
+                     ) -> int | None:
+    """The ``homotopy_success`` of a stored episode from its row and step rows (module
+    docstring, **homotopy**); None when it cannot be known."""
+    if row["status"] != "ok" or not row["goal_reached"]:
+        return 0
+    found = _stored_instance(row, map_paths)
+    if found is None:
         return None
-    pref = human_preference(world, inst, free_goal, spec.human)
+    world, inst, pref = found
+    path = [(s["x"], s["y"]) for s in store.steps(row["key"])]
+    if len(path) != row["steps"] + 1 or list(path[-1]) != world.cells[inst.goal_cell].tolist():
+        return None
     return int(route_homotopic(world, pref, inst.start, inst.goal_cell, path))
+
+
+def _stored_slack(row: dict[str, Any], map_paths: dict[str, str]) -> int | None:
+    """The ``slack`` of a stored episode (module docstring, **slack**); None when it cannot
+    be known."""
+    if row["status"] != "ok":
+        return None
+    found = _stored_instance(row, map_paths)
+    if found is None:
+        return None
+    world, inst, pref = found
+    return route_slack(row["t_max"], human_route(world, pref, inst.start, inst.goal_cell))
+
+
+def recompute_slack(path: str | Path, map_paths: dict[str, str] | None = None
+                    ) -> dict[str, int]:
+    """Fill the NULL ``slack`` of the episodes of ``path`` that ran, where the stored rows
+    determine it (module docstring, **slack**); the numbers filled and left."""
+    map_paths = map_paths or {}
+    with ResultStore(path) as store:
+        rows = store.episodes("WHERE slack IS NULL AND status = 'ok'")
+        filled = []
+        for row in rows:
+            value = _stored_slack(row, map_paths)
+            if value is not None:
+                filled.append((value, row["key"]))
+        with store.conn:
+            store.conn.executemany("UPDATE episodes SET slack = ? WHERE key = ? "
+                                   "AND slack IS NULL", filled)
+    return {"recomputed": len(filled), "left": len(rows) - len(filled)}
 
 
 def recompute_homotopy(path: str | Path, map_paths: dict[str, str] | None = None

@@ -13,6 +13,10 @@ Beside the strict success (the paper's headline) every record gives the homotopy
 interval, over the rows that measured it (rows written before schema 5 hold NULL: not
 measured, and are left out of that rate only), and the pushes per episode: the mean of the
 rows' ``inputs`` over the episodes that ran, and over the successful ones.
+
+Every record also splits its failures by why they failed (time-out, wrong side, out-of-order
+crossing, not run) and gives the success per slack bin (``T_max`` minus the moves of the human's
+route), each with ``n`` and its Wilson interval (:mod:`.outcomes`).
 """
 
 from __future__ import annotations
@@ -25,6 +29,14 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from .outcomes import (
+    FAILURE_LABEL,
+    SLACK_BINS,
+    failure_split,
+    slack_cell,
+    slack_summary,
+    split_cell,
+)
 from .paper import TABLE_I
 from .store import RUNNING, ResultStore
 
@@ -145,6 +157,8 @@ def success_table(rows: list[dict[str, Any]], exclude_failed: bool = False
             "instances": len({r["instance_seed"] for r in counted}),
             "failed_excluded": bool(exclude_failed),
             **homotopy_summary(counted),
+            **failure_split(counted, exclude_failed),
+            **slack_summary(counted),
             **push_summary(ok),
             **physical_summary(ok),
         })
@@ -298,8 +312,33 @@ def markdown_tables(records: list[dict[str, Any]], with_paper: bool = True) -> s
                         "–" if v is None else f"{v:.2f}" for v in vals) + " |")
         lines += [""] + _grid(f"**{m}**, homotopy-level success [95% CI]; pushes per episode",
                               recs, homotopy)
+        lines += [""] + _grid(
+            f"**{m}**, why episodes failed: {FAILURE_LABEL['time_out']}, "
+            f"{FAILURE_LABEL['wrong_side']}, {FAILURE_LABEL['out_of_order']} "
+            "(episodes)", recs,
+            lambda meth, d, recs=recs: "–" if (r := _find(recs, meth, d)) is None
+            else split_cell(r))
+        lines += ["", slack_table(m, recs)]
         blocks.append("\n".join(lines))
     return "\n\n".join(blocks)
+
+
+def slack_table(m: str, recs: list[dict[str, Any]]) -> str:
+    """Markdown: success by slack bin (:data:`~.outcomes.SLACK_BINS`, ``T_max`` minus the
+    moves of the human's route), a row per method and Delta_T, each cell ``k/n rate [95%
+    Wilson]``; the rows without a slack counted under it."""
+    lines = [f"**{m}**, success by slack (T_max minus the human route's moves): k/n rate "
+             "[95% CI]", "",
+             "| method | ΔT | " + " | ".join(f"slack {label}" for _, label, *_ in SLACK_BINS)
+             + " |", "|---|---|" + "---|" * len(SLACK_BINS)]
+    for r in sorted(recs, key=lambda r: (_order(r["method"]), r["delta_t"])):
+        lines.append(f"| {METHOD_LABEL.get(r['method'], r['method'])} | {r['delta_t']} | "
+                     + " | ".join(slack_cell(r, key) for key, *_ in SLACK_BINS) + " |")
+    unmeasured = sum(r["slack_unmeasured_n"] for r in recs)
+    if unmeasured:
+        lines += ["", f"{unmeasured} episodes without a slack (not measured: written before "
+                  "the column or not run; 'pathpref db upgrade' fills it where it can)"]
+    return "\n".join(lines)
 
 
 def side_by_side(records: list[dict[str, Any]]) -> str:

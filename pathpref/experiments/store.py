@@ -58,8 +58,9 @@ from .trials import (
 #: the study tables (trials with people, :mod:`.trials`); 5: ``homotopy_success`` per episode,
 #: the human's push rule (``push_rule``; empty = the periodic human of older rows) and
 #: ``is_intervention`` per step (and, added later in place, the late ``trials`` columns
-#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`, and the late study tables
-#: of calibrations and NASA-TLX answers: :data:`~.trials.LATE_STUDY_TABLES`)
+#: ``physics`` and ``robot``: :data:`~.trials.LATE_TRIAL_COLUMNS`, the late study tables
+#: of calibrations and NASA-TLX answers: :data:`~.trials.LATE_STUDY_TABLES`, and the late
+#: episode column ``slack``: :data:`LATE_EPISODE_COLUMNS`)
 SCHEMA_VERSION = 5
 UPGRADABLE = (2,)  # older schemas that 'pathpref db upgrade' migrates
 #: older schemas whose tables are a subset of this one's: read as they are; opened for writing
@@ -86,7 +87,14 @@ EPISODE_COLUMNS = {
     "wall_s": "REAL", "ucb_c": "REAL", "metrics": "TEXT", "time_budget_ms": "REAL",
     "human": "TEXT", "back_crossings": "INTEGER", "physics": "TEXT",
     "prior": "TEXT", "homotopy_success": "INTEGER", "push_rule": "TEXT",
+    "slack": "INTEGER",
 }
+#: episode columns added to schema 5 in place, after its release (at the end of the table, in
+#: this order): ``slack``, the time to spare of each episode
+#: (:func:`~pathpref.episode.results.route_slack`; NULL in older rows: not measured, or filled
+#: by ``pathpref db upgrade``: :func:`~.migrate.recompute_slack`). A schema 5 file without
+#: them reads as it is; opened for writing they are added
+LATE_EPISODE_COLUMNS = ("slack",)
 #: the columns of the steps table (the last added by schema 5) and its primary key
 STEP_COLUMNS = {
     "key": "TEXT", "t": "INTEGER", "x": "INTEGER", "y": "INTEGER", "action": "INTEGER",
@@ -224,7 +232,7 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
     known = (*UPGRADABLE, *ADDITIVE, SCHEMA_VERSION)  # any other version is incompatible
     if version in known and (version >= STUDY_SCHEMA) != study:
         raise foreign(f"schema {version} {'with' if study else 'without'} the study tables")
-    if version == SCHEMA_VERSION and (columns != list(EPISODE_COLUMNS)
+    if version == SCHEMA_VERSION and (not episode_columns_ok(columns)
                                       or step_columns != list(STEP_COLUMNS)):
         lacking = [c for c in (*EPISODE_COLUMNS, *STEP_COLUMNS)
                    if c not in columns and c not in step_columns]
@@ -232,6 +240,21 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
             f"{path} was written by a development version of pathpref (schema "
             f"{SCHEMA_VERSION} without the columns {', '.join(lacking)}); use a new --db path")
     return version
+
+
+def episode_columns_ok(columns: Iterable[str]) -> bool:
+    """``columns`` (of a stored schema 5 ``episodes`` table) are pathpref's, the late ones
+    (:data:`LATE_EPISODE_COLUMNS`) possibly missing from the end."""
+    columns = list(columns)
+    every = list(EPISODE_COLUMNS)
+    return len(columns) >= len(every) - len(LATE_EPISODE_COLUMNS) and \
+        columns == every[:len(columns)]
+
+
+def missing_episode_columns(conn: sqlite3.Connection) -> list[str]:
+    """The late ``episodes`` columns (:data:`LATE_EPISODE_COLUMNS`) the file lacks."""
+    have = {r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")}
+    return [c for c in LATE_EPISODE_COLUMNS if c not in have]
 
 
 #: results files a :class:`ResultStore` of this process holds open, by ``(st_dev, st_ino)``:
@@ -335,11 +358,12 @@ ROW_RULES = {
     "delta_t": "count", "queries": "count", "t_max": "count", "instance_seed": "seed",
     "ucb_c": "number",
     "normalize": "flag", "coupling": "flag", "success": "flag", "goal_reached": "flag",
-    "pref_followed": "flag", "homotopy_success": "flag or NULL",
+    "pref_followed": "flag", "homotopy_success": "flag or NULL", "slack": "integer or NULL",
 }
 _RULE_TEXT = {"text": "a string", "count": "an integer >= 1", "seed": "an integer >= 0",
               "number": "a finite number", "flag": "0 or 1",
-              "flag or NULL": "0, 1 or NULL (not measured)"}
+              "flag or NULL": "0, 1 or NULL (not measured)",
+              "integer or NULL": "an integer or NULL (not measured)"}
 
 
 def _breaks_rule(value: Any, rule: str) -> bool:
@@ -347,6 +371,8 @@ def _breaks_rule(value: Any, rule: str) -> bool:
         return not isinstance(value, str)
     if rule == "flag or NULL":
         return value is not None and _breaks_rule(value, "flag")
+    if rule == "integer or NULL":
+        return value is not None and (not isinstance(value, int) or isinstance(value, bool))
     if rule == "number":
         return not (isinstance(value, int | float) and math.isfinite(value))
     if not isinstance(value, int):
@@ -538,7 +564,8 @@ class ResultStore:
     def _complete_schema(self) -> None:
         """Bring an :data:`ADDITIVE` (schema 3 or 4) file to this schema: add the missing
         episode and step columns (NULL in the old rows, see :data:`ADDITIVE`) and, to a schema
-        3 file, the study tables; to a schema 4 or 5 file the late ``trials`` columns and
+        3 file, the study tables; to a schema 5 file the late episode columns it lacks
+        (:data:`LATE_EPISODE_COLUMNS`); to a schema 4 or 5 file the late ``trials`` columns and
         study tables it lacks (:data:`~.trials.LATE_TRIAL_COLUMNS`,
         :data:`~.trials.LATE_STUDY_TABLES`)."""
         c = self.conn
@@ -546,9 +573,13 @@ class ResultStore:
         version = int(row[0])
         if version not in ADDITIVE:
             if version == SCHEMA_VERSION and (missing_trial_columns(c)
-                                              or missing_study_tables(c)):
+                                              or missing_study_tables(c)
+                                              or missing_episode_columns(c)):
                 c.execute("BEGIN IMMEDIATE")  # another process may be adding them now
                 with c:
+                    for name in missing_episode_columns(c):
+                        c.execute(f"ALTER TABLE episodes ADD COLUMN {name} "
+                                  f"{EPISODE_COLUMNS[name]}")
                     complete_trial_columns(c)
                     complete_study_tables(c)
             return

@@ -1,7 +1,18 @@
 """Paths that follow a preference: the shortest route to a goal that leaves each polytope ``v``
-only toward its preferred neighbour ``p_v`` (any way out of a polytope without one), and the
-consistent human's preference for a goal (the map's, completed into a tree of routes that all
-lead to the goal's polytope: :func:`consistent_preference`).
+only toward its preferred neighbour ``p_v`` (any way out of a polytope without one, except the
+goal's: see below), and the consistent human's preference for a goal (the map's, completed into
+a tree of routes that all lead to the goal's polytope: :func:`consistent_preference`).
+
+**The goal's polytope is held.** When the goal's polytope ``r`` has no preference (``p_r =
+-1``: always for the consistent human, for the map's human when the map leaves it free), a
+route that has reached a cell of ``r`` from which the goal can be reached without leaving ``r``
+(a *held* cell, :func:`goal_polytope_hold`) stays in ``r``: from a held cell, only moves inside
+``r`` are allowed. Every exit of the goal's polytope is a non-preferred one (the planner's reward
+pays ``R_n`` for it), and a grid path may leave a convex polytope and enter it again where its
+cells are joined across a corner or a thin region (``examples/maps/hall.json``: ``... 10, 12,
+10, 12`` with ``r = 12``). A cell of ``r`` with no path inside ``r`` (``r``'s cells in pieces)
+leaves it as before. The consistent human's pushes in ``r`` follow the same rule
+(:class:`~pathpref.inference.human.SimulatedHuman` with ``hold``).
 
 Used by the ``oracle`` reference method (it follows this path) and by the ``consistent`` human
 of the instance sampler (a goal the preference can lead to, and the preference it pushes along).
@@ -17,17 +28,43 @@ from .grid import STAY
 from .world import World
 
 
+def goal_polytope_distance(world: World, goal: int) -> np.ndarray:
+    """``(n,)`` length of the shortest path from each cell to ``goal`` by moves between cells of
+    the goal's polytope ``r`` (both ends in ``r``); inf outside ``r`` and at the cells of ``r``
+    that no such path joins to the goal."""
+    m = world.motion
+    n = world.n_cells
+    r = world.cell_polytope[goal]
+    inside = np.flatnonzero(world.cell_polytope == r)
+    src = np.repeat(inside, 8)
+    dst = m.next_cell[inside].ravel()
+    ok = ~m.blocked[inside].ravel() & (world.cell_polytope[dst] == r)
+    rev = csr_matrix((m.cost[inside].ravel()[ok], (dst[ok], src[ok])), shape=(n, n))
+    return dijkstra(rev, directed=True, indices=goal)
+
+
+def goal_polytope_hold(world: World, pref: np.ndarray, goal: int) -> np.ndarray:
+    """``(n,)`` bool: the held cells (module docstring): the cells of the goal's polytope ``r``,
+    when ``pref[r] < 0``, from which a path inside ``r`` reaches ``goal``; none when ``r`` has a
+    preference."""
+    if pref[world.cell_polytope[goal]] >= 0:
+        return np.zeros(world.n_cells, dtype=bool)
+    return np.isfinite(goal_polytope_distance(world, goal))
+
+
 def preference_following_distance(world: World, pref: np.ndarray, goal: int,
                                   steps: bool = False) -> np.ndarray:
     """``(n,)`` length of the shortest path from each cell to ``goal`` that leaves each polytope
-    ``v`` only toward ``pref[v]`` (any way when ``pref[v] < 0``); inf where none exists.
+    ``v`` only toward ``pref[v]`` (any way when ``pref[v] < 0``) and never leaves the goal's
+    polytope from a held cell (:func:`goal_polytope_hold`); inf where none exists.
     ``steps``: count moves (each 1) instead of the moves' costs."""
     m = world.motion
     n = world.n_cells
     src = np.repeat(np.arange(n), 8)
     dst = m.next_cell.ravel()
     v, w = world.cell_polytope[src], world.cell_polytope[dst]
-    ok = ~m.blocked.ravel() & ((v == w) | (pref[v] < 0) | (pref[v] == w))
+    held = goal_polytope_hold(world, pref, goal)[src]
+    ok = ~m.blocked.ravel() & ((v == w) | ((pref[v] < 0) & ~held) | (pref[v] == w))
     # reversed graph: an edge t -> s for every allowed move s -> t, so one search from the goal
     weight = np.ones(ok.sum()) if steps else m.cost.ravel()[ok]
     rev = csr_matrix((weight, (dst[ok], src[ok])), shape=(n, n))
@@ -39,7 +76,12 @@ def preferred_move(world: World, pref: np.ndarray, togo: np.ndarray, cell: int) 
     ``v = v(cell)`` only toward ``pref[v]`` (any when ``pref[v] < 0``), the one minimising
     ``c(cell, a) + togo[next(cell, a)]`` (the lowest index among equals), ``togo`` being
     :func:`preference_following_distance` to the goal; ``STAY`` when every such score is
-    infinite. The ``oracle`` acts by it and :func:`preference_route` walks it."""
+    infinite. The ``oracle`` acts by it and :func:`preference_route` walks it.
+
+    The goal's polytope is held (module docstring): in the goal's polytope ``r`` (the cell
+    where ``togo = 0``) with ``pref[r] < 0``, when a move inside ``r`` scores exactly
+    ``togo[cell]`` (the cell is held: ``togo`` was computed without ``r``'s exits there), the
+    move is the best of the moves inside ``r``."""
     m = world.motion
     poly = world.cell_polytope
     v, w = poly[cell], poly[m.next_cell[cell]]
@@ -48,6 +90,10 @@ def preferred_move(world: World, pref: np.ndarray, togo: np.ndarray, cell: int) 
     score = np.where(allowed, m.cost[cell] + togo[m.next_cell[cell]], np.inf)
     if not np.isfinite(score).any():
         return STAY
+    if p < 0 and np.isfinite(togo[cell]) and poly[int(np.argmin(togo))] == v:
+        inside = np.where(w == v, score, np.inf)
+        if inside.min() == togo[cell]:
+            return int(np.argmin(inside))
     return int(np.argmin(score))
 
 

@@ -6,6 +6,20 @@ overlap (valid in the map format). The result is a map dictionary (see :mod:`.ma
 
 :func:`four_connected_components` labels free cells by 4-connectivity, the reference the motion
 rule must match (:mod:`.grid`).
+
+:func:`floor_plan` is a whole plan from a seed (``pathpref map generate``, and the held-out
+plans of ``scripts/homotopy_prior_eval.py``): :func:`random_floor_plan` with the defaults of
+:data:`PLAN_DEFAULTS` (24 x 16 cells, 7 rotated rectangles, 2 boxes, sides 1.5..4) and a
+preferred route, either
+
+- ``open``: through four waypoints drawn without replacement (``default_rng(seed)``) from the
+  cells of the largest 4-connected free area (ordered by x, then y, 1-based), in the order
+  drawn; or
+- ``loop``: the closed route round the map of :func:`with_loop_preference`.
+
+A plan whose largest free area has fewer than :data:`MIN_ROUTE_CELLS` cells is refused
+(:class:`~pathpref.errors.MapError`, one line): its free space is too fragmented to place a
+route and draw the instances' start and goal candidates.
 """
 
 from __future__ import annotations
@@ -14,6 +28,16 @@ from typing import Any
 
 import numpy as np
 from scipy.ndimage import label
+
+from ..errors import MapError
+
+#: the defaults of :func:`floor_plan` (and of ``pathpref map generate``'s flags)
+PLAN_DEFAULTS = {"width": 24, "height": 16, "rotated": 7, "boxes": 2, "size_range": (1.5, 4.0)}
+#: the kinds of preferred route of :func:`floor_plan`
+ROUTE_KINDS = ("open", "loop")
+#: the fewest cells the largest free area of a generated plan may have: the waypoints of an
+#: open route (4) and an instance's start and 10 goal candidates
+MIN_ROUTE_CELLS = 11
 
 
 def rotated_rectangle(centre: np.ndarray, size: np.ndarray, angle: float) -> np.ndarray:
@@ -80,3 +104,35 @@ def with_loop_preference(raw: dict[str, Any]) -> dict[str, Any]:
         k = int(np.argmin((xs - cx) ** 2 + (ys - cy) ** 2))
         route.append([int(xs[k]) + 1, int(ys[k]) + 1])
     return {**raw, "preference": {"route": route, "closed": True}}
+
+
+def floor_plan(seed: int, route: str = "open", width: int = PLAN_DEFAULTS["width"],
+               height: int = PLAN_DEFAULTS["height"], rotated: int = PLAN_DEFAULTS["rotated"],
+               boxes: int = PLAN_DEFAULTS["boxes"],
+               size_range: tuple[float, float] = PLAN_DEFAULTS["size_range"],
+               name: str | None = None, description: str | None = None) -> dict[str, Any]:
+    """A floor plan with a preferred route from ``seed`` (module docstring); ``description``,
+    when given, is the plan's. Raises :class:`MapError` for a plan too fragmented for a route
+    and ValueError for an unknown ``route``."""
+    from .maps import free_cell_mask, parse_map
+
+    if route not in ROUTE_KINDS:
+        raise ValueError(f"route must be one of {ROUTE_KINDS}, got {route!r}")
+    raw = random_floor_plan(width, height, rotated, n_boxes=boxes, seed=seed,
+                            size_range=size_range, name=name)
+    labels, k = four_connected_components(free_cell_mask(parse_map(raw)))
+    biggest = np.bincount(labels[labels > 0]).argmax() if k else 0
+    cells = int((labels == biggest).sum()) if k else 0
+    if cells < MIN_ROUTE_CELLS:
+        raise MapError(
+            f"the plan of seed {seed} is too fragmented to place a route: its largest free area "
+            f"has {cells} cells, fewer than {MIN_ROUTE_CELLS}; try another seed or fewer or "
+            "smaller obstacles")
+    about = {} if description is None else {"description": description}
+    if route == "loop":
+        return {**with_loop_preference(raw), **about}
+    xs, ys = np.nonzero(labels == biggest)
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(len(xs), size=4, replace=False)
+    waypoints = [[int(xs[i]) + 1, int(ys[i]) + 1] for i in pick]
+    return {**raw, **about, "preference": {"route": waypoints, "closed": False}}

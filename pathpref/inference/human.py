@@ -30,6 +30,7 @@ from functools import cached_property
 import numpy as np
 
 from ..errors import ConfigError
+from ..geometry.following import goal_polytope_distance
 from ..geometry.world import World
 from .costs import CostTables, build_cost_tables
 
@@ -293,9 +294,25 @@ class SimulatedHuman:
 
     ``preference[v]`` is the preferred neighbour of ``v`` or -1 (no preference in ``v``: the
     human heads for the goal by the unconstrained shortest path there).
+
+    ``hold`` (the consistent human): in the goal's polytope ``r`` without a preference, at a
+    cell from which the goal can be reached without leaving ``r`` (a held cell,
+    :func:`~pathpref.geometry.following.goal_polytope_hold`), the human pushes along the
+    shortest path inside ``r`` instead, every exit of ``r`` being a non-preferred face::
+
+        Delta(s, h) = c(s, o) + D_r(o) - D_r(s)    o in r (inf D_r: as an exit)
+        Delta(s, h) = 2 c(s, o)                    o outside r (step there and back)
+        Delta(s, h) = 4                            blocked heading
+
+    with ``D_r`` the in-``r`` distance to the goal
+    (:func:`~pathpref.geometry.following.goal_polytope_distance`), normalised over the 8
+    headings as the goal-heading distribution is. So the human never pushes the robot out of
+    the goal's polytope its own route holds (section 4's cost of a forbidden face). Elsewhere,
+    and without ``hold`` (the map's human of the paper's protocol), it is unchanged.
     """
 
-    def __init__(self, model: ObservationModel, goal_index: int, preference: np.ndarray):
+    def __init__(self, model: ObservationModel, goal_index: int, preference: np.ndarray,
+                 hold: bool = False):
         self.model = model
         self.goal_index = int(goal_index)
         world = model.world
@@ -305,13 +322,32 @@ class SimulatedHuman:
                 for v, p in enumerate(preference)
             ]
         )
+        #: the in-``r`` distance to the goal at the held cells (inf elsewhere); None: no hold
+        self.held_distance: np.ndarray | None = None
+        if hold:
+            goal = int(model.goals[self.goal_index])
+            if np.asarray(preference)[world.cell_polytope[goal]] < 0:
+                self.held_distance = goal_polytope_distance(world, goal)
 
     def probs(self, cell: int) -> np.ndarray:
         """``(8,)`` heading distribution at free cell ``cell``."""
         k = self.pref_slot[self.model.world.cell_polytope[cell]]
         if k < 0:
+            if self.held_distance is not None and np.isfinite(self.held_distance[cell]):
+                return self._held_probs(cell)
             return self.model.goal_heading_probs[cell, :, self.goal_index]
         return self.model.cell_heading_probs[cell][:, self.goal_index, k]
+
+    def _held_probs(self, cell: int) -> np.ndarray:
+        """The heading distribution at a held cell (class docstring)."""
+        world = self.model.world
+        m = world.motion
+        d = self.held_distance
+        nxt, cost = m.next_cell[cell], m.cost[cell]
+        inside = np.isfinite(d[nxt])
+        delta = np.where(inside, cost + np.where(inside, d[nxt], 0.0) - d[cell], 2 * cost)
+        delta = np.where(m.blocked[cell], BLOCK_PENALTY, delta)
+        return boltzmann(delta[None, :], self.model.gamma, True)[0]
 
     def sample(self, cell: int, rng: np.random.Generator) -> int:
         """One heading index (0..7, N, NE, ..., NW)."""
