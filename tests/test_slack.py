@@ -15,7 +15,7 @@ from pathpref.inference.routes import RouteBelief
 from pathpref.planning.crossing import effective_rho, route_steps, route_walks
 from pathpref.planning.pomcp import POMCP
 from pathpref.planning.pomdp import get_preset
-from pathpref.planning.slack import PUSHES_PER_CROSSING, WaitBudget, doubt
+from pathpref.planning.slack import ON_TIME, PUSHES_PER_CROSSING, WaitBudget, doubt
 
 
 def _searched(world, goals, cell, depth=60):
@@ -102,21 +102,37 @@ def _wait_move(budget, planner, cell):
 
 def test_waits_stand_still_then_commit_within_the_bound(searched):
     """Nothing observed, ample time, a push every step: a move that gains nothing becomes a
-    stand-still, at most PUSHES_PER_CROSSING times in a row; then the robot commits to the
-    first move of the most probable route (a move, never a stand-still). A crossing and a
-    move toward the particles' goals pass unchanged."""
+    stand-still where a push would tell something (else the move itself, while the exit is
+    unsettled), at most PUSHES_PER_CROSSING times in a row with at least one stand-still;
+    then the robot commits to the first move of the most probable route (a move that goes
+    somewhere). A crossing and a move toward the particles' goals pass unchanged."""
     s, planner, belief, model = searched
     budget = WaitBudget()
     lik = model.cell_likelihood
     a = _wait_move(budget, planner, s)
     got = [budget.decide(planner, belief, lik, a, s, 60 - t, (1, 1)) for t in range(10)]
-    n_wait = next(i for i, b in enumerate(got) if b != STAY)
-    assert 1 <= n_wait <= PUSHES_PER_CROSSING
+    n_wait = next(i for i, b in enumerate(got) if b not in (STAY, a))
+    assert 1 <= n_wait <= PUSHES_PER_CROSSING and STAY in got[:n_wait]
     committed = got[n_wait]
     assert committed != STAY and not planner.world.motion.blocked[s, committed]
+    assert all(b == committed for b in got[n_wait:])  # the budget is spent: no more waits
     cross = _crossing(planner.world, s)
     assert WaitBudget().decide(planner, belief, lik, cross, s, 60, (1, 1)) == cross
     assert WaitBudget().decide(planner, belief, lik, committed, s, 60, (1, 1)) == committed
+
+
+def test_out_of_time_plans_for_arriving(searched):
+    """``plan`` says out of time exactly when fewer than ON_TIME of the particles' routes
+    fit: never with ample time, always with one step fewer than the quickest route."""
+    s, planner, belief, _ = searched
+    g, th = planner.root_particles()
+    steps = route_steps(s, 200, g, th, planner.goal_cells, planner.cell_poly,
+                        planner.next_cell, planner.moves)
+    budget = WaitBudget()
+    assert not budget.plan(planner, belief, s, int(steps.max()))
+    assert budget.plan(planner, belief, s, int(steps.min()) - 1)
+    depth = int(np.sort(steps)[int(np.ceil(ON_TIME * len(steps))) - 1])
+    assert budget.plan(planner, belief, s, depth) == (np.mean(steps <= depth) < ON_TIME)
 
 
 def test_no_slack_no_wait(searched):
@@ -136,15 +152,15 @@ def test_no_slack_no_wait(searched):
 
 
 def test_waits_for_sparse_pushes_are_bounded_too(searched):
-    """Pushes every 5 steps: at most PUSHES_PER_CROSSING of them are waited for in one
-    polytope (``W + w <= K T`` steps), whatever the belief says."""
+    """Pushes every 5 steps: at most PUSHES_PER_CROSSING intervals are waited in one polytope
+    (``W + w <= K T`` steps), whatever the belief says; then the robot commits."""
     s, planner, belief, model = searched
     budget = WaitBudget()
     a = _wait_move(budget, planner, s)
     n = 0
     for t in range(60):
         if budget.decide(planner, belief, model.cell_likelihood, a, s, 200 - t,
-                         (5 - t % 5, 5)) != STAY:
+                         (5 - t % 5, 5)) not in (STAY, a):
             break
         n += 1
     assert 1 <= n <= PUSHES_PER_CROSSING * 5

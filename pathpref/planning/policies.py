@@ -136,6 +136,7 @@ class PlannerPolicy(Policy):
         self.history: list[tuple[int, int]] = []
         self.input_steps: list[int] = []
         self.waits = WaitBudget() if robust and p.budget_waits else None
+        self._arrival: POMCP | None = None
 
     def enter(self, v_from: int, v_to: int) -> None:
         """Record the transition (the robust search scores the episode's history)."""
@@ -150,6 +151,10 @@ class PlannerPolicy(Policy):
         pushes = self.expected_pushes(t)
         res = self.planner.search(cell, self.belief, depth, self._seed(), self.history, pushes)
         a = res.action
+        if self.waits is not None and self.planner.rewards.use_preference \
+                and self.waits.plan(self.planner, self.belief, cell, depth):
+            return self.arrival().search(cell, self.belief, depth, self._seed(), self.history,
+                                         pushes).action
         if self.ctx.preset.check_crossings and self.planner.tables is not None \
                 and len(self.input_steps) >= 2:  # the pushes' interval is known (crossing)
             a = check_crossing(self.planner, self.belief, self.ctx.model.cell_likelihood,
@@ -158,6 +163,18 @@ class PlannerPolicy(Policy):
             a = self.waits.decide(self.planner, self.belief, self.ctx.model.cell_likelihood,
                                   a, cell, depth, pushes)
         return a
+
+    def arrival(self) -> POMCP:
+        """The search for arriving alone (the preset's goal-only rewards on this belief's goal
+        marginal), used when the preferred routes no longer fit (:mod:`.slack`, 0); built on
+        first use."""
+        if self._arrival is None:
+            p = self.ctx.preset
+            self._arrival = POMCP(self.ctx.world, self.ctx.model.goals,
+                                  p.goal_only.for_mission(self.ctx.t_max), queries=p.queries,
+                                  c=p.ucb_c, tables=self.ctx.model.tables,
+                                  budget_ms=p.time_budget_ms)
+        return self._arrival
 
     def expected_pushes(self, t: int) -> tuple[int, int]:
         """``(next, every)``: in how many steps the human is expected to push next, and how
