@@ -37,7 +37,8 @@ def test_wheel_contents(wheel):
                    "pathpref/apps/commands.py", "pathpref_tasks/gym.py",
                    "pathpref/apps/benchmarks/physics.py",
                    "pathpref/experiments/migrate.py", "pathpref/study/page.html",
-                   "pathpref/study/server.py", "pathpref/experiments/trials.py"):
+                   "pathpref/study/server.py", "pathpref/experiments/trials.py",
+                   "pathpref/apps/demo_sweep.json"):
         assert needed in names, needed
     assert not any(n.startswith(("tests/", "mjcf/")) for n in names)
 
