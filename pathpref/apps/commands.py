@@ -11,13 +11,15 @@ import os
 import sys
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, did_you_mean
 from .checks import (
     FIGURE_SUFFIXES,
+    STUDY_MAKER,
     atomic_output,
     check_database,
     check_episode_count,
     check_goal_count,
+    check_methods,
     check_model_size,
     check_model_size_early,
     check_output_folder,
@@ -180,11 +182,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
     from ..experiments.report import load_records, markdown_tables
     from ..experiments.sweep import run_sweep, sweep_specs
-    from ..planning.policies import resolve_methods
-
     check_database(args.db)
     check_episode_count([args.instances, args.runs, len(args.delta_t),
-                         len(resolve_methods(args.methods))], "the sweep")
+                         len(check_methods(args.methods))], "the sweep")
     load_simulator(args.sim)
     check_goal_count(args.map, args.goals)
     check_model_size_early(args.map, args.goals)
@@ -365,7 +365,8 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     if args.method not in METHODS:
         raise ConfigError(f"--method must be one method (render shows one episode): "
-                          f"{', '.join(METHODS)}; got {args.method!r}")
+                          f"{', '.join(METHODS)}; got {args.method!r}"
+                          f"{did_you_mean(args.method, METHODS)}")
     width, height = parse_size(args.size) if args.size else DEFAULT_SIZE
     width, height = args.width or width, args.height or height
     if width < height:
@@ -497,7 +498,7 @@ def cmd_study_export(args: argparse.Namespace) -> int:
     from ..study.export import export_participant
 
     check_participant(args.participant)
-    check_database(args.db, "database", must_exist=True)
+    check_database(args.db, "database", must_exist=True, made_by=STUDY_MAKER)
     counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap,
                                 fmt=args.format)
     folder = Path(args.out) / args.participant
@@ -508,7 +509,7 @@ def cmd_study_export(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     """``pathpref replay``: a recorded study trial as a video."""
     out = check_writable(args.out, "--out", (".mp4",))
-    check_database(args.db, "database", must_exist=True)
+    check_database(args.db, "database", must_exist=True, made_by=STUDY_MAKER)
     from ..study.replay import replay_trial
 
     with staged_outputs([out]) as (tmp,):

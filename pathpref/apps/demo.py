@@ -233,6 +233,56 @@ def grid_rates(runs: int = DEMO_RUNS, seed: int = 0, preset: str = DEFAULT_PRESE
     return GridRates(runs, preset, specs_of, res_of, rows)
 
 
+def rate_line(method: str, k: int, n: int, other: int, not_reached: int,
+              pushes: float) -> str:
+    """One method's outcome counts over ``n`` runs, success with its 95% Wilson interval."""
+    lo, hi = wilson(k, n)
+    return (f"- {method}: reached the goal by the preferred route in {k}/{n} runs "
+            f"({k / n:.2f} [{lo:.2f}, {hi:.2f}]), by another route in {other}, not at all in "
+            f"{not_reached}; {pushes:.2f} pushes per episode")
+
+
+def cell_rate_line(cell: dict[str, Any]) -> str:
+    """:func:`rate_line` of a stored sweep cell (what the demo's re-run prints when its preset
+    and ``--runs`` are the sweep's)."""
+    n, k, reached = cell["n"], cell["success"], cell["goal_reached"]
+    return rate_line(cell["method"], k, n, reached - k, n - reached,
+                     cell["pushes_per_episode"])
+
+
+#: the markers of the block of docs/demo.md written by scripts/demo_doc.py
+DOC_BEGIN = "<!-- demo-numbers: written by `python scripts/demo_doc.py`; do not edit by hand -->"
+DOC_END = "<!-- /demo-numbers -->"
+
+
+def doc_block(rates: GridRates, film: list[EpisodeResult]) -> list[str]:
+    """The numbers of docs/demo.md (between :data:`DOC_BEGIN` and :data:`DOC_END`): the stored
+    sweep's verdicts, the demo's grid rates, the filmed setting's rate and the filmed episodes
+    (``film``: one per method of the paper, the MuJoCo body, no video)."""
+    sweep = load_sweep()
+    k = rates.film_index()
+    lines = [DOC_BEGIN, "", f"Preset `{rates.preset}` (the planner's default when this was "
+             "written; `pathpref demo` computes every number below again when it runs, under "
+             "its `--preset`).", "", "Where it matters, from the stored sweep ("
+             + "; ".join(sweep_header(sweep, rates.preset)) + "):", "",
+             *sweep_statement(), "",
+             f"The demo's re-run (`pathpref demo`, seed 0): n = {rates.runs} grid runs per "
+             f"method on `{DEMO_MAP}`, human `{DEMO_PUSH_RULE}` (ΔT = {DEMO_DELTA_T}):", ""]
+    for r in rates.rows:
+        lines.append(rate_line(r["method"], round(r["success"] * rates.runs), rates.runs,
+                               r["other_route"], r["not_reached"], r["pushes_per_episode"]))
+    lines += ["", filmed_rate_line(rates) + ".", "",
+              f"The filmed instance: instance {rates.specs['oracle'][k].instance}, run 0 "
+              f"({FILM_RULE}). Its MuJoCo episodes (the same corrective human pushing the base; "
+              "default physics):", "",
+              "| method | success | goal reached | preference followed | pushes | steps |",
+              "|---|---|---|---|---|---|"]
+    for r in film:
+        lines.append(f"| {r.spec.method} | {r.success} | {r.goal_reached} | {r.pref_followed} "
+                     f"| {r.inputs} | {r.steps} |")
+    return [*lines, "", DOC_END]
+
+
 def filmed_setting(preset: str) -> str:
     """The filmed setting in words: map, method, human, push rule, preset."""
     return (f"{DEMO_MAP}, {FILM_METHOD}, the map's human, push rule '{DEMO_PUSH_RULE}' "
@@ -302,11 +352,8 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
     print(f"\nOver n = {runs} grid runs per method, corrective human, preset {preset} (success "
           "rate, 95% Wilson interval):\n")
     for r in rates.rows:
-        print(f"- {r['method']}: reached the goal by the preferred route in "
-              f"{round(r['success'] * runs)}/{runs} runs ({r['success']:.2f} "
-              f"[{r['ci_low']:.2f}, {r['ci_high']:.2f}]), by another route in "
-              f"{r['other_route']}, not at all in {r['not_reached']}; "
-              f"{r['pushes_per_episode']:.2f} pushes per episode")
+        print(rate_line(r["method"], round(r["success"] * runs), runs, r["other_route"],
+                        r["not_reached"], r["pushes_per_episode"]))
     print(f"\n{filmed_rate_line(rates)}; the film below is one episode of it.")
     body = "MuJoCo, the same corrective human pushing the base" if sim == "mujoco" else "grid"
     print(f"\nRendered episodes ({body}; instance {rates.specs['oracle'][k].instance}, run 0 of "

@@ -4,9 +4,10 @@ Step ``t = 1..T_max``: when ``(t - 1) mod Delta_T == 0`` the simulated human giv
 robot's cell and the robot updates its belief with what it observed; the policy acts; the robot
 moves. The corrective human (``spec.push_rule``, :mod:`.corrective`) pushes instead only after
 the steps that call for it, on any body whose pushes come at decision steps (the grid; MuJoCo
-with the physics' ``timing`` ``decision``, the default). Standing on a wrong candidate rules it out; reaching the true goal
-ends the episode. Success = goal reached within ``T_max`` AND every polytope change followed the
-human's preference (a polytope where the human has no preference, ``-1``, accepts any exit).
+with the physics' ``timing`` ``decision``, the default). Standing on a wrong candidate rules it
+out; reaching the true goal ends the episode. Success = goal reached within ``T_max`` AND every
+polytope change followed the human's preference (a polytope where the human has no preference,
+``-1``, accepts any exit).
 Homotopy success, reported beside it = goal reached AND the robot's path goes the same way
 round every obstacle as the human's route (:mod:`pathpref.geometry.homotopy`).
 
@@ -36,7 +37,6 @@ from .instances import episode_instance, human_preference
 from .physics import DIRECTION_KAPPA
 from .results import EpisodeResult, StepLog
 from .spec import EpisodeSpec
-
 
 #: the corrective human watches decision steps: a body pushing at times of its own cannot
 #: take it

@@ -41,7 +41,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
-from ..experiments.trials import STUDY_TABLES, has_study_tables
+from ..experiments.trials import STUDY_TABLES, has_study_tables, participants_hint
 from ..sim.scene import CELL_SIZE_M
 from .answers import load_answers
 
@@ -247,7 +247,8 @@ def export_participant(db: str | Path, participant: str, out: str | Path,
             raise ConfigError(f"{db} holds no study trials")
         trials = list(_rows(c, "trials", participant, None, "trial"))
         if not trials:
-            raise ConfigError(f"{db} has no trials of participant {participant!r}")
+            raise ConfigError(f"{db} has no trials of participant {participant!r} "
+                              f"({participants_hint(c, db)})")
         folder.mkdir(parents=True, exist_ok=True)
         counts: dict[str, int] = {}
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
-from ..experiments.trials import has_study_tables, read_rows
+from ..experiments.trials import has_study_tables, participants_hint, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
 from .plan import Trial, trial_from_row
@@ -123,7 +123,7 @@ def load_trial(db: str | Path, participant: str, trial: int
             raise ConfigError(
                 f"{db} has no trial {trial} of participant {participant!r}"
                 + (f" (it has trials {', '.join(map(str, have))})" if have else
-                   " (no trials of that participant)"))
+                   f" (no trials of that participant; {participants_hint(c, db)})"))
         r = rows[0]
         if r["status"] != "done":
             raise ConfigError(f"trial {trial} of {participant!r} did not finish; there is "
