@@ -263,8 +263,8 @@ def doc_block(rates: GridRates, film: list[EpisodeResult]) -> list[str]:
     k = rates.film_index()
     lines = [DOC_BEGIN, "", f"Preset `{rates.preset}` (the planner's default when this was "
              "written; `pathpref demo` computes every number below again when it runs, under "
-             "its `--preset`).", "", "Where it matters, from the stored sweep ("
-             + "; ".join(sweep_header(sweep, rates.preset)) + "):", "",
+             "its `--preset`).", "", "Where it matters: the "
+             + "; ".join(sweep_header(sweep, rates.preset)) + ":", "",
              *sweep_statement(), "",
              f"The demo's re-run (`pathpref demo`, seed 0): n = {rates.runs} grid runs per "
              f"method on `{DEMO_MAP}`, human `{DEMO_PUSH_RULE}` (ΔT = {DEMO_DELTA_T}):", ""]
