@@ -1,6 +1,6 @@
 """From a new map to a table of success rates and a video, with pathpref's public API.
 
-    MUJOCO_GL=egl python examples/tutorial.py --out tutorial_out          # about 3 minutes
+    MUJOCO_GL=egl python examples/tutorial.py --out tutorial_out          # 29 s of CPU
     MUJOCO_GL=egl python examples/tutorial.py --out /tmp/t --tiny         # seconds (the test)
 
 1. Draw a map: a 10 x 10 room with a table in the middle; the person prefers to walk around

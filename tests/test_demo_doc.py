@@ -107,3 +107,21 @@ def test_the_filmed_setting_and_instance(block, sweep):
     table = [ln for ln in block if ln.startswith("| ") and not ln.startswith("| method")]
     assert [re.match(r"\| (\w+) \|", r).group(1) for r in table] == [
         "compliant", "goal_only", "path_preference", "blended"]
+
+
+def test_the_readme_picture_and_tour_show_the_rules_episode():
+    """The README's picture and the tour's ``render`` line are the episode of
+    :func:`tour_seed` (the film rule on the route), and what the caption says of it holds:
+    success in 20 steps with 4 pushes (the grid episode; the MuJoCo base, whose moves reach the
+    same cells, rendered the same: ``scripts/video_grid.py`` prints it)."""
+    from pathpref.apps.demo import DEMO_PUSH_RULE, tour_seed, tour_spec
+
+    seed = tour_seed()
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    assert (f'pathpref render --map simple --method path_preference --delta-t 1 \\ '
+            f'--push-rule "{DEMO_PUSH_RULE}" --seed {seed} \\') in readme
+    assert f"seed {seed}, the first seed whose preferred route the demo's film rule accepts" \
+        in readme
+    r = run_episode(tour_spec(seed))
+    assert (r.success, r.steps, r.inputs) == (True, 20, 4)
+    assert "It succeeds in 20 steps with 4 pushes" in readme

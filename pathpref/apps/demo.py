@@ -95,17 +95,41 @@ def route_crossings(result: EpisodeResult) -> int:
     return sum(a != b for a, b in zip(poly, poly[1:], strict=False))
 
 
+def worth_filming(spec: EpisodeSpec, oracle: EpisodeResult) -> bool:
+    """The film rule on one episode: its preferred route (the oracle's path, ``L`` steps) has
+    ``L >= FILM_MIN_STEPS``, crosses at least :data:`FILM_MIN_CROSSINGS` polytope boundaries
+    and leaves ``T_max - L >=`` :data:`FILM_MIN_SLACK` steps spare. It reads the route's
+    geometry only, never a filmed method's outcome."""
+    return (oracle.steps >= FILM_MIN_STEPS and spec.t_max - oracle.steps >= FILM_MIN_SLACK
+            and route_crossings(oracle) >= FILM_MIN_CROSSINGS)
+
+
 def film_index(specs: list[EpisodeSpec], oracle: list[EpisodeResult]) -> int:
-    """Which demo episode is filmed: the first run 0 of an instance whose preferred route (the
-    oracle's path, ``L`` steps) has ``L >= FILM_MIN_STEPS``, crosses at least
-    :data:`FILM_MIN_CROSSINGS` polytope boundaries and leaves ``T_max - L >=``
-    :data:`FILM_MIN_SLACK` steps spare; else the first episode. The choice reads the route's
-    geometry only, never the filmed methods' outcomes."""
+    """Which demo episode is filmed: the first run 0 of an instance
+    :func:`worth_filming`; else the first episode."""
     for k, (s, r) in enumerate(zip(specs, oracle, strict=True)):
-        if (s.run == 0 and r.steps >= FILM_MIN_STEPS and s.t_max - r.steps >= FILM_MIN_SLACK
-                and route_crossings(r) >= FILM_MIN_CROSSINGS):
+        if s.run == 0 and worth_filming(s, r):
             return k
     return 0
+
+
+def tour_spec(seed: int, method: str = FILM_METHOD, preset: str = DEFAULT_PRESET,
+              sim: str = "grid") -> EpisodeSpec:
+    """The episode ``pathpref render --map simple --method METHOD --delta-t 1 --push-rule
+    DEMO_PUSH_RULE --seed SEED`` shows (instance 0, run 0 of ``seed``), in ``sim``."""
+    return EpisodeSpec.single(DEMO_MAP, method, DEMO_DELTA_T, seed=seed, sim=sim,
+                              push_rule=DEMO_PUSH_RULE, preset=preset)
+
+
+def tour_seed(preset: str = DEFAULT_PRESET, limit: int = 1000) -> int:
+    """The README picture's and the tour's episode: the first ``--seed`` 0, 1, 2, ... whose
+    episode (:func:`tour_spec`) is :func:`worth_filming`: the demo's film rule, on the
+    oracle's grid path, never on an outcome."""
+    for seed in range(limit):
+        spec = tour_spec(seed, "oracle", preset)
+        if worth_filming(spec, run_episode(spec)):
+            return seed
+    raise ValueError(f"no seed below {limit} has a route worth filming")
 
 
 FILM_RULE = (f"the first instance whose preferred route (the oracle's path) takes >= "
