@@ -9,13 +9,26 @@
 #   sh scripts/demo_sweep.sh [DB [PRESET]]
 #
 # PRESET defaults to the planner's default (pathpref.planning.pomdp.DEFAULT_PRESET), the one
-# `pathpref demo` re-runs with; every row of DB stores it. Then: python scripts/results.py
-# (writes docs/results.md and the JSON, which names this command and the preset). The committed
-# copy keeps the episodes table only (the per-step rows deleted, VACUUM, journal_mode=delete).
+# `pathpref demo` re-runs with; every row of DB stores it, and a DB holding another preset's
+# rows is refused (remove it first: one sweep, one preset). Then: python scripts/results.py
+# (writes docs/results.md and the JSON, which names this command and the preset). The stored
+# copy keeps the episodes table only (the per-step rows deleted, VACUUM, journal_mode=delete:
+# about 1 MB instead of 13 MB); this script trims DB so at the end.
 set -e
 DB=${1:-docs/results/demo_sweep.sqlite}
 PY=${PYTHON:-python}
 PRESET=${2:-$($PY -c 'from pathpref.planning.pomdp import DEFAULT_PRESET; print(DEFAULT_PRESET)')}
+if [ -e "$DB" ]; then
+  $PY - "$DB" "$PRESET" <<'CHECK'
+import sqlite3, sys
+db, preset = sys.argv[1:]
+other = [p for (p,) in sqlite3.connect(db).execute("SELECT DISTINCT preset FROM episodes")
+         if p != preset]
+if other:
+    sys.exit(f"demo_sweep: {db} holds rows of preset {', '.join(other)}, not {preset}; "
+             "remove it first (one sweep, one preset)")
+CHECK
+fi
 for MAP in simple office; do
   $PY -m pathpref evaluate --map "$MAP" --preset "$PRESET" --methods all reference \
     --delta-t 3 10 --instances 5 --runs 6 --db "$DB" --no-progress > /dev/null
@@ -23,3 +36,14 @@ for MAP in simple office; do
     --delta-t 1 --push-rule "corrective delay=1 miss=0.2" --instances 5 --runs 6 --db "$DB" \
     --no-progress > /dev/null
 done
+$PY - "$DB" <<'TRIM'
+import sqlite3, sys
+con = sqlite3.connect(sys.argv[1])
+for (table,) in con.execute("SELECT name FROM sqlite_master WHERE type = 'table' AND name NOT IN "
+                            "('meta', 'episodes')").fetchall():
+    con.execute(f"DELETE FROM {table}")
+con.commit()
+con.execute("VACUUM")
+con.execute("PRAGMA journal_mode=delete")
+con.close()
+TRIM
