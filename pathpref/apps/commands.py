@@ -535,7 +535,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """``pathpref demo``: the Fig. 4 instance for every method, rates, figures, videos."""
+    """``pathpref demo``: the stored sweep's verdicts, the grid re-run, the filmed setting's
+    rate, figures and videos (:mod:`.demo`)."""
     from .demo import run_demo
 
     out = check_output_folder(args.out, "--out")
