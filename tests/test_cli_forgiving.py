@@ -110,3 +110,14 @@ def test_preset_help_names_every_preset_and_the_default(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])
     assert "main job" not in capsys.readouterr().out
+
+
+def test_an_empty_database_names_both_commands_that_fill_one(capsys, tmp_path):
+    from pathpref.experiments.store import ResultStore
+
+    ResultStore(tmp_path / "empty.sqlite").close()
+    line = error_of(["report", "empty.sqlite"], capsys)
+    assert line == ("pathpref: error: empty.sqlite holds no episodes or study trials yet; run "
+                    "'pathpref evaluate --db empty.sqlite' first (a sweep), or record trials "
+                    "first with 'pathpref study run STUDY --participant ID --db empty.sqlite' "
+                    "(docs/study.md)")

@@ -15,6 +15,7 @@ from ..errors import ConfigError, did_you_mean
 from .checks import (
     FIGURE_SUFFIXES,
     STUDY_MAKER,
+    SWEEP_MAKER,
     atomic_output,
     check_database,
     check_episode_count,
@@ -242,7 +243,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(study_tables(trials) + "\n\n" + rationality_table(fits)
               + (f"\n\n{tlx}" if tlx else "") + ("\n" if recs else ""))
     elif not recs:
-        raise ConfigError(f"{args.db} holds no episodes yet")
+        raise ConfigError(f"{args.db} holds no episodes or study trials yet; "
+                          f"{SWEEP_MAKER.format(db=args.db)} (a sweep), or "
+                          f"{STUDY_MAKER.format(db=args.db)}")
     if recs:
         print(markdown_tables(recs))
         both = side_by_side(recs)
