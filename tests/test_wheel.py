@@ -120,7 +120,9 @@ def test_installed_wheel_runs_the_whole_demo(wheel, tmp_path):
                     f"docs/results/demo_sweep.sqlite {p}`",
                     "-> inferring the preference MATTERS",
                     f"Re-running the setting with preset {p}: simple, human 'corrective "
-                    "delay=1 miss=0.2' (ΔT = 1), n = 6 grid runs per method",
+                    "delay=1 miss=0.2' (ΔT = 1), n = 6 grid runs per method (drawn as the "
+                    "sweep draws them: runs 0..1 of its 5 instances, the first 6; --runs 30 "
+                    "is exactly the sweep's cell)",
                     "Over n = 6 grid runs per method, corrective human, preset",
                     "The filmed setting (simple, path_preference, the map's human, push rule "
                     f"'corrective delay=1 miss=0.2' (ΔT = 1), preset {p}) succeeds in ",

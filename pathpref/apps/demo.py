@@ -323,6 +323,15 @@ def filmed_rate_line(rates: GridRates) -> str:
             f"{r['ci_high']:.2f}]")
 
 
+def rerun_source(runs: int) -> str:
+    """Which of the sweep's episodes a re-run of ``runs`` per method is (:func:`demo_specs`)."""
+    per = math.ceil(runs / DEMO_INSTANCES)
+    if runs == DEMO_RUNS:
+        return "exactly the sweep's episodes of that cell"
+    return (f"drawn as the sweep draws them: runs 0..{per - 1} of its {DEMO_INSTANCES} "
+            f"instances, the first {runs}; --runs {DEMO_RUNS} is exactly the sweep's cell")
+
+
 def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUNS,
              preset: str = DEFAULT_PRESET) -> list[EpisodeResult]:
     """Run the demo, write videos, figures and tables (see module docstring)."""
@@ -338,8 +347,8 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
     for line in [*sweep_header(sweep, preset), "", *sweep_statement()]:
         print(line, flush=True)
     print(f"\nRe-running the setting with preset {preset}: {DEMO_MAP}, human '{DEMO_PUSH_RULE}' "
-          f"(ΔT = {DEMO_DELTA_T}), n = {runs} grid runs per method (the sweep's first {runs} "
-          "of that cell)", flush=True)
+          f"(ΔT = {DEMO_DELTA_T}), n = {runs} grid runs per method ({rerun_source(runs)})",
+          flush=True)
     rates = grid_rates(runs, seed, preset, log=lambda line: print(line, flush=True))
     k = rates.film_index()
     results = []
