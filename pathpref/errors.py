@@ -23,3 +23,18 @@ class ConfigError(PathprefError):
 
 class EpisodeError(RuntimeError):
     """An episode could not finish (timeout, non-finite belief); recorded as a failed episode."""
+
+
+def did_you_mean(value: object, choices) -> str:
+    """``" (did you mean 'x'?)"`` naming the choice closest to ``value`` (difflib's ratio
+    at least 0.6, or a choice that starts with ``value``), else ``""``: the tail of an error
+    line about an unknown name."""
+    import difflib
+
+    if not isinstance(value, str) or not value:
+        return ""
+    names = [str(c) for c in choices]
+    close = difflib.get_close_matches(value, names, n=1, cutoff=0.6)
+    if not close:
+        close = [c for c in names if c.startswith(value)][:1]
+    return f" (did you mean '{close[0]}'?)" if close else ""

@@ -14,7 +14,8 @@ episode (an error, a timeout) counts as a
 failure and the table says how many failed. A result JSON becomes its own table with the
 intervals it stores. Every table names its command, ``n`` and its date: the date of the file's
 last commit (``git log -1 --format=%cs``), else its modification date marked "not committed".
-The stored database sources also get a JSON of every cell beside them (``<db stem>.json``)
+The stored database sources also get a JSON of every cell beside them (``<db stem>.json``;
+the demo's sweep's in the package, :data:`CELLS_HOME`, naming its command and preset)
 and a figure of success against pushes per episode (``<db stem>.png``). A database too large to
 commit (Table I's 6000 episodes, office, classroom) is kept as that JSON only: its section is
 then read from it.
@@ -50,8 +51,14 @@ DB_SOURCES: list[tuple[str, str, str]] = [
      "--instances 6 --runs 10 --db docs/results/classroom_paper.sqlite --workers 2"),
     ("docs/results/demo_sweep.sqlite",
      "When inferring the preference matters (the demo's sweep)",
-     "sh scripts/demo_sweep.sh docs/results/demo_sweep.sqlite"),
+     "sh scripts/demo_sweep.sh docs/results/demo_sweep.sqlite {preset}"),
 ]
+
+#: where a database's cells JSON lives when not beside its figure in docs/results: the demo's
+#: sweep is package data (``pathpref demo`` reads it, and the wheel ships it)
+CELLS_HOME: dict[str, str] = {
+    "docs/results/demo_sweep.sqlite": "pathpref/apps/demo_sweep.json",
+}
 
 _STUDY = ("python scripts/physics_study.py --episodes {episodes} --map {map} --method {method} "
           "--delta-t {delta_t} --seed {seed} --preset {preset} --conditions {conditions}")
@@ -304,6 +311,9 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
              "otherwise.", ""]
     for path, title, command in dbs:
         stored = path.with_suffix(".json")  # the cells of a database too large to commit
+        home = CELLS_HOME.get(_rel(path))
+        if home is not None:
+            stored = ROOT / home
         if path.exists():
             cells, date, source = db_cells(path), file_date(path), f"`{_rel(path)}`"
         elif stored.exists():
@@ -314,12 +324,17 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
         else:
             print(f"results: {path} not found; its section is left out", file=sys.stderr)
             continue
+        presets = sorted({c["preset"] for c in cells})
+        command = command.replace("{preset}", " ".join(presets))  # the preset that made it
         lines += db_section(cells, source, date, title, command)
         if cells_dir is not None:
             if path.exists():
-                (cells_dir / f"{path.stem}.json").write_text(json.dumps(
-                    {"command": command, "source": _rel(path), "cells": cells}, indent=1)
-                    + "\n")
+                head: dict[str, Any] = {"command": command, "source": _rel(path)}
+                if len(presets) == 1:
+                    head["preset"] = presets[0]
+                head["episodes"] = sum(c["n"] for c in cells)
+                (stored if home is not None else cells_dir / f"{path.stem}.json").write_text(
+                    json.dumps({**head, "cells": cells}, indent=1) + "\n")
             success_pushes_figure(cells, cells_dir / f"{path.stem}.png")
             lines += [f"![success against pushes]({cells_dir.name}/{path.stem}.png)", ""]
     for path, title, kind, command in jsons:

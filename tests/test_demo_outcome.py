@@ -8,7 +8,17 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from pathpref.apps.demo import FILM_MIN_STEPS, film_index, sweep_statement
+from pathpref.apps.demo import (
+    FILM_MIN_CROSSINGS,
+    FILM_MIN_SLACK,
+    FILM_MIN_STEPS,
+    demo_specs,
+    film_index,
+    route_crossings,
+    sweep_header,
+    sweep_statement,
+)
+from pathpref.episode import run_episode
 from pathpref.viz.video import outcome_card, outcome_lines
 
 
@@ -40,12 +50,37 @@ def test_outcome_card_fades_the_frame_and_boxes_the_text():
     assert card[135, 30:450].max() == 255  # the white box crosses the centre row
 
 
-def test_film_index_reads_the_route_length_only():
-    specs = [SimpleNamespace(run=r) for _ in range(3) for r in range(2)]
-    steps = [2, 30, 5, FILM_MIN_STEPS, FILM_MIN_STEPS, 2]
-    oracle = [SimpleNamespace(steps=s) for s in steps]
-    assert film_index(specs, oracle) == 4  # index 1 and 3 are run 1, not run 0
-    assert film_index(specs[:2], oracle[:2]) == 0  # none long enough: the first
+def _route(xs: list[tuple[int, int]], t_max: int = 30):
+    """A hand-made oracle result on ``simple`` whose logged path is ``xs``."""
+    log = [SimpleNamespace(x=x, y=y) for x, y in xs]
+    return SimpleNamespace(steps=len(xs) - 1, log=log, spec=SimpleNamespace(map="simple"))
+
+
+def test_film_index_reads_the_route_only():
+    """The rule: run 0, >= FILM_MIN_STEPS steps, >= FILM_MIN_CROSSINGS polytope crossings,
+    >= FILM_MIN_SLACK steps spare; each candidate below fails exactly one condition."""
+    assert (FILM_MIN_STEPS, FILM_MIN_CROSSINGS, FILM_MIN_SLACK) == (8, 2, 10)
+    along_south = [(x, 1) for x in range(1, 11)]  # 9 steps along the bottom row
+    assert route_crossings(_route(along_south)) >= FILM_MIN_CROSSINGS
+    inside = [(1, 1), (1, 2), (1, 1), (1, 2), (1, 1), (1, 2), (1, 1), (1, 2), (1, 1)]
+    assert route_crossings(_route(inside)) == 0  # 8 steps inside one polytope
+    specs = [SimpleNamespace(run=r, t_max=t) for r, t in ((1, 30), (0, 30), (0, 17), (0, 30),
+                                                          (0, 30))]
+    oracle = [_route(along_south), _route(inside), _route(along_south),
+              _route(along_south[:8]), _route(along_south)]
+    # 0: run 1; 1: no crossing; 2: 17 - 9 = 8 spare; 3: 7 steps; 4: every condition holds
+    assert film_index(specs, oracle) == 4
+    assert film_index(specs[:4], oracle[:4]) == 0  # none qualifies: the first
+
+
+def test_the_demo_films_instance_1():
+    """On the demo's own instances (grid oracle, seed 0) the rule picks instance 1, run 0
+    (its route: 13 steps, 6 crossings; instance 0's takes 2 steps)."""
+    specs = [s for s in demo_specs("oracle") if s.run == 0]
+    oracle = [run_episode(s) for s in specs]
+    k = film_index(specs, oracle)
+    assert specs[k].instance == 1
+    assert (oracle[k].steps, route_crossings(oracle[k])) == (13, 6)
 
 
 def _cell(setting, method, k, lo, hi):
@@ -67,3 +102,14 @@ def test_sweep_statement_says_where_it_matters(tmp_path):
     assert b.endswith("no measurable gain over goal only / compliant at this n")  # 0.74 < 0.78
     assert "oracle" not in b
     assert sweep_statement(tmp_path / "missing.json")[0].startswith("(the stored sweep")
+
+
+def test_sweep_header_names_command_and_preset_and_a_mismatch():
+    sweep = {"command": "sh scripts/demo_sweep.sh db robust", "preset": "robust",
+             "episodes": 60, "cells": [{"n": 30, "preset": "robust"}] * 2}
+    head = sweep_header(sweep, "robust")
+    assert head == ["stored sweep demo_sweep.json (shipped with pathpref): 60 grid episodes, "
+                    "30 per cell, preset robust, made by `sh scripts/demo_sweep.sh db robust`"]
+    note = sweep_header(sweep, "paper")
+    assert len(note) == 2 and note[1].startswith("NOTE: the stored sweep was made with preset "
+                                                 "robust; this demo runs preset paper")

@@ -67,9 +67,11 @@ def test_keys_of_the_periodic_human_are_unchanged_and_bad_rules_refused(corridor
         EpisodeSpec.single("simple", "compliant", 1, push_rule="corrective").validate()
     with pytest.raises(ConfigError, match="unknown push rule"):
         EpisodeSpec.single("simple", "compliant", 1, push_rule="often").validate()
-    with pytest.raises(ConfigError, match="use --sim grid"):
+    # a MuJoCo body pushing at times of its own cannot take the decision-step rule
+    with pytest.raises(ConfigError, match="--timing interval pushes at times of its own; use "
+                       "--timing decision"):
         EpisodeRunner(_spec(corridor, push_rule="corrective delay=0 miss=0.0", sim="mujoco",
-                            physics="legacy"))
+                            physics=json.dumps({"timing": "interval"})))
 
 
 def _scripted(spec: EpisodeSpec, actions: list[int]):
@@ -100,6 +102,19 @@ def test_corrective_pushes_after_the_steps_that_need_one(corridor):
     res = _scripted(_spec(corridor, push_rule="corrective delay=0 miss=1.0"),
                     [STAY, STAY, W, E, E, E, E, E, E, E])
     assert res.inputs == 0 and not any(s.is_intervention for s in res.log)
+
+
+def test_corrective_pushes_the_mujoco_base_at_the_same_steps(corridor):
+    """The rule watches decision steps whatever the body: the MuJoCo base (timing
+    ``decision``, the default physics) is pushed after the same scripted steps as the grid,
+    and feels each push (its cue is the next step's heading)."""
+    import pathpref.sim  # noqa: F401  (registers the mujoco body)
+
+    res = _scripted(_spec(corridor, push_rule="corrective delay=0 miss=0.0", sim="mujoco"),
+                    [STAY, E, W, E, E, E, E, E, E])
+    assert [s.is_intervention for s in res.log] == [0, 1, 0, 1, 0, 0, 0, 0, 0, 0]
+    assert res.inputs == 2 and res.goal_reached
+    assert [s.t for s in res.log if s.heading >= 0] == [2, 4]  # the steps after the pushes
 
 
 def test_misses_are_the_episodes_fourth_stream(corridor):

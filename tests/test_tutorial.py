@@ -21,7 +21,18 @@ def test_tutorial_runs_from_map_to_table_and_video(tmp_path):
     for row in ("| compliant |", "| goal only |", "| path preference |",
                 "| path preference + blend |"):
         assert row in table
-    assert "16 episodes run" in p.stdout
+    from pathpref.planning.pomdp import DEFAULT_PRESET
+
+    # one preset, named: the first line, the sweep and the video
+    assert p.stdout.splitlines()[0] == (f"pathpref tutorial: preset {DEFAULT_PRESET} for every "
+                                        "episode (sweep and video)")
+    assert f"16 episodes run (preset {DEFAULT_PRESET})" in p.stdout
+    assert f"episode (preset {DEFAULT_PRESET}): goal reached" in p.stdout
+    import sqlite3
+
+    with sqlite3.connect(tmp_path / "results.sqlite") as con:
+        assert con.execute("SELECT DISTINCT preset FROM episodes").fetchall() == [
+            (DEFAULT_PRESET,)]
     assert "P(goal (2, 9)) = 1.00" in p.stdout  # three NW nudges: the north-west goal
     for name, least in (("map.png", 10_000), ("episode.mp4", 1_000), ("episode.rrd", 10_000)):
         assert (tmp_path / name).stat().st_size > least, name

@@ -23,7 +23,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..episode.spec import LIMITS, MAX_EPISODES, check_number, range_error
-from ..errors import ConfigError
+from ..errors import ConfigError, did_you_mean
 
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
 #: errors of a full disk or quota
@@ -127,13 +127,38 @@ def check_writable(out: str | Path, option: str = "output",
     return out
 
 
-def check_database(db: str | Path, option: str = "--db", must_exist: bool = False) -> Path:
+#: the command that makes a database, by what it holds (``check_database``'s ``made_by``)
+SWEEP_MAKER = "run 'pathpref evaluate --db {db}' first"
+STUDY_MAKER = ("record trials first with 'pathpref study run STUDY --participant ID --db {db}' "
+               "(docs/study.md)")
+
+
+def check_database(db: str | Path, option: str = "--db", must_exist: bool = False,
+                   made_by: str = SWEEP_MAKER) -> Path:
     """A results database path: a regular file (or a new name when not ``must_exist``) in an
-    existing writable folder (SQLite writes a journal beside it)."""
+    existing writable folder (SQLite writes a journal beside it). A missing one names the
+    command that makes it (``made_by``: :data:`SWEEP_MAKER` for sweeps,
+    :data:`STUDY_MAKER` for study trials)."""
     db = Path(db)
     if must_exist and not db.exists():
-        raise ConfigError(f"no results database at {db}; run 'pathpref evaluate' first")
+        raise ConfigError(f"no results database at {db}; {made_by.format(db=db)}")
     return check_writable(db, option)
+
+
+def check_methods(names: Sequence[str]) -> list[str]:
+    """The methods of ``names`` (``all`` and ``reference`` expanded,
+    :func:`~pathpref.planning.policies.resolve_methods`); an unknown one is refused naming
+    the closest known name."""
+    from ..planning.policies import METHODS, resolve_methods
+
+    try:
+        return resolve_methods(list(names))
+    except ConfigError as e:
+        bad = next((n for n in names if n not in (*METHODS, "all", "reference")), None)
+        hint = did_you_mean(bad, [*METHODS, "all", "reference"])
+        if not hint:
+            raise
+        raise ConfigError(str(e).replace(f"'{bad}'", f"'{bad}'{hint}", 1)) from None
 
 
 def check_output_folder(out: str | Path, option: str = "--out") -> Path:

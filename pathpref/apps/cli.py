@@ -13,7 +13,7 @@ import sqlite3
 import sys
 from collections.abc import Sequence
 
-from ..errors import PathprefError
+from ..errors import PathprefError, did_you_mean
 from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS
 from . import commands as c
 from .checks import RangeAction, atomic_output, check_writable, is_disk_full, write_error
@@ -49,15 +49,33 @@ class DefaultsFormatter(argparse.HelpFormatter):
 
 class OneLineParser(argparse.ArgumentParser):
     """Usage errors as one line (``pathpref: error: ...``) and exit status 2; help lists
-    every option's default (:class:`DefaultsFormatter`)."""
+    every option's default (:class:`DefaultsFormatter`); no abbreviated options (``--run``
+    is not ``--runs``: an option is spelled out or refused); an unknown choice names the
+    closest one ("did you mean")."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", DefaultsFormatter)
+        kwargs.setdefault("allow_abbrev", False)
         super().__init__(*args, **kwargs)
+
+    def _check_value(self, action: argparse.Action, value) -> None:  # type: ignore[override]
+        """Refuse a value outside ``action.choices``, naming the closest choice."""
+        if action.choices is not None and value not in action.choices:
+            choices = ", ".join(map(repr, action.choices))
+            raise argparse.ArgumentError(action, f"invalid choice: {value!r}"
+                                         f"{did_you_mean(value, action.choices)} (choose "
+                                         f"from {choices})")
 
     def error(self, message: str):  # type: ignore[override]
         """Print the usage error as one line and exit with status 2."""
         self.exit(2, f"pathpref: error: {message} (see '{self.prog} --help')\n")
+
+
+#: what each preset is (docs/robust.md); the default is named from the planner's own
+PRESET_HELP = ("the planner's settings: paper (the paper's POMCP), original (the authors' "
+               "code), robust (route prior, guided search), robust-wait (robust whose search "
+               "can wait for the next push) or robust-check (robust-wait that checks each "
+               "crossing against waiting for the next pushes)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -115,8 +133,7 @@ def build_parser() -> argparse.ArgumentParser:
         there."""
         hidden = None if sweep else argparse.SUPPRESS
         sp.add_argument("--preset", default=preset, choices=sorted(PRESETS),
-                        help="robust (guided search, exact belief), paper (the paper's "
-                        "planner) or original (the authors' code)")
+                        help=PRESET_HELP)
         sp.add_argument("--time-budget-ms", action=RangeAction, limits="time_budget_ms",
                         default=None,
                         help="robust search: wall time per decision (anytime; default: the "
@@ -147,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "that lead to the goal; learned-gamma: independent, with the human's "
                         "rationality inferred over 0.5, 1.5, 5)")
         sp.add_argument("--ucb-c", action=RangeAction, limits="ucb_c", default=None,
-                        help="POMCP UCB constant (the preset's: 1)")
+                        help="POMCP UCB constant (default: the preset's, 1)")
         sp.add_argument("--episode-timeout", action=RangeAction, limits="episode_timeout",
                         default=0.0,
                         help=hidden or "record an episode as failed after this many seconds "
@@ -165,7 +182,8 @@ def build_parser() -> argparse.ArgumentParser:
     du = dbsub.add_parser("upgrade", help="migrate a database of an older schema (keeps a .bak)")
     du.add_argument("db", help="results database (.sqlite)")
     du.add_argument("--map", action="append", metavar="OLD=NEW",
-                    help="point a stored map name at a file (when it has moved); repeatable")
+                    help="point a stored map name at a file (when it has moved); repeatable "
+                    "(default: none)")
     du.set_defaults(func=c.cmd_db_upgrade)
     dc = dbsub.add_parser("check", help="report damage (exit 0 when intact, 2 when not)")
     dc.add_argument("db", help="results database (.sqlite)")
@@ -210,7 +228,8 @@ def build_parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("report", help="Table I from a results database (Markdown + CSV)")
     rp.add_argument("db", help="results database (.sqlite)")
     rp.add_argument("--csv", default=None, help="CSV path (default: DB name with .csv)")
-    rp.add_argument("--figure", default=None, help="success vs ΔT figure (.png, .pdf, .svg)")
+    rp.add_argument("--figure", default=None,
+                    help="success vs ΔT figure (.png, .pdf, .svg; default: none)")
     rp.add_argument("--exclude-failed", action="store_true",
                     help="leave failed episodes (an error, a timeout) out of the rates; by "
                     "default each counts as a failure. Every table says how many failed")
@@ -224,7 +243,7 @@ def build_parser() -> argparse.ArgumentParser:
     tm.add_argument("--queries", action=RangeAction, limits="queries", default=5000,
                     help="POMCP queries per decision")
     tm.add_argument("--preset", default="paper", choices=sorted(PRESETS),
-                    help="planner preset")
+                    help=PRESET_HELP + "; Table II is the paper's (default: paper)")
     tm.add_argument("--seed", action=RangeAction, limits="seed", default=0,
                     help="seed of the instances")
     tm.add_argument("--json", action="store_true", help="print one JSON object")
@@ -259,9 +278,11 @@ def build_parser() -> argparse.ArgumentParser:
     rd.add_argument("--policy", default=None, metavar="MODULE:FUNCTION",
                     help="film this policy instead of the method's own moves: a callable of "
                     "a dm_env TimeStep returning the task's action (the method still keeps "
-                    "the robot's belief drawn in the video)")
-    rd.add_argument("--out", default=None, help="video file (.mp4)")
-    rd.add_argument("--rerun", default=None, help="rerun recording (.rrd)")
+                    "the robot's belief drawn in the video; default: the method's own moves)")
+    rd.add_argument("--out", default=None,
+                    help="video file (.mp4; default: none, give --out and/or --rerun)")
+    rd.add_argument("--rerun", default=None,
+                    help="rerun recording (.rrd; default: none, give --out and/or --rerun)")
     rd.add_argument("--size", default=None, metavar="WxH",
                     help="video size: 960x540 (default), 1280x720 or any WxH")
     rd.add_argument("--width", action=RangeAction, limits="frame_size", default=None,
@@ -300,7 +321,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="browser: address to bind (default 127.0.0.1; any other serves "
                     "other machines and needs the random token printed in the URL)")
     sr.add_argument("--script", default=None, help="scripted participant: a JSON file of "
-                    "timed pushes (no screen; runs faster than real time)")
+                    "timed pushes (no screen; runs faster than real time; default: none, a "
+                    "person pushes)")
     sr.add_argument("--resume", action="store_true",
                     help="continue a participant's trials (the unfinished one runs again)")
     sr.set_defaults(func=c.cmd_study_run)
@@ -341,24 +363,47 @@ def build_parser() -> argparse.ArgumentParser:
                     "is overwritten)")
     ex.set_defaults(func=c.cmd_examples)
 
-    d = sub.add_parser("demo", help="the main job: run the demo and write its outputs")
+    d = sub.add_parser("demo", help="where inferring the path preference matters: the "
+                       "stored sweep's verdicts, grid rates, MuJoCo videos (docs/demo.md)")
     d.add_argument("--out", default="out", help="output folder")
     d.add_argument("--seed", action=RangeAction, limits="seed", default=0,
                    help="seed of the instances and runs")
     d.add_argument("--sim", default="mujoco", choices=["mujoco", "grid"],
-                   help="body of the representative episodes")
+                   help="body of the filmed episodes (grid: no videos)")
     d.add_argument("--runs", action=RangeAction, limits="runs", default=30,
-                   help="grid runs per method behind the rates")
+                   help="grid runs per method behind the rates (30: the stored sweep's cell)")
     d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS),
-                   help="planner preset")
+                   help=PRESET_HELP + "; the stored sweep says which one made it")
     d.set_defaults(func=c.cmd_demo)
+    _mark_leaves(p)
     return p
+
+
+def _mark_leaves(parser: argparse.ArgumentParser) -> None:
+    """Every subcommand's parser knows itself (``_parser``), so that an unrecognised option
+    is reported by the subcommand it was given to, with its closest option."""
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                sub.set_defaults(_parser=sub)
+                _mark_leaves(sub)
+
+
+def unrecognized(parser: argparse.ArgumentParser, extra: list[str]) -> str:
+    """The usage error of arguments ``parser`` does not know, naming the closest option of
+    the first unknown one."""
+    options = [o for a in parser._actions for o in a.option_strings]
+    first = next((x.split("=", 1)[0] for x in extra if x.startswith("-")), "")
+    return f"unrecognized arguments: {' '.join(extra)}{did_you_mean(first, options)}"
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; a :class:`PathprefError` becomes one line and exit status 2."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:
+        leaf = getattr(args, "_parser", parser)
+        leaf.error(unrecognized(leaf, extra))
     try:
         return int(args.func(args) or 0)
     except PathprefError as e:  # one line, whatever text a library put in the message

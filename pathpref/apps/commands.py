@@ -11,13 +11,16 @@ import os
 import sys
 from pathlib import Path
 
-from ..errors import ConfigError
+from ..errors import ConfigError, did_you_mean
 from .checks import (
     FIGURE_SUFFIXES,
+    STUDY_MAKER,
+    SWEEP_MAKER,
     atomic_output,
     check_database,
     check_episode_count,
     check_goal_count,
+    check_methods,
     check_model_size,
     check_model_size_early,
     check_output_folder,
@@ -221,11 +224,9 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
     from ..experiments.report import load_records, markdown_tables
     from ..experiments.sweep import run_sweep, sweep_specs
-    from ..planning.policies import resolve_methods
-
     check_database(args.db)
     check_episode_count([args.instances, args.runs, len(args.delta_t),
-                         len(resolve_methods(args.methods))], "the sweep")
+                         len(check_methods(args.methods))], "the sweep")
     load_simulator(args.sim)
     check_goal_count(args.map, args.goals)
     check_model_size_early(args.map, args.goals)
@@ -283,7 +284,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(study_tables(trials) + "\n\n" + rationality_table(fits)
               + (f"\n\n{tlx}" if tlx else "") + ("\n" if recs else ""))
     elif not recs:
-        raise ConfigError(f"{args.db} holds no episodes yet")
+        raise ConfigError(f"{args.db} holds no episodes or study trials yet; "
+                          f"{SWEEP_MAKER.format(db=args.db)} (a sweep), or "
+                          f"{STUDY_MAKER.format(db=args.db)}")
     if recs:
         print(markdown_tables(recs))
         both = side_by_side(recs)
@@ -406,7 +409,8 @@ def cmd_render(args: argparse.Namespace) -> int:
 
     if args.method not in METHODS:
         raise ConfigError(f"--method must be one method (render shows one episode): "
-                          f"{', '.join(METHODS)}; got {args.method!r}")
+                          f"{', '.join(METHODS)}; got {args.method!r}"
+                          f"{did_you_mean(args.method, METHODS)}")
     width, height = parse_size(args.size) if args.size else DEFAULT_SIZE
     width, height = args.width or width, args.height or height
     if width < height:
@@ -538,7 +542,7 @@ def cmd_study_export(args: argparse.Namespace) -> int:
     from ..study.export import export_participant
 
     check_participant(args.participant)
-    check_database(args.db, "database", must_exist=True)
+    check_database(args.db, "database", must_exist=True, made_by=STUDY_MAKER)
     counts = export_participant(args.db, args.participant, args.out, mcap=not args.no_mcap,
                                 fmt=args.format)
     folder = Path(args.out) / args.participant
@@ -549,7 +553,7 @@ def cmd_study_export(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     """``pathpref replay``: a recorded study trial as a video."""
     out = check_writable(args.out, "--out", (".mp4",))
-    check_database(args.db, "database", must_exist=True)
+    check_database(args.db, "database", must_exist=True, made_by=STUDY_MAKER)
     from ..study.replay import replay_trial
 
     with staged_outputs([out]) as (tmp,):
@@ -575,7 +579,8 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    """``pathpref demo``: the Fig. 4 instance for every method, rates, figures, videos."""
+    """``pathpref demo``: the stored sweep's verdicts, the grid re-run, the filmed setting's
+    rate, figures and videos (:mod:`.demo`)."""
     from .demo import run_demo
 
     out = check_output_folder(args.out, "--out")

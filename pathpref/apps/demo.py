@@ -1,23 +1,25 @@
-"""The main job (``make demo``): what inferring the human's path preference is for.
+"""``pathpref demo`` (``make demo``): what inferring the human's path preference is for.
 
-The setting (found by ``scripts/demo_sweep.sh``, 1080 grid episodes; every cell in
-``docs/results/demo_sweep.json`` and ``docs/results.md``): map ``simple``, random instances
-(start, 10 goal candidates, true goal), a *corrective* human who pushes only when the robot
-leaves the preferred route (reaction delay 1 step, misses 20% of needs; ΔT = 1). There path
-preference reaches the goal by the preferred route in 29/30 runs, goal only in 12/30 and
-compliant in 14/30, the oracle (knows the preference) in 30/30 and goal_known (told the true
-goal) in 29/30; goal only reaches the goal by another route in 16/30. With a periodic human (a push
-every ΔT steps) on ``simple``, and on ``office``, the gap to goal only is within the intervals:
-there inferring the preference does not measurably matter. The demo prints that table from the
-stored sweep, then re-runs the setting itself.
+The setting (found by ``scripts/demo_sweep.sh``, 1080 grid episodes stored with the command
+and the preset that made them in :data:`SWEEP_JSON`, package data shipped in the wheel; every
+cell in ``docs/results.md``): map ``simple``, random instances (start, 10 goal candidates, true
+goal), a *corrective* human who pushes only when the robot leaves the preferred route
+(reaction delay 1 step, misses 20% of needs; ΔT = 1). The demo prints the stored sweep's
+verdict per setting ("MATTERS" only where path preference's 95% Wilson interval lies above
+both goal only's and compliant's), naming the sweep's preset and saying so when it is not the
+preset the demo runs with.
 
-Steps: ``--runs`` grid runs per method (the paper's four and the references ``goal_known``
-and ``oracle``; the first 30 are the sweep's episodes, so the rates reproduce its cell), then
-one episode per method of the paper (:func:`film_index`: not picked for its outcome) rendered in
-MuJoCo with force cues. The corrective human exists in the grid world only, so the MuJoCo
-episodes use the periodic human at ΔT = :data:`FILM_DELTA_T` on the same instance (``--sim
-grid``: the corrective episodes, no video). Preset: the default
-(:data:`~pathpref.planning.pomdp.DEFAULT_PRESET`); ``--preset paper`` for the paper's planner.
+Then, all with one preset (``--preset``, default :data:`~pathpref.planning.pomdp.DEFAULT_PRESET`):
+
+1. ``--runs`` grid runs per method in the corrective setting (the paper's four and the
+   references ``goal_known`` and ``oracle``; the first 30 are the sweep's episodes of that
+   cell, so with the sweep's preset and ``--runs 30`` the counts are the sweep's);
+2. the filmed setting's success rate: path preference in that setting, ``k/n`` with its 95%
+   Wilson interval over those ``n = --runs`` grid episodes, computed now (never stored);
+3. one episode per method of the paper on the filmed instance (:func:`film_index`, a rule on
+   the oracle's route, never on an outcome), rendered in MuJoCo with force cues and the same
+   corrective human (its push rule on the base, physics timing ``decision``; ``--sim grid``:
+   the grid episodes, no video).
 
 Writes to the output folder:
 
@@ -41,8 +43,9 @@ import csv
 import json
 import math
 from collections import Counter
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from ..episode import EpisodeResult, EpisodeSpec, cached_world, run_episode
 from ..experiments.report import wilson
@@ -51,19 +54,28 @@ from ..planning.policies import METHODS, REFERENCE_METHODS
 from ..planning.pomdp import DEFAULT_PRESET
 
 DEMO_MAP = "simple"
-#: the corrective human of the demo's setting (:mod:`pathpref.episode.corrective`)
+#: the corrective human of the demo's setting (:mod:`pathpref.episode.corrective`), in the
+#: grid and in the videos alike
 DEMO_PUSH_RULE = "corrective delay=1 miss=0.2"
 DEMO_DELTA_T = 1
-#: the periodic human of the MuJoCo episodes (the corrective one is grid-only)
-FILM_DELTA_T = 10
 #: grid-world runs per method behind the demo's rates, over DEMO_INSTANCES instances
 DEMO_RUNS = 30
-#: the rendered instance's preferred route is at least this long (a short one shows nothing)
-FILM_MIN_STEPS = 8
 DEMO_INSTANCES = 5
+#: the method whose filmed setting's success rate the demo states
+FILM_METHOD = "path_preference"
+#: the filmed instance's preferred route (the oracle's path) takes at least this many steps...
+FILM_MIN_STEPS = 8
+#: ... crosses at least this many polytope boundaries (the preference decides them) ...
+FILM_MIN_CROSSINGS = 2
+#: ... and leaves at least this many of the episode's T_max steps spare (time for pushes)
+FILM_MIN_SLACK = 10
 OUTCOMES = ("by the preferred route", "by another route", "not at all")
-#: the stored sweep the demo's statement quotes (in a source checkout)
-SWEEP_JSON = Path(__file__).resolve().parents[2] / "docs" / "results" / "demo_sweep.json"
+#: the stored sweep (package data, shipped in the wheel; written by scripts/results.py from
+#: the database of scripts/demo_sweep.sh, with the command and the preset that made it)
+SWEEP_JSON = Path(__file__).resolve().with_name("demo_sweep.json")
+#: the sweep's cell of the demo's setting
+SWEEP_SETTING = {"map": DEMO_MAP, "sim": "grid", "human": "map", "push_rule": DEMO_PUSH_RULE,
+                 "delta_t": DEMO_DELTA_T}
 
 
 def demo_specs(method: str, runs: int = DEMO_RUNS, seed: int = 0,
@@ -76,23 +88,81 @@ def demo_specs(method: str, runs: int = DEMO_RUNS, seed: int = 0,
     return specs[:runs]
 
 
+def route_crossings(result: EpisodeResult) -> int:
+    """How many polytope boundaries an episode's logged path crosses (cell to cell)."""
+    world = cached_world(result.spec.map)
+    poly = [int(world.cell_polytope[world.cell((s.x, s.y))]) for s in result.log]
+    return sum(a != b for a, b in zip(poly, poly[1:], strict=False))
+
+
+def worth_filming(spec: EpisodeSpec, oracle: EpisodeResult) -> bool:
+    """The film rule on one episode: its preferred route (the oracle's path, ``L`` steps) has
+    ``L >= FILM_MIN_STEPS``, crosses at least :data:`FILM_MIN_CROSSINGS` polytope boundaries
+    and leaves ``T_max - L >=`` :data:`FILM_MIN_SLACK` steps spare. It reads the route's
+    geometry only, never a filmed method's outcome."""
+    return (oracle.steps >= FILM_MIN_STEPS and spec.t_max - oracle.steps >= FILM_MIN_SLACK
+            and route_crossings(oracle) >= FILM_MIN_CROSSINGS)
+
+
 def film_index(specs: list[EpisodeSpec], oracle: list[EpisodeResult]) -> int:
-    """Which demo episode is rendered: the first run 0 of an instance whose preferred route
-    (the oracle's path) takes at least :data:`FILM_MIN_STEPS` steps, else the first episode.
-    The choice reads the route's length only, never a method's outcome."""
+    """Which demo episode is filmed: the first run 0 of an instance
+    :func:`worth_filming`; else the first episode."""
     for k, (s, r) in enumerate(zip(specs, oracle, strict=True)):
-        if s.run == 0 and r.steps >= FILM_MIN_STEPS:
+        if s.run == 0 and worth_filming(s, r):
             return k
     return 0
 
 
+def tour_spec(seed: int, method: str = FILM_METHOD, preset: str = DEFAULT_PRESET,
+              sim: str = "grid") -> EpisodeSpec:
+    """The episode ``pathpref render --map simple --method METHOD --delta-t 1 --push-rule
+    DEMO_PUSH_RULE --seed SEED`` shows (instance 0, run 0 of ``seed``), in ``sim``."""
+    return EpisodeSpec.single(DEMO_MAP, method, DEMO_DELTA_T, seed=seed, sim=sim,
+                              push_rule=DEMO_PUSH_RULE, preset=preset)
+
+
+def tour_seed(preset: str = DEFAULT_PRESET, limit: int = 1000) -> int:
+    """The README picture's and the tour's episode: the first ``--seed`` 0, 1, 2, ... whose
+    episode (:func:`tour_spec`) is :func:`worth_filming`: the demo's film rule, on the
+    oracle's grid path, never on an outcome."""
+    for seed in range(limit):
+        spec = tour_spec(seed, "oracle", preset)
+        if worth_filming(spec, run_episode(spec)):
+            return seed
+    raise ValueError(f"no seed below {limit} has a route worth filming")
+
+
+FILM_RULE = (f"the first instance whose preferred route (the oracle's path) takes >= "
+             f"{FILM_MIN_STEPS} steps, crosses >= {FILM_MIN_CROSSINGS} polytope boundaries "
+             f"and leaves >= {FILM_MIN_SLACK} of T_max steps spare; run 0; not picked for an "
+             "outcome")
+
+
 def film_spec(spec: EpisodeSpec, sim: str) -> EpisodeSpec:
-    """The rendered version of a demo episode: in MuJoCo the periodic human every
-    :data:`FILM_DELTA_T` steps on the same instance and run (default physics); in the grid the
+    """The rendered version of a demo episode: in MuJoCo the same instance, run, preset and
+    corrective human (its pushes at decision steps, the default physics); in the grid the
     episode itself."""
     if sim == "grid":
         return spec
-    return replace(spec, sim="mujoco", delta_t=FILM_DELTA_T, push_rule="", physics=None)
+    return replace(spec, sim="mujoco", physics=None)
+
+
+def load_sweep(path: Path = SWEEP_JSON) -> dict[str, Any] | None:
+    """The stored sweep (command, preset, cells), None when the file is not here."""
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def sweep_preset(sweep: dict[str, Any]) -> str:
+    """The preset that made the stored sweep (its cells' presets, joined when several)."""
+    return sweep.get("preset") or " ".join(sorted({c["preset"] for c in sweep["cells"]}))
+
+
+def sweep_cell(sweep: dict[str, Any], method: str) -> dict[str, Any] | None:
+    """The stored sweep's cell of ``method`` in the demo's setting (:data:`SWEEP_SETTING`)."""
+    for c in sweep["cells"]:
+        if c["method"] == method and all(c.get(k) == v for k, v in SWEEP_SETTING.items()):
+            return c
+    return None
 
 
 def sweep_statement(path: Path = SWEEP_JSON) -> list[str]:
@@ -100,7 +170,8 @@ def sweep_statement(path: Path = SWEEP_JSON) -> list[str]:
     setting of the stored sweep, each rate with its Wilson interval, and whether the
     preference's interval lies above both others' ("matters") or not."""
     if not path.exists():
-        return [f"(the stored sweep {path} is not here: run scripts/demo_sweep.sh)"]
+        return [f"(the stored sweep {path} is missing: reinstall pathpref, whose wheel ships "
+                "it as package data)"]
     cells = json.loads(path.read_text())["cells"]
     out = []
     for setting in dict.fromkeys(c["setting"] for c in cells):
@@ -123,9 +194,142 @@ def sweep_statement(path: Path = SWEEP_JSON) -> list[str]:
     return out
 
 
+def sweep_header(sweep: dict[str, Any] | None, preset: str) -> list[str]:
+    """Where the stored sweep comes from (file, episodes, preset, command), and a note when its
+    preset is not the one the demo runs with."""
+    if sweep is None:
+        return []
+    n = sweep.get("episodes") or sum(c["n"] for c in sweep["cells"])
+    per = sorted({c["n"] for c in sweep["cells"]})
+    made = sweep_preset(sweep)
+    lines = [f"stored sweep {SWEEP_JSON.name} (shipped with pathpref): {n} grid episodes, "
+             f"{'/'.join(map(str, per))} per cell, preset {made}, made by `{sweep['command']}`"]
+    if made != preset:
+        lines.append(f"NOTE: the stored sweep was made with preset {made}; this demo runs "
+                     f"preset {preset}, so its counts below need not match the sweep's")
+    return lines
+
+
+@dataclass
+class GridRates:
+    """The demo's grid runs in the corrective setting: per method its specs, results and a row
+    of ``rates.csv``."""
+
+    runs: int
+    preset: str
+    specs: dict[str, list[EpisodeSpec]]
+    results: dict[str, list[EpisodeResult]]
+    rows: list[dict[str, Any]]
+
+    def row(self, method: str) -> dict[str, Any]:
+        """The ``rates.csv`` row of ``method``."""
+        return next(r for r in self.rows if r["method"] == method)
+
+    def film_index(self) -> int:
+        """The filmed episode's index in every method's specs (:func:`film_index`)."""
+        return film_index(self.specs["oracle"], self.results["oracle"])
+
+
 def outcome(r: EpisodeResult) -> str:
     """Which of :data:`OUTCOMES` an episode had."""
     return OUTCOMES[0] if r.success else OUTCOMES[1] if r.goal_reached else OUTCOMES[2]
+
+
+def grid_rates(runs: int = DEMO_RUNS, seed: int = 0, preset: str = DEFAULT_PRESET,
+               log=None) -> GridRates:
+    """Run ``runs`` grid episodes per method in the demo's setting (:func:`demo_specs`) and
+    count their outcomes; ``log(line)`` hears one line per method."""
+    specs_of, res_of, rows = {}, {}, []
+    for m in METHODS:
+        specs = demo_specs(m, runs, seed, preset)
+        res = [run_episode(s) for s in specs]
+        specs_of[m], res_of[m] = specs, res
+        kinds = Counter(outcome(r) for r in res)
+        wins = kinds[OUTCOMES[0]]
+        lo, hi = wilson(wins, runs)
+        rows.append({"method": m, "runs": runs, "success": wins / runs, "ci_low": round(lo, 3),
+                     "ci_high": round(hi, 3), "other_route": kinds[OUTCOMES[1]],
+                     "not_reached": kinds[OUTCOMES[2]],
+                     "homotopy_success": sum(r.homotopy_success for r in res),
+                     "pushes_per_episode": round(sum(r.inputs for r in res) / runs, 3)})
+        if log is not None:
+            log(f"  {m}: success {wins}/{runs}")
+    return GridRates(runs, preset, specs_of, res_of, rows)
+
+
+def rate_line(method: str, k: int, n: int, other: int, not_reached: int,
+              pushes: float) -> str:
+    """One method's outcome counts over ``n`` runs, success with its 95% Wilson interval."""
+    lo, hi = wilson(k, n)
+    return (f"- {method}: reached the goal by the preferred route in {k}/{n} runs "
+            f"({k / n:.2f} [{lo:.2f}, {hi:.2f}]), by another route in {other}, not at all in "
+            f"{not_reached}; {pushes:.2f} pushes per episode")
+
+
+def cell_rate_line(cell: dict[str, Any]) -> str:
+    """:func:`rate_line` of a stored sweep cell (what the demo's re-run prints when its preset
+    and ``--runs`` are the sweep's)."""
+    n, k, reached = cell["n"], cell["success"], cell["goal_reached"]
+    return rate_line(cell["method"], k, n, reached - k, n - reached,
+                     cell["pushes_per_episode"])
+
+
+#: the markers of the block of docs/demo.md written by scripts/demo_doc.py
+DOC_BEGIN = "<!-- demo-numbers: written by `python scripts/demo_doc.py`; do not edit by hand -->"
+DOC_END = "<!-- /demo-numbers -->"
+
+
+def doc_block(rates: GridRates, film: list[EpisodeResult]) -> list[str]:
+    """The numbers of docs/demo.md (between :data:`DOC_BEGIN` and :data:`DOC_END`): the stored
+    sweep's verdicts, the demo's grid rates, the filmed setting's rate and the filmed episodes
+    (``film``: one per method of the paper, the MuJoCo body, no video)."""
+    sweep = load_sweep()
+    k = rates.film_index()
+    lines = [DOC_BEGIN, "", f"Preset `{rates.preset}` (the planner's default when this was "
+             "written; `pathpref demo` computes every number below again when it runs, under "
+             "its `--preset`).", "", "Where it matters: the "
+             + "; ".join(sweep_header(sweep, rates.preset)) + ":", "",
+             *sweep_statement(), "",
+             f"The demo's re-run (`pathpref demo`, seed 0): n = {rates.runs} grid runs per "
+             f"method on `{DEMO_MAP}`, human `{DEMO_PUSH_RULE}` (ΔT = {DEMO_DELTA_T}):", ""]
+    for r in rates.rows:
+        lines.append(rate_line(r["method"], round(r["success"] * rates.runs), rates.runs,
+                               r["other_route"], r["not_reached"], r["pushes_per_episode"]))
+    lines += ["", filmed_rate_line(rates) + ".", "",
+              f"The filmed instance: instance {rates.specs['oracle'][k].instance}, run 0 "
+              f"({FILM_RULE}). Its MuJoCo episodes (the same corrective human pushing the base; "
+              "default physics):", "",
+              "| method | success | goal reached | preference followed | pushes | steps |",
+              "|---|---|---|---|---|---|"]
+    for r in film:
+        lines.append(f"| {r.spec.method} | {r.success} | {r.goal_reached} | {r.pref_followed} "
+                     f"| {r.inputs} | {r.steps} |")
+    return [*lines, "", DOC_END]
+
+
+def filmed_setting(preset: str) -> str:
+    """The filmed setting in words: map, method, human, push rule, preset."""
+    return (f"{DEMO_MAP}, {FILM_METHOD}, the map's human, push rule '{DEMO_PUSH_RULE}' "
+            f"(ΔT = {DEMO_DELTA_T}), preset {preset}")
+
+
+def filmed_rate_line(rates: GridRates) -> str:
+    """How often the filmed setting succeeds over the demo's grid episodes, with its
+    interval."""
+    r = rates.row(FILM_METHOD)
+    k = round(r["success"] * rates.runs)
+    return (f"The filmed setting ({filmed_setting(rates.preset)}) succeeds in {k}/{rates.runs} "
+            f"grid episodes, {r['success']:.2f} [95% Wilson {r['ci_low']:.2f}, "
+            f"{r['ci_high']:.2f}]")
+
+
+def rerun_source(runs: int) -> str:
+    """Which of the sweep's episodes a re-run of ``runs`` per method is (:func:`demo_specs`)."""
+    per = math.ceil(runs / DEMO_INSTANCES)
+    if runs == DEMO_RUNS:
+        return "exactly the sweep's episodes of that cell"
+    return (f"drawn as the sweep draws them: runs 0..{per - 1} of its {DEMO_INSTANCES} "
+            f"instances, the first {runs}; --runs {DEMO_RUNS} is exactly the sweep's cell")
 
 
 def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUNS,
@@ -137,30 +341,19 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
 
     out.mkdir(parents=True, exist_ok=True)
     world = cached_world(DEMO_MAP)
-    print(f"pathpref demo: where inferring the path preference matters (stored sweep "
-          f"{SWEEP_JSON.name}, 30 grid episodes per cell, success [95% Wilson CI]):\n", flush=True)
-    for line in sweep_statement():
+    sweep = load_sweep()
+    print(f"pathpref demo (preset {preset}): where inferring the path preference matters "
+          "(success [95% Wilson CI]).\n", flush=True)
+    for line in [*sweep_header(sweep, preset), "", *sweep_statement()]:
         print(line, flush=True)
-    print(f"\nRe-running the setting: {DEMO_MAP}, human '{DEMO_PUSH_RULE}' (ΔT = {DEMO_DELTA_T}), "
-          f"{runs} grid runs per method (preset {preset})", flush=True)
-    rates, specs_of, res_of = [], {}, {}
-    for m in METHODS:
-        specs = demo_specs(m, runs, seed, preset)
-        res = [run_episode(s) for s in specs]
-        specs_of[m], res_of[m] = specs, res
-        kinds = Counter(outcome(r) for r in res)
-        wins = kinds[OUTCOMES[0]]
-        lo, hi = wilson(wins, runs)
-        rates.append({"method": m, "runs": runs, "success": wins / runs, "ci_low": round(lo, 3),
-                      "ci_high": round(hi, 3), "other_route": kinds[OUTCOMES[1]],
-                      "not_reached": kinds[OUTCOMES[2]],
-                      "homotopy_success": sum(r.homotopy_success for r in res),
-                      "pushes_per_episode": round(sum(r.inputs for r in res) / runs, 3)})
-        print(f"  {m}: success {wins}/{runs}", flush=True)
-    k = film_index(specs_of["oracle"], res_of["oracle"])
+    print(f"\nRe-running the setting with preset {preset}: {DEMO_MAP}, human '{DEMO_PUSH_RULE}' "
+          f"(ΔT = {DEMO_DELTA_T}), n = {runs} grid runs per method ({rerun_source(runs)})",
+          flush=True)
+    rates = grid_rates(runs, seed, preset, log=lambda line: print(line, flush=True))
+    k = rates.film_index()
     results = []
     for m in (m for m in METHODS if m not in REFERENCE_METHODS):
-        spec = film_spec(specs_of[m][k], sim)
+        spec = film_spec(rates.specs[m][k], sim)
         if sim == "mujoco":
             from .rollout import record_rollout
 
@@ -173,9 +366,10 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
     save_map_figure(world, out / "map_simple.png")
     trajectories_figure(world, results, out / "trajectories.png")
     belief_figure(results, out / "belief.png")
-    if SWEEP_JSON.exists():
-        success_pushes_figure(json.loads(SWEEP_JSON.read_text())["cells"],
-                              out / "success_vs_pushes.png")
+    figures = "map_simple.png, trajectories.png, belief.png"
+    if sweep is not None:
+        success_pushes_figure(sweep["cells"], out / "success_vs_pushes.png")
+        figures += ", success_vs_pushes.png"
     rows = [{"method": r.spec.method, "success": r.success, "goal_reached": r.goal_reached,
              "preference_followed": r.pref_followed, "homotopy_success": r.homotopy_success,
              "steps": r.steps, "inputs": r.inputs,
@@ -185,22 +379,18 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
         w.writeheader()
         w.writerows(rows)
     with open(out / "rates.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rates[0]))
+        w = csv.DictWriter(f, fieldnames=list(rates.rows[0]))
         w.writeheader()
-        w.writerows(rates)
-    print(f"\nOver {runs} grid runs per method, corrective human (success rate, 95% Wilson "
-          "interval):\n")
-    for r in rates:
-        print(f"- {r['method']}: reached the goal by the preferred route in "
-              f"{round(r['success'] * runs)}/{runs} runs ({r['success']:.2f} "
-              f"[{r['ci_low']:.2f}, {r['ci_high']:.2f}]), by another route in "
-              f"{r['other_route']}, not at all in {r['not_reached']}; "
-              f"{r['pushes_per_episode']:.2f} pushes per episode")
-    human = (f"the periodic human every ΔT = {FILM_DELTA_T} steps (the corrective human is "
-             "grid-only)" if sim == "mujoco" else f"human '{DEMO_PUSH_RULE}'")
-    print(f"\nRendered episodes ({sim}; instance {specs_of['oracle'][k].instance}, run 0 of every "
-          f"method: the first instance whose preferred route takes >= {FILM_MIN_STEPS} steps, "
-          f"not picked for an outcome; {human}):\n")
+        w.writerows(rates.rows)
+    print(f"\nOver n = {runs} grid runs per method, corrective human, preset {preset} (success "
+          "rate, 95% Wilson interval):\n")
+    for r in rates.rows:
+        print(rate_line(r["method"], round(r["success"] * runs), runs, r["other_route"],
+                        r["not_reached"], r["pushes_per_episode"]))
+    print(f"\n{filmed_rate_line(rates)}; the film below is one episode of it.")
+    body = "MuJoCo, the same corrective human pushing the base" if sim == "mujoco" else "grid"
+    print(f"\nRendered episodes ({body}; instance {rates.specs['oracle'][k].instance}, run 0 of "
+          f"every method, preset {preset}: {FILM_RULE}):\n")
     print("| method | success | goal reached | preference followed | homotopy-level success "
           "| pushes | steps | P(true goal) |")
     print("|---|---|---|---|---|---|---|---|")
@@ -209,6 +399,5 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
               f"{r['preference_followed']} | {r['homotopy_success']} | {r['inputs']} | "
               f"{r['steps']} | {r['p_true_goal_end']} |")
     videos = ", rollout_*.mp4, rollout_path_preference.rrd" if sim == "mujoco" else ""
-    print(f"\nwrote {out}/map_simple.png, trajectories.png, belief.png, success_vs_pushes.png, "
-          f"rates.csv, summary.csv{videos}")
+    print(f"\nwrote {out}/{figures}, rates.csv, summary.csv{videos}")
     return results

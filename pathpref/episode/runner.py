@@ -3,9 +3,11 @@
 Step ``t = 1..T_max``: when ``(t - 1) mod Delta_T == 0`` the simulated human gives a heading at the
 robot's cell and the robot updates its belief with what it observed; the policy acts; the robot
 moves. The corrective human (``spec.push_rule``, :mod:`.corrective`) pushes instead only after
-the steps that call for it. Standing on a wrong candidate rules it out; reaching the true goal
-ends the episode. Success = goal reached within ``T_max`` AND every polytope change followed the
-human's preference (a polytope where the human has no preference, ``-1``, accepts any exit).
+the steps that call for it, on any body whose pushes come at decision steps (the grid; MuJoCo
+with the physics' ``timing`` ``decision``, the default). Standing on a wrong candidate rules it
+out; reaching the true goal ends the episode. Success = goal reached within ``T_max`` AND every
+polytope change followed the human's preference (a polytope where the human has no preference,
+``-1``, accepts any exit).
 Homotopy success, reported beside it = goal reached AND the robot's path goes the same way
 round every obstacle as the human's route (:mod:`pathpref.geometry.homotopy`).
 
@@ -36,6 +38,11 @@ from .instances import episode_instance, human_preference
 from .physics import DIRECTION_KAPPA
 from .results import EpisodeResult, StepLog, route_slack
 from .spec import EpisodeSpec
+
+#: the corrective human watches decision steps: a body pushing at times of its own cannot
+#: take it
+_ANY_TIME = ("push_rule {rule!r} pushes at decision steps, but {where} pushes at times of its "
+             "own; use --timing decision (the default) or the periodic human (push_rule '')")
 
 
 def _quiet_numerics(method):
@@ -103,9 +110,10 @@ class EpisodeRunner:
         self.human = SimulatedHuman(human_model, inst.true_goal, self.pref,
                                     hold=spec.human == "consistent")
         rule = parse_push_rule(spec.push_rule)
-        if rule is not None and spec.sim != "grid":
-            raise ConfigError(f"push_rule {spec.push_rule!r} is the grid's corrective human; "
-                              "use --sim grid (or the periodic human, push_rule '')")
+        physical = spec.physical
+        if rule is not None and physical is not None and physical.human.timing != "decision":
+            raise ConfigError(_ANY_TIME.format(rule=spec.push_rule, where=(
+                f"--timing {physical.human.timing}")))
         #: the corrective human (None: the periodic one)
         self.corrective = None if rule is None else CorrectiveHuman(
             rule, world, self.pref, inst.goal_cell, miss_stream(spec.run_seed))
@@ -114,6 +122,8 @@ class EpisodeRunner:
         #: the body gives the human's inputs at times of its own (pushes at any time)
         self.continuous = self.body.attach_human(
             lambda cell: self.human.sample(cell, self.human_rng), self.human.probs)
+        if self.corrective is not None and self.continuous:
+            raise ConfigError(_ANY_TIME.format(rule=spec.push_rule, where="this body"))
         self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
             "start": world.cells[inst.start].tolist(),
             "goals": world.cells[list(inst.goals)].tolist(),

@@ -241,3 +241,12 @@ def has_study_tables(conn: sqlite3.Connection) -> bool:
 def dumps(value: Any) -> str:
     """JSON of a stored setting (cells, routes, conditions), keys sorted."""
     return json.dumps(value, sort_keys=True)
+
+
+def participants_hint(conn, db: object) -> str:
+    """Which participants ``db`` holds trials of, or how trials are recorded when none."""
+    who = [r[0] for r in conn.execute("SELECT DISTINCT participant FROM trials ORDER BY 1")]
+    if who:
+        return f"it has trials of {', '.join(map(repr, who))}"
+    return (f"it holds no trials: record them with 'pathpref study run STUDY --participant ID "
+            f"--db {db}'")

@@ -55,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import MapError
+from ..errors import MapError, did_you_mean
 from .polygon import convex_vertices_to_h
 
 BUILTIN_MAPS = ("simple", "office", "classroom")
@@ -390,8 +390,8 @@ def load_map(source: str | Path | dict[str, Any]) -> MapSpec:
             exists = False
         if not exists:
             raise MapError(
-                f"no map named '{_short(s, 80)}': give a built-in name "
-                f"({', '.join(BUILTIN_MAPS)}) or the path of a JSON map file"
+                f"no map named {_short(s, 80)}{did_you_mean(s, BUILTIN_MAPS)}: give a built-in "
+                f"name ({', '.join(BUILTIN_MAPS)}) or the path of a JSON map file"
             )
     text = read_map_text(path)
     try:

@@ -57,7 +57,7 @@ from pathlib import Path
 from ..errors import ConfigError, PathprefError
 from ..experiments.store import ResultStore
 from ..experiments.trial_rows import MAX_TIME_S, check_goals, check_row, checked
-from ..experiments.trials import STUDY_TABLES, has_study_tables
+from ..experiments.trials import STUDY_TABLES, has_study_tables, participants_hint
 from ..sim.scene import CELL_SIZE_M
 from .answers import load_answers
 
@@ -301,7 +301,8 @@ def export_participant(db: str | Path, participant: str, out: str | Path,
             raise ConfigError(f"{db} holds no study trials")
         trials = list(checked("trials", _rows(c, "trials", participant, None, "trial"), db))
         if not trials:
-            raise ConfigError(f"{db} has no trials of participant {participant!r}")
+            raise ConfigError(f"{db} has no trials of participant {participant!r} "
+                              f"({participants_hint(c, db)})")
         cal, tlx = load_answers(db, participant)
         made_out = not out.exists()
         tmp = None

@@ -31,7 +31,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trial_rows import check_trial_row, checked
-from ..experiments.trials import has_study_tables, read_rows
+from ..experiments.trials import has_study_tables, participants_hint, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
 from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
 from .plan import Trial, trial_from_row
@@ -124,7 +124,7 @@ def load_trial(db: str | Path, participant: str, trial: int
             raise ConfigError(
                 f"{db} has no trial {trial} of participant {participant!r}"
                 + (f" (it has trials {', '.join(map(str, have))})" if have else
-                   " (no trials of that participant)"))
+                   f" (no trials of that participant; {participants_hint(c, db)})"))
         r = check_trial_row(rows[0], db)
         if r["status"] != "done":
             raise ConfigError(f"trial {trial} of {participant!r} did not finish; there is "
