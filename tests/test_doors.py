@@ -33,8 +33,8 @@ def test_every_door_resolves_the_same_settings(tmp_path):
     want = _settings(spec)
     # worked out independently: the default preset, its queries, classroom's own t_max
     # (3 x its longer side: 60), the default physics of a physical body
-    assert want["preset"] == DEFAULT_PRESET == "robust-check"
-    assert want["queries"] == get_preset("robust-check").queries
+    assert want["preset"] == DEFAULT_PRESET == "robust-slack"
+    assert want["queries"] == get_preset("robust-slack").queries
     assert want["t_max"] == 60 and want["physics"] == Physics().to_json()
     db = tmp_path / "one.sqlite"
     done = subprocess.run(

@@ -98,7 +98,7 @@ def test_the_stored_row_of_an_episode_is_exact():
     row = result_row(res)
     want = {"map": "simple", "method": "compliant", "delta_t": 1, "instance": 0, "run": 0,
             "instance_seed": spec.instance_seed, "run_seed": spec.run_seed,
-            "preset": "robust-check",
+            "preset": "robust-slack",
             "queries": 50, "t_max": 12, "n_goals": 10, "normalize": True, "coupling": False,
             "sim": "grid", "fixed": "", "task": "navigate", "ucb_c": 1.0,
             "time_budget_ms": 0.0, "human": "map", "physics": "", "prior": "routes",

@@ -74,8 +74,10 @@ class OneLineParser(argparse.ArgumentParser):
 #: what each preset is (docs/robust.md); the default is named from the planner's own
 PRESET_HELP = ("the planner's settings: paper (the paper's POMCP), original (the authors' "
                "code), robust (route prior, guided search), robust-wait (robust whose search "
-               "can wait for the next push) or robust-check (robust-wait that checks each "
-               "crossing against waiting for the next pushes)")
+               "can wait for the next push), robust-check (robust-wait that checks each "
+               "crossing against waiting for the next pushes) or robust-slack (robust-check "
+               "that budgets its waits over the route and arrives first when time runs "
+               "out)")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -168,7 +168,7 @@ PRESETS["robust-slack"] = replace(
 
 #: the preset of applications (render, demo, interact, tasks, studies, evaluate without
 #: --preset); the tables of docs/robust.md name the preset they were made with
-DEFAULT_PRESET = "robust-check"
+DEFAULT_PRESET = "robust-slack"
 
 
 def get_preset(name: str, **overrides) -> Preset:

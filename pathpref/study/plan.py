@@ -13,8 +13,8 @@ Per trial (a field missing from a trial is taken from ``defaults``):
 
 * ``map``: a built-in map or a map file (relative to the study file);
 * ``method`` (``compliant``, ``goal_only``, ``path_preference``, ``blended``; the reference
-  methods read the goal and are refused) and ``preset`` (``robust-check``, the default,
-  ``robust-wait``, ``robust``, ``paper``, ``original``),
+  methods read the goal and are refused) and ``preset`` (``robust-slack``, the default,
+  ``robust-check``, ``robust-wait``, ``robust``, ``paper``, ``original``),
   ``queries`` (planner queries per decision, 1..100000; default: the preset's, as every door's);
 * ``start``, ``goal``: free cells ``[x, y]``; ``candidates``: the goal candidates the robot
   infers over (free cells, the goal among them; default: the free cells of the map's

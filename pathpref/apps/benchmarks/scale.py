@@ -209,7 +209,8 @@ def bench_scale(queries: int = 1000, map_500: bool = True) -> dict[str, Any]:
                            "map_200_route_update_mean_ms": float(out[3])}
     # one episode per preset, each in a fresh process (its peak RSS is the episode's); every
     # preset that has been the default keeps its keys
-    for preset in dict.fromkeys(("paper", "robust", "robust-wait", DEFAULT_PRESET)):
+    for preset in dict.fromkeys(("paper", "robust", "robust-wait", "robust-check",
+                                 DEFAULT_PRESET)):
         code = ("from pathpref.apps.benchmarks.scale import _episode_child; "
                 f"_episode_child({preset!r}, {int(queries)})")
         ep = json.loads(subprocess.run([sys.executable, "-c", code], capture_output=True,
