@@ -19,9 +19,10 @@ The episodes run through the project's sweep into ``--db`` (resumable).
 
 **Why an episode failed**: *time-out* (goal not reached), *wrong side* (reached, not in the
 human route's homotopy class), *out of order* (reached, homotopic, a transition against the
-preference), *error* (the episode did not run: a failure on every measure). **Slack**:
-``T_max`` minus the length of the route that follows the human's preference to the true goal
-(the oracle's), in bins ``< 10, 10-19, 20-39, >= 40`` steps.
+preference), *not run* (the episode did not run: a failure on every measure), as
+:func:`pathpref.experiments.outcomes.failure_kind` sorts them. **Slack**: the stored ``slack``
+of each episode, ``T_max`` minus the moves of the human's route to the true goal (the
+oracle's), in the bins of :data:`pathpref.experiments.outcomes.SLACK_BINS`.
 """
 
 from __future__ import annotations
@@ -38,36 +39,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from homotopy_prior_eval import held_out_plan  # noqa: E402
 
-from pathpref.episode.instances import consistent_reach  # noqa: E402
+from pathpref.experiments.outcomes import (  # noqa: E402
+    SLACK_BINS,
+    failure_split,
+    slack_bin,
+)
 from pathpref.experiments.report import wilson  # noqa: E402
 from pathpref.experiments.store import ResultStore  # noqa: E402
 from pathpref.experiments.sweep import run_sweep, sweep_specs  # noqa: E402
-from pathpref.geometry.world import load_world  # noqa: E402
-
-#: the slack bins' lower edges (steps)
-SLACK_BINS = (0, 10, 20, 40)
-
-
-def slack_bin(slack: float) -> str:
-    """The bin label of ``slack`` (:data:`SLACK_BINS`)."""
-    edges = [*SLACK_BINS[1:], float("inf")]
-    if slack < SLACK_BINS[1]:
-        return f"<{SLACK_BINS[1]}"
-    for lo, hi in zip(SLACK_BINS[1:], edges[1:], strict=True):
-        if slack < hi:
-            return f"{lo}-{hi - 1}" if hi != float("inf") else f">={lo}"
-    return f">={SLACK_BINS[-1]}"
-
-
-def outcome(r: dict) -> str:
-    """``success`` or why the episode failed (module docstring)."""
-    if r["status"] != "ok":
-        return "error"
-    if r["success"]:
-        return "success"
-    if not r["goal_reached"]:
-        return "time-out"
-    return "wrong side" if not r["homotopy_success"] else "out of order"
 
 
 def rate(k: int, n: int) -> str:
@@ -106,46 +85,41 @@ def main(argv: list[str] | None = None) -> int:
                                  human="consistent", preset=preset)
     run_sweep(specs, args.db, workers=args.workers)
     wanted = {s.key() for s in specs}
-    worlds: dict = {}
     cells: dict = defaultdict(list)
     with ResultStore(args.db, create=False) as store:
         for r in store.episodes():
             if r["key"] not in wanted:
                 continue
-            r = dict(r)
-            w = worlds.setdefault(r["map"], load_world(r["map"]))
-            goal = tuple(json.loads(r["goals"])[r["true_goal"]])
-            r["slack"] = r["t_max"] - consistent_reach(w, w.cell(goal),
-                                                       w.cell(tuple(json.loads(r["start"]))))
             label = r["method"] if r["method"] != "path_preference" else \
                 f"path_preference ({r['preset']})"
-            cells[(r["delta_t"], label)].append(r)
+            cells[(r["delta_t"], label)].append(dict(r))
     lines = [f"{len(maps)} plans, {args.instances} instances x {args.runs} runs, consistent "
              "human; 95% Wilson intervals", "",
              "| ΔT | method | n | strict | homotopy-level | goal reached | time-out | wrong side "
-             "| out of order | error |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| out of order | not run |", "|---|---|---|---|---|---|---|---|---|---|"]
     for (dt, label), rows in sorted(cells.items()):
         n = len(rows)
-        kinds = defaultdict(int)
-        for r in rows:
-            kinds[outcome(r)] += 1
+        split = failure_split(rows)
         ok = [r for r in rows if r["status"] == "ok"]
-        lines.append(f"| {dt} | {label} | {n} | {rate(kinds['success'], n)} | "
+        lines.append(f"| {dt} | {label} | {n} | {rate(sum(r['success'] for r in ok), n)} | "
                      f"{rate(sum(r['homotopy_success'] for r in ok), n)} | "
-                     f"{rate(sum(r['goal_reached'] for r in ok), n)} | {kinds['time-out']} | "
-                     f"{kinds['wrong side']} | {kinds['out of order']} | {kinds['error']} |")
-    labels = [slack_bin(x) for x in (*SLACK_BINS, 10**9)][:len(SLACK_BINS)]
-    lines += ["", "Goal reached / strict success by slack (T_max minus the oracle's route, "
-              "steps), n per bin:", "",
+                     f"{rate(sum(r['goal_reached'] for r in ok), n)} | "
+                     + " | ".join(str(split[k]) for k in
+                                  ("time_out", "wrong_side", "out_of_order", "not_run"))
+                     + " |")
+    labels = [label for _, label, *_ in SLACK_BINS]
+    lines += ["", "Goal reached / strict success by slack (T_max minus the moves of the "
+              "human's route, the oracle's; `pathpref.experiments.outcomes.SLACK_BINS`), "
+              "n per bin:", "",
               "| ΔT | method | " + " | ".join(labels) + " |",
               "|---|---|" + "---|" * len(labels)]
     for (dt, label), rows in sorted(cells.items()):
         bins: dict = defaultdict(list)
         for r in rows:
-            bins[slack_bin(r["slack"])].append(r)
+            bins[slack_bin(r.get("slack"))].append(r)
         parts = []
-        for b in labels:
-            rs = bins.get(b, [])
+        for key, *_ in SLACK_BINS:
+            rs = bins.get(key, [])
             ok = [r for r in rs if r["status"] == "ok"]
             parts.append(f"{sum(r['goal_reached'] for r in ok)} / "
                          f"{sum(r['success'] for r in ok)} of {len(rs)}" if rs else "-")
