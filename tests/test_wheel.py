@@ -44,17 +44,23 @@ def test_wheel_contents(wheel):
     assert not any(n.startswith(("tests/", "mjcf/")) for n in names)
 
 
-def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
+def _installed(wheel, tmp_path):
+    """The wheel installed into ``tmp_path/site``, a folder outside the repository to run it
+    from, and the environment that imports the installed copy."""
     target = tmp_path / "site"
     subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
                     str(target), str(wheel)], check=True, timeout=300)
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
-    env = {**os.environ, "PYTHONPATH": str(target), "MUJOCO_GL": "disable"}
+    return elsewhere, {**os.environ, "PYTHONPATH": str(target), "MUJOCO_GL": "disable"}
+
+
+def test_installed_wheel_runs_from_another_directory(wheel, tmp_path):
+    elsewhere, env = _installed(wheel, tmp_path)
     code = (
         "import pathpref, pathpref.sim.scene as s\n"
         "from pathpref.geometry.world import load_world\n"
-        f"assert pathpref.__file__.startswith({str(target)!r}), pathpref.__file__\n"
+        f"assert pathpref.__file__.startswith({str(tmp_path / 'site')!r}), pathpref.__file__\n"
         "sc = s.build_scene(load_world('office'))\n"
         "import mujoco\n"
         "d = mujoco.MjData(sc.model)\n"
@@ -81,10 +87,7 @@ def test_wheel_ships_the_examples(wheel, tmp_path):
     assert "tutorial.py" in src and "maps/hall.json" in src and "train_ppo.py" in src
     for rel in src:
         assert f"pathpref/examples/{rel}" in names, rel
-    target = tmp_path / "site"
-    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
-                    str(target), str(wheel)], check=True, timeout=300)
-    env = {**os.environ, "PYTHONPATH": str(target), "MUJOCO_GL": "disable"}
+    _, env = _installed(wheel, tmp_path)
     dest = tmp_path / "copied"
     r = subprocess.run([sys.executable, "-m", "pathpref", "examples", str(dest)],
                        capture_output=True, text=True, env=env, timeout=300, cwd=tmp_path)
@@ -102,12 +105,7 @@ def test_installed_wheel_runs_the_whole_demo(wheel, tmp_path):
     Grid body and ``--runs 6`` (n = 6 grid runs per method) to stay within seconds."""
     from pathpref.planning.pomdp import DEFAULT_PRESET
 
-    target = tmp_path / "site"
-    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "-q", "--target",
-                    str(target), str(wheel)], check=True, timeout=300)
-    elsewhere = tmp_path / "elsewhere"
-    elsewhere.mkdir()
-    env = {**os.environ, "PYTHONPATH": str(target), "MUJOCO_GL": "disable"}
+    elsewhere, env = _installed(wheel, tmp_path)
     r = subprocess.run([sys.executable, "-m", "pathpref", "demo", "--sim", "grid", "--runs",
                         "6", "--out", "out"], cwd=elsewhere, env=env, capture_output=True,
                        text=True, timeout=600)

@@ -225,35 +225,32 @@ def recompute_slack(path: str | Path, map_paths: dict[str, str] | None = None
                     ) -> dict[str, int]:
     """Fill the NULL ``slack`` of the episodes of ``path`` that ran, where the stored rows
     determine it (module docstring, **slack**); the numbers filled and left."""
-    map_paths = map_paths or {}
-    with ResultStore(path) as store:
-        rows = store.episodes("WHERE slack IS NULL AND status = 'ok'")
-        filled = []
-        for row in rows:
-            value = _stored_slack(row, map_paths)
-            if value is not None:
-                filled.append((value, row["key"]))
-        with store.conn:
-            store.conn.executemany("UPDATE episodes SET slack = ? WHERE key = ? "
-                                   "AND slack IS NULL", filled)
-    return {"recomputed": len(filled), "left": len(rows) - len(filled)}
+    return _fill_nulls(path, "slack", "status = 'ok'",
+                       lambda store, row: _stored_slack(row, map_paths or {}))
 
 
 def recompute_homotopy(path: str | Path, map_paths: dict[str, str] | None = None
                        ) -> dict[str, int]:
     """Fill the NULL ``homotopy_success`` of the finished episodes of ``path`` where the
     stored rows determine it (module docstring, **homotopy**); the numbers filled and left."""
-    map_paths = map_paths or {}
+    return _fill_nulls(path, "homotopy_success", "status != 'running'",
+                       lambda store, row: _stored_homotopy(store, row, map_paths or {}))
+
+
+def _fill_nulls(path: str | Path, column: str, which: str, value) -> dict[str, int]:
+    """Set the NULL ``column`` of the episodes of ``path`` matching the SQL condition ``which``
+    to ``value(store, row)`` where that is not None, in one transaction; the numbers filled
+    and left."""
     with ResultStore(path) as store:
-        rows = store.episodes("WHERE homotopy_success IS NULL AND status != 'running'")
+        rows = store.episodes(f"WHERE {column} IS NULL AND {which}")
         filled = []
         for row in rows:
-            value = _stored_homotopy(store, row, map_paths)
-            if value is not None:
-                filled.append((value, row["key"]))
+            v = value(store, row)
+            if v is not None:
+                filled.append((v, row["key"]))
         with store.conn:
-            store.conn.executemany("UPDATE episodes SET homotopy_success = ? WHERE key = ? "
-                                   "AND homotopy_success IS NULL", filled)
+            store.conn.executemany(f"UPDATE episodes SET {column} = ? WHERE key = ? "
+                                   f"AND {column} IS NULL", filled)
     return {"recomputed": len(filled), "left": len(rows) - len(filled)}
 
 
