@@ -135,11 +135,16 @@ def test_older_files_report_slack_not_measured_and_upgrade_fills_it(tmp_path, ca
         assert EpisodeRunner(row_spec(r)).result.slack == r["slack"]
 
 
-def test_a_schema5_file_without_the_slack_column_reads_and_gets_it(tmp_path):
-    db = tmp_path / "five.sqlite"
+def _one_oracle_episode(db) -> None:
+    """One paper-preset oracle episode on ``simple`` (ΔT = 5) into ``db``."""
     assert main(["evaluate", "--map", "simple", "--preset", "paper", "--methods", "oracle",
                  "--delta-t", "5", "--instances", "1", "--runs", "1", "--no-progress",
                  "--db", str(db)]) == 0
+
+
+def test_a_schema5_file_without_the_slack_column_reads_and_gets_it(tmp_path):
+    db = tmp_path / "five.sqlite"
+    _one_oracle_episode(db)
     c = sqlite3.connect(db)
     c.execute("ALTER TABLE episodes DROP COLUMN slack")  # as schema 5 was first released
     c.close()
@@ -158,9 +163,7 @@ def test_a_slack_pathpref_cannot_have_written_is_refused(tmp_path):
     from pathpref.errors import ConfigError
 
     db = tmp_path / "bad.sqlite"
-    assert main(["evaluate", "--map", "simple", "--preset", "paper", "--methods", "oracle",
-                 "--delta-t", "5", "--instances", "1", "--runs", "1", "--no-progress",
-                 "--db", str(db)]) == 0
+    _one_oracle_episode(db)
     c = sqlite3.connect(db)
     with c:
         c.execute("UPDATE episodes SET slack = 'x'")

@@ -32,8 +32,8 @@ Rows are read from the database a chunk at a time and written as they come (no t
 in memory), so a 3600 s trial (1.8 million force rows) exports in bounded memory.
 
 **Whole or nothing.** Every file is written into a new temporary folder inside ``OUT``
-(``tempfile.mkdtemp``: ``.PARTICIPANT.XXXX``), which is renamed to ``OUT/PARTICIPANT`` when
-all are written (into an existing ``OUT/PARTICIPANT`` each file is moved with
+(``tempfile.mkdtemp``: ``.PARTICIPANT.`` and a random suffix), which is renamed to
+``OUT/PARTICIPANT`` when all are written (into an existing ``OUT/PARTICIPANT`` each file is moved with
 :func:`os.replace`; files there that the export does not write are kept). Every row is checked
 as it passes (:mod:`pathpref.experiments.trial_rows`): a row changed outside pathpref (a
 candidates column that is not JSON, a belief over a goal the trial lacks, a start time that
