@@ -33,14 +33,13 @@ in memory), so a 3600 s trial (1.8 million force rows) exports in bounded memory
 
 **Whole or nothing.** Every file is written into a new temporary folder inside ``OUT``
 (``tempfile.mkdtemp``: ``.PARTICIPANT.`` and a random suffix), which is renamed to
-``OUT/PARTICIPANT`` when all are written (into an existing ``OUT/PARTICIPANT`` each file is moved with
-:func:`os.replace`; files there that the export does not write are kept). Every row is checked
-as it passes (:mod:`pathpref.experiments.trial_rows`): a row changed outside pathpref (a
-candidates column that is not JSON, a belief over a goal the trial lacks, a start time that
-is not one, a force that is text, a time of 1e308) is one error line naming the table, the row
-and the column. On that, on a full disk or any other failure, the temporary folder is removed
-(and ``OUT`` when the export made it): nothing is left behind.
-"""
+``OUT/PARTICIPANT`` when all are written (into an existing ``OUT/PARTICIPANT`` each file is
+moved with :func:`os.replace`; files there that the export does not write are kept). Every row
+is checked as it passes (:mod:`pathpref.experiments.trial_rows`): a row changed outside
+pathpref (a candidates column that is not JSON, a belief over a goal the trial lacks, a start
+time that is not one, a force that is text, a time of 1e308) is one error line naming the
+table, the row and the column. On that, on a full disk or any other failure, the temporary
+folder is removed (and ``OUT`` when the export made it): nothing is left behind. """
 
 from __future__ import annotations
 
