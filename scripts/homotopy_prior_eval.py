@@ -43,6 +43,7 @@ from pathpref.experiments.report import wilson  # noqa: E402
 from pathpref.experiments.store import ResultStore  # noqa: E402
 from pathpref.experiments.sweep import run_sweep, sweep_specs  # noqa: E402
 from pathpref.geometry.following import consistent_preference, human_route  # noqa: E402
+from pathpref.geometry.footprint import POINT_ROBOT  # noqa: E402
 from pathpref.geometry.generate import floor_plan  # noqa: E402
 from pathpref.geometry.world import load_world  # noqa: E402
 from pathpref.inference.circulation_prior import CirculationBelief  # noqa: E402
@@ -68,11 +69,14 @@ BELIEFS = {"routes": lambda model, start: RouteBelief(model),
 def held_out_plan(seed: int, kind: str = "open") -> dict:
     """The held-out plan of ``seed`` of the plan set ``kind`` (:data:`SEEDS`; module
     docstring): :func:`~pathpref.geometry.generate.floor_plan` with a loop preference for the
-    ``loop`` sets, an open route otherwise."""
+    ``loop`` sets, an open route otherwise. The set was drawn for a point robot
+    (:data:`~pathpref.geometry.footprint.POINT_ROBOT`), before moves were restricted to the
+    robot's footprint; 5 of its 24 plans need a passage the default robot cannot make and are
+    refused when loaded for it."""
     why = (f"held out for {HELD_OUT_FOR[kind]} (scripts/homotopy_prior_eval.py); never used "
            "to choose its settings")
     return floor_plan(seed, "loop" if kind.endswith("loop") else "open",
-                      name=f"heldout_{seed}", description=why)
+                      name=f"heldout_{seed}", description=why, footprint=POINT_ROBOT)
 
 
 def route_logprob(belief, world, g: int, exits: list[tuple[int, int]]) -> float:

@@ -9,6 +9,7 @@ import itertools
 import numpy as np
 import pytest
 
+from pathpref.geometry.footprint import DEFAULT_FOOTPRINT, POINT_ROBOT
 from pathpref.geometry.generate import random_floor_plan
 from pathpref.geometry.world import load_world
 from pathpref.inference import routes
@@ -67,8 +68,11 @@ def brute(model, observations):
     return goal / goal.sum(), cond
 
 
-def random_world(seed: int):
-    return load_world(random_floor_plan(7, 6, 1, 1, seed=seed, size_range=(1.0, 2.5)))
+def random_world(seed: int, footprint=POINT_ROBOT):
+    """A 7 x 6 plan with a rotated rectangle and a box; for a point robot by default (the
+    graphs these cases were written for)."""
+    return load_world(random_floor_plan(7, 6, 1, 1, seed=seed, size_range=(1.0, 2.5)),
+                      footprint=footprint)
 
 
 def observations(world, model, rng, n, goal=0):
@@ -116,6 +120,29 @@ def test_route_posterior_equals_brute_force(simple, name, seed, factor, monkeypa
     for v in range(world.n_polytopes):
         deg = len(world.graph.neighbors[v])
         assert np.allclose(belief.preference_given_goal(v)[:, :deg], cond[v], atol=1e-9), v
+
+
+@pytest.mark.xfail(strict=True, reason="a known defect, not yet traced: on this graph the route "
+                   "posterior drifts from the brute force as evidence accumulates")
+def test_route_posterior_on_the_footprint_graph_of_random30():
+    """Found when the robot's footprint removed the move edge (1, 5) of ``random30``'s graph
+    (16 edges left, polytopes 0 and 1 leaves): queried after every heading, the goal
+    marginal of :class:`RouteBelief` leaves the enumeration from the 12th heading on (1e-8)
+    and differs by about 1e-3 after 21; on the point robot's graph (17 edges) it agrees to
+    1e-10 throughout. Kept as a strict xfail so the fix is noticed."""
+    world = random_world(30, footprint=DEFAULT_FOOTPRINT)
+    rng = np.random.default_rng(1)
+    goals = rng.choice(world.n_cells, size=4, replace=False)
+    model = ObservationModel.build(world, goals, normalize=True)
+    obs = observations(world, model, rng, 20)
+    obs += obs[-3:]
+    belief = RouteBelief(model)
+    worst = 0.0
+    for k, (s, h) in enumerate(obs):
+        belief.update(s, h)
+        goal, _ = brute(model, obs[: k + 1])
+        worst = max(worst, float(np.abs(belief.goal_marginal() - goal).max()))
+    assert worst < 1e-9
 
 
 def test_route_prior_forbids_cycles(simple):

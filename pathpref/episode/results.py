@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .instances import Instance
+from .safety import contact_safe
 from .spec import EpisodeSpec
 
 
@@ -31,7 +32,8 @@ class StepLog:
 @dataclass
 class EpisodeResult:
     """An episode's outcome. Success = goal reached within ``T_max``, no preference violation
-    (a polytope left by a face other than ``p_v``), and the episode ran (``status == "ok"``).
+    (a polytope left by a face other than ``p_v``), no unsafe contact with the static world
+    (:mod:`.safety`), and the episode ran (``status == "ok"``).
     ``homotopic``: the robot's path (start to goal) goes the same way round every obstacle as
     the human's route (:func:`~pathpref.geometry.following.human_route`, judged by
     :func:`~pathpref.geometry.homotopy.same_class`); set when the goal is reached.
@@ -61,16 +63,23 @@ class EpisodeResult:
         return self.violations == 0
 
     @property
+    def contact_safe(self) -> bool:
+        """No contact with the static world broke a limit (:mod:`.safety`)."""
+        return contact_safe(self.metrics)
+
+    @property
     def success(self) -> bool:
-        """Goal reached, preference followed, episode ran to its end."""
-        return self.goal_reached and self.pref_followed and self.status == "ok"
+        """Goal reached, preference followed, contact-safe, episode ran to its end."""
+        return self.goal_reached and self.pref_followed and self.contact_safe and \
+            self.status == "ok"
 
     @property
     def homotopy_success(self) -> bool:
         """Goal reached in the human route's homotopy class (winding numbers round every
-        obstacle, :mod:`pathpref.geometry.homotopy`), episode ran to its end; reported
-        beside the strict :attr:`success`, which stays the headline."""
-        return self.goal_reached and self.homotopic and self.status == "ok"
+        obstacle, :mod:`pathpref.geometry.homotopy`), contact-safe, episode ran to its end;
+        reported beside the strict :attr:`success`, which stays the headline."""
+        return self.goal_reached and self.homotopic and self.contact_safe and \
+            self.status == "ok"
 
 
 def result_row(res: EpisodeResult) -> dict[str, Any]:

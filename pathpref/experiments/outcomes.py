@@ -1,11 +1,14 @@
 """Why episodes fail, and how success depends on the time to spare.
 
 **Failure kinds.** An episode row that is not a success falls in exactly one kind, decided in
-this order from its stored flags (``status``, ``goal_reached``, ``homotopy_success``,
-``violations``):
+this order from its stored flags (``status``, ``metrics``, ``goal_reached``,
+``homotopy_success``, ``violations``):
 
 - ``not_run``: the episode did not run to its end (``status != 'ok'``: an error, a timeout, a
   crashed worker); counted as a failure of the mission;
+- ``contact``: the robot struck an obstacle or a wall beyond the limits of
+  :mod:`pathpref.episode.safety` (from the contact measurements in ``metrics``), whatever else
+  the episode achieved;
 - ``time_out``: the goal was not reached within ``T_max`` (``goal_reached = 0``);
 - ``wrong_side``: the goal was reached, but not in the human route's homotopy class
   (``homotopy_success = 0``: the robot went the other way round some obstacle);
@@ -14,9 +17,10 @@ this order from its stored flags (``status``, ``goal_reached``, ``homotopy_succe
 - ``unclassified``: the goal was reached with violations and the row does not say on which
   side (``homotopy_success`` NULL: a row written before schema 5, not measured).
 
-A row that ran and reached the goal with no violation is a success (the strict rule), so the
-kinds partition the failures: ``not_run + time_out + wrong_side + out_of_order + unclassified =
-n - successes`` (with ``exclude_failed`` the ``not_run`` rows are out of ``n`` and counted 0).
+A row that ran, stayed contact-safe and reached the goal with no violation is a success (the
+strict rule), so the kinds partition the failures: ``not_run + contact + time_out + wrong_side +
+out_of_order + unclassified = n - successes`` (with ``exclude_failed`` the ``not_run`` rows are
+out of ``n`` and counted 0).
 
 **Slack.** An episode's slack is ``T_max`` minus the moves of the human's route from the start
 to the true goal (:func:`~pathpref.episode.results.route_slack`, stored per episode in the
@@ -32,9 +36,13 @@ import math
 from collections.abc import Iterable
 from typing import Any
 
+from ..episode.safety import contact_safe
+
 #: failure kinds, in the order they are decided and shown (module docstring)
-FAILURE_KINDS = ("not_run", "time_out", "wrong_side", "out_of_order", "unclassified")
-FAILURE_LABEL = {"not_run": "not run", "time_out": "time-out", "wrong_side": "wrong side",
+FAILURE_KINDS = ("not_run", "contact", "time_out", "wrong_side", "out_of_order",
+                 "unclassified")
+FAILURE_LABEL = {"not_run": "not run", "contact": "unsafe contact", "time_out": "time-out",
+                 "wrong_side": "wrong side",
                  "out_of_order": "out-of-order crossing", "unclassified": "unclassified"}
 
 #: slack bins ``(key, label, low, high)``: slack ``s`` falls in the bin with ``low <= s <
@@ -53,6 +61,8 @@ def failure_kind(row: dict[str, Any]) -> str | None:
     """The failure kind of an episode row (module docstring), None for a success."""
     if row["status"] != "ok":
         return "not_run"
+    if not contact_safe(row.get("metrics")):
+        return "contact"
     if not row["goal_reached"]:
         return "time_out"
     if not row["violations"] and row.get("pref_followed", 1):

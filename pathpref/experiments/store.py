@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from ..episode import EpisodeResult, EpisodeSpec, result_row
+from ..episode.safety import contact_safe
 from ..errors import ConfigError
 from .trials import (
     LATE_STUDY_TABLES,
@@ -400,10 +401,12 @@ def check_episode_rows(rows: Iterable[dict[str, Any]], path: str | Path) -> None
                 raise ConfigError(f"{path}: {where} has {col} = {shown}, not "
                                   f"{_RULE_TEXT[rule]}; {fix}")
         if row.get("status") == "ok" and "success" in row and "goal_reached" in row and \
-                row["success"] != (row["goal_reached"] and row.get("pref_followed", 1)):
+                row["success"] != (row["goal_reached"] and row.get("pref_followed", 1)
+                                   and contact_safe(row.get("metrics"))):
             raise ConfigError(f"{path}: {where} has success = {row['success']} but "
-                              f"goal_reached = {row['goal_reached']} and pref_followed = "
-                              f"{row.get('pref_followed')}; {fix}")
+                              f"goal_reached = {row['goal_reached']}, pref_followed = "
+                              f"{row.get('pref_followed')} and contact-safe = "
+                              f"{int(contact_safe(row.get('metrics')))}; {fix}")
         if row.get("homotopy_success") == 1 and row.get("goal_reached") == 0:
             raise ConfigError(f"{path}: {where} has homotopy_success = 1 but goal_reached = 0; "
                               f"{fix}")

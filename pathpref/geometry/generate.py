@@ -13,9 +13,15 @@ plans of ``scripts/homotopy_prior_eval.py``): :func:`random_floor_plan` with the
 preferred route, either
 
 - ``open``: through four waypoints drawn without replacement (``default_rng(seed)``) from the
-  cells of the largest 4-connected free area (ordered by x, then y, 1-based), in the order
-  drawn; or
+  cells of the largest free area (ordered by x, then y, 1-based), in the order drawn; or
 - ``loop``: the closed route round the map of :func:`with_loop_preference`.
+
+The *free area* is where the robot goes: the largest connected component of the grid motion of
+the plan for the robot's :class:`~.footprint.Footprint` (:mod:`.grid`; ``footprint`` argument,
+:data:`~.footprint.DEFAULT_FOOTPRINT` by default), so every waypoint can be reached by the
+robot. The plans stored in ``docs/results/heldout_plans`` were drawn for a point robot
+(``Footprint(0, 0)``, whose moves are those of the grid's corner rule alone and whose
+components are the 4-connected ones); some of them need passages the default robot cannot make.
 
 A plan whose largest free area has fewer than :data:`MIN_ROUTE_CELLS` cells is refused
 (:class:`~pathpref.errors.MapError`, one line): its free space is too fragmented to place a
@@ -30,6 +36,7 @@ import numpy as np
 from scipy.ndimage import label
 
 from ..errors import MapError
+from .footprint import DEFAULT_FOOTPRINT, Footprint
 
 #: the defaults of :func:`floor_plan` (and of ``pathpref map generate``'s flags)
 PLAN_DEFAULTS = {"width": 24, "height": 16, "rotated": 7, "boxes": 2, "size_range": (1.5, 4.0)}
@@ -88,15 +95,34 @@ def four_connected_components(free: np.ndarray) -> tuple[np.ndarray, int]:
     return labels, int(k)
 
 
-def with_loop_preference(raw: dict[str, Any]) -> dict[str, Any]:
+def largest_free_area(raw: dict[str, Any], footprint: Footprint = DEFAULT_FOOTPRINT
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The 0-based ``x`` and ``y`` of the cells of the largest component of the robot's motion
+    on the plan ``raw`` (module docstring), ordered by x, then y; empty without free cells.
+    Ties go to the component of the first cell in that order."""
+    from .maps import parse_map
+    from .world import World
+
+    world = World.from_spec(parse_map({k: v for k, v in raw.items() if k != "preference"}),
+                            footprint)
+    if not world.n_cells:
+        return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
+    order = np.lexsort((world.cells[:, 1], world.cells[:, 0]))
+    labels = world.motion.components()[order]
+    sizes = np.bincount(labels)
+    biggest = labels[np.flatnonzero(sizes[labels] == sizes.max())[0]]
+    cells = world.cells[order][labels == biggest] - 1
+    return cells[:, 0].astype(int), cells[:, 1].astype(int)
+
+
+def with_loop_preference(raw: dict[str, Any], footprint: Footprint = DEFAULT_FOOTPRINT
+                         ) -> dict[str, Any]:
     """``raw`` plus a closed-route preference around the map (a loop through the free cells
-    nearest to the four corners, all in the largest 4-connected part of free space)."""
-    from .maps import free_cell_mask, parse_map
+    nearest to the four corners, all in the largest free area of :func:`largest_free_area`)."""
+    from .maps import parse_map
 
     spec = parse_map(raw)
-    labels, _ = four_connected_components(free_cell_mask(spec))
-    biggest = np.bincount(labels[labels > 0]).argmax()
-    xs, ys = np.nonzero(labels == biggest)
+    xs, ys = largest_free_area(raw, footprint)
     corners = [(0, 0), (spec.width - 1, 0), (spec.width - 1, spec.height - 1),
                (0, spec.height - 1)]
     route = []
@@ -110,19 +136,17 @@ def floor_plan(seed: int, route: str = "open", width: int = PLAN_DEFAULTS["width
                height: int = PLAN_DEFAULTS["height"], rotated: int = PLAN_DEFAULTS["rotated"],
                boxes: int = PLAN_DEFAULTS["boxes"],
                size_range: tuple[float, float] = PLAN_DEFAULTS["size_range"],
-               name: str | None = None, description: str | None = None) -> dict[str, Any]:
-    """A floor plan with a preferred route from ``seed`` (module docstring); ``description``,
-    when given, is the plan's. Raises :class:`MapError` for a plan too fragmented for a route
-    and ValueError for an unknown ``route``."""
-    from .maps import free_cell_mask, parse_map
-
+               name: str | None = None, description: str | None = None,
+               footprint: Footprint = DEFAULT_FOOTPRINT) -> dict[str, Any]:
+    """A floor plan with a preferred route from ``seed`` for a robot of ``footprint`` (module
+    docstring); ``description``, when given, is the plan's. Raises :class:`MapError` for a
+    plan too fragmented for a route and ValueError for an unknown ``route``."""
     if route not in ROUTE_KINDS:
         raise ValueError(f"route must be one of {ROUTE_KINDS}, got {route!r}")
     raw = random_floor_plan(width, height, rotated, n_boxes=boxes, seed=seed,
                             size_range=size_range, name=name)
-    labels, k = four_connected_components(free_cell_mask(parse_map(raw)))
-    biggest = np.bincount(labels[labels > 0]).argmax() if k else 0
-    cells = int((labels == biggest).sum()) if k else 0
+    xs, ys = largest_free_area(raw, footprint)
+    cells = len(xs)
     if cells < MIN_ROUTE_CELLS:
         raise MapError(
             f"the plan of seed {seed} is too fragmented to place a route: its largest free area "
@@ -130,8 +154,7 @@ def floor_plan(seed: int, route: str = "open", width: int = PLAN_DEFAULTS["width
             "smaller obstacles")
     about = {} if description is None else {"description": description}
     if route == "loop":
-        return {**with_loop_preference(raw), **about}
-    xs, ys = np.nonzero(labels == biggest)
+        return {**with_loop_preference(raw, footprint), **about}
     rng = np.random.default_rng(seed)
     pick = rng.choice(len(xs), size=4, replace=False)
     waypoints = [[int(xs[i]) + 1, int(ys[i]) + 1] for i in pick]

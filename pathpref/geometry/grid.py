@@ -9,13 +9,21 @@ Straight moves cost 1, diagonal moves sqrt(2). A move is *blocked* (the robot st
 the target is outside the map or not free, and, for a diagonal move only, when it changes polytope
 across more than one line (the paper's corner rule: a diagonal through an arrangement vertex,
 past an obstacle corner, or through a polytope that holds no cell). A straight move between two
-free cells is never blocked: it crosses the lines on which the sign vectors of its two polytopes
-differ, in one step, and records the polytope it left and the one it entered (a facet edge when
-that is one line, a move edge of :mod:`pathpref.geometry.graph` otherwise). Hence two free cells
-connected on the 4-connected grid of free cells are connected under this rule, whatever the
-obstacles' rotation. On the paper's axis-aligned maps a straight move crosses at most one line,
-so the rule is the paper's. ``crossed_edge[s, a]`` is the graph edge a move crosses (-1: none).
-See ``docs/motion_rule.md`` for a picture.
+free cells is not blocked by this rule: it crosses the lines on which the sign vectors of its
+two polytopes differ, in one step, and records the polytope it left and the one it entered (a
+facet edge when that is one line, a move edge of :mod:`pathpref.geometry.graph` otherwise). On
+the paper's axis-aligned maps a straight move crosses at most one line, so the rule is the
+paper's. ``crossed_edge[s, a]`` is the graph edge a move crosses (-1: none). See
+``docs/motion_rule.md`` for a picture.
+
+**The robot's footprint.** A move is blocked, too, when the robot's footprint cannot sweep it:
+:func:`apply_footprint` with the mask of :func:`swept_clear` (the exact rule of
+:mod:`.footprint`: the segment between the two cell centres keeps the footprint's reach from
+every obstacle and wall). This is the one rule for which moves exist, for the grid world and
+the physical bodies alike. It removes no move on maps of cell rectangles (the paper's); on
+rotated obstacles it removes the moves that cut a corner or pass through an obstacle thinner
+than a cell. :func:`restrict_graph` then keeps only the graph edges some allowed move crosses,
+so the planner and the human model see the transitions the body can perform.
 """
 
 from __future__ import annotations
@@ -27,7 +35,9 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 
 from .arrangement import Arrangement
-from .graph import PolytopeGraph
+from .footprint import Clearance, Footprint
+from .graph import PolytopeGraph, build_graph
+from .maps import MapSpec
 
 #: the action that keeps the robot in its cell (not one of the eight moves; the compliant
 #: baseline's "stop" and a blocked plan's fallback)
@@ -88,16 +98,40 @@ class GridMotion:
         return dijkstra(self.adjacency(), directed=True, indices=np.asarray(sources))
 
 
-def build_motion(arr: Arrangement, graph: PolytopeGraph) -> GridMotion:
-    """Tabulate every move from every free cell (see module docstring)."""
-    n = arr.n_cells
-    tgt = arr.cells[:, None, :] + MOVES[None, :, :]  # (n, 8, 2) 1-based
+def move_targets(arr: Arrangement) -> tuple[np.ndarray, np.ndarray]:
+    """``(n, 8)`` target cell of each move (-1: off the map or not free) and the ``(n, 8, 2)``
+    target grid coordinates (1-based)."""
+    tgt = arr.cells[:, None, :] + MOVES[None, :, :]
     inside = (tgt[..., 0] >= 1) & (tgt[..., 0] <= arr.width) & (tgt[..., 1] >= 1) & (
         tgt[..., 1] <= arr.height
     )
     tx = np.clip(tgt[..., 0] - 1, 0, arr.width - 1)
     ty = np.clip(tgt[..., 1] - 1, 0, arr.height - 1)
-    t_idx = np.where(inside, arr.cell_index[tx, ty], -1)
+    return np.where(inside, arr.cell_index[tx, ty], -1), tgt
+
+
+def swept_clear(spec: MapSpec, arr: Arrangement, footprint: Footprint) -> np.ndarray:
+    """``(n, 8)`` whether the footprint sweeps each move between free cells without touching
+    an obstacle or wall (:class:`~.footprint.Clearance`; False for moves off the free cells).
+    Each unordered move is computed once (N, NE, E, SE; the others are their reverses)."""
+    t_idx, _ = move_targets(arr)
+    ok = np.zeros(t_idx.shape, dtype=bool)
+    clearance = Clearance(spec)
+    centres = arr.cells - 0.5
+    for a in range(4):
+        src = np.flatnonzero(t_idx[:, a] >= 0)
+        dst = t_idx[src, a]
+        clear = clearance.clear(centres[src], centres[dst], footprint.reach)
+        ok[src, a] = clear
+        ok[dst, (a + 4) % 8] = clear
+    return ok
+
+
+def build_motion(arr: Arrangement, graph: PolytopeGraph) -> GridMotion:
+    """Tabulate every move from every free cell by the corner rule (see module docstring);
+    :func:`apply_footprint` then removes the moves the robot cannot sweep."""
+    n = arr.n_cells
+    t_idx, _ = move_targets(arr)
     free = t_idx >= 0
     src = np.repeat(np.arange(n)[:, None], 8, axis=1)
     v_src = arr.cell_polytope[src]
@@ -113,3 +147,75 @@ def build_motion(arr: Arrangement, graph: PolytopeGraph) -> GridMotion:
     cost = np.where(ok, MOVE_COST[None, :], BLOCKED_COST)
     crossed = np.where(ok & (v_src != v_tgt), edge, -1)
     return GridMotion(next_cell=next_cell, cost=cost, blocked=~ok, crossed_edge=crossed)
+
+
+def apply_footprint(motion: GridMotion, swept: np.ndarray) -> GridMotion:
+    """``motion`` with the moves outside ``swept`` (:func:`swept_clear`) blocked: the robot
+    stays, at the cost of a blocked move, and crosses nothing."""
+    ok = ~motion.blocked & swept
+    src = np.repeat(np.arange(motion.n_cells)[:, None], 8, axis=1)
+    return GridMotion(next_cell=np.where(ok, motion.next_cell, src),
+                      cost=np.where(ok, motion.cost, BLOCKED_COST), blocked=~ok,
+                      crossed_edge=np.where(ok, motion.crossed_edge, -1))
+
+
+def restrict_graph(graph: PolytopeGraph, motion: GridMotion) -> tuple[PolytopeGraph, GridMotion]:
+    """The graph's edges that some allowed move crosses, and the motion renumbered to them
+    (module docstring). Edges keep their relative order (facet edges, then move edges) and
+    each vertex its neighbours' order; when every edge is crossed, both are returned as they
+    are."""
+    used = np.zeros(graph.n_edges, dtype=bool)
+    used[motion.crossed_edge[motion.crossed_edge >= 0]] = True
+    if used.all():
+        return graph, motion
+    keep = np.flatnonzero(used)
+    new_id = -np.ones(graph.n_edges, dtype=int)
+    new_id[keep] = np.arange(len(keep))
+    E = graph.edges[keep]
+    P = len(graph.neighbors)
+    mask = [used[e] for e in graph.neighbor_edges]
+    eid = np.arange(len(E), dtype=np.int64)
+    keys = np.concatenate([E[:, 0] * P + E[:, 1], E[:, 1] * P + E[:, 0]]).astype(np.int64)
+    order = np.argsort(keys, kind="stable")
+    pruned = PolytopeGraph(
+        edges=E,
+        edge_hyperplane=graph.edge_hyperplane[keep],
+        neighbors=tuple(nb[m] for nb, m in zip(graph.neighbors, mask, strict=True)),
+        neighbor_edges=tuple(new_id[ne[m]] for ne, m in zip(graph.neighbor_edges, mask,
+                                                             strict=True)),
+        pair_keys=keys[order],
+        pair_edge=np.concatenate([eid, eid])[order],
+    )
+    crossed = np.where(motion.crossed_edge >= 0, new_id[np.maximum(motion.crossed_edge, 0)], -1)
+    return pruned, GridMotion(next_cell=motion.next_cell, cost=motion.cost,
+                              blocked=motion.blocked, crossed_edge=crossed)
+
+
+def blocked_passage(spec: MapSpec, arr: Arrangement, footprint: Footprint, a: int, b: int) -> str:
+    """Why cell ``b`` cannot be reached from cell ``a`` by a robot of ``footprint``: one
+    sentence naming the first move the footprint blocks on a shortest path between them
+    without the footprint (the passage too narrow for it, and how close it passes to an
+    obstacle or wall), or saying that no path exists even for a point robot."""
+    motion = build_motion(arr, build_graph(arr))
+    dist, pred = dijkstra(motion.adjacency(), indices=int(a), return_predecessors=True)
+    cell = lambda i: tuple(int(c) for c in arr.cells[i])  # noqa: E731
+    if not np.isfinite(dist[b]):
+        return f"no path joins {cell(a)} and {cell(b)} even for a point robot"
+    path = [int(b)]
+    for _ in range(arr.n_cells):  # a shortest path visits each cell at most once
+        if path[-1] == a:
+            break
+        path.append(int(pred[path[-1]]))
+    path.reverse()
+    swept = swept_clear(spec, arr, footprint)
+    clearance = Clearance(spec)
+    centres = arr.cells - 0.5
+    for u, w in zip(path[:-1], path[1:], strict=False):
+        k = int(np.flatnonzero(motion.next_cell[u] == w)[0])
+        if not swept[u, k]:
+            d = min(float(clearance.distance(centres[u], centres[w])[0]),
+                    float(clearance.wall_distance(centres[u], centres[w])[0]))
+            return (f"the passage from {cell(u)} to {cell(w)} is too narrow for the robot: the "
+                    f"move passes {max(d, 0.0):.2f} cells from an obstacle or wall, and the "
+                    f"robot needs {footprint.reach:g} ({footprint.describe()})")
+    return f"{cell(b)} cannot be reached from {cell(a)} by the robot ({footprint.describe()})"

@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import MapError, did_you_mean
+from .footprint import DEFAULT_FOOTPRINT
 from .polygon import convex_vertices_to_h
 
 BUILTIN_MAPS = ("simple", "office", "classroom")
@@ -118,16 +119,22 @@ class MapSpec:
     def canonical(self) -> dict[str, Any]:
         """What determines an episode on this map: size, obstacles (counter-clockwise vertices,
         starting at the lowest-leftmost one, in file order: the order numbers the lines),
-        preference, goal band and decomposition. Name, description and ``t_max`` (stored with
-        each episode) are left out."""
+        preference, goal band and decomposition; and, for a map with an obstacle that is not
+        a rectangle of whole cells, the reach of the default robot footprint
+        (``"footprint_reach"``, :mod:`.footprint`), which decides its moves (on maps of cell
+        rectangles it removes none, so their identity is as before the footprint rule). Name,
+        description and ``t_max`` (stored with each episode) are left out."""
         obstacles = []
         for o in self.obstacles:
             v = o.vertices
             k = min(range(len(v)), key=lambda i: (v[i, 1], v[i, 0]))
             obstacles.append(np.roll(v, -k, axis=0).tolist())
-        return {"width": self.width, "height": self.height, "obstacles": obstacles,
-                "preference": self.preference, "goal_band": self.goal_band,
-                "decomposition": self.decomposition}
+        out = {"width": self.width, "height": self.height, "obstacles": obstacles,
+               "preference": self.preference, "goal_band": self.goal_band,
+               "decomposition": self.decomposition}
+        if not all(_cell_rectangle(o.vertices) for o in self.obstacles):
+            out["footprint_reach"] = DEFAULT_FOOTPRINT.reach
+        return out
 
     @cached_property
     def content_hash(self) -> str:
@@ -182,6 +189,13 @@ def _outside(where: str, x: float, y: float, width: int, height: int) -> MapErro
     return MapError(
         f"{where} extends outside the map (vertex at ({x:g}, {y:g}); the map "
         f"is [0, {width}] x [0, {height}]): clip it to the map or enlarge the map")
+
+
+def _cell_rectangle(vertices: np.ndarray) -> bool:
+    """Whether a convex polygon is an axis-aligned rectangle with whole-number corners."""
+    xs, ys = np.unique(vertices[:, 0]), np.unique(vertices[:, 1])
+    return (len(vertices) == 4 and len(xs) == 2 and len(ys) == 2
+            and bool(np.all(np.round(vertices) == vertices)))
 
 
 def cell_pair(value: Any, where: str) -> tuple[int, int]:

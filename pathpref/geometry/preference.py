@@ -15,6 +15,7 @@ inside ``v``). A map file states it in a numbering-free way, by cells:
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -25,9 +26,18 @@ from .arrangement import Arrangement
 from .graph import PolytopeGraph
 from .grid import GridMotion
 
+#: ``explain(a, b)``: one sentence on why the robot cannot go from cell ``a`` to cell ``b``
+#: (:func:`~.grid.blocked_passage`), added to the errors of a preference it cannot follow
+Explain = Callable[[int, int], str]
+
+
+def _because(explain: Explain | None, a: int, b: int) -> str:
+    return f": {explain(a, b)}" if explain is not None else ""
+
 
 def preference_from_table(
-    arr: Arrangement, graph: PolytopeGraph, table: list[dict[str, Any]]
+    arr: Arrangement, graph: PolytopeGraph, table: list[dict[str, Any]],
+    explain: Explain | None = None,
 ) -> np.ndarray:
     """Preference array from ``[{"from": cell, "to": cell}, ...]`` (see module docstring)."""
     if not isinstance(table, list):
@@ -37,8 +47,9 @@ def preference_from_table(
         where = f"preference.table[{k}]"
         if not isinstance(entry, dict) or set(entry) != {"from", "to"}:
             raise MapError(f"{where} must be {{'from': [x, y], 'to': [x, y]}}, got {entry!r}")
-        v = int(arr.cell_polytope[arr.free_cell(entry["from"], f"{where}.from")])
-        w = int(arr.cell_polytope[arr.free_cell(entry["to"], f"{where}.to")])
+        a, b = arr.free_cell(entry["from"], f"{where}.from"), arr.free_cell(entry["to"],
+                                                                             f"{where}.to")
+        v, w = int(arr.cell_polytope[a]), int(arr.cell_polytope[b])
         if v == w:
             raise MapError(
                 f"{where}: cells {entry['from']} and {entry['to']} lie in the same polytope "
@@ -47,7 +58,7 @@ def preference_from_table(
             raise MapError(
                 f"{where}: polytope {v} (cell {entry['from']}) and polytope {w} (cell "
                 f"{entry['to']}) are not neighbours; 'to' must lie in a polytope next to 'from'"
-            )
+                + _because(explain, a, b))
         if pref[v] >= 0 and pref[v] != w:
             raise MapError(
                 f"{where} conflicts with an earlier entry: polytope {v} already prefers {pref[v]}"
@@ -62,6 +73,7 @@ def preference_from_route(
     motion: GridMotion,
     waypoints: list[list[int]],
     closed: bool = True,
+    explain: Explain | None = None,
 ) -> np.ndarray:
     """Turn a drawn route into a preference table.
 
@@ -86,7 +98,8 @@ def preference_from_route(
     for k, (a, b) in enumerate(legs):
         dist, pred = dijkstra(adj, indices=a, return_predecessors=True)
         if not np.isfinite(dist[b]):
-            raise MapError(f"preference.route: waypoint {k + 2} cannot be reached from {k + 1}")
+            raise MapError(f"preference.route: waypoint {k + 2} cannot be reached from {k + 1}"
+                           + _because(explain, a, b))
         leg = [b]
         while leg[-1] != a:
             leg.append(int(pred[leg[-1]]))
@@ -111,18 +124,20 @@ def preference_from_route(
 
 
 def parse_preference(
-    arr: Arrangement, graph: PolytopeGraph, motion: GridMotion, raw: dict[str, Any] | None
+    arr: Arrangement, graph: PolytopeGraph, motion: GridMotion, raw: dict[str, Any] | None,
+    explain: Explain | None = None,
 ) -> np.ndarray | None:
-    """The map file's ``preference`` field as an array, or None when absent."""
+    """The map file's ``preference`` field as an array, or None when absent; ``explain``
+    adds why the robot cannot make a transition the preference needs."""
     if raw is None:
         return None
     if set(raw) == {"table"}:
-        return preference_from_table(arr, graph, raw["table"])
+        return preference_from_table(arr, graph, raw["table"], explain)
     if "route" in raw and set(raw) <= {"route", "closed"}:
         closed = raw.get("closed", True)
         if not isinstance(closed, bool):
             raise MapError("preference.closed must be true or false")
-        return preference_from_route(arr, graph, motion, raw["route"], closed)
+        return preference_from_route(arr, graph, motion, raw["route"], closed, explain)
     raise MapError(
         "preference must be {'table': [{'from': [x, y], 'to': [x, y]}, ...]} or "
         "{'route': [[x, y], ...], 'closed': true}"

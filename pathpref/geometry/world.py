@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -15,32 +16,49 @@ import numpy as np
 from ..errors import MapError
 from .arrangement import Arrangement, build_arrangement, check_arrangement_size
 from .coarse import coarsen
+from .footprint import DEFAULT_FOOTPRINT, Footprint
 from .graph import PolytopeGraph, build_graph
-from .grid import GridMotion, build_motion
+from .grid import (
+    GridMotion,
+    apply_footprint,
+    blocked_passage,
+    build_motion,
+    restrict_graph,
+    swept_clear,
+)
 from .maps import MapSpec, load_map
 from .preference import parse_preference
 
 
 @dataclass(frozen=True, eq=False)
 class World:
-    """Map + arrangement + graph + motion (+ preference, ``-1`` entries = none)."""
+    """Map + arrangement + graph + motion (+ preference, ``-1`` entries = none), for a robot
+    of the given :class:`~.footprint.Footprint`: the motion holds the moves that footprint
+    sweeps clear, the graph the transitions those moves make (:mod:`.grid`)."""
 
     spec: MapSpec
     arrangement: Arrangement
     graph: PolytopeGraph
     motion: GridMotion
     preference: np.ndarray | None
+    footprint: Footprint = DEFAULT_FOOTPRINT
 
     @classmethod
-    def from_spec(cls, spec: MapSpec) -> World:
-        """Build the arrangement, polytope graph, grid motion and preference of ``spec``."""
+    def from_spec(cls, spec: MapSpec, footprint: Footprint = DEFAULT_FOOTPRINT) -> World:
+        """Build the arrangement, polytope graph, grid motion (the moves ``footprint``
+        sweeps clear) and preference of ``spec``; a MapError naming the blocked passage when
+        the preference needs a move the footprint cannot make."""
         arr = build_arrangement(spec)
         graph = build_graph(arr)
         motion = build_motion(arr, graph)
-        if spec.decomposition == "coarse":
+        swept = swept_clear(spec, arr, footprint)
+        explain = partial(blocked_passage, spec, arr, footprint)
+        if spec.decomposition == "coarse":  # regions are geometry: drawn before the footprint
             arr, graph, motion = coarsen(spec, arr, graph, motion)
-        pref = parse_preference(arr, graph, motion, spec.preference)
-        return cls(spec=spec, arrangement=arr, graph=graph, motion=motion, preference=pref)
+        graph, motion = restrict_graph(graph, apply_footprint(motion, swept))
+        pref = parse_preference(arr, graph, motion, spec.preference, explain)
+        return cls(spec=spec, arrangement=arr, graph=graph, motion=motion, preference=pref,
+                   footprint=footprint)
 
     @property
     def name(self) -> str:
@@ -72,6 +90,11 @@ class World:
         (:meth:`Arrangement.free_cell`)."""
         return self.arrangement.free_cell(xy, what)
 
+    def blocked_passage(self, a: int, b: int) -> str:
+        """Why the robot cannot go from cell ``a`` to cell ``b`` (one sentence,
+        :func:`~.grid.blocked_passage`)."""
+        return blocked_passage(self.spec, build_arrangement(self.spec), self.footprint, a, b)
+
     def require_preference(self) -> np.ndarray:
         """The map's preference, or a MapError telling how to add one."""
         if self.preference is None:
@@ -81,10 +104,11 @@ class World:
         return self.preference
 
 
-def load_world(source: str | Path | dict[str, Any] | MapSpec, force: bool = False) -> World:
-    """Load and build a map (built-in name, JSON path, dict or MapSpec); a MapError before
-    building when its arrangement may exceed the size limit, unless ``force``
-    (:func:`~pathpref.geometry.arrangement.check_arrangement_size`)."""
+def load_world(source: str | Path | dict[str, Any] | MapSpec, force: bool = False,
+               footprint: Footprint = DEFAULT_FOOTPRINT) -> World:
+    """Load and build a map (built-in name, JSON path, dict or MapSpec) for a robot of
+    ``footprint``; a MapError before building when its arrangement may exceed the size limit,
+    unless ``force`` (:func:`~pathpref.geometry.arrangement.check_arrangement_size`)."""
     spec = source if isinstance(source, MapSpec) else load_map(source)
     check_arrangement_size(spec, force)
-    return World.from_spec(spec)
+    return World.from_spec(spec, footprint)

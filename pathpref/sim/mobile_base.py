@@ -54,6 +54,7 @@ from .cue_detector import Cue, CueDetector
 from .decision import DecisionStep
 from .estimator import EstimatorConfig, ForceEstimator
 from .force_cue import HumanPush, PushProfile
+from .keep_clear import keep_clear
 from .measurements import Measurements
 from .scene import Scene
 from .sensing import FaultySensor, HandleSensor, SensorModel
@@ -63,8 +64,6 @@ from .sensing_chain import SensingChain
 ADMITTANCE_K = 400.0
 #: share of the drive's force limit above which the base braces instead of yielding
 BRACE = 0.6
-#: how far from an obstacle or a wall a guiding push may bring the base's edge (m)
-GUIDANCE_CLEARANCE_M = 0.05
 
 
 class MobileBase:
@@ -227,7 +226,6 @@ class MobileBase:
         self.sensing.split_pushes()
         self.guidance = (float(mass), float(damping))
         self.any_time = True
-        self._radius = float(self.model.geom("base_geom").size[0]) + GUIDANCE_CLEARANCE_M
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
@@ -439,9 +437,13 @@ class MobileBase:
         """The base's velocity command ``(vx, vy, wz)``: the controller's, or while yielding
         the admittance ``v = (F_hat - k (p - p_0)) / b`` (``p_0`` where the yield began, the
         spring ``k = ADMITTANCE_K`` keeps a push the actuators cannot resist from carrying the
-        base away); a profiled controller ramps to it within its acceleration limit."""
+        base away); a profiled controller ramps to it within its acceleration limit. Where a
+        person moves the base (guidance, or a yield), the command passes the safety filter
+        :func:`.keep_clear.keep_clear` (braking at half ``a_max``: a push may oppose the
+        drive)."""
         d = self.data
         pos = self._qpos[self._xy].copy()
+        a_brake = 0.5 * self.controller.a_max
         if not self.yielding():
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)
@@ -450,8 +452,10 @@ class MobileBase:
                 speed = math.hypot(command[0], command[1])
                 if speed > self.controller.v_max:
                     command[:2] *= self.controller.v_max / speed
+                keep_clear(self.scene, pos, command, a_brake)
             return command
-        v = self.controller.ramp(self.admittance_velocity())
+        v = self.controller.ramp(keep_clear(self.scene, pos, self.admittance_velocity(),
+                                            a_brake))
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
 
     def _admit(self) -> None:
@@ -480,18 +484,9 @@ class MobileBase:
             v[:] = 0.0
 
     def _fits(self, xy: np.ndarray) -> bool:
-        """Whether the base centred at ``xy`` (m) stands on free grid cells only: the cells
-        under ``xy`` and under its four extreme points at the base's radius (the
-        ``base_geom`` cylinder) plus ``GUIDANCE_CLEARANCE_M`` are free."""
-        scene, r = self.scene, self._radius
-        idx = scene.world.arrangement.cell_index
-        W, H = idx.shape
-        for dx, dy in ((0.0, 0.0), (r, 0.0), (-r, 0.0), (0.0, r), (0.0, -r)):
-            gx = int(math.floor((xy[0] + dx) / scene.cell_size))
-            gy = int(math.floor((xy[1] + dy) / scene.cell_size))
-            if not (0 <= gx < W and 0 <= gy < H) or idx[gx, gy] < 0:
-                return False
-        return True
+        """Whether the base centred at ``xy`` (m) keeps its footprint's reach from every
+        obstacle and wall (:meth:`.scene.Scene.fits`: the rule of the grid's moves)."""
+        return self.scene.fits(xy)
 
     def admittance_velocity(self) -> np.ndarray:
         """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from importlib import resources
 from pathlib import Path
 
@@ -19,6 +20,7 @@ import numpy as np
 
 from ..episode.physics import CELL_SIZE_M
 from ..errors import ConfigError
+from ..geometry.footprint import Clearance
 from ..geometry.world import World
 
 MJCF_DIR = Path(str(resources.files("pathpref.mjcf")))
@@ -42,6 +44,18 @@ class Scene:
     world: World
     model: mujoco.MjModel
     cell_size: float
+
+    @cached_property
+    def clearance(self) -> Clearance:
+        """Distances to the map's obstacles and walls (:mod:`pathpref.geometry.footprint`)."""
+        return Clearance(self.world.spec)
+
+    def fits(self, xy: np.ndarray) -> bool:
+        """Whether the robot's footprint centred at ``xy`` (m) keeps its reach (radius plus
+        clearance, ``world.footprint``) from every obstacle and wall: the rule that decides
+        the grid's moves (:mod:`pathpref.geometry.grid`), at a point."""
+        return self.clearance.clear_at(np.asarray(xy, float)[:2] / self.cell_size,
+                                       self.world.footprint.reach)
 
     def cell_centre(self, cell: int) -> np.ndarray:
         """Metric position ``(x, y)`` of a free cell's centre."""
@@ -180,4 +194,17 @@ def build_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams |
         model = spec.compile()
     except ValueError as e:
         raise ConfigError(f"map '{world.name}' cannot be built into a MuJoCo scene: {e}") from None
+    check_footprint(world, cell_size, float(model.geom("base_geom").size[0]), "the base")
     return Scene(world=world, model=model, cell_size=cell_size)
+
+
+def check_footprint(world: World, cell_size: float, radius_m: float, what: str) -> None:
+    """A ConfigError when the body's footprint (``radius_m`` from the base's centre) is larger
+    than the footprint the world's moves were made for (``world.footprint``): its moves
+    would not be clear for this body."""
+    fp = world.footprint
+    if radius_m > fp.radius * cell_size + 1e-9:
+        raise ConfigError(
+            f"{what} reaches {radius_m:.3f} m from the base's centre, more than the footprint "
+            f"the map's moves were made for ({fp.describe(cell_size)}); build the world with "
+            "a footprint of that radius (load_world(..., footprint=Footprint(r, c)))")
