@@ -65,6 +65,7 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
+from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
@@ -357,7 +358,8 @@ class _Split:
         known = state[y] >= 0
         heads[i[known], s[known], state[y[known]]] = 1.0
         u = self.u_index[y[~known]]
-        heads[i[~known], s[~known]] = Ht[:, u if hcol is None else hcol[u]].T
+        rows = Ht[:, u if hcol is None else hcol[u]].T
+        heads[i[~known], s[~known]] = _support(rows, y[~known], self.minor, state)
         return heads, n_slots
 
     def _boundary(self, neighbors) -> tuple[np.ndarray, np.ndarray]:
@@ -546,6 +548,39 @@ class _Minor:
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
+
+
+def _support(rows: np.ndarray, heads: np.ndarray, minor: _Minor, state: np.ndarray
+             ) -> np.ndarray:
+    """The first-entry rows ``rows[j]`` of the unobserved polytopes ``heads[j]`` with their
+    structural zeros restored: the walk from ``y`` through the unobserved set ``U`` can first
+    enter only a state (``S`` or ``r``, ``state >= 0``) next to ``y``'s component of ``U``,
+    so the other entries are exactly 0, and the row sums to 1 (every component of ``U``
+    reaches a state: ``r``'s component is connected). A solve or a rank-one update leaves
+    rounding (about 1e-16) there, which the chain's elimination would read as an exit: next to
+    a pocket that the walk leaves with probability 1e-8 (a dead-end branch of leaves between
+    observed polytopes), that is a relative error of 1e-8 in ``det``, growing with the
+    evidence. A row is renormalised only where an entry was cleared, so exact rows keep their
+    bits."""
+    if not len(heads):
+        return rows
+    src, dst = minor.src, minor.dst
+    P, m = len(state), rows.shape[1]
+    in_u = (minor.index >= 0) & (state < 0)
+    both = in_u[src] & in_u[dst]
+    g = sp.csr_matrix((np.ones(int(both.sum())), (src[both], dst[both])), shape=(P, P))
+    _, comp = connected_components(g, directed=False)
+    edge = in_u[src] & (state[dst] >= 0)
+    allowed = np.unique(comp[src[edge]].astype(np.int64) * m + state[dst[edge]])
+    keys = comp[heads].astype(np.int64)[:, None] * m + np.arange(m)[None, :]
+    ok = np.isin(keys, allowed)
+    out = np.where(ok, rows, 0.0)
+    cleared = ((~ok) & (rows != 0.0)).any(axis=1)
+    if cleared.any():
+        tot = out[cleared].sum(axis=1, keepdims=True)
+        out[cleared] = np.where(tot > 0, out[cleared] / np.where(tot > 0, tot, 1.0),
+                                out[cleared])
+    return out
 
 
 def _positions(rows: np.ndarray, n: int) -> np.ndarray:
