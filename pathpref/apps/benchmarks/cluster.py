@@ -43,11 +43,13 @@ def bench_coordinator(n: int = 2000, chunk: int = 16) -> dict[str, Any]:
     return out
 
 
-def bench_ray_cluster(n: int = 48, queries: int = 5000) -> dict[str, Any]:
+def bench_ray_cluster(n: int = 48, queries: int = 5000, map_name: str = "simple",
+                      methods: tuple[str, ...] = ("goal_only",)) -> dict[str, Any]:
     """A sweep on a Ray cluster of two nodes of one CPU each, both on this machine
-    (``ray.cluster_utils.Cluster``): ``n`` goal-only episodes on ``simple`` (the paper's 5000
-    queries per decision), the coordinator writing a results database as on a real cluster.
-    Start-up and a warm-up sweep (each node's workers importing pathpref) are not timed."""
+    (``ray.cluster_utils.Cluster``): ``n`` instances of ``methods`` on ``map_name`` (by
+    default goal-only episodes on ``simple``, the paper's 5000 queries per decision), the
+    coordinator writing a results database as on a real cluster. Start-up and a warm-up sweep
+    (each node's workers importing pathpref) are not timed."""
     try:
         import ray
         from ray.cluster_utils import Cluster
@@ -64,11 +66,11 @@ def bench_ray_cluster(n: int = 48, queries: int = 5000) -> dict[str, Any]:
     try:
         nodes = sum(1 for node in ray.nodes() if node["Alive"])
         with tempfile.TemporaryDirectory() as tmp:
-            warm = sweep_specs("simple", ["goal_only"], [5], instances=4, runs=1, seed=99,
+            warm = sweep_specs(map_name, list(methods), [5], instances=2, runs=1, seed=99,
                                queries=queries)
             run_sweep(warm, os.path.join(tmp, "warm.sqlite"), workers=2, progress=False,
                       backend="ray")
-            specs = sweep_specs("simple", ["goal_only"], [5], instances=n, runs=1, seed=3,
+            specs = sweep_specs(map_name, list(methods), [5], instances=n, runs=1, seed=3,
                                 queries=queries)
             counts = run_sweep(specs, os.path.join(tmp, "r.sqlite"), workers=2,
                                progress=False, backend="ray")
