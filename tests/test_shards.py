@@ -102,3 +102,40 @@ def test_a_chunk_is_claimed_in_one_go_and_claims_of_others_are_left(tmp_path):
         assert got == ["busy", "claimed", "done"]
         assert st.claim_many([failed(s[2], "")], retry_failed=True) == ["claimed"]
         assert st.release_claims() == 2
+
+
+def test_a_dead_workers_chunk_is_rerun_without_claiming_it_again(tmp_path, monkeypatch):
+    """A worker killed in the middle of its chunk: the episode it ran is charged once and run
+    again, the rest of its chunk is run uncharged by whichever worker is free, and no episode
+    is claimed twice or lost."""
+    import os
+    import signal
+
+    from pathpref.experiments import backends
+
+    s = specs()  # 16 episodes over 2 workers: chunks of 4
+    target, marker = s[1].key(), tmp_path / "killed"
+    real = backends.run_episode
+
+    def run(spec):
+        if spec.key() == target and not marker.exists():
+            marker.write_text("x")
+            os.kill(os.getpid(), signal.SIGKILL)
+        return real(spec)
+
+    monkeypatch.setattr(backends, "run_episode", run)
+    asked: list[str] = []
+
+    def claim(chunk):
+        asked.extend(x.key() for x in chunk)
+        return chunk
+
+    out = [r for batch in backends.local_batches(s, 2, claim=claim) for r in batch]
+    assert marker.exists()
+    assert sorted(r.spec.key() for r in out) == sorted(asked) == sorted(x.key() for x in s)
+    assert {r.status for r in out} == {"ok"}
+    marker.unlink()  # the same through a sweep, which claims in its database
+    db = str(tmp_path / "d.sqlite")
+    counts = run_sweep(s, db, workers=2, progress=False)
+    assert marker.exists() and counts["ran"] == len(s) and counts["failed"] == 0
+    assert rows(db, "key, status") == sorted((x.key(), "ok") for x in s)

@@ -347,8 +347,7 @@ def local_batches(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
                 n = chunk_size(len(queue), pool.size, LOCAL_CHUNK)
                 chunk = [queue.popleft() for _ in range(min(n, len(queue)))]
                 new = [s for s in chunk if s.key() not in mine]
-                got = {s.key() for s in _claimed(new, claim)}
-                mine |= got
+                mine |= {s.key() for s in (_claimed(new, claim) if new else ())}
                 chunk = [s for s in chunk if s.key() in mine]
                 if chunk and not pool.start(w, chunk):
                     queue.extendleft(reversed(chunk))

@@ -160,6 +160,8 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
             """Claim the episodes of ``chunk`` before they are sent, in one transaction; those
             another sweep has finished since this one started, or is running, are left out
             (counted as skipped, and in ``elsewhere``; in ``busy`` too while unfinished)."""
+            if not chunk:
+                return []
             age = CLAIM_AGE * max(wall_limit(s) for s in chunk)
             got = store.claim_many([failed(s, "") for s in chunk], retry_failed, age, owner)
             for answer in got:
