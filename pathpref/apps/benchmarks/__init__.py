@@ -24,12 +24,12 @@ from typing import Any
 from .cluster import bench_coordinator, bench_ray_cluster
 from .maps import bench_map, bench_pomcp, machine_info
 from .physics import bench_arm, bench_physics
-from .scale import bench_ray, bench_scale
+from .scale import bench_ray, bench_robust_40, bench_scale
 from .study import bench_study
 from .tasks import bench_tasks
 
 __all__ = ["bench_arm", "bench_coordinator", "bench_map", "bench_physics", "bench_pomcp",
-           "bench_ray", "bench_ray_cluster", "bench_scale",
+           "bench_ray", "bench_ray_cluster", "bench_robust_40", "bench_scale",
            "bench_study", "bench_tasks", "machine_info", "run_benchmarks"]
 
 
@@ -44,6 +44,6 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
         out["study"] = bench_study(quick=quick)
     if not quick:
         out["scale"] = {**bench_ray(), **bench_coordinator(), **bench_ray_cluster(),
-                        **bench_scale()}
+                        **bench_robust_40(), **bench_scale()}
     return out
 
