@@ -7,8 +7,8 @@ seed) the same episodes (instances, runs, seeds) run under both pools: the defau
 path preference, ΔT = 5, 5000 queries. Printed and written as Markdown: the polytope count,
 both pool sizes, the median CPU time of the first decision (instances' first decisions in this
 process, after one warm-up), and per pool the goal-reached, homotopy-level and strict success
-counts, with the discordant pairs of strict success (episodes that succeed under one pool
-only: a sign test's input).
+counts, each with its discordant pairs (episodes that succeed under one pool only: a sign
+test's input).
 
     python scripts/pool_by_plan_size.py --instances 12 --out docs/results/pool_by_plan_size.md
 """
@@ -73,8 +73,8 @@ def main() -> None:
     ap.add_argument("--out", default=None)
     args = ap.parse_args()
     lines = ["| plan | P | pool 128 -> by size | first decision ms (128 / by size) | n | "
-             "goal reached | homotopy | strict success | strict only with 128 / only by size |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "goal reached (128 / by size; only 128, only by size) | homotopy | strict |",
+             "|---|---|---|---|---|---|---|---|"]
     with tempfile.TemporaryDirectory() as tmp:
         for w, h, n in PLANS:
             name = f"r{w}x{h}"
@@ -98,14 +98,16 @@ def main() -> None:
                 finally:
                     pomcp.POOL_POLYTOPE_TREES = saved
             keys = sorted(set(res["fixed"]) & set(res["sized"]))
-            tot = {arm: [sum(res[arm][k][j] for k in keys) for j in range(3)] for arm in res}
-            only_fixed = sum(res["fixed"][k][2] > res["sized"][k][2] for k in keys)
-            only_sized = sum(res["sized"][k][2] > res["fixed"][k][2] for k in keys)
+            cells = []
+            for j in range(3):
+                a = [res["fixed"][k][j] for k in keys]
+                b = [res["sized"][k][j] for k in keys]
+                only_a = sum(x > y for x, y in zip(a, b, strict=True))
+                only_b = sum(y > x for x, y in zip(a, b, strict=True))
+                cells.append(f"{sum(a)} / {sum(b)}; {only_a}, {only_b}")
             row = (f"| {w} x {h}, {n} rotated | {P} | {pools['fixed']} -> {pools['sized']} | "
                    f"{ms['fixed']:.1f} / {ms['sized']:.1f} | {len(keys)} | "
-                   f"{tot['fixed'][0]} / {tot['sized'][0]} | {tot['fixed'][1]} / "
-                   f"{tot['sized'][1]} | {tot['fixed'][2]} / {tot['sized'][2]} | "
-                   f"{only_fixed} / {only_sized} |")
+                   + " | ".join(cells) + " |")
             print(row, flush=True)
             lines.append(row)
     if args.out:
