@@ -1,16 +1,16 @@
 """SQLite results store: one row per episode (full configuration and seeds), per-step logs.
 
-Each finished episode is written at once, in one transaction (episode row and its steps
-together), so a sweep killed at any moment leaves only whole episodes; WAL journaling keeps the
-file consistent. The primary key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips
-what is done.
+Finished episodes are written as they arrive, each batch in one transaction
+(:meth:`ResultStore.add_many`: episode rows and their steps together), so a sweep killed at
+any moment leaves only whole episodes; WAL journaling keeps the file consistent. The primary
+key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips what is done.
 
 Two sweeps may share one database: each claims an episode just before running it
-(:meth:`ResultStore.claim`), in one write transaction, by writing its row with ``status =
-'running'`` and the claim's owner (host, process id and the process's start time) in
-``reason``; a row another live sweep has claimed is left to it. A claim whose owner is gone (on
-this host: no such process, or the process id reused; from another host: older than four
-times the episode's wall-time limit) is stale, and the next sweep takes it over, so a crashed
+(:meth:`ResultStore.claim`; a chunk of them at once, :meth:`ResultStore.claim_many`), in one
+write transaction, by writing its row with ``status = 'running'`` and the claim's owner (host,
+process id and the process's start time) in ``reason``; a row another live sweep has claimed
+is left to it. A claim whose owner is gone (on this host: no such process, or the process id
+reused; from another host: older than four times the wall-time limits of its chunk) is stale, and the next sweep takes it over, so a crashed
 sweep's claims are run on resume. A sweep removes its unfinished claims when it ends (Ctrl-C,
 SIGTERM, an error); readers leave ``running`` rows out (they are not results).
 

@@ -11,7 +11,12 @@ finished or is running count as skipped (``counts["elsewhere"]``).
 A sweep may be killed at any moment. Episodes are claimed a chunk at a time, and the results
 that arrive together (:func:`.backends.iter_results`) are committed together, on arrival; SIGTERM
 (like Ctrl-C) makes :func:`run_sweep` unwind, killing its worker processes (exit status 143
-from the CLI); SIGKILL leaves nothing behind either (see :mod:`.backends`).
+from the CLI); SIGKILL leaves nothing behind either (see :mod:`.backends`); the claims of a
+killed sweep are stale, so the episodes it had not written run on resume.
+
+A sweep too large for one coordinator is split into shards (:func:`shard_specs`), each run by
+its own coordinator into its own database (one per node, say), and ``pathpref db merge``
+joins the databases (:func:`.migrate.merge_databases`).
 """
 
 from __future__ import annotations
@@ -36,7 +41,8 @@ from ..planning.policies import resolve_methods
 from .backends import check_backend, failed, iter_results, max_workers, wall_limit
 from .store import ResultStore, this_owner
 
-#: a claim made on another host is stale after this many times its episode's wall-time limit
+#: a claim made on another host is stale after this many times the wall-time limits of its
+#: chunk's episodes (run one after the other)
 CLAIM_AGE = 4.0
 
 
@@ -162,7 +168,7 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
             (counted as skipped, and in ``elsewhere``; in ``busy`` too while unfinished)."""
             if not chunk:
                 return []
-            age = CLAIM_AGE * max(wall_limit(s) for s in chunk)
+            age = CLAIM_AGE * sum(wall_limit(s) for s in chunk)
             got = store.claim_many([failed(s, "") for s in chunk], retry_failed, age, owner)
             for answer in got:
                 if answer != "claimed":
