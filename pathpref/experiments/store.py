@@ -10,9 +10,10 @@ Two sweeps may share one database: each claims an episode just before running it
 write transaction, by writing its row with ``status = 'running'`` and the claim's owner (host,
 process id and the process's start time) in ``reason``; a row another live sweep has claimed
 is left to it. A claim whose owner is gone (on this host: no such process, or the process id
-reused; from another host: older than four times the wall-time limits of its chunk) is stale, and the next sweep takes it over, so a crashed
-sweep's claims are run on resume. A sweep removes its unfinished claims when it ends (Ctrl-C,
-SIGTERM, an error); readers leave ``running`` rows out (they are not results).
+reused; from another host: older than four times the wall-time limits of its chunk) is stale,
+and the next sweep takes it over, so a crashed sweep's claims are run on resume. A sweep
+removes its unfinished claims when it ends (Ctrl-C, SIGTERM, an error); readers leave
+``running`` rows out (they are not results).
 
 An existing file is checked before it is opened for writing (:func:`check_results_file`), on a
 read-only connection that leaves no side file: it must be a regular file holding exactly
