@@ -45,7 +45,7 @@ SIMS_PER_TREE = 32
 #: polytopes (a tree's Wilson draw costs about ``9 P`` walk steps): 128 up to ``P = 261`` (the
 #: paper's maps and the held-out plans keep their pools and moves), 72 at 469 polytopes
 #: (32 x 32, 16 rotated), 32 from 1045 (40 x 40, 32 rotated), where the first decision fell
-#: from 49 to 25 ms (paired sweep: docs/results/pool_by_plan_size.md)
+#: from 49-52 to 25-30 ms CPU (paired sweep: docs/results/pool_by_plan_size.md)
 POOL_POLYTOPE_TREES = 33_440
 #: the fewest particles the plan-size bound leaves (the 200 x 200 bench plan at 1000 queries
 #: keeps its 32)
