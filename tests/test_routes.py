@@ -797,3 +797,28 @@ def test_root_pool_is_reused_while_the_belief_is_unchanged(simple):
     belief.rule_out(1)
     planner.search(start, belief, 30, 4)
     assert planner.pools_drawn == 3 and not np.any(pool[-1][0] == 1)
+
+
+def test_root_pool_shrinks_on_large_plans_only():
+    """``min(128, ceil(queries / 32), max(32, ceil(33440 / P)))`` on a plan of ``P``
+    polytopes: the paper's maps keep 128 at 5000 queries; a 40 x 40 plan with 32 rotated
+    obstacles (1045 polytopes) gets 32; 469 polytopes get ceil(33440 / 469) = 72."""
+    from pathpref.geometry.generate import with_loop_preference
+    from pathpref.geometry.maps import load_map
+    from pathpref.geometry.world import World
+    from pathpref.planning.pomcp import POMCP
+    from pathpref.planning.pomdp import get_preset
+
+    robust = get_preset("robust").path_preference
+    sizes = {}
+    for name, spec in (("classroom", "classroom"),
+                       ("r32", with_loop_preference(random_floor_plan(32, 32, 16, seed=1))),
+                       ("r40", with_loop_preference(random_floor_plan(40, 40, 32, seed=1)))):
+        world = World.from_spec(load_map(spec))
+        goals = np.arange(0, world.n_cells, max(1, world.n_cells // 5))[:5]
+        tables = ObservationModel.build(world, goals, normalize=True).tables
+        sizes[name] = (world.n_polytopes, [
+            POMCP(world, goals, robust, queries=q, tables=tables).pool_size()
+            for q in (5000, 1000)])
+    assert sizes == {"classroom": (73, [128, 32]), "r32": (469, [72, 32]),
+                     "r40": (1045, [32, 32])}

@@ -194,6 +194,11 @@ def build_parser() -> argparse.ArgumentParser:
     ds.add_argument("db", help="damaged results database (.sqlite)")
     ds.add_argument("out", help="new database to write (must not exist)")
     ds.set_defaults(func=c.cmd_db_salvage)
+    dm = dbsub.add_parser("merge", help="join sweep databases (shards) into one, each episode "
+                          "once (exit 2 when two runs of an episode disagree)")
+    dm.add_argument("out", help="database to write into (created when missing)")
+    dm.add_argument("inputs", nargs="+", help="databases to copy from (read only)")
+    dm.set_defaults(func=c.cmd_db_merge)
 
     ev = sub.add_parser("evaluate", help="run a sweep of episodes into a results database")
     ev.add_argument("--map", default="simple",
@@ -223,6 +228,12 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
     ev.add_argument("--retry-failed", action="store_true", help="re-run failed episodes")
+    ev.add_argument("--shard", default=None, metavar="I/N",
+                    help="run only shard I of N of the sweep (episodes split by key; one "
+                    "database per shard, joined by 'pathpref db merge'; default: all)")
+    ev.add_argument("--no-steps", action="store_true",
+                    help="store no per-step rows (most of a database's size; replay and "
+                    "step-based reports need them)")
     episode_options(ev)
     physics_options(ev)
     ev.set_defaults(func=c.cmd_evaluate)

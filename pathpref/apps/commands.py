@@ -189,6 +189,18 @@ def cmd_db_salvage(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_db_merge(args: argparse.Namespace) -> int:
+    """``pathpref db merge``: join sweep databases (shards) into one, each episode once."""
+    from ..experiments.migrate import merge_databases
+
+    r = merge_databases(args.out, args.inputs)
+    print(f"merged {len(args.inputs)} databases into {args.out}: {r['copied']} episodes "
+          f"copied ({r['steps']} step rows), {r['replaced']} failed ones replaced by finished "
+          f"ones, {r['duplicates']} already there left out ({r['conflicts']} with another "
+          f"outcome); {args.out} holds {r['episodes']} episodes")
+    return 0 if r["conflicts"] == 0 else 2
+
+
 # --- experiments ----------------------------------------------------------------------------
 def _common_episode_args(args: argparse.Namespace, map_name: str) -> dict:
     """The episode fields every running command shares (None: the preset's value, resolved
@@ -223,7 +235,9 @@ def load_simulator(sim: str) -> None:
 def cmd_evaluate(args: argparse.Namespace) -> int:
     """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
     from ..experiments.report import load_records, markdown_tables
-    from ..experiments.sweep import run_sweep, sweep_specs
+    from ..experiments.sweep import parse_shard, run_sweep, shard_specs, sweep_specs
+    if args.shard:
+        parse_shard(args.shard)  # a malformed --shard before any work
     check_database(args.db)
     check_episode_count([args.instances, args.runs, len(args.delta_t),
                          len(check_methods(args.methods))], "the sweep")
@@ -235,11 +249,13 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                         seed=args.seed, n_goals=args.goals, sim=args.sim, robot=args.task,
                         physics=physics_json(args, args.sim),
                         **_common_episode_args(args, args.map))
+    if args.shard:
+        specs = shard_specs(specs, *parse_shard(args.shard))
     cleanup = _new_database_guard(args.db)
     try:
         counts = run_sweep(specs, args.db, workers=args.workers, progress=not args.no_progress,
                            retry_failed=args.retry_failed, backend=args.backend,
-                           address=args.address)
+                           address=args.address, steps=not args.no_steps)
     except Exception as e:
         if not is_disk_full(e):
             raise
@@ -248,7 +264,8 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     elsewhere = counts.get("elsewhere", 0)
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
           f"in {args.db}" + (f" ({elsewhere} of them run by another sweep)" if elsewhere else "")
-          + f", {counts['seconds']} s")
+          + f", {counts['seconds']} s ({counts['episodes_per_s']:g} episodes/s)"
+          + (f"; shard {args.shard} of the sweep" if args.shard else ""))
     from ..episode import cached_map
 
     recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]

@@ -1,18 +1,26 @@
 """Where episodes run: a local pool of worker processes, or a Ray cluster. Both yield results in
 completion order to the coordinator, which alone writes the results store.
 
+Both send episodes in chunks (:func:`chunk_size`: up to :data:`LOCAL_CHUNK` per local worker,
+:data:`RAY_CHUNK` per Ray task, smaller near the end of a sweep so that the last chunks spread
+over every worker) and yield results in batches (:func:`iter_batches`), which the coordinator
+writes one transaction per batch: a worker need not wait for the coordinator between episodes,
+and the coordinator's cost per episode falls with the batch.
+
 ``local`` (:func:`iter_local`), a pool whose coordinator knows which process runs which episode:
 
-* At most ``workers`` worker processes, never more than there are episodes; each runs one
-  episode at a time and sends its result back through its own pipe. ``workers == 1`` runs the
-  episodes in this process instead (no isolation: a crash or a hang there is the caller's).
+* At most ``workers`` worker processes, never more than there are episodes; each runs the
+  episodes of its chunk one after the other and sends each result back through its own pipe as
+  it finishes, so the coordinator knows which episode of the chunk runs. ``workers == 1`` runs
+  the episodes in this process instead (no isolation: a crash or a hang there is the caller's).
 * Workers die with the coordinator, whatever killed it (SIGKILL included): on Linux the kernel
   sends each one SIGKILL when the coordinator dies (``PR_SET_PDEATHSIG``); everywhere, a thread
   in each worker ends it within a second of its parent process changing. Workers ignore Ctrl-C
   (SIGINT); the coordinator kills them on its way out, whatever the reason it leaves.
 * A worker that dies (SIGKILL, segfault, OOM) charges only the episode it was running: that
   episode is queued again, and recorded as failed ("worker process died N times") at its
-  ``max_crashes``-th death; the episodes of the other workers go on undisturbed.
+  ``max_crashes``-th death; the rest of its chunk is queued again uncharged; the episodes of
+  the other workers go on undisturbed.
 * The coordinator watches each running episode's wall time and kills (SIGKILL, by PID) a worker
   past the episode's limit, :func:`wall_limit`: a frozen (SIGSTOP), deadlocked or runaway worker
   cannot hang the sweep. Without ``--episode-timeout`` the limit is generous and overrunning it
@@ -20,7 +28,10 @@ completion order to the coordinator, which alone writes the results store.
   checks ``T`` itself between decisions, and an episode whose worker is killed for overrunning
   ``T`` is recorded as failed ("timeout: ...") at once, as the episode's own check would.
 
-``ray``: each episode is a Ray task (``max_retries`` re-runs a task whose worker died).
+``ray``: each chunk is a Ray task (``max_retries`` re-runs a task whose worker or node died;
+the chunk's results return once, when the task succeeds). The maps of the episodes travel with
+the tasks by content (:func:`~pathpref.episode.cache.map_payload`, put in Ray's object store
+once per sweep), so a node needs neither the map files nor a shared file system.
 ``address=None`` starts a local Ray instance; ``address="auto"`` or ``"ray://host:10001"``
 joins an existing cluster (see docs/experiments.md, "Running on a Ray cluster"); an address
 whose port does not accept a connection within :data:`RAY_CONNECT_S` seconds is refused at
@@ -43,11 +54,12 @@ import time
 import traceback
 from collections import Counter, deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from multiprocessing.connection import Connection, wait
 from multiprocessing.process import BaseProcess
 
 from ..episode import EpisodeResult, EpisodeSpec, Instance, run_episode
+from ..episode.cache import map_payload, ship_maps
 from ..errors import ConfigError, PathprefError
 
 BACKENDS = ("local", "ray")
@@ -55,6 +67,10 @@ BACKENDS = ("local", "ray")
 WORKERS_PER_CPU = 4
 #: seconds a Ray ``--address`` has to accept a TCP connection
 RAY_CONNECT_S = 5.0
+#: most episodes per chunk sent to a local worker
+LOCAL_CHUNK = 8
+#: most episodes per Ray task
+RAY_CHUNK = 16
 _PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
 
 
@@ -73,6 +89,24 @@ def safe_run(spec: EpisodeSpec) -> EpisodeResult:
         if not isinstance(e, PathprefError):
             reason += " | " + traceback.format_exc(limit=3).replace("\n", " ")[-500:]
         return failed(spec, reason)
+
+
+def run_chunk(specs: list[EpisodeSpec], maps: dict | None = None) -> list[EpisodeResult]:
+    """The results of a chunk of episodes, in order (:func:`safe_run` each), after taking the
+    shipped ``maps`` (:func:`~pathpref.episode.cache.ship_maps`); maps that cannot be taken
+    fail every episode of the chunk with the reason."""
+    if maps:
+        try:
+            ship_maps(maps)
+        except PathprefError as e:
+            return [failed(s, f"{type(e).__name__}: {e}") for s in specs]
+    return [safe_run(s) for s in specs]
+
+
+def chunk_size(left: int, workers: int, most: int) -> int:
+    """Episodes in the next chunk: ``left // (2 workers)`` (every worker gets at least two more
+    chunks' share near the end), between 1 and ``most``."""
+    return max(1, min(most, left // (2 * max(1, workers))))
 
 
 def max_workers() -> int:
@@ -117,9 +151,10 @@ def _watch_parent(parent: int) -> None:
 
 
 def _work(conn: Connection, parent: int, inherited: list[Connection]) -> None:
-    """A worker process: run each episode received on ``conn`` and send back its result; leave
-    at end of file (the coordinator closed its end). ``inherited`` are the coordinator's ends of
-    pipes that a fork copied here: closed, so that only the coordinator holds them."""
+    """A worker process: run each chunk of episodes received on ``conn``, sending back each
+    result as it finishes; leave at end of file (the coordinator closed its end). ``inherited``
+    are the coordinator's ends of pipes that a fork copied here: closed, so that only the
+    coordinator holds them."""
     for c in inherited:
         c.close()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -127,19 +162,25 @@ def _work(conn: Connection, parent: int, inherited: list[Connection]) -> None:
     _die_with(parent)
     while True:
         try:
-            spec = conn.recv()
+            chunk = conn.recv()
         except EOFError:
             return
-        conn.send(safe_run(spec))
+        for spec in chunk:
+            conn.send(safe_run(spec))
 
 
 @dataclass
 class _Worker:
     proc: BaseProcess
     conn: Connection
-    spec: EpisodeSpec | None = None  # the episode it runs, None when idle
-    started: float = 0.0
+    chunk: deque = field(default_factory=deque)  # its episodes; the first one runs
+    started: float = 0.0  # when the running episode started
     deadline: float = 0.0
+
+    @property
+    def spec(self) -> EpisodeSpec | None:
+        """The episode it runs, None when idle."""
+        return self.chunk[0] if self.chunk else None
 
 
 @dataclass
@@ -163,13 +204,15 @@ def _signal_name(exitcode: int | None) -> str:
 
 
 class _Pool:
-    """Worker processes each running one episode at a time (module docstring)."""
+    """Worker processes each running one chunk of episodes at a time (module docstring);
+    ``returned`` holds the episodes of chunks whose worker died before running them."""
 
     def __init__(self, size: int, limit: Callable[[EpisodeSpec], float]):
         self.fork = sys.platform.startswith("linux")
         self.ctx = mp.get_context("fork" if self.fork else "spawn")
         self.size, self.limit = size, limit
         self.workers: list[_Worker] = []
+        self.returned: list[EpisodeSpec] = []
 
     def _spawn(self) -> _Worker:
         here, there = self.ctx.Pipe()
@@ -205,20 +248,27 @@ class _Pool:
     def busy(self) -> bool:
         return any(w.spec is not None for w in self.workers)
 
-    def start(self, w: _Worker, spec: EpisodeSpec) -> bool:
-        """Give ``spec`` to the idle worker ``w``; False if ``w`` turned out dead (removed)."""
+    def start(self, w: _Worker, chunk: list[EpisodeSpec]) -> bool:
+        """Give ``chunk`` to the idle worker ``w``; False if ``w`` turned out dead (removed)."""
         try:
-            w.conn.send(spec)
+            w.conn.send(chunk)
         except OSError:  # it died since idle() looked
             self._remove(w)
             return False
-        w.spec, w.started = spec, time.monotonic()
-        w.deadline = w.started + self.limit(spec)
+        w.chunk = deque(chunk)
+        self._next(w)
         return True
+
+    def _next(self, w: _Worker) -> None:
+        """The clock of ``w``'s running episode starts now."""
+        w.started = time.monotonic()
+        if w.chunk:
+            w.deadline = w.started + self.limit(w.chunk[0])
 
     def collect(self) -> list[_Ended]:
         """Wait for the first result, death or overrun among the running episodes; all that
-        have ended by then, each freeing its worker (a dead or killed one is removed)."""
+        have ended by then (a dead or killed worker is removed, the rest of its chunk put in
+        ``returned``)."""
         busy = [w for w in self.workers if w.spec is not None]
         if not busy:
             return []
@@ -226,16 +276,20 @@ class _Pool:
         ready = set(wait([w.conn for w in busy] + [w.proc.sentinel for w in busy], timeout))
         ended = []
         for w in busy:
-            spec = w.spec
             if w.conn in ready:
                 try:
-                    result = w.conn.recv()
+                    while w.chunk and w.conn.poll():
+                        result = w.conn.recv()
+                        ended.append(_Ended(w.chunk.popleft(), result))
+                        self._next(w)
                 except (EOFError, OSError):  # died: end of file, or in the middle of a result
                     pass
                 else:
-                    w.spec = None
-                    ended.append(_Ended(spec, result))
-                    continue
+                    if not w.chunk or w.proc.sentinel not in ready:
+                        continue
+            if not w.chunk:  # died with its chunk done: seen as idle and dead by idle()
+                continue
+            spec = w.spec
             now = time.monotonic()
             if w.conn in ready or w.proc.sentinel in ready:
                 w.proc.join()
@@ -251,6 +305,8 @@ class _Pool:
                 ended.append(_Ended(spec, why=why, timed_out=bool(spec.timeout_s)))
             else:
                 continue
+            w.chunk.popleft()
+            self.returned.extend(w.chunk)
             self._remove(w)
         return ended
 
@@ -260,50 +316,69 @@ class _Pool:
             self._remove(w)
 
 
-Claim = Callable[[EpisodeSpec], bool]
+#: ``claim(chunk)``: the episodes of ``chunk`` this sweep may run (claimed for it, in order);
+#: the others are dropped (another sweep has them)
+Claim = Callable[[list[EpisodeSpec]], list[EpisodeSpec]]
 
 
-def _claimed(spec: EpisodeSpec, claim: Claim | None) -> bool:
-    return claim is None or claim(spec)
+def _claimed(chunk: list[EpisodeSpec], claim: Claim | None) -> list[EpisodeSpec]:
+    return chunk if claim is None else claim(chunk)
 
 
-def iter_local(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
-               limit: Callable[[EpisodeSpec], float] = wall_limit,
-               claim: Claim | None = None) -> Iterator[EpisodeResult]:
-    """Results from a pool of worker processes (in-process when ``workers == 1``), in completion
-    order; ``limit`` gives an episode's wall-time limit in seconds; ``claim(spec)`` is asked
-    just before an episode starts, and an episode it refuses is dropped (another sweep has it).
-    Rules: module docstring."""
+def local_batches(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
+                  limit: Callable[[EpisodeSpec], float] = wall_limit,
+                  claim: Claim | None = None) -> Iterator[list[EpisodeResult]]:
+    """Results from a pool of worker processes (in-process when ``workers == 1``), in
+    completion order, each batch the results that arrived together; ``limit`` gives an
+    episode's wall-time limit in seconds; ``claim`` is asked for each chunk just before it is
+    sent (for each episode just before it runs when in-process). Rules: module docstring."""
     if workers <= 1:
         for s in specs:
-            if _claimed(s, claim):
-                yield safe_run(s)
+            if _claimed([s], claim):
+                yield [safe_run(s)]
         return
     queue = deque(specs)
+    mine: set[str] = set()  # keys claimed already (a chunk's rest, returned by a dead worker)
     deaths: Counter[str] = Counter()
     pool = _Pool(min(workers, len(queue)), limit)
     try:
         while queue or pool.busy():
             while queue and (w := pool.idle()) is not None:
-                if not _claimed(queue[0], claim):
-                    queue.popleft()
-                elif pool.start(w, queue[0]):
-                    queue.popleft()
+                n = chunk_size(len(queue), pool.size, LOCAL_CHUNK)
+                chunk = [queue.popleft() for _ in range(min(n, len(queue)))]
+                new = [s for s in chunk if s.key() not in mine]
+                mine |= {s.key() for s in (_claimed(new, claim) if new else ())}
+                chunk = [s for s in chunk if s.key() in mine]
+                if chunk and not pool.start(w, chunk):
+                    queue.extendleft(reversed(chunk))
+            batch = []
             for end in pool.collect():
                 if end.result is not None:
-                    yield end.result
+                    batch.append(end.result)
                 elif end.timed_out:
-                    yield failed(end.spec, end.why)
+                    batch.append(failed(end.spec, end.why))
                 else:
                     key = end.spec.key()
                     deaths[key] += 1
                     if deaths[key] >= max_crashes:
-                        yield failed(end.spec, f"worker process died {deaths[key]} times "
-                                               f"(last: {end.why})")
+                        batch.append(failed(end.spec, f"worker process died {deaths[key]} "
+                                                      f"times (last: {end.why})"))
                     else:
                         queue.appendleft(end.spec)
+            queue.extendleft(reversed(pool.returned))
+            pool.returned.clear()
+            if batch:
+                yield batch
     finally:
         pool.close()
+
+
+def iter_local(specs: list[EpisodeSpec], workers: int, max_crashes: int = 3,
+               limit: Callable[[EpisodeSpec], float] = wall_limit,
+               claim: Claim | None = None) -> Iterator[EpisodeResult]:
+    """:func:`local_batches`, one result at a time."""
+    for batch in local_batches(specs, workers, max_crashes, limit, claim):
+        yield from batch
 
 
 def _require_reachable(address: str) -> None:
@@ -348,10 +423,12 @@ def check_backend(backend: str, address: str | None = None) -> None:
         ) from None
 
 
-def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int | None = None,
-             max_retries: int = 3, claim: Claim | None = None) -> Iterator[EpisodeResult]:
-    """Results from Ray tasks, as they finish (see module docstring); ``claim`` as for
-    :func:`iter_local`, asked just before a task is submitted."""
+def ray_batches(specs: list[EpisodeSpec], address: str | None = None,
+                num_cpus: int | None = None, max_retries: int = 3,
+                claim: Claim | None = None) -> Iterator[list[EpisodeResult]]:
+    """Results from Ray tasks of chunks, each batch the chunks that finished together (see
+    module docstring); ``claim`` as for :func:`local_batches`, asked for each chunk just
+    before its task is submitted."""
     try:
         import ray
     except ImportError:
@@ -372,38 +449,54 @@ def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int
             raise ConfigError(f"cannot start or join Ray (address={address!r}): {e}") from None
         started = True
     try:
-        remote = ray.remote(max_retries=max_retries)(safe_run)
-        window = 4 * max(1, int(ray.cluster_resources().get("CPU", 1)))
+        remote = ray.remote(max_retries=max_retries)(run_chunk)
+        maps = ray.put(map_payload({s.map for s in specs}))
+        cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+        window = 2 * cpus  # chunks in flight: each CPU has its next one queued
         todo = deque(specs)
         pending: dict = {}
         while todo or pending:
             while todo and len(pending) < window:
-                s = todo.popleft()
-                if _claimed(s, claim):
-                    pending[remote.remote(s)] = s
+                n = chunk_size(len(todo), cpus, RAY_CHUNK)
+                chunk = _claimed([todo.popleft() for _ in range(min(n, len(todo)))], claim)
+                if chunk:
+                    pending[remote.remote(chunk, maps)] = chunk
             # a bounded wait, so that a signal's Python handler (SIGTERM: exit) gets to run
             done, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+            if done:  # and every other chunk finished by now
+                done, _ = ray.wait(list(pending), num_returns=len(pending), timeout=0)
+            batch = []
             for ref in done:
-                s = pending.pop(ref)
+                chunk = pending.pop(ref)
                 try:
-                    yield ray.get(ref)
+                    batch.extend(ray.get(ref))
                 except ray.exceptions.RayError as e:
-                    yield failed(s, f"ray task failed: {type(e).__name__}: {e}")
+                    batch.extend(failed(s, f"ray task failed: {type(e).__name__}: {e}")
+                                 for s in chunk)
+            if batch:
+                yield batch
     finally:
         if started:
             ray.shutdown()
 
 
+def iter_ray(specs: list[EpisodeSpec], address: str | None = None, num_cpus: int | None = None,
+             max_retries: int = 3, claim: Claim | None = None) -> Iterator[EpisodeResult]:
+    """:func:`ray_batches`, one result at a time."""
+    for batch in ray_batches(specs, address, num_cpus, max_retries, claim):
+        yield from batch
+
+
 def iter_results(specs: list[EpisodeSpec], backend: str, workers: int,
                  address: str | None = None, claim: Claim | None = None
-                 ) -> Iterator[EpisodeResult]:
-    """Results of ``specs`` from ``backend``, with at most ``workers`` worker processes (local)
-    or CPUs (a local Ray instance), and never more than there are episodes; ``claim(spec)``
-    is asked just before each episode starts (:func:`iter_local`)."""
+                 ) -> Iterator[list[EpisodeResult]]:
+    """Batches of results of ``specs`` from ``backend``, with at most ``workers`` worker
+    processes (local) or CPUs (a local Ray instance), and never more than there are episodes;
+    ``claim(chunk)`` is asked just before each chunk is sent (:func:`local_batches`)."""
     workers = max(1, min(workers, len(specs)))
     if backend == "local":
-        return iter_local(specs, workers, claim=claim)
+        return local_batches(specs, workers, claim=claim)
     if backend == "ray":
-        return iter_ray(specs, address=address, num_cpus=workers if address is None else None,
-                        claim=claim)
+        return ray_batches(specs, address=address,
+                           num_cpus=workers if address is None else None, claim=claim)
     raise ConfigError(f"unknown backend '{backend}'; choose one of {', '.join(BACKENDS)}")

@@ -1,18 +1,19 @@
 """SQLite results store: one row per episode (full configuration and seeds), per-step logs.
 
-Each finished episode is written at once, in one transaction (episode row and its steps
-together), so a sweep killed at any moment leaves only whole episodes; WAL journaling keeps the
-file consistent. The primary key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips
-what is done.
+Finished episodes are written as they arrive, each batch in one transaction
+(:meth:`ResultStore.add_many`: episode rows and their steps together), so a sweep killed at
+any moment leaves only whole episodes; WAL journaling keeps the file consistent. The primary
+key is :meth:`EpisodeSpec.key`, so a rerun of the same sweep skips what is done.
 
 Two sweeps may share one database: each claims an episode just before running it
-(:meth:`ResultStore.claim`), in one write transaction, by writing its row with ``status =
-'running'`` and the claim's owner (host, process id and the process's start time) in
-``reason``; a row another live sweep has claimed is left to it. A claim whose owner is gone (on
-this host: no such process, or the process id reused; from another host: older than four
-times the episode's wall-time limit) is stale, and the next sweep takes it over, so a crashed
-sweep's claims are run on resume. A sweep removes its unfinished claims when it ends (Ctrl-C,
-SIGTERM, an error); readers leave ``running`` rows out (they are not results).
+(:meth:`ResultStore.claim`; a chunk of them at once, :meth:`ResultStore.claim_many`), in one
+write transaction, by writing its row with ``status = 'running'`` and the claim's owner (host,
+process id and the process's start time) in ``reason``; a row another live sweep has claimed
+is left to it. A claim whose owner is gone (on this host: no such process, or the process id
+reused; from another host: older than four times the wall-time limits of its chunk) is stale,
+and the next sweep takes it over, so a crashed sweep's claims are run on resume. A sweep
+removes its unfinished claims when it ends (Ctrl-C, SIGTERM, an error); readers leave
+``running`` rows out (they are not results).
 
 An existing file is checked before it is opened for writing (:func:`check_results_file`), on a
 read-only connection that leaves no side file: it must be a regular file holding exactly
@@ -473,10 +474,14 @@ class ResultStore:
     :func:`open_readonly`, so the file, its journal mode (a rollback-journal file stays one) and
     its folder are left exactly as they were; a write through such a store is refused.
     ``check_rows``: :meth:`check_rows` on that read-only connection first, so that a file with
-    a row pathpref cannot have written is refused before it is opened for writing."""
+    a row pathpref cannot have written is refused before it is opened for writing.
+    ``steps=False``: episodes are written without their per-step rows (:data:`STEP_COLUMNS`;
+    a sweep's ``--no-steps``), which make most of a results file."""
 
-    def __init__(self, path: str | Path, create: bool = True, check_rows: bool = False):
+    def __init__(self, path: str | Path, create: bool = True, check_rows: bool = False,
+                 steps: bool = True):
         self.path = Path(path)
+        self.keep_steps = steps
         if create and not self.path.exists():
             parent = self.path.parent
             if not parent.is_dir():
@@ -615,41 +620,56 @@ class ResultStore:
         there, finished (``ok``, or failed unless ``retry_failed``), ``"busy"`` when a live
         sweep has claimed it (:func:`claim_is_live` with ``max_age_s``), ``"claimed"`` when it
         is now this process's (a claim it holds already included)."""
+        return self.claim_many([placeholder], retry_failed, max_age_s, owner)[0]
+
+    def claim_many(self, placeholders: list[EpisodeResult], retry_failed: bool = False,
+                   max_age_s: float = float("inf"), owner: dict[str, Any] | None = None
+                   ) -> list[str]:
+        """:meth:`claim` for each of ``placeholders`` (a chunk of a sweep), all in one write
+        transaction; the answers in order."""
         owner = owner or this_owner()
-        key = placeholder.spec.key()
         c = self.conn
+        answers = []
         with self._errors("write to"):
             c.execute("BEGIN IMMEDIATE")
             try:
-                row = c.execute("SELECT status, reason FROM episodes WHERE key = ?",
-                                (key,)).fetchone()
-                if row is not None:
-                    status, reason = row
-                    if status == RUNNING:
-                        try:
-                            held = json.loads(reason)
-                        except (TypeError, ValueError):
-                            held = {}
-                        if not isinstance(held, dict):
-                            held = {}
-                        mine = all(held.get(k) == v for k, v in owner.items())
-                        if not mine and claim_is_live(held, max_age_s):
-                            c.rollback()
-                            return "busy"
-                        if mine:
-                            c.rollback()
-                            return "claimed"
-                    elif status == "ok" or not retry_failed:
-                        c.rollback()
-                        return "done"
-                claim = dataclasses.replace(placeholder, status=RUNNING, reason=json.dumps(
-                    {**owner, "at": time.time()}, sort_keys=True))
-                self._write(claim)
+                at = time.time()
+                for placeholder in placeholders:
+                    answer = self._claim_one(placeholder, retry_failed, max_age_s, owner)
+                    if answer == "new":
+                        self._write(dataclasses.replace(
+                            placeholder, status=RUNNING,
+                            reason=json.dumps({**owner, "at": at}, sort_keys=True)))
+                        answer = "claimed"
+                    answers.append(answer)
                 c.commit()
             except BaseException:
                 c.rollback()
                 raise
-        return "claimed"
+        return answers
+
+    def _claim_one(self, placeholder: EpisodeResult, retry_failed: bool, max_age_s: float,
+                   owner: dict[str, Any]) -> str:
+        """What :meth:`claim` answers for ``placeholder``, ``"new"`` when its claim row is
+        to be written (inside the caller's transaction)."""
+        row = self.conn.execute("SELECT status, reason FROM episodes WHERE key = ?",
+                                (placeholder.spec.key(),)).fetchone()
+        if row is None:
+            return "new"
+        status, reason = row
+        if status == RUNNING:
+            try:
+                held = json.loads(reason)
+            except (TypeError, ValueError):
+                held = {}
+            if not isinstance(held, dict):
+                held = {}
+            if all(held.get(k) == v for k, v in owner.items()):
+                return "claimed"
+            return "busy" if claim_is_live(held, max_age_s) else "new"
+        if status == "ok" or not retry_failed:
+            return "done"
+        return "new"
 
     def release_claims(self, owner: dict[str, Any] | None = None) -> int:
         """Remove this process's unfinished claims (a sweep ending early); their number."""
@@ -672,8 +692,14 @@ class ResultStore:
     def add(self, res: EpisodeResult) -> None:
         """Write one episode and its steps in one transaction (replacing a failed attempt or
         the episode's claim)."""
+        self.add_many([res])
+
+    def add_many(self, results: Iterable[EpisodeResult]) -> None:
+        """Write episodes and their steps in one transaction (a batch of a sweep: all or
+        none of them stored)."""
         with self._errors("write to"), self.conn:
-            self._write(res)
+            for res in results:
+                self._write(res)
 
     def _write(self, res: EpisodeResult) -> None:
         """The statements of :meth:`add`, inside the caller's transaction."""
@@ -688,6 +714,8 @@ class ResultStore:
             f"VALUES ({', '.join('?' for _ in cols)})",
             vals,
         )
+        if not self.keep_steps:
+            return
         self.conn.executemany(
             f"INSERT INTO steps ({', '.join(STEP_COLUMNS)}) "
             f"VALUES ({', '.join('?' for _ in STEP_COLUMNS)})",

@@ -8,13 +8,20 @@ sweeps may run on one database at once: each claims an episode just before it ru
 (:meth:`.store.ResultStore.claim`), so none is computed twice; the episodes the other sweep
 finished or is running count as skipped (``counts["elsewhere"]``).
 
-A sweep may be killed at any moment. Each finished episode is committed on arrival; SIGTERM
+A sweep may be killed at any moment. Episodes are claimed a chunk at a time, and the results
+that arrive together (:func:`.backends.iter_results`) are committed together, on arrival; SIGTERM
 (like Ctrl-C) makes :func:`run_sweep` unwind, killing its worker processes (exit status 143
-from the CLI); SIGKILL leaves nothing behind either (see :mod:`.backends`).
+from the CLI); SIGKILL leaves nothing behind either (see :mod:`.backends`); the claims of a
+killed sweep are stale, so the episodes it had not written run on resume.
+
+A sweep too large for one coordinator is split into shards (:func:`shard_specs`), each run by
+its own coordinator into its own database (one per node, say), and ``pathpref db merge``
+joins the databases (:func:`.migrate.merge_databases`).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import signal
@@ -34,7 +41,8 @@ from ..planning.policies import resolve_methods
 from .backends import check_backend, failed, iter_results, max_workers, wall_limit
 from .store import ResultStore, this_owner
 
-#: a claim made on another host is stale after this many times its episode's wall-time limit
+#: a claim made on another host is stale after this many times the wall-time limits of its
+#: chunk's episodes (run one after the other)
 CLAIM_AGE = 4.0
 
 
@@ -58,6 +66,24 @@ def sweep_specs(map_name: str, methods: list[str], delta_ts: list[int], instance
     if specs:
         body_class(specs[0].sim, specs[0].robot)  # the body exists and offers the task
     return specs
+
+
+def parse_shard(text: str) -> tuple[int, int]:
+    """``"I/N"`` (shard ``I`` of ``N``, 0 <= I < N) as ``(I, N)``; ConfigError otherwise."""
+    index, sep, count = text.partition("/")
+    if not (sep and index.isdigit() and count.isdigit() and int(index) < int(count)):
+        raise ConfigError(f"--shard {text!r}: write it as I/N with 0 <= I < N (e.g. 0/4)")
+    return int(index), int(count)
+
+
+def shard_specs(specs: list[EpisodeSpec], index: int, count: int) -> list[EpisodeSpec]:
+    """The episodes of shard ``index`` of ``count``: those whose key's SHA-256, as an integer,
+    is ``index`` modulo ``count``. The shards are disjoint and cover the sweep, and an
+    episode's shard depends on its key alone (not on the order or the rest of the sweep)."""
+    def shard(s: EpisodeSpec) -> int:
+        return int.from_bytes(hashlib.sha256(s.key().encode()).digest()[:8], "big") % count
+
+    return [s for s in specs if shard(s) == index]
 
 
 def check_specs(specs: list[EpisodeSpec]) -> None:
@@ -111,9 +137,11 @@ def _sigterm_exits() -> Iterator[None]:
 
 def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: bool = True,
               retry_failed: bool = False, backend: str = "local",
-              address: str | None = None) -> dict[str, int]:
+              address: str | None = None, steps: bool = True) -> dict[str, int]:
     """Run the episodes of ``specs`` missing from ``db`` (failed ones too when
-    ``retry_failed``); results are written as they arrive. Returns counts.
+    ``retry_failed``); results are written as they arrive, each batch in one transaction
+    (without per-step rows when not ``steps``). Returns counts, with ``seconds`` and
+    ``episodes_per_s`` (episodes run per second of wall time).
 
     ``workers`` (local processes, or a local Ray instance's CPUs) must be at most
     :func:`.backends.max_workers`; no more are started than there are episodes to run."""
@@ -125,7 +153,7 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
     check_backend(backend, address)  # before the database is created or opened
     check_specs(specs)
     # a tampered row is refused before the file is opened for writing or any episode runs
-    with _sigterm_exits(), ResultStore(db, check_rows=True) as store:
+    with _sigterm_exits(), ResultStore(db, check_rows=True, steps=steps) as store:
         done = store.done_keys(include_failed=not retry_failed)
         todo = [s for s in specs if s.key() not in done]
         counts = {"total": len(specs), "skipped": len(specs) - len(todo), "ran": 0, "failed": 0,
@@ -134,32 +162,36 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
                    desc="episodes", file=sys.stderr)
         owner = this_owner()
 
-        def claim(spec: EpisodeSpec) -> bool:
-            """Claim ``spec`` before it runs; False (counted as skipped, and in
-            ``elsewhere``; in ``busy`` too while unfinished) when another sweep has finished
-            it since this one started, or is running it."""
-            got = store.claim(failed(spec, ""), retry_failed, CLAIM_AGE * wall_limit(spec),
-                              owner)
-            if got == "claimed":
-                return True
-            counts["skipped"] += 1
-            counts["elsewhere"] += 1
-            counts["busy"] += got == "busy"
-            bar.update(1)
-            return False
+        def claim(chunk: list[EpisodeSpec]) -> list[EpisodeSpec]:
+            """Claim the episodes of ``chunk`` before they are sent, in one transaction; those
+            another sweep has finished since this one started, or is running, are left out
+            (counted as skipped, and in ``elsewhere``; in ``busy`` too while unfinished)."""
+            if not chunk:
+                return []
+            age = CLAIM_AGE * sum(wall_limit(s) for s in chunk)
+            got = store.claim_many([failed(s, "") for s in chunk], retry_failed, age, owner)
+            for answer in got:
+                if answer != "claimed":
+                    counts["skipped"] += 1
+                    counts["elsewhere"] += 1
+                    counts["busy"] += answer == "busy"
+                    bar.update(1)
+            return [s for s, answer in zip(chunk, got, strict=True) if answer == "claimed"]
 
         t0 = time.perf_counter()
         try:
             with closing(iter_results(todo, backend, workers, address, claim)) as results, \
                     bar:
-                for res in results:
-                    store.add(res)
-                    counts["ran"] += 1
-                    counts["failed"] += res.status != "ok"
-                    bar.update(1)
+                for batch in results:
+                    store.add_many(batch)
+                    counts["ran"] += len(batch)
+                    counts["failed"] += sum(res.status != "ok" for res in batch)
+                    bar.update(len(batch))
         finally:  # claims of episodes that did not finish (an error, Ctrl-C, SIGTERM)
             store.release_claims(owner)
-        counts["seconds"] = round(time.perf_counter() - t0, 1)
+        seconds = time.perf_counter() - t0
+        counts["seconds"] = round(seconds, 1)
+        counts["episodes_per_s"] = round(counts["ran"] / seconds, 2) if seconds > 0 else 0.0
     return counts
 
 

@@ -41,6 +41,15 @@ TREE_POOL = 128
 #: the pool holds at most one particle per ``SIMS_PER_TREE`` simulations of the decision
 #: (:meth:`POMCP._pool`): 128 at the paper's 5000 queries, 32 at the bench floor plan's 1000
 SIMS_PER_TREE = 32
+#: and at most ``max(POOL_MIN, POOL_POLYTOPE_TREES / P)`` particles on a plan of ``P``
+#: polytopes (a tree's Wilson draw costs about ``9 P`` walk steps): 128 up to ``P = 261`` (the
+#: paper's maps and the held-out plans keep their pools and moves), 72 at 469 polytopes
+#: (32 x 32, 16 rotated), 32 from 1045 (40 x 40, 32 rotated), where the first decision fell
+#: from 49-52 to 25-30 ms CPU (paired sweep: docs/results/pool_by_plan_size.md)
+POOL_POLYTOPE_TREES = 33_440
+#: the fewest particles the plan-size bound leaves (the 200 x 200 bench plan at 1000 queries
+#: keeps its 32)
+POOL_MIN = 32
 #: a tree's Wilson walks may take ``WALK_STEPS_PER_POLYTOPE * P + WALK_STEPS_MIN`` steps before
 #: it is drawn observed exits first instead (:func:`.guided.tree_pool`; the walk with no
 #: evidence takes 5-13 ``P`` steps in expectation on the paper's maps and examples/maps, median
@@ -304,12 +313,15 @@ class POMCP:
         return None if kept is None or len(kept[3]) == 0 else (kept[3], kept[4])
 
     def pool_size(self) -> int:
-        """Root particles per decision: ``m = min(TREE_POOL, ceil(queries / SIMS_PER_TREE))``.
+        """Root particles per decision: ``m = min(TREE_POOL, ceil(queries / SIMS_PER_TREE),
+        max(POOL_MIN, ceil(POOL_POLYTOPE_TREES / P)))`` on a plan of ``P`` polytopes.
         Each simulation starts from one particle drawn uniformly, so a particle is the start of
         ``queries / m >= SIMS_PER_TREE`` simulations on average; a tree costs a Wilson draw of
         ``~9 P`` walk steps, a simulation at most ``depth`` steps, and more particles than that
-        buy draws the search barely uses."""
-        return min(TREE_POOL, -(-self.queries // SIMS_PER_TREE))
+        buy draws the search barely uses; on large plans the draws' cost, ``~9 P m`` steps, is
+        held near ``9 POOL_POLYTOPE_TREES``."""
+        by_plan = max(POOL_MIN, -(-POOL_POLYTOPE_TREES // max(len(self.nbr), 1)))
+        return min(TREE_POOL, -(-self.queries // SIMS_PER_TREE), by_plan)
 
     def _pool(self, belief: Belief, goal_cdf: np.ndarray, cdf: np.ndarray, seed: int):
         """Root particles ``(goal index, preference slots)`` of a route-prior belief

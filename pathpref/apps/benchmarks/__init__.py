@@ -3,6 +3,7 @@
 * ``maps``: per map, setup (arrangement, cost tables), belief updates, POMCP decisions (paper
   and robust search) against the paper's Table II;
 * ``scale``: the 200 x 200 floor plan (fresh process), Ray throughput, rotated 40 x 40 maps;
+  the sweep coordinator's ceiling and a sweep on a two-node Ray cluster (:mod:`.cluster`);
 * ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK;
   the dm_control tasks' step rates (``control_steps_per_s``, :mod:`.tasks`);
 * ``study``: browser front end, WebSocket push to the cue in the belief (``study_latency_ms``).
@@ -20,13 +21,15 @@ from __future__ import annotations
 
 from typing import Any
 
+from .cluster import bench_coordinator, bench_ray_cluster
 from .maps import bench_map, bench_pomcp, machine_info
 from .physics import bench_arm, bench_physics
-from .scale import bench_ray, bench_scale
+from .scale import bench_ray, bench_robust_40, bench_scale
 from .study import bench_study
 from .tasks import bench_tasks
 
-__all__ = ["bench_arm", "bench_map", "bench_physics", "bench_pomcp", "bench_ray", "bench_scale",
+__all__ = ["bench_arm", "bench_coordinator", "bench_map", "bench_physics", "bench_pomcp",
+           "bench_ray", "bench_ray_cluster", "bench_robust_40", "bench_scale",
            "bench_study", "bench_tasks", "machine_info", "run_benchmarks"]
 
 
@@ -40,6 +43,7 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
         out["arm"] = bench_arm(quick=quick)
         out["study"] = bench_study(quick=quick)
     if not quick:
-        out["scale"] = {**bench_ray(), **bench_scale()}
+        out["scale"] = {**bench_ray(), **bench_coordinator(), **bench_ray_cluster(),
+                        **bench_robust_40(), **bench_scale()}
     return out
 

@@ -48,6 +48,39 @@ def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
             "single_worker_episodes_per_s": n / t_local, "ray_episodes_per_s": n / t_ray}
 
 
+def bench_robust_40(instances: int = 5, queries: int = 5000) -> dict[str, Any]:
+    """``robust_first_decision_40x40_ms``: the median CPU time of the first robust-check
+    decision (path preference, ΔT = 5, ``queries``) over ``instances`` instances of the 40 x 40
+    plan with 32 rotated obstacles (seed 1) and a loop preference, after one warm-up instance;
+    ``robust_pool_40x40``, the root pool there
+    (:meth:`~pathpref.planning.pomcp.POMCP.pool_size`)."""
+    import json
+    import statistics
+    import tempfile
+
+    from ...episode.runner import EpisodeRunner
+    from ...geometry.generate import random_floor_plan, with_loop_preference
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "rotated_40.json")
+        with open(path, "w") as f:
+            json.dump(with_loop_preference(random_floor_plan(40, 40, 32, seed=1,
+                                                             name="rotated_40")), f)
+        t_max = load_map(path).t_max
+        times, pool = [], None
+        for i in range(instances + 1):
+            ep = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=i, run=0,
+                             instance_seed=100 + i, run_seed=7, queries=queries, t_max=t_max,
+                             preset="robust-check")
+            runner = EpisodeRunner(ep)
+            c = time.process_time()
+            runner.step()
+            times.append((time.process_time() - c) * 1000)
+            pool = runner.policy.planner.pool_size()
+    return {"robust_first_decision_40x40_ms": statistics.median(times[1:]),
+            "robust_pool_40x40": pool}
+
+
 SCALE_MAP = {"width": 200, "height": 200, "n_rotated": 20, "n_boxes": 40, "seed": 0,
              "size_range": (2.0, 12.0)}
 
