@@ -36,7 +36,7 @@ import numba as nb
 import numpy as np
 
 from . import native
-from .controller import ProfiledController
+from .controller import ProfiledController, profiled_goal, ramp_step
 from .cue_detector import FilteredCueDetector
 from .native import (
     OBJ_BODY,
@@ -81,28 +81,9 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
         if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
         # --- MobileBase._control, float path: ProfiledController.goal_xy and ramp_xy
-        px, py = qpos[ns[IX]], qpos[ns[IY]]
-        ex, ey = target[0] - px, target[1] - py
-        d = hypot(ex, ey)
-        if d < 1e-9:
-            gx, gy = 0.0, 0.0
-        else:
-            speed = cs[V_MAX]
-            if cs[KP] * d < speed:
-                speed = cs[KP] * d
-            s = math.sqrt(2.0 * cs[BRAKE] * cs[A_MAX] * d)
-            if s < speed:
-                speed = s
-            k = speed / d
-            gx, gy = ex * k, ey * k
-        stp = cs[A_MAX] * cs[C_DT]
-        lx, ly = last[0], last[1]
-        dx, dy = gx - lx, gy - ly
-        n = hypot(dx, dy)
-        if n > stp:
-            dx, dy = dx * stp / n, dy * stp / n
-        lx, ly = lx + dx, ly + dy
-        last[0], last[1] = lx, ly
+        gx, gy = profiled_goal(qpos[ns[IX]], qpos[ns[IY]], target[0], target[1], cs[KP],
+                               cs[V_MAX], cs[BRAKE], cs[A_MAX])
+        lx, ly = ramp_step(gx, gy, last, cs[A_MAX] * cs[C_DT])
         ctrl[ns[A0]], ctrl[ns[A1]], ctrl[ns[A2]] = lx, ly, -cs[K_YAW] * qpos[ns[IYAW]]
         # --- mj_step and the divergence check
         mj_step(mp, dp)
