@@ -67,7 +67,7 @@ def _state(base) -> bytes:
         s.estimator.at_rest, [r.tobytes() for r in s.estimator._pending],
         s.faulty.bias.tobytes(), s.faulty._sum, s.faulty._count, s.faulty._next_t,
         s.faulty._held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
-        s.detector.var, s.detector.on_n, s.detector.off_n, list(s.detector._pending),
+        s.detector.var, s.detector.on_n, s.detector.off_n, s.detector.pending().tobytes(),
         s.detector.active, s.faulty.rng.bit_generator.state["state"]))
 
 

@@ -262,7 +262,7 @@ def test_calibration_queue_is_bounded():
     det = FilteredCueDetector(0.002, hold_s=0.1)
     rng = np.random.default_rng(1)
     _noisy_trace(det, rng, 5.0)
-    assert len(det._pending) == 50
+    assert det.queued == 50
 
 
 def test_resting_hand_becomes_the_baseline():

@@ -37,7 +37,7 @@ import numpy as np
 
 from . import native
 from .controller import ProfiledController, profiled_goal, ramp_step
-from .cue_detector import FilteredCueDetector
+from .cue_detector import FilteredCueDetector, filter_step
 from .native import (
     OBJ_BODY,
     hypot,
@@ -57,26 +57,25 @@ READY, END, DETECT, CONTACTS, DIVERGED = range(5)
  PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, N_FS) = range(23)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, MASS,
- BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, ALPHA, BETA, GAMMA, BASE_ON, BASE_OFF, ON_K, OFF_K,
- T0, MIN_S, T_END, STILL, T_STOP, N_CS) = range(30)
+ BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, T0, MIN_S, T_END, STILL, T_STOP, N_CS) = range(23)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, COMPENSATE, DRIFT,
- E_HEAD, E_LEN, D_HEAD, D_LEN, N_IS) = range(20)
-#: the queues' capacity: the estimator keeps at most quiet_s / dt + 1 samples, the detector
-#: hold_s / dt + 1
+ E_HEAD, E_LEN, N_IS) = range(18)
+#: the estimator's queue capacity beyond its quiet_s / dt + 1 samples
 QUEUE_SLACK = 4
 GRAVITY_Z = 9.81  # estimator.GRAVITY_UP
 
 
 @nb.njit(cache=True, _nrt=False)
 def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sbias, held,
-           acc6, ma, xbuf, ebias, mark, jac, dv, eacc, eforce, epend, f, baseline, dpend, rng,
+           acc6, ma, xbuf, ebias, mark, jac, dv, eacc, eforce, epend, f, baseline, dring, dqueue,
+           dparams, rng,
            fs, cs, ns, tmp3, res, vel, err, max_steps):
     """Physics steps of the move phase until a hand-back (module docstring); returns
     ``(reason, steps)``. ``held``, ``eacc``, ``eforce`` receive the last sample, estimator
     acceleration and estimate; the state arrays are updated in place."""
     nq, nv = qpos.shape[0], qvel.shape[0]
-    qcap, dcap = epend.shape[0], dpend.shape[0]
+    qcap = epend.shape[0]
     for step in range(max_steps):
         if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
@@ -186,39 +185,10 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
         # --- FilteredCueDetector.update, idle (the estimate held between samples)
         x, y = eforce[0], eforce[1]
         if math.isfinite(x) and math.isfinite(y):
-            fx, fy = f[0], f[1]
-            fx, fy = fx + cs[ALPHA] * (x - fx), fy + cs[ALPHA] * (y - fy)
-            f[0], f[1] = fx, fy
-            # FilteredCueDetector._calibrate
-            if fs[AT_REST] == 0.0:
-                ns[D_LEN] = 0
-                ns[D_HEAD] = 0
-            else:
-                if ns[D_LEN] == dcap:
-                    return DIVERGED, step + 1  # pragma: no cover - capacity is a bound
-                j = (ns[D_HEAD] + ns[D_LEN]) % dcap
-                dpend[j, 0], dpend[j, 1] = fx, fy
-                ns[D_LEN] += 1
-                learnt = False
-                while ns[D_LEN] > ns[HOLD_N]:
-                    j = ns[D_HEAD]
-                    qx, qy = dpend[j, 0], dpend[j, 1]
-                    ns[D_HEAD] = (j + 1) % dcap
-                    ns[D_LEN] -= 1
-                    bx, by = baseline[0], baseline[1]
-                    ex, ey = qx - bx, qy - by
-                    if ex * ex + ey * ey < fs[OFF] * fs[OFF]:
-                        fs[VAR] += cs[BETA] * (0.5 * (ex * ex + ey * ey) - fs[VAR])
-                        learnt = True
-                    baseline[0], baseline[1] = bx + cs[GAMMA] * ex, by + cs[GAMMA] * ey
-                if learnt:  # FilteredCueDetector._thresholds
-                    sigma = math.sqrt(fs[VAR])
-                    on = cs[ON_K] * sigma
-                    fs[ON] = on if on > cs[BASE_ON] else cs[BASE_ON]
-                    off = cs[OFF_K] * sigma
-                    fs[OFF] = off if off > cs[BASE_OFF] else cs[BASE_OFF]
-            ex, ey = fx - baseline[0], fy - baseline[1]
-            if not ex * ex + ey * ey < 0.98 * fs[ON] * fs[ON]:
+            fs[VAR], fs[ON], fs[OFF], ex, ey, quiet = filter_step(
+                x, y, True, fs[AT_REST] != 0.0, f, baseline, dring, dqueue, fs[VAR], fs[ON],
+                fs[OFF], dparams, ns[HOLD_N])
+            if not quiet:
                 fs[EX], fs[EY] = ex, ey
                 return DETECT, step + 1  # the onset rule, in Python
         # --- Measurements.update (nothing pushes: Coaster.ready)
@@ -339,23 +309,18 @@ class Coaster:
         cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
                        f.period, f._drift_step,
                        spec.noise_n, f._extra_m, est.mass, cfg.bias_tau_s, cfg.still_mps,
-                       cfg.still_mps2, cfg.quiet_s, det._alpha, det._beta, det._gamma,
-                       det.base_on_n, det.base_off_n, det.on_k, det.off_k, step._t0,
+                       cfg.still_mps2, cfg.quiet_s, step._t0,
                        step._min_s, step._t_end, c.still_mps, self._quiet_until()])
         qcap = int(cfg.quiet_s / f.dt) + QUEUE_SLACK
         epend = np.zeros((max(qcap, len(est._pending) + 1), 3))
         if est._pending:
             epend[: len(est._pending)] = est._pending
-        dpend = np.zeros((max(det._hold_n + QUEUE_SLACK, len(det._pending) + 1), 2))
-        if det._pending:
-            dpend[: len(det._pending)] = det._pending
         ix, iy, iyaw = b._float_adr
         a0, a1, a2 = b._float_act
         ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
                        s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
                        int(cfg.compensate_inertia), int(spec.drift_n_per_sqrt_s > 0), 0,
-                       len(est._pending), 0,
-                       len(det._pending)], dtype=np.int64)
+                       len(est._pending)], dtype=np.int64)
         b._anchor = None
         if not b.external_forces:
             b._wrench().fill(0.0)
@@ -365,8 +330,8 @@ class Coaster:
                            b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
                            f.bias, held, self._acc6, self._ma, self._x, est.bias,
                            est._qvel_mark, est._jac, self._dv, eacc, eforce, epend, det.f,
-                           det.baseline, dpend, f.rng, fs, cs, ns, *self._tmp,
-                           self.MAX_STEPS)
+                           det.baseline, det._ring, det._queue, det.params, f.rng, fs, cs,
+                           ns, *self._tmp, self.MAX_STEPS)
         # --- the state back into the Python objects
         f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
         f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
@@ -381,8 +346,6 @@ class Coaster:
         est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
         est._pending = deque(_queue(epend, int(ns[E_HEAD]), int(ns[E_LEN])))
         det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
-        rows = _queue(dpend, int(ns[D_HEAD]), int(ns[D_LEN]))
-        det._pending = deque(zip(rows[:, 0].tolist(), rows[:, 1].tolist(), strict=True))
         if b.measure:
             m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
             m.peak_accel, m.peak_accel_pushed = float(fs[PEAK]), float(fs[PEAK_PUSHED])
