@@ -64,7 +64,7 @@ def _state(base) -> bytes:
         [(f.cell, f.heading, f.t_felt, f.t_cue, f.peak_n, f.impulse) for f in base.felt],
         sorted(base.physical_metrics().items()), base.controller.last.tobytes(),
         s.force_estimate.tobytes(), s.estimator.bias.tobytes(), s.estimator.quiet,
-        s.estimator.at_rest, [r.tobytes() for r in s.estimator._pending],
+        s.estimator.at_rest, s.estimator.pending().tobytes(),
         s.faulty.bias.tobytes(), s.faulty._sum, s.faulty._count, s.faulty._next_t,
         s.faulty._held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
         s.detector.var, s.detector.on_n, s.detector.off_n, s.detector.pending().tobytes(),

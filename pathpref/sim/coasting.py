@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import math
 import os
-from collections import deque
 
 import numba as nb
 import numpy as np
@@ -38,12 +37,12 @@ import numpy as np
 from . import native
 from .controller import ProfiledController, profiled_goal, ramp_step
 from .cue_detector import FilteredCueDetector, filter_step
+from .estimator import estimate_step
+from .measurements import planar_accel
 from .native import (
     OBJ_BODY,
     hypot,
     matTvec,
-    matvec,
-    mj_jacBodyCom,
     mj_objectAcceleration,
     mj_step,
     norm,
@@ -56,26 +55,22 @@ READY, END, DETECT, CONTACTS, DIVERGED = range(5)
 (S0, S1, S2, NEXT_T, WINDOW_S, FRESH, QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK,
  PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, N_FS) = range(23)
 #: constants: controller, sensor, estimator, detector, the move
-(KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, MASS,
- BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, T0, MIN_S, T_END, STILL, T_STOP, N_CS) = range(23)
+(KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
+ T_END, STILL, T_STOP, N_CS) = range(18)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
-(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, COMPENSATE, DRIFT,
- E_HEAD, E_LEN, N_IS) = range(18)
-#: the estimator's queue capacity beyond its quiet_s / dt + 1 samples
-QUEUE_SLACK = 4
-GRAVITY_Z = 9.81  # estimator.GRAVITY_UP
+(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, DRIFT, N_IS) = range(15)
 
 
 @nb.njit(cache=True, _nrt=False)
 def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sbias, held,
-           acc6, ma, xbuf, ebias, mark, jac, dv, eacc, eforce, epend, f, baseline, dring, dqueue,
-           dparams, rng,
-           fs, cs, ns, tmp3, res, vel, err, max_steps):
+           acc6, ma, xbuf, eparams, est, f, baseline, dring, dqueue, dparams, rng, fs, cs, ns,
+           err, max_steps):
     """Physics steps of the move phase until a hand-back (module docstring); returns
-    ``(reason, steps)``. ``held``, ``eacc``, ``eforce`` receive the last sample, estimator
-    acceleration and estimate; the state arrays are updated in place."""
+    ``(reason, steps)``. ``held`` receives the last sample, ``est``
+    (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
+    the state arrays are updated in place."""
     nq, nv = qpos.shape[0], qvel.shape[0]
-    qcap = epend.shape[0]
+    eforce = est[7]
     for step in range(max_steps):
         if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
@@ -137,50 +132,10 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
             ns[COUNT] = 0
             while fs[NEXT_T] <= t + 1e-9:
                 fs[NEXT_T] += cs[PERIOD]
-            # ForceEstimator.update (cue idle, fresh) with ForceEstimator.acceleration
-            window = fs[WINDOW_S]
-            mj_jacBodyCom(mp, dp, jac.ctypes.data, 0, ns[BODY])
-            for i in range(nv):
-                dv[i] = qvel[i] - mark[i]
-            for i in range(nv):
-                dv[i] = dv[i] / window
-            for i in range(nv):
-                mark[i] = qvel[i]
-            matvec(jac, dv, eacc)
-            # ForceEstimator.expected: R^T m (a + g)
-            for i in range(3):
-                ai = eacc[i] if ns[COMPENSATE] else 0.0
-                tmp3[i] = cs[MASS] * (ai + (GRAVITY_Z if i == 2 else 0.0))
-            matTvec(R, tmp3, res)
-            for i in range(3):
-                res[i] = held[i] - res[i]
-            matvec(jac, qvel, vel)
-            still = norm(vel) < cs[STILL_MPS] and norm(eacc) < cs[STILL_MPS2]
-            if still:
-                fs[QUIET] += window
-                if ns[E_LEN] == qcap:
-                    return DIVERGED, step + 1  # pragma: no cover - capacity is a bound
-                j = (ns[E_HEAD] + ns[E_LEN]) % qcap
-                epend[j, 0], epend[j, 1], epend[j, 2] = res[0], res[1], res[2]
-                ns[E_LEN] += 1
-            else:
-                fs[QUIET] = 0.0
-                ns[E_LEN] = 0
-                ns[E_HEAD] = 0
-            fs[AT_REST] = 1.0 if fs[QUIET] >= cs[QUIET_S] - 1e-12 else 0.0
-            w = window / (cs[BIAS_TAU] + window)
-            if not w < 1.0:
-                w = 1.0
-            while ns[E_LEN] * window > cs[QUIET_S] + 1e-12:
-                j = ns[E_HEAD]
-                for i in range(3):
-                    ebias[i] += w * (epend[j, i] - ebias[i])
-                ns[E_HEAD] = (j + 1) % qcap
-                ns[E_LEN] -= 1
-            for i in range(3):
-                tmp3[i] = res[i] - ebias[i]
-            matvec(R, tmp3, res)
-            eforce[0], eforce[1] = -res[0], -res[1]
+            # ForceEstimator.update (cue idle, fresh)
+            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, fs[WINDOW_S], True,
+                                    fs[QUIET], eparams, est)
+            fs[QUIET], fs[AT_REST] = q, 1.0 if rest else 0.0
             measured = True
         # --- FilteredCueDetector.update, idle (the estimate held between samples)
         x, y = eforce[0], eforce[1]
@@ -194,10 +149,7 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
         # --- Measurements.update (nothing pushes: Coaster.ready)
         if ns[MEASURE]:
             vx, vy = qvel[ns[VX]], qvel[ns[VY]]
-            span = t - fs[T_PREV]
-            if cs[DT] > span:
-                span = cs[DT]
-            acc = hypot(vx - fs[VPX], vy - fs[VPY]) / span
+            acc = planar_accel(vx, vy, fs[VPX], fs[VPY], t, fs[T_PREV], cs[DT])
             fs[VPX_OLD], fs[VPY_OLD] = fs[VPX], fs[VPY]
             fs[VPX], fs[VPY], fs[T_PREV] = vx, vy, t
             if acc > fs[PEAK_PUSHED]:
@@ -223,11 +175,6 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
         if t >= cs[T_END]:
             return END, step + 1
     return READY, max_steps
-
-
-def _queue(ring: np.ndarray, head: int, n: int) -> np.ndarray:
-    """The ``n`` rows of a ring buffer from ``head`` on, oldest first (a new array)."""
-    return ring[(head + np.arange(n)) % len(ring)]
 
 
 def enabled() -> bool:
@@ -281,11 +228,9 @@ class Coaster:
         d = b.data
         self._time, self._ncon = native.scalar_views(d)
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
-        m = b.model
         self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
-        self._dv = np.zeros(m.nv)
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
-        self._tmp = (np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(2))
+        self._err = np.zeros(2)
         self._data = d
 
     def move(self, step) -> bool:
@@ -297,7 +242,7 @@ class Coaster:
             self._bind()
         s, c, m = b.sensing, b.controller, b.measurements
         f, est, det = s.faulty, s.estimator, s.detector
-        spec, cfg = f.spec, est.config
+        spec = f.spec
         fs = np.zeros(N_FS)
         fs[S0:S2 + 1] = f._sum
         fs[NEXT_T], fs[WINDOW_S], fs[FRESH] = f._next_t, f.window_s, float(f.fresh)
@@ -308,30 +253,25 @@ class Coaster:
         fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, float(m._touching)
         cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
                        f.period, f._drift_step,
-                       spec.noise_n, f._extra_m, est.mass, cfg.bias_tau_s, cfg.still_mps,
-                       cfg.still_mps2, cfg.quiet_s, step._t0,
-                       step._min_s, step._t_end, c.still_mps, self._quiet_until()])
-        qcap = int(cfg.quiet_s / f.dt) + QUEUE_SLACK
-        epend = np.zeros((max(qcap, len(est._pending) + 1), 3))
-        if est._pending:
-            epend[: len(est._pending)] = est._pending
+                       spec.noise_n, f._extra_m, step._t0, step._min_s, step._t_end,
+                       c.still_mps, self._quiet_until()])
         ix, iy, iyaw = b._float_adr
         a0, a1, a2 = b._float_act
         ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
                        s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
-                       int(cfg.compensate_inertia), int(spec.drift_n_per_sqrt_s > 0), 0,
-                       len(est._pending)], dtype=np.int64)
+                       int(spec.drift_n_per_sqrt_s > 0)], dtype=np.int64)
         b._anchor = None
         if not b.external_forces:
             b._wrench().fill(0.0)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
+        est_st = (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
+                  eforce, *est._scratch)
         d = self._data
         reason, _ = _coast(b.model._address, d._address, self._time, self._ncon, b._qpos,
                            b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
-                           f.bias, held, self._acc6, self._ma, self._x, est.bias,
-                           est._qvel_mark, est._jac, self._dv, eacc, eforce, epend, det.f,
-                           det.baseline, det._ring, det._queue, det.params, f.rng, fs, cs,
-                           ns, *self._tmp, self.MAX_STEPS)
+                           f.bias, held, self._acc6, self._ma, self._x, est.params, est_st,
+                           det.f, det.baseline, det._ring, det._queue, det.params, f.rng, fs,
+                           cs, ns, self._err, self.MAX_STEPS)
         # --- the state back into the Python objects
         f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
         f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
@@ -344,7 +284,6 @@ class Coaster:
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
         est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
-        est._pending = deque(_queue(epend, int(ns[E_HEAD]), int(ns[E_LEN])))
         det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
         if b.measure:
             m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
