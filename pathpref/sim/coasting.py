@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 import os
 
+import mujoco
 import numba as nb
 import numpy as np
 
@@ -53,26 +54,49 @@ READY, END, DETECT, CONTACTS, DIVERGED = range(5)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
 #: measurements, the detector's hand-back ``e`` and the velocity a contact met
 (S0, S1, S2, NEXT_T, WINDOW_S, FRESH, QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK,
- PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, N_FS) = range(23)
+ PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(24)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
- T_END, STILL, T_STOP, N_CS) = range(18)
+ T_END, STILL, T_STOP, H, N_CS) = range(19)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
-(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, DRIFT, N_IS) = range(15)
+(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, DRIFT, AUTORESET,
+ N_IS) = range(16)
+#: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
+BAD_STATE = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
+                      int(mujoco.mjtWarning.mjWARN_BADQVEL),
+                      int(mujoco.mjtWarning.mjWARN_BADQACC)])
+
+
+@nb.njit(cache=True, inline="always")
+def _bad_states(warnings):
+    """How many bad-state warnings MuJoCo has counted (``mjData.warning[i].number``)."""
+    n = 0
+    for i in BAD_STATE:
+        n += warnings[i]
+    return n
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sbias, held,
-           acc6, ma, xbuf, eparams, est, f, baseline, dring, dqueue, dparams, rng, fs, cs, ns,
-           err, max_steps):
+def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
     """Physics steps of the move phase until a hand-back (module docstring); returns
     ``(reason, steps)``. ``held`` receives the last sample, ``est``
     (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
-    the state arrays are updated in place."""
+    the state arrays are updated in place. The records: ``mj`` the ``MjModel``'s and
+    ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
+    sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
+    ``drive`` the controller's last command, the target and a
+    scratch pair; ``sensor`` the faulty sensor's drift bias, its held sample and scratch;
+    ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants. Simulated time is
+    ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
+    mp, dp = mj
+    qpos, qvel, ctrl, sensordata, R, warnings = robot
+    last, target, err = drive
+    sbias, held, acc6, ma, xbuf = sensor
+    f, baseline, dring, dqueue, dparams = det
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce = est[7]
     for step in range(max_steps):
-        if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
+        if fs[TIME] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
         # --- MobileBase._control, float path: ProfiledController.goal_xy and ramp_xy
         gx, gy = profiled_goal(qpos[ns[IX]], qpos[ns[IY]], target[0], target[1], cs[KP],
@@ -80,14 +104,20 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
         lx, ly = ramp_step(gx, gy, last, cs[A_MAX] * cs[C_DT])
         ctrl[ns[A0]], ctrl[ns[A1]], ctrl[ns[A2]] = lx, ly, -cs[K_YAW] * qpos[ns[IYAW]]
         # --- mj_step and the divergence check
+        bad = _bad_states(warnings)
         mj_step(mp, dp)
+        # mj_step's time: its integrator adds the timestep (d->time += m->opt.timestep),
+        # after resetting the data (time 0) on a bad state unless autoreset is off
+        if ns[AUTORESET] and _bad_states(warnings) != bad:
+            fs[TIME] = 0.0
+        fs[TIME] += cs[H]
         for i in range(nq):
             if not math.isfinite(qpos[i]):
                 return DIVERGED, step + 1
         for i in range(nv):
             if not math.isfinite(qvel[i]):
                 return DIVERGED, step + 1
-        t = time[0]
+        t = fs[TIME]
         # --- FaultySensor.read: the window's sum, with the extra mass's inertia
         a = ns[SADR]
         r0, r1, r2 = sensordata[a], sensordata[a + 1], sensordata[a + 2]
@@ -226,7 +256,8 @@ class Coaster:
     def _bind(self) -> None:
         b = self.base
         d = b.data
-        self._time, self._ncon = native.scalar_views(d)
+        self._ncon = native.ncon_view(d)
+        self._warnings = d.warning.number
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
         self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
@@ -254,12 +285,14 @@ class Coaster:
         cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
                        f.period, f._drift_step,
                        spec.noise_n, f._extra_m, step._t0, step._min_s, step._t_end,
-                       c.still_mps, self._quiet_until()])
+                       c.still_mps, self._quiet_until(), b.model.opt.timestep])
         ix, iy, iyaw = b._float_adr
         a0, a1, a2 = b._float_act
         ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
                        s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
-                       int(spec.drift_n_per_sqrt_s > 0)], dtype=np.int64)
+                       int(spec.drift_n_per_sqrt_s > 0),
+                       int(not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET)],
+                      dtype=np.int64)
         b._anchor = None
         if not b.external_forces:
             b._wrench().fill(0.0)
@@ -267,11 +300,14 @@ class Coaster:
         est_st = (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
                   eforce, *est._scratch)
         d = self._data
-        reason, _ = _coast(b.model._address, d._address, self._time, self._ncon, b._qpos,
-                           b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
-                           f.bias, held, self._acc6, self._ma, self._x, est.params, est_st,
-                           det.f, det.baseline, det._ring, det._queue, det.params, f.rng, fs,
-                           cs, ns, self._err, self.MAX_STEPS)
+        fs[TIME] = d.time
+        reason, _ = _coast((b.model._address, d._address), self._ncon,
+                           (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R,
+                            self._warnings),
+                           (c.last, b.target, self._err),
+                           (f.bias, held, self._acc6, self._ma, self._x), f.rng, est.params,
+                           est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
+                           fs, cs, ns, self.MAX_STEPS)
         # --- the state back into the Python objects
         f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
         f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
@@ -293,8 +329,9 @@ class Coaster:
                 # measured by the kernel (a step handed back at an onset is measured in
                 # Python, with a new estimate if its sample gave one)
                 m._f_measured = s.force_estimate
-        if self._time[0] != d.time:  # pragma: no cover - the views are checked when bound
-            raise RuntimeError("the compiled step's time view lost MjData's time")
+        if fs[TIME] != d.time:  # pragma: no cover - mj_step advances time by its timestep
+            raise RuntimeError(f"the compiled move's time {fs[TIME]!r} is not MjData's "
+                               f"{d.time!r}")
         return self._hand_back(reason, step, fs)
 
     def _hand_back(self, reason: int, step, fs: np.ndarray) -> bool:
