@@ -248,7 +248,7 @@ def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
     base, step = start()
     assert base.coaster.ready()
     base.coaster.move(step)
-    assert seen[0][0] == coasting.DETECT and base.faulty.fresh
+    assert seen[0][0] == coasting.DETECT and base.sensing.faulty.fresh
     t_on, on = base.data.time, _state(base)
     monkeypatch.setenv("PATHPREF_COMPILED_STEPS", "0")
     base, step = start()
