@@ -36,7 +36,7 @@ import numba as nb
 import numpy as np
 
 from . import native
-from .controller import ProfiledController, profiled_goal, ramp_step
+from .controller import ProfiledController, profiled_goal, ramp_step, settled_at
 from .cue_detector import FilteredCueDetector, filter_step
 from .estimator import estimate_step
 from .measurements import planar_accel
@@ -46,7 +46,6 @@ from .native import (
     matTvec,
     mj_objectAcceleration,
     mj_step,
-    norm,
 )
 
 #: hand-back reasons of :func:`_coast`
@@ -196,12 +195,9 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
         # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
         # as nothing pushes) or time up
         if t - cs[T0] >= cs[MIN_S]:
-            tol = cs[TOL]
-            if not (abs(target[0] - qpos[ns[IX]]) > 1.01 * tol or
-                    abs(target[1] - qpos[ns[IY]]) > 1.01 * tol):
-                err[0], err[1] = target[0] - qpos[ns[IX]], target[1] - qpos[ns[IY]]
-                if norm(err) < tol and norm(qvel[ns[VX]:ns[VX] + 2]) < cs[STILL]:
-                    return END, step + 1
+            if settled_at(target[0], target[1], qpos[ns[IX]], qpos[ns[IY]], qvel[ns[VX]],
+                          qvel[ns[VY]], cs[TOL], cs[STILL], err):
+                return END, step + 1
         if t >= cs[T_END]:
             return END, step + 1
     return READY, max_steps

@@ -15,6 +15,7 @@ import numba as nb
 import numpy as np
 
 from .native import hypot
+from .native import norm as _norm
 
 
 @nb.njit(cache=True)
@@ -48,6 +49,21 @@ def ramp_step(gx, gy, last, step):
     lx, ly = lx + dx, ly + dy
     last[0], last[1] = lx, ly
     return lx, ly
+
+
+@nb.njit(cache=True)
+def settled_at(tx, ty, px, py, vx, vy, tol, still, v2):
+    """Whether a base at ``(px, py)`` moving at ``(vx, vy)`` has settled on ``(tx, ty)``:
+    within ``tol`` and slower than ``still`` (``sqrt(v . v)`` as :func:`norm`; more than
+    ``1.01 tol`` away along one axis is answered without it, which changes no answer). ``v2``
+    is a scratch pair. The one arithmetic of both drivers."""
+    if abs(tx - px) > 1.01 * tol or abs(ty - py) > 1.01 * tol:
+        return False
+    v2[0], v2[1] = tx - px, ty - py
+    if not _norm(v2) < tol:
+        return False
+    v2[0], v2[1] = vx, vy
+    return _norm(v2) < still
 
 
 def norm(v) -> float:
@@ -101,11 +117,8 @@ class TrackingController:
         """Within ``tol_m`` of ``target`` and slower than ``still_mps`` (:func:`norm`; a base
         more than ``1.01 tol_m`` away along one axis is answered without it, which changes
         no answer)."""
-        tol = self.tol_m
-        (tx, ty), (px, py) = target[:2].tolist(), pos[:2].tolist()
-        if abs(tx - px) > 1.01 * tol or abs(ty - py) > 1.01 * tol:
-            return False
-        return norm(np.asarray(target) - pos) < tol and norm(vel) < self.still_mps
+        (tx, ty), (px, py), (vx, vy) = target[:2].tolist(), pos[:2].tolist(), vel[:2].tolist()
+        return settled_at(tx, ty, px, py, vx, vy, self.tol_m, self.still_mps, np.empty(2))
 
 
 @dataclass(frozen=True)
