@@ -362,7 +362,7 @@ class Navigate(base.Task):
         obs["cell"] = self.world.cells[r.cell].astype(np.float64)
         obs["heading"] = heading
         obs["force"] = self.filter.f.copy()
-        obs["detector_active"] = np.array([float(self.base.detector.active)])
+        obs["detector_active"] = np.array([float(self.base.sensing.detector.active)])
         obs["goal_belief"] = r.policy.belief.goal_marginal().astype(np.float64)
         obs["goal_cells"] = self.world.cells[list(r.instance.goals)].astype(np.float64)
         obs["polytope"] = np.array([v], dtype=np.float64)

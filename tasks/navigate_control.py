@@ -120,8 +120,9 @@ class NavigateControl(Navigate):
         return self.template.t_max * self.decision_s
 
     def make_base(self, data, rng: np.random.Generator) -> MobileBase:
-        """The base with the agent's command held over each control step: the legacy
-        :class:`HeldCommandBase`, or with physics the ``--sim mujoco`` body's base
+        """The base with the agent's command held over each control step: without physics a
+        plain :class:`~pathpref.sim.mobile_base.MobileBase` driven by :class:`VelocityCommand`,
+        with physics the ``--sim mujoco`` body's base
         (:func:`~pathpref.sim.body.build_base`) driven by :class:`CommandedVelocity`."""
         if self.physics is None:
             self.command = VelocityCommand(v_max=self.v_max)

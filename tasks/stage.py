@@ -60,10 +60,6 @@ class Physics(dm_mujoco.Physics):
             for _ in range(nstep):
                 self.substep()
 
-    def base_position(self) -> np.ndarray:
-        """The base's planar position (m), read from the joints ``slide_x``, ``slide_y``."""
-        return self.named.data.qpos[["slide_x", "slide_y"]].copy()
-
 
 class StagedBody(MujocoBody):
     """The robot as the :class:`~pathpref.episode.runner.EpisodeRunner` sees it when the
@@ -103,7 +99,7 @@ class ForceFilter:
         self.base = base
         self.alpha = base.dt / (FORCE_TAU_S + base.dt)
         self.f = np.zeros(2)
-        s, d = base.sensor, base.data
+        s, d = base.sensing.sensor, base.data
         # views into MjData (its buffers stay put): the sensor's rotation and reading
         self._R = d.site_xmat[s.site].reshape(3, 3)[:2]
         self._reading = d.sensordata[s.adr:s.adr + 3]
@@ -114,8 +110,8 @@ class ForceFilter:
         into the world frame) or the estimator's output."""
         b = self.base
         if raw is None:
-            raw = -(self._R.dot(self._reading)) if b.sensor_model is None else \
-                b.force_estimate  # dot: the same gemv as ``@``, cheaper to call
+            raw = -(self._R.dot(self._reading)) if b.sensing.sensor_model is None else \
+                b.sensing.force_estimate  # dot: the same gemv as ``@``, cheaper to call
         # on Python floats, element by element the same operations as ``f += a (raw - f)``
         f, a = self.f, self.alpha
         (r0, r1), (f0, f1) = np.asarray(raw, float).tolist(), f.tolist()
@@ -149,7 +145,7 @@ class StepInteraction:
 
     def update(self) -> None:
         """After a physics step: count it when the detector is active."""
-        if self.base.detector.active:
+        if self.base.sensing.detector.active:
             self.active_s += self.base.dt
 
     def felt(self) -> list:

@@ -64,10 +64,10 @@ def _state(base) -> bytes:
         [(f.cell, f.heading, f.t_felt, f.t_cue, f.peak_n, f.impulse) for f in base.felt],
         sorted(base.physical_metrics().items()), base.controller.last.tobytes(),
         s.force_estimate.tobytes(), s.estimator.bias.tobytes(), s.estimator.quiet,
-        s.estimator.at_rest, [r.tobytes() for r in s.estimator._pending],
+        s.estimator.at_rest, s.estimator.pending().tobytes(),
         s.faulty.bias.tobytes(), s.faulty._sum, s.faulty._count, s.faulty._next_t,
         s.faulty._held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
-        s.detector.var, s.detector.on_n, s.detector.off_n, list(s.detector._pending),
+        s.detector.var, s.detector.on_n, s.detector.off_n, s.detector.pending().tobytes(),
         s.detector.active, s.faulty.rng.bit_generator.state["state"]))
 
 
@@ -191,18 +191,17 @@ def test_blas_products_are_numpys():
             assert r == math.sqrt(v.dot(v))
 
 
-def test_scalar_views_follow_mjdata():
-    """The views of ``time`` and ``ncon`` read what the bindings read, through steps and
-    contacts."""
+def test_ncon_view_follows_mjdata():
+    """The view of ``ncon`` reads what the bindings read, through steps and contacts."""
     xml = ('<mujoco><worldbody><geom type="plane" size="5 5 .1"/>'
            '<body pos="0 0 .3"><freejoint/><geom size=".1"/></body></worldbody></mujoco>')
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
-    time, ncon = native.scalar_views(data)
+    ncon = native.ncon_view(data)
     seen = set()
     for _ in range(400):
         mujoco.mj_step(model, data)
-        assert time[0] == data.time and ncon[0] == data.ncon
+        assert ncon[0] == data.ncon
         seen.add(int(data.ncon))
     assert seen == {0, 1}  # it fell onto the plane
 
@@ -249,7 +248,7 @@ def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
     base, step = start()
     assert base.coaster.ready()
     base.coaster.move(step)
-    assert seen[0][0] == coasting.DETECT and base.faulty.fresh
+    assert seen[0][0] == coasting.DETECT and base.sensing.faulty.fresh
     t_on, on = base.data.time, _state(base)
     monkeypatch.setenv("PATHPREF_COMPILED_STEPS", "0")
     base, step = start()

@@ -29,7 +29,7 @@ def _driving_base(world, sensor_model=None, split=True):
     base = MobileBase(scene_for(world), sensor_model=sensor_model,
                       rng=np.random.default_rng(5))
     base.enable_pushes_any_time()
-    base.detector.split = split
+    base.sensing.detector.split = split
     base.reset(world.cell((3, 3)))
     return base
 

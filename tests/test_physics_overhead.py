@@ -82,7 +82,7 @@ def test_overhead_keys():
 
     out = physics_overhead(1)
     assert set(out) == {"overhead_vs_bare_mujoco", "python_us_per_step", "bare_step_us",
-                        "overhead_vs_bare_mujoco_control"}
+                        "overhead_vs_bare_mujoco_control", "navigate_control_vs_bare"}
     assert out["overhead_vs_bare_mujoco"] > 1.0 and out["overhead_vs_bare_mujoco_control"] > 1.0
     assert out["python_us_per_step"] > 0.0 and out["bare_step_us"] > 0.0
 

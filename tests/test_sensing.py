@@ -55,7 +55,7 @@ def test_ideal_default_is_unchanged(worlds, scene, sensor_model):
     from tests.close import REL_PHYSICS, assert_same
 
     base = MobileBase(scene, sensor_model=sensor_model)
-    assert base.sensor_model is None and base.estimator is None
+    assert base.sensing.sensor_model is None and base.sensing.estimator is None
     base.reset(worlds["simple"].cell((3, 3)))
     cue = base.receive_push(_push(0.7))
     assert cue.heading == 1
@@ -74,7 +74,7 @@ def test_raw_sensor_reads_the_handle_inertia(worlds, scene):
     f, a = [], []
     for _ in range(200):
         base.substep()
-        f.append(base.sensor.force_xy(base.data)[0])
+        f.append(base.sensing.sensor.force_xy(base.data)[0])
         a.append(base.data.qacc[base.vxy[0]])
     f, a = np.array(f), np.array(a)
     mass = -np.dot(f, a) / np.dot(a, a)
@@ -111,17 +111,17 @@ def test_bias_is_tracked_at_rest(worlds, scene, seed):
     base = MobileBase(scene, sensor_model=SensorModel.realistic(),
                       rng=np.random.default_rng(seed), estimator=EstimatorConfig(tare_s=0.0))
     base.reset(worlds["simple"].cell((3, 3)))
-    assert np.linalg.norm(base.estimator.bias[:2] - base.faulty.bias[:2]) > 5.0
+    assert np.linalg.norm(base.sensing.estimator.bias[:2] - base.sensing.faulty.bias[:2]) > 5.0
     _rest(base, 10.0)
-    assert np.linalg.norm(base.estimator.bias[:2] - base.faulty.bias[:2]) < 0.4
-    before = base.estimator.bias.copy()
+    assert np.linalg.norm(base.sensing.estimator.bias[:2] - base.sensing.faulty.bias[:2]) < 0.4
+    before = base.sensing.estimator.bias.copy()
     push = _push(0.7, peak=60.0, duration=0.5)
     push.t0 = float(base.data.time)
     while base.data.time < push.t0 + 0.5:
         base.substep(push)
     # frozen during the push: only samples from before it may still enter (a leak of the
     # push's 60 N samples would move it by newtons)
-    assert np.linalg.norm(base.estimator.bias - before) < 0.05
+    assert np.linalg.norm(base.sensing.estimator.bias - before) < 0.05
 
 
 @pytest.mark.parametrize("heading", range(8))
@@ -203,7 +203,8 @@ def test_tray_sensor_of_the_arm_with_realistic_faults(worlds):
     arm = ArmBase(scene_for(w, 0.5, "carry"), sensor_model=SensorModel.realistic(),
                   rng=np.random.default_rng(0))
     arm.reset(w.cell((3, 3)))
-    assert arm.faulty.sensor is arm.sensor and arm.estimator.body == arm.tray
+    s = arm.sensing
+    assert s.faulty.sensor is s.sensor and s.estimator.body == arm.tray
     for heading in (0, 3, 4, 6):
         cue = arm.receive_push(_push(float(ACTION_ANGLES[heading])))
         assert cue is not None and cue.heading == heading
@@ -262,7 +263,7 @@ def test_calibration_queue_is_bounded():
     det = FilteredCueDetector(0.002, hold_s=0.1)
     rng = np.random.default_rng(1)
     _noisy_trace(det, rng, 5.0)
-    assert len(det._pending) == 50
+    assert det.queued == 50
 
 
 def test_resting_hand_becomes_the_baseline():

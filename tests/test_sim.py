@@ -137,7 +137,7 @@ def test_viewer_style_perturbation_is_detected(worlds):
             mujoco.mjv_applyPerturbForce(m, d, pert)
         d.ctrl[:3] = base.controller.command(d.qpos[:2], d.qpos[2], base.target)
         mujoco.mj_step(m, d)
-        cue = cue or base.detector.update(base.sensor.force_xy(d))
+        cue = cue or base.sensing.detector.update(base.sensing.sensor.force_xy(d))
     assert cue is not None and cue.heading == 0  # a push north reads as N
 
 

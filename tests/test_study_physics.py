@@ -59,11 +59,11 @@ def test_trials_run_the_physics_and_robot_their_condition_names():
     study = parse_study(raw)
     left, right, ideal, old = (TrialRunner(t, seed=0) for t in study.trials)
     assert left.spec.physics == Physics().to_json() == study.trials[0].physics
-    assert left.base.sensor_model == SensorModel.realistic()
+    assert left.base.sensing.sensor_model == SensorModel.realistic()
     # the ideal sensor is the raw one (no model), on the physical base (measured)
-    assert ideal.base.sensor_model is None and ideal.base.measure
+    assert ideal.base.sensing.sensor_model is None and ideal.base.measure
     assert old.spec.physics == "" and old.body.physics is None  # the legacy body
-    assert old.base.sensor_model is None and not old.base.measure
+    assert old.base.sensing.sensor_model is None and not old.base.measure
     assert not isinstance(left.base, ArmBase)
     assert isinstance(right.base, ArmBase) and right.spec.robot == "carry"
     assert right.base.pushed_body == right.base.tray

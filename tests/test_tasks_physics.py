@@ -60,7 +60,7 @@ def test_legacy_default_is_unchanged(case):
     want = json.loads((root / "tests/data/task_traces.json").read_text())[case]
     env = load(want["task"], **want["kwargs"])
     assert env.task.template.physics == "" and env.task.physics is None
-    assert env.task.base is None or env.task.base.sensor_model is None
+    assert env.task.base is None or env.task.base.sensing.sensor_model is None
     got = trace(want["task"], want["kwargs"], want["steps"])
     # observations added since the traces were taken (the step's interaction) are pinned by
     # tests/test_tasks_interaction.py; every stored one must be unchanged
@@ -84,8 +84,8 @@ def test_realistic_sensing_noisy_at_rest_and_cue_detected():
     legacy.reset()
     b = env.task.base
     assert env.task.runner.spec.physics == Physics.of(**passed).to_json()  # stored with the row
-    assert isinstance(b.detector, FilteredCueDetector)
-    assert np.hypot(*b.faulty.bias[:2]) == pytest.approx(6.0, abs=0.05)
+    assert isinstance(b.sensing.detector, FilteredCueDetector)
+    assert np.hypot(*b.sensing.faulty.bias[:2]) == pytest.approx(6.0, abs=0.05)
     push = env.task.body.last_push
     assert ts.observation["heading"].sum() == 1.0
     assert int(np.argmax(ts.observation["heading"])) == push.intended_heading
@@ -194,7 +194,8 @@ def test_control_rate_physical_base_and_gym_pass_physics():
     while not ts.last():
         ts, n = env.step(np.array([1.0, 0.0]) if n < 40 else np.array([-1.0, 0.0])), n + 1
     b = env.task.base
-    assert 0.5 < b.peak_accel_pushed <= 0.8 + 1e-3 and b.peak_accel <= 0.8 + 1e-3
+    m = b.measurements
+    assert 0.5 < m.peak_accel_pushed <= 0.8 + 1e-3 and m.peak_accel <= 0.8 + 1e-3
     g = gym.make("pathpref/NavigateControl-v0", physics={"v_max": 0.5}, time_limit=0.2,
                  **SMALL)
     assert g.action_space == gym.spaces.Box(-0.5, 0.5, (2,), np.float32)

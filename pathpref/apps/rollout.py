@@ -179,9 +179,11 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
                 writer.append(frame)
                 state["frames"] += 1
         if logger is not None:
-            force = b.sensor.force_xy(b.data) if b.sensor_model is None else b.force_estimate
+            sensing = b.sensing
+            force = sensing.sensor.force_xy(b.data) if sensing.sensor_model is None else \
+                sensing.force_estimate
             logger.log_frame(b.data.time, b.position, b.end_effector, force=force,
-                             detector_active=b.detector.active,
+                             detector_active=b.sensing.detector.active,
                              image=frame if camera else None)
 
     base.on_substep.append(hook)

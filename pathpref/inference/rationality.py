@@ -122,10 +122,6 @@ class GammaBelief(Belief):
         """``(M,)`` ``P(gamma | o_1:t)`` over :attr:`gammas`."""
         return self.joint_gamma_goal().sum(axis=1)
 
-    def gamma_mean(self) -> float:
-        """``E[gamma | o_1:t]``."""
-        return float(self.gamma_marginal() @ self.gammas)
-
     def goal_marginal(self) -> np.ndarray:
         """``P(g | o_1:t) = sum_gamma P(gamma, g | o_1:t)``."""
         return self.joint_gamma_goal().sum(axis=0)

@@ -152,7 +152,7 @@ class ArmBase(MobileBase):
             raise ConfigError(f"arm stiffness must be a positive number of N/m, got {stiffness}")
         #: the tray's translational stiffness (N/m; physical mode, module docstring)
         self.stiffness = float(stiffness)
-        self.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
+        self.sensing.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
         self.tray = int(m.body("tool/tray").id)
         self.pushed_body = self.tray  # people push the tray
         self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
@@ -331,7 +331,7 @@ class ArmBase(MobileBase):
                "ik_solves": float(self.ik_solves)}
         if self.physical:
             tip = self.tip_force_n()
-            out.update(tip_force_n=tip, tip_margin=tip / max(self.peak_force, 1e-9))
+            out.update(tip_force_n=tip, tip_margin=tip / max(self.measurements.peak_force, 1e-9))
         return out
 
     def tip_force_n(self) -> float:

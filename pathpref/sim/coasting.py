@@ -30,23 +30,22 @@ from __future__ import annotations
 
 import math
 import os
-from collections import deque
 
+import mujoco
 import numba as nb
 import numpy as np
 
 from . import native
-from .controller import ProfiledController
-from .cue_detector import FilteredCueDetector
+from .controller import ProfiledController, profiled_goal, ramp_step, settled_at
+from .cue_detector import FilteredCueDetector, filter_step
+from .estimator import estimate_step
+from .measurements import planar_accel
 from .native import (
     OBJ_BODY,
     hypot,
     matTvec,
-    matvec,
-    mj_jacBodyCom,
     mj_objectAcceleration,
     mj_step,
-    norm,
 )
 
 #: hand-back reasons of :func:`_coast`
@@ -54,65 +53,70 @@ READY, END, DETECT, CONTACTS, DIVERGED = range(5)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
 #: measurements, the detector's hand-back ``e`` and the velocity a contact met
 (S0, S1, S2, NEXT_T, WINDOW_S, FRESH, QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK,
- PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, N_FS) = range(23)
+ PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(24)
 #: constants: controller, sensor, estimator, detector, the move
-(KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, MASS,
- BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, ALPHA, BETA, GAMMA, BASE_ON, BASE_OFF, ON_K, OFF_K,
- T0, MIN_S, T_END, STILL, T_STOP, N_CS) = range(30)
+(KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
+ T_END, STILL, T_STOP, H, N_CS) = range(19)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
-(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, COMPENSATE, DRIFT,
- E_HEAD, E_LEN, D_HEAD, D_LEN, N_IS) = range(20)
-#: the queues' capacity: the estimator keeps at most quiet_s / dt + 1 samples, the detector
-#: hold_s / dt + 1
-QUEUE_SLACK = 4
-GRAVITY_Z = 9.81  # estimator.GRAVITY_UP
+(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, DRIFT, AUTORESET,
+ N_IS) = range(16)
+#: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
+BAD_STATE = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
+                      int(mujoco.mjtWarning.mjWARN_BADQVEL),
+                      int(mujoco.mjtWarning.mjWARN_BADQACC)])
+
+
+@nb.njit(cache=True, inline="always")
+def _bad_states(warnings):
+    """How many bad-state warnings MuJoCo has counted (``mjData.warning[i].number``)."""
+    n = 0
+    for i in BAD_STATE:
+        n += warnings[i]
+    return n
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sbias, held,
-           acc6, ma, xbuf, ebias, mark, jac, dv, eacc, eforce, epend, f, baseline, dpend, rng,
-           fs, cs, ns, tmp3, res, vel, err, max_steps):
+def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
     """Physics steps of the move phase until a hand-back (module docstring); returns
-    ``(reason, steps)``. ``held``, ``eacc``, ``eforce`` receive the last sample, estimator
-    acceleration and estimate; the state arrays are updated in place."""
+    ``(reason, steps)``. ``held`` receives the last sample, ``est``
+    (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
+    the state arrays are updated in place. The records: ``mj`` the ``MjModel``'s and
+    ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
+    sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
+    ``drive`` the controller's last command, the target and a
+    scratch pair; ``sensor`` the faulty sensor's drift bias, its held sample and scratch;
+    ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants. Simulated time is
+    ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
+    mp, dp = mj
+    qpos, qvel, ctrl, sensordata, R, warnings = robot
+    last, target, err = drive
+    sbias, held, acc6, ma, xbuf = sensor
+    f, baseline, dring, dqueue, dparams = det
     nq, nv = qpos.shape[0], qvel.shape[0]
-    qcap, dcap = epend.shape[0], dpend.shape[0]
+    eforce = est[7]
     for step in range(max_steps):
-        if time[0] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
+        if fs[TIME] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
         # --- MobileBase._control, float path: ProfiledController.goal_xy and ramp_xy
-        px, py = qpos[ns[IX]], qpos[ns[IY]]
-        ex, ey = target[0] - px, target[1] - py
-        d = hypot(ex, ey)
-        if d < 1e-9:
-            gx, gy = 0.0, 0.0
-        else:
-            speed = cs[V_MAX]
-            if cs[KP] * d < speed:
-                speed = cs[KP] * d
-            s = math.sqrt(2.0 * cs[BRAKE] * cs[A_MAX] * d)
-            if s < speed:
-                speed = s
-            k = speed / d
-            gx, gy = ex * k, ey * k
-        stp = cs[A_MAX] * cs[C_DT]
-        lx, ly = last[0], last[1]
-        dx, dy = gx - lx, gy - ly
-        n = hypot(dx, dy)
-        if n > stp:
-            dx, dy = dx * stp / n, dy * stp / n
-        lx, ly = lx + dx, ly + dy
-        last[0], last[1] = lx, ly
+        gx, gy = profiled_goal(qpos[ns[IX]], qpos[ns[IY]], target[0], target[1], cs[KP],
+                               cs[V_MAX], cs[BRAKE], cs[A_MAX])
+        lx, ly = ramp_step(gx, gy, last, cs[A_MAX] * cs[C_DT])
         ctrl[ns[A0]], ctrl[ns[A1]], ctrl[ns[A2]] = lx, ly, -cs[K_YAW] * qpos[ns[IYAW]]
         # --- mj_step and the divergence check
+        bad = _bad_states(warnings)
         mj_step(mp, dp)
+        # mj_step's time: its integrator adds the timestep (d->time += m->opt.timestep),
+        # after resetting the data (time 0) on a bad state unless autoreset is off
+        if ns[AUTORESET] and _bad_states(warnings) != bad:
+            fs[TIME] = 0.0
+        fs[TIME] += cs[H]
         for i in range(nq):
             if not math.isfinite(qpos[i]):
                 return DIVERGED, step + 1
         for i in range(nv):
             if not math.isfinite(qvel[i]):
                 return DIVERGED, step + 1
-        t = time[0]
+        t = fs[TIME]
         # --- FaultySensor.read: the window's sum, with the extra mass's inertia
         a = ns[SADR]
         r0, r1, r2 = sensordata[a], sensordata[a + 1], sensordata[a + 2]
@@ -157,96 +161,24 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
             ns[COUNT] = 0
             while fs[NEXT_T] <= t + 1e-9:
                 fs[NEXT_T] += cs[PERIOD]
-            # ForceEstimator.update (cue idle, fresh) with ForceEstimator.acceleration
-            window = fs[WINDOW_S]
-            mj_jacBodyCom(mp, dp, jac.ctypes.data, 0, ns[BODY])
-            for i in range(nv):
-                dv[i] = qvel[i] - mark[i]
-            for i in range(nv):
-                dv[i] = dv[i] / window
-            for i in range(nv):
-                mark[i] = qvel[i]
-            matvec(jac, dv, eacc)
-            # ForceEstimator.expected: R^T m (a + g)
-            for i in range(3):
-                ai = eacc[i] if ns[COMPENSATE] else 0.0
-                tmp3[i] = cs[MASS] * (ai + (GRAVITY_Z if i == 2 else 0.0))
-            matTvec(R, tmp3, res)
-            for i in range(3):
-                res[i] = held[i] - res[i]
-            matvec(jac, qvel, vel)
-            still = norm(vel) < cs[STILL_MPS] and norm(eacc) < cs[STILL_MPS2]
-            if still:
-                fs[QUIET] += window
-                if ns[E_LEN] == qcap:
-                    return DIVERGED, step + 1  # pragma: no cover - capacity is a bound
-                j = (ns[E_HEAD] + ns[E_LEN]) % qcap
-                epend[j, 0], epend[j, 1], epend[j, 2] = res[0], res[1], res[2]
-                ns[E_LEN] += 1
-            else:
-                fs[QUIET] = 0.0
-                ns[E_LEN] = 0
-                ns[E_HEAD] = 0
-            fs[AT_REST] = 1.0 if fs[QUIET] >= cs[QUIET_S] - 1e-12 else 0.0
-            w = window / (cs[BIAS_TAU] + window)
-            if not w < 1.0:
-                w = 1.0
-            while ns[E_LEN] * window > cs[QUIET_S] + 1e-12:
-                j = ns[E_HEAD]
-                for i in range(3):
-                    ebias[i] += w * (epend[j, i] - ebias[i])
-                ns[E_HEAD] = (j + 1) % qcap
-                ns[E_LEN] -= 1
-            for i in range(3):
-                tmp3[i] = res[i] - ebias[i]
-            matvec(R, tmp3, res)
-            eforce[0], eforce[1] = -res[0], -res[1]
+            # ForceEstimator.update (cue idle, fresh)
+            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, fs[WINDOW_S], True,
+                                    fs[QUIET], eparams, est)
+            fs[QUIET], fs[AT_REST] = q, 1.0 if rest else 0.0
             measured = True
         # --- FilteredCueDetector.update, idle (the estimate held between samples)
         x, y = eforce[0], eforce[1]
         if math.isfinite(x) and math.isfinite(y):
-            fx, fy = f[0], f[1]
-            fx, fy = fx + cs[ALPHA] * (x - fx), fy + cs[ALPHA] * (y - fy)
-            f[0], f[1] = fx, fy
-            # FilteredCueDetector._calibrate
-            if fs[AT_REST] == 0.0:
-                ns[D_LEN] = 0
-                ns[D_HEAD] = 0
-            else:
-                if ns[D_LEN] == dcap:
-                    return DIVERGED, step + 1  # pragma: no cover - capacity is a bound
-                j = (ns[D_HEAD] + ns[D_LEN]) % dcap
-                dpend[j, 0], dpend[j, 1] = fx, fy
-                ns[D_LEN] += 1
-                learnt = False
-                while ns[D_LEN] > ns[HOLD_N]:
-                    j = ns[D_HEAD]
-                    qx, qy = dpend[j, 0], dpend[j, 1]
-                    ns[D_HEAD] = (j + 1) % dcap
-                    ns[D_LEN] -= 1
-                    bx, by = baseline[0], baseline[1]
-                    ex, ey = qx - bx, qy - by
-                    if ex * ex + ey * ey < fs[OFF] * fs[OFF]:
-                        fs[VAR] += cs[BETA] * (0.5 * (ex * ex + ey * ey) - fs[VAR])
-                        learnt = True
-                    baseline[0], baseline[1] = bx + cs[GAMMA] * ex, by + cs[GAMMA] * ey
-                if learnt:  # FilteredCueDetector._thresholds
-                    sigma = math.sqrt(fs[VAR])
-                    on = cs[ON_K] * sigma
-                    fs[ON] = on if on > cs[BASE_ON] else cs[BASE_ON]
-                    off = cs[OFF_K] * sigma
-                    fs[OFF] = off if off > cs[BASE_OFF] else cs[BASE_OFF]
-            ex, ey = fx - baseline[0], fy - baseline[1]
-            if not ex * ex + ey * ey < 0.98 * fs[ON] * fs[ON]:
+            fs[VAR], fs[ON], fs[OFF], ex, ey, quiet = filter_step(
+                x, y, True, fs[AT_REST] != 0.0, f, baseline, dring, dqueue, fs[VAR], fs[ON],
+                fs[OFF], dparams, ns[HOLD_N])
+            if not quiet:
                 fs[EX], fs[EY] = ex, ey
                 return DETECT, step + 1  # the onset rule, in Python
         # --- Measurements.update (nothing pushes: Coaster.ready)
         if ns[MEASURE]:
             vx, vy = qvel[ns[VX]], qvel[ns[VY]]
-            span = t - fs[T_PREV]
-            if cs[DT] > span:
-                span = cs[DT]
-            acc = hypot(vx - fs[VPX], vy - fs[VPY]) / span
+            acc = planar_accel(vx, vy, fs[VPX], fs[VPY], t, fs[T_PREV], cs[DT])
             fs[VPX_OLD], fs[VPY_OLD] = fs[VPX], fs[VPY]
             fs[VPX], fs[VPY], fs[T_PREV] = vx, vy, t
             if acc > fs[PEAK_PUSHED]:
@@ -263,20 +195,12 @@ def _coast(mp, dp, time, ncon, qpos, qvel, ctrl, sensordata, R, last, target, sb
         # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
         # as nothing pushes) or time up
         if t - cs[T0] >= cs[MIN_S]:
-            tol = cs[TOL]
-            if not (abs(target[0] - qpos[ns[IX]]) > 1.01 * tol or
-                    abs(target[1] - qpos[ns[IY]]) > 1.01 * tol):
-                err[0], err[1] = target[0] - qpos[ns[IX]], target[1] - qpos[ns[IY]]
-                if norm(err) < tol and norm(qvel[ns[VX]:ns[VX] + 2]) < cs[STILL]:
-                    return END, step + 1
+            if settled_at(target[0], target[1], qpos[ns[IX]], qpos[ns[IY]], qvel[ns[VX]],
+                          qvel[ns[VY]], cs[TOL], cs[STILL], err):
+                return END, step + 1
         if t >= cs[T_END]:
             return END, step + 1
     return READY, max_steps
-
-
-def _queue(ring: np.ndarray, head: int, n: int) -> np.ndarray:
-    """The ``n`` rows of a ring buffer from ``head`` on, oldest first (a new array)."""
-    return ring[(head + np.arange(n)) % len(ring)]
 
 
 def enabled() -> bool:
@@ -328,13 +252,12 @@ class Coaster:
     def _bind(self) -> None:
         b = self.base
         d = b.data
-        self._time, self._ncon = native.scalar_views(d)
+        self._ncon = native.ncon_view(d)
+        self._warnings = d.warning.number
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
-        m = b.model
         self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
-        self._dv = np.zeros(m.nv)
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
-        self._tmp = (np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(2))
+        self._err = np.zeros(2)
         self._data = d
 
     def move(self, step) -> bool:
@@ -346,7 +269,7 @@ class Coaster:
             self._bind()
         s, c, m = b.sensing, b.controller, b.measurements
         f, est, det = s.faulty, s.estimator, s.detector
-        spec, cfg = f.spec, est.config
+        spec = f.spec
         fs = np.zeros(N_FS)
         fs[S0:S2 + 1] = f._sum
         fs[NEXT_T], fs[WINDOW_S], fs[FRESH] = f._next_t, f.window_s, float(f.fresh)
@@ -357,35 +280,30 @@ class Coaster:
         fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, float(m._touching)
         cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
                        f.period, f._drift_step,
-                       spec.noise_n, f._extra_m, est.mass, cfg.bias_tau_s, cfg.still_mps,
-                       cfg.still_mps2, cfg.quiet_s, det._alpha, det._beta, det._gamma,
-                       det.base_on_n, det.base_off_n, det.on_k, det.off_k, step._t0,
-                       step._min_s, step._t_end, c.still_mps, self._quiet_until()])
-        qcap = int(cfg.quiet_s / f.dt) + QUEUE_SLACK
-        epend = np.zeros((max(qcap, len(est._pending) + 1), 3))
-        if est._pending:
-            epend[: len(est._pending)] = est._pending
-        dpend = np.zeros((max(det._hold_n + QUEUE_SLACK, len(det._pending) + 1), 2))
-        if det._pending:
-            dpend[: len(det._pending)] = det._pending
+                       spec.noise_n, f._extra_m, step._t0, step._min_s, step._t_end,
+                       c.still_mps, self._quiet_until(), b.model.opt.timestep])
         ix, iy, iyaw = b._float_adr
         a0, a1, a2 = b._float_act
         ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
                        s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
-                       int(cfg.compensate_inertia), int(spec.drift_n_per_sqrt_s > 0), 0,
-                       len(est._pending), 0,
-                       len(det._pending)], dtype=np.int64)
+                       int(spec.drift_n_per_sqrt_s > 0),
+                       int(not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET)],
+                      dtype=np.int64)
         b._anchor = None
         if not b.external_forces:
             b._wrench().fill(0.0)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
+        est_st = (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
+                  eforce, *est._scratch)
         d = self._data
-        reason, _ = _coast(b.model._address, d._address, self._time, self._ncon, b._qpos,
-                           b._qvel, b._ctrl_view, d.sensordata, self._R, c.last, b.target,
-                           f.bias, held, self._acc6, self._ma, self._x, est.bias,
-                           est._qvel_mark, est._jac, self._dv, eacc, eforce, epend, det.f,
-                           det.baseline, dpend, f.rng, fs, cs, ns, *self._tmp,
-                           self.MAX_STEPS)
+        fs[TIME] = d.time
+        reason, _ = _coast((b.model._address, d._address), self._ncon,
+                           (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R,
+                            self._warnings),
+                           (c.last, b.target, self._err),
+                           (f.bias, held, self._acc6, self._ma, self._x), f.rng, est.params,
+                           est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
+                           fs, cs, ns, self.MAX_STEPS)
         # --- the state back into the Python objects
         f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
         f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
@@ -398,10 +316,7 @@ class Coaster:
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
         est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
-        est._pending = deque(_queue(epend, int(ns[E_HEAD]), int(ns[E_LEN])))
         det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
-        rows = _queue(dpend, int(ns[D_HEAD]), int(ns[D_LEN]))
-        det._pending = deque(zip(rows[:, 0].tolist(), rows[:, 1].tolist(), strict=True))
         if b.measure:
             m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
             m.peak_accel, m.peak_accel_pushed = float(fs[PEAK]), float(fs[PEAK_PUSHED])
@@ -410,8 +325,9 @@ class Coaster:
                 # measured by the kernel (a step handed back at an onset is measured in
                 # Python, with a new estimate if its sample gave one)
                 m._f_measured = s.force_estimate
-        if self._time[0] != d.time:  # pragma: no cover - the views are checked when bound
-            raise RuntimeError("the compiled step's time view lost MjData's time")
+        if fs[TIME] != d.time:  # pragma: no cover - mj_step advances time by its timestep
+            raise RuntimeError(f"the compiled move's time {fs[TIME]!r} is not MjData's "
+                               f"{d.time!r}")
         return self._hand_back(reason, step, fs)
 
     def _hand_back(self, reason: int, step, fs: np.ndarray) -> bool:

@@ -11,7 +11,59 @@ import math
 from dataclasses import dataclass, field
 from typing import ClassVar
 
+import numba as nb
 import numpy as np
+
+from .native import hypot
+from .native import norm as _norm
+
+
+@nb.njit(cache=True)
+def profiled_goal(px, py, tx, ty, kp, v_max, brake, a_max):
+    """The profiled law's goal velocity on floats (:class:`ProfiledController`): toward the
+    target at ``min(v_max, k_p d, sqrt(2 brake a_max d))``, zero within 1e-9 m. The one
+    arithmetic of the Python step and the compiled move (:mod:`.coasting`)."""
+    ex, ey = tx - px, ty - py
+    d = hypot(ex, ey)
+    if d < 1e-9:
+        return 0.0, 0.0
+    speed = v_max
+    if kp * d < speed:
+        speed = kp * d
+    s = math.sqrt(2.0 * brake * a_max * d)
+    if s < speed:
+        speed = s
+    k = speed / d
+    return ex * k, ey * k
+
+
+@nb.njit(cache=True)
+def ramp_step(gx, gy, last, step):
+    """Move the last command ``last`` (updated in place) toward ``(gx, gy)`` by at most
+    ``step`` (m/s); the new command. The one arithmetic of both drivers."""
+    lx, ly = last[0], last[1]
+    dx, dy = gx - lx, gy - ly
+    n = hypot(dx, dy)
+    if n > step:
+        dx, dy = dx * step / n, dy * step / n
+    lx, ly = lx + dx, ly + dy
+    last[0], last[1] = lx, ly
+    return lx, ly
+
+
+@nb.njit(cache=True)
+def settled_at(tx, ty, px, py, vx, vy, tol, still, v2):
+    """Whether a base at ``(px, py)`` moving at ``(vx, vy)`` has settled on ``(tx, ty)``:
+    within ``tol`` and slower than ``still`` (``sqrt(v . v)`` as :func:`norm`; more than
+    ``1.01 tol`` away along one axis is answered without it, which changes no answer). ``v2``
+    is a scratch pair. The one arithmetic of both drivers."""
+    if abs(tx - px) > 1.01 * tol or abs(ty - py) > 1.01 * tol:
+        return False
+    v2[0], v2[1] = tx - px, ty - py
+    if not _norm(v2) < tol:
+        return False
+    v2[0], v2[1] = vx, vy
+    return _norm(v2) < still
 
 
 def norm(v) -> float:
@@ -65,11 +117,8 @@ class TrackingController:
         """Within ``tol_m`` of ``target`` and slower than ``still_mps`` (:func:`norm`; a base
         more than ``1.01 tol_m`` away along one axis is answered without it, which changes
         no answer)."""
-        tol = self.tol_m
-        (tx, ty), (px, py) = target[:2].tolist(), pos[:2].tolist()
-        if abs(tx - px) > 1.01 * tol or abs(ty - py) > 1.01 * tol:
-            return False
-        return norm(np.asarray(target) - pos) < tol and norm(vel) < self.still_mps
+        (tx, ty), (px, py), (vx, vy) = target[:2].tolist(), pos[:2].tolist(), vel[:2].tolist()
+        return settled_at(tx, ty, px, py, vx, vy, self.tol_m, self.still_mps, np.empty(2))
 
 
 @dataclass(frozen=True)
@@ -94,13 +143,8 @@ class ProfiledController(TrackingController):
 
     def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
         """:meth:`goal_velocity` on floats (subclasses with another goal override this)."""
-        ex, ey = float(tx - px), float(ty - py)
-        d = math.hypot(ex, ey)
-        if d < 1e-9:
-            return 0.0, 0.0
-        speed = min(self.v_max, self.kp * d, math.sqrt(2.0 * self.brake * self.a_max * d))
-        k = speed / d
-        return ex * k, ey * k
+        return profiled_goal(float(px), float(py), float(tx), float(ty), self.kp, self.v_max,
+                             self.brake, self.a_max)
 
     def goal_velocity(self, pos: np.ndarray, target: np.ndarray) -> np.ndarray:
         """The velocity the profile wants now, before the acceleration limit."""
@@ -108,16 +152,7 @@ class ProfiledController(TrackingController):
 
     def ramp_xy(self, gx: float, gy: float, dt: float) -> tuple[float, float]:
         """:meth:`ramp` on floats; the new command."""
-        step = self.a_max * dt
-        last = self.last
-        lx, ly = float(last[0]), float(last[1])
-        dx, dy = gx - lx, gy - ly
-        n = math.hypot(dx, dy)
-        if n > step:
-            dx, dy = dx * step / n, dy * step / n
-        lx, ly = lx + dx, ly + dy
-        last[0], last[1] = lx, ly
-        return lx, ly
+        return ramp_step(float(gx), float(gy), self.last, self.a_max * dt)
 
     def ramp(self, goal: np.ndarray, dt: float | None = None) -> np.ndarray:
         """Move the last command toward ``goal`` by at most ``a_max dt``; the new command."""

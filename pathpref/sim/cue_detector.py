@@ -25,9 +25,9 @@ nobody gave (east then north: 45 degrees). ``split=False`` is the original detec
 from __future__ import annotations
 
 import math
-from collections import deque
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from ..episode.physics import DETECTOR
@@ -160,6 +160,56 @@ class CueDetector:
         return None
 
 
+#: :func:`filter_step`'s constants, in this order in :attr:`FilteredCueDetector.params`
+ALPHA, BETA, GAMMA, ON_K, OFF_K, BASE_ON, BASE_OFF = range(7)
+
+
+@nb.njit(cache=True)
+def filter_step(x, y, idle, at_rest, f, baseline, ring, queue, var, on, off, params, hold_n):
+    """One sample ``(x, y)`` (finite) of :class:`FilteredCueDetector` up to its onset rule,
+    on plain arrays: the low-pass ``f += alpha (x - f)`` (``f`` in place); when ``idle`` (no
+    cue under way), the calibration: the sample queued in ``ring`` (``queue`` = head, length)
+    at rest, else the queue dropped; samples older than ``hold_n`` committed to ``baseline``
+    (``b += gamma (f - b)``) and, with ``|e| < off``, to the noise level
+    (``var += beta (|e|^2 / 2 - var)``), then ``on = max(base_on, on_k sqrt(var))`` and
+    ``off = max(base_off, off_k sqrt(var))`` if it changed. Returns ``(var, on, off, ex, ey,
+    quiet)``: ``e = f - b`` and whether the onset rule has nothing to do (idle and ``|e|^2 <
+    0.98 on^2``; ``np.hypot`` is within an ulp of the true norm, the sum of squares within a
+    few). The one arithmetic of the Python step and the compiled move (:mod:`.coasting`)."""
+    fx, fy = f[0], f[1]
+    a = params[ALPHA]
+    fx, fy = fx + a * (x - fx), fy + a * (y - fy)
+    f[0], f[1] = fx, fy
+    if idle:
+        cap = ring.shape[0]
+        if not at_rest:
+            queue[0], queue[1] = 0, 0
+        else:
+            j = (queue[0] + queue[1]) % cap
+            ring[j, 0], ring[j, 1] = fx, fy
+            queue[1] += 1
+            learnt = False
+            while queue[1] > hold_n:
+                j = queue[0]
+                qx, qy = ring[j, 0], ring[j, 1]
+                queue[0] = (j + 1) % cap
+                queue[1] -= 1
+                bx, by = baseline[0], baseline[1]
+                ex, ey = qx - bx, qy - by
+                if ex * ex + ey * ey < off * off:
+                    var += params[BETA] * (0.5 * (ex * ex + ey * ey) - var)
+                    learnt = True
+                baseline[0], baseline[1] = bx + params[GAMMA] * ex, by + params[GAMMA] * ey
+            if learnt:
+                sigma = math.sqrt(var)  # what noise_n gives: sqrt is correctly rounded
+                on = params[ON_K] * sigma  # max(base, k sigma), base on a tie
+                on = on if on > params[BASE_ON] else params[BASE_ON]
+                off = params[OFF_K] * sigma
+                off = off if off > params[BASE_OFF] else params[BASE_OFF]
+    ex, ey = fx - baseline[0], fy - baseline[1]
+    return var, on, off, ex, ey, idle and ex * ex + ey * ey < 0.98 * on * on
+
+
 class FilteredCueDetector(CueDetector):
     """The hysteresis detector for a noisy force estimate, calibrated while idle.
 
@@ -211,6 +261,8 @@ class FilteredCueDetector(CueDetector):
         self._beta = dt / (floor_tau_s + dt)
         self._gamma = dt / (baseline_tau_s + dt)
         self._hold_n = int(round(hold_s / dt))
+        #: :func:`filter_step`'s constants (its ``params``)
+        self.params = np.array([self._alpha, self._beta, self._gamma, on_k, off_k, on_n, off_n])
         self.var = 0.0  # per-axis variance of the filtered force at rest (N^2)
         self.baseline = np.zeros(2)  # N, world x-y
         super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg)
@@ -221,7 +273,9 @@ class FilteredCueDetector(CueDetector):
         self._clear()
         self.f = np.zeros(2)
         self.baseline = np.zeros(2)
-        self._pending: deque[tuple[float, float]] = deque()
+        # the calibration queue: a ring of (fx, fy) rows and its (head, length)
+        self._ring = np.zeros((self._hold_n + 4, 2))
+        self._queue = np.zeros(2, dtype=np.int64)
 
     def _clear(self) -> None:
         super()._clear()
@@ -234,34 +288,15 @@ class FilteredCueDetector(CueDetector):
         """The learnt per-axis spread of the filtered force at rest (N, 1 sigma)."""
         return math.sqrt(self.var)
 
-    def _calibrate(self, fx: float, fy: float, at_rest: bool) -> None:
-        """One idle sample: queue it (at rest) or drop the queue; commit the samples older
-        than ``hold_s`` to the baseline and, below ``off``, to the noise level; refresh the
-        thresholds when the noise level changed (class docstring)."""
-        q = self._pending
-        if not at_rest:
-            q.clear()
-        else:
-            q.append((fx, fy))
-            learnt = False
-            while len(q) > self._hold_n:
-                x, y = q.popleft()
-                b = self.baseline
-                bx, by = b.tolist()  # floats: the same IEEE operations as on its elements
-                ex, ey = x - bx, y - by
-                if ex * ex + ey * ey < self.off_n * self.off_n:
-                    self.var += self._beta * (0.5 * (ex * ex + ey * ey) - self.var)
-                    learnt = True
-                b[0], b[1] = bx + self._gamma * ex, by + self._gamma * ey
-            if learnt:
-                self._thresholds()
+    @property
+    def queued(self) -> int:
+        """Idle samples waiting ``hold_s`` to calibrate the baseline and noise level."""
+        return int(self._queue[1])
 
-    def _thresholds(self) -> None:
-        """``on = max(on_n, on_k sigma)`` and ``off = max(off_n, off_k sigma)`` for the noise
-        level learnt so far (they change only when it does)."""
-        sigma = math.sqrt(self.var)  # what noise_n gives: sqrt is correctly rounded
-        self.on_n = max(self.base_on_n, self.on_k * sigma)
-        self.off_n = max(self.base_off_n, self.off_k * sigma)
+    def pending(self) -> np.ndarray:
+        """The queued samples ``(fx, fy)``, oldest first (a new array)."""
+        head, n = self._queue.tolist()
+        return self._ring[(head + np.arange(n)) % len(self._ring)]
 
     def update(self, f_xy: np.ndarray, at_rest: bool = False) -> Cue | None:
         """One force sample (and whether the robot is at rest with no push): low-pass, minus
@@ -269,19 +304,11 @@ class FilteredCueDetector(CueDetector):
         x, y = float(f_xy[0]), float(f_xy[1])
         if not (math.isfinite(x) and math.isfinite(y)):
             return None
-        # the low-pass on Python floats, in place: the same IEEE operations as on arrays
-        f, a = self.f, self._alpha
-        fx, fy = f.tolist()
-        fx, fy = fx + a * (x - fx), fy + a * (y - fy)
-        f[0], f[1] = fx, fy
         idle = not self.active and self._above == 0.0
-        if idle:
-            self._calibrate(fx, fy, at_rest)
-        bx, by = self.baseline.tolist()
-        ex, ey = fx - bx, fy - by
-        # idle and clearly below ``on`` (``np.hypot`` is within an ulp of the true norm, the
-        # sum of squares within a few): the onset rule has nothing to do
-        if idle and ex * ex + ey * ey < 0.98 * self.on_n * self.on_n:
+        self.var, self.on_n, self.off_n, ex, ey, quiet = filter_step(
+            x, y, idle, at_rest, self.f, self.baseline, self._ring, self._queue, self.var,
+            self.on_n, self.off_n, self.params, self._hold_n)
+        if quiet:
             return None
         return self._decide(ex, ey)
 
@@ -293,7 +320,7 @@ class FilteredCueDetector(CueDetector):
         if not self.active:
             self._onset(e, mag)
             if self.active:
-                self._pending.clear()  # the push's rising edge never calibrates
+                self._queue[:] = 0  # the push's rising edge never calibrates
             return None
         settled = self._settling(e, mag)
         if settled is not False:

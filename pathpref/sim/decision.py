@@ -84,11 +84,11 @@ class DecisionStep:
         b, phase = self.base, self.phase
         if phase == PUSH:
             cue = b.substep(self._push)
-            if self.onset_s is None and b.detector.active:
+            if self.onset_s is None and b.sensing.detector.active:
                 self.onset_s = float(b.data.time) - self._push.t0
             if cue is None and b.data.time < self._t_end:
                 return False
-            b.detector.reset()
+            b.sensing.detector.reset()
             self.cue = cue
         elif phase == MOVE:
             return self._move_ended(b.substep())

@@ -27,16 +27,80 @@ actuator forces, the residual on the base's slide joints is the horizontal exter
 from __future__ import annotations
 
 import copy
-from collections import deque
 from dataclasses import dataclass
 
 import mujoco
+import numba as nb
 import numpy as np
 
 from ..errors import ConfigError
-from .controller import norm
+from .native import matTvec, matvec, mj_jacBodyCom, norm
 
 GRAVITY_UP = np.array([0.0, 0.0, 9.81])
+#: :func:`estimate_step`'s constants, in this order in :attr:`ForceEstimator.params`
+MASS, BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, COMPENSATE = range(6)
+#: the bias queue's rows beyond ``quiet_s / dt + 1`` (the most it holds)
+QUEUE_SLACK = 4
+
+
+@nb.njit(cache=True)
+def estimate_step(mp, dp, body, reading, R, qvel, window, cue_idle, quiet, params, st):
+    """One fresh sensor sample ``reading`` (averaged over ``window`` s) through
+    :class:`ForceEstimator` (module docstring), on plain arrays: ``a = J_com (qvel - mark) /
+    window`` (``mark`` then set to ``qvel``), the residual ``r = s - R^T m (a + g)`` (``a``
+    zero without inertial compensation), at rest (``cue_idle``, ``|J_com qvel| < still_mps``,
+    ``|a| < still_mps2``) ``r`` queued and ``quiet += window``, else the queue dropped; queued
+    residuals older than ``quiet_s`` enter ``bias += w (r - bias)``, ``w = min(1, window /
+    (tau + window))``; the estimate ``-(R (r - bias))_xy``. ``mp``, ``dp``: the ``MjModel``'s
+    and ``MjData``'s addresses; ``st`` the arrays ``(mark, jac, dv, acc, bias, ring, queue,
+    force, tmp3, res, vel)``, updated in place (``acc``, ``force`` receive the acceleration
+    and the estimate). Returns ``(quiet, at_rest)``. The one arithmetic of the Python step
+    and the compiled move (:mod:`.coasting`): MuJoCo's ``mj_jacBodyCom`` and NumPy's BLAS
+    kernels (:mod:`.native`)."""
+    mark, jac, dv, acc, bias, ring, queue, force, tmp3, res, vel = st
+    nv = qvel.shape[0]
+    mj_jacBodyCom(mp, dp, jac.ctypes.data, 0, body)
+    for i in range(nv):
+        dv[i] = qvel[i] - mark[i]
+    for i in range(nv):
+        dv[i] = dv[i] / window
+    for i in range(nv):
+        mark[i] = qvel[i]
+    matvec(jac, dv, acc)
+    for i in range(3):  # ForceEstimator.expected: R^T m (a + g)
+        ai = acc[i] if params[COMPENSATE] != 0.0 else 0.0
+        tmp3[i] = params[MASS] * (ai + (GRAVITY_UP[i]))
+    matTvec(R, tmp3, res)
+    for i in range(3):
+        res[i] = reading[i] - res[i]
+    still = False
+    if cue_idle:
+        matvec(jac, qvel, vel)
+        still = norm(vel) < params[STILL_MPS] and norm(acc) < params[STILL_MPS2]
+    cap = ring.shape[0]
+    if still:
+        quiet += window
+        j = (queue[0] + queue[1]) % cap
+        ring[j, 0], ring[j, 1], ring[j, 2] = res[0], res[1], res[2]
+        queue[1] += 1
+    else:
+        quiet = 0.0  # the samples just before a push or a start never count
+        queue[0], queue[1] = 0, 0
+    at_rest = quiet >= params[QUIET_S] - 1e-12
+    w = window / (params[BIAS_TAU] + window)
+    if not w < 1.0:
+        w = 1.0
+    while queue[1] * window > params[QUIET_S] + 1e-12:
+        j = queue[0]
+        for i in range(3):
+            bias[i] += w * (ring[j, i] - bias[i])
+        queue[0] = (j + 1) % cap
+        queue[1] -= 1
+    for i in range(3):
+        tmp3[i] = res[i] - bias[i]
+    matvec(R, tmp3, res)
+    force[0], force[1] = -res[0], -res[1]
+    return quiet, at_rest
 
 
 @dataclass(frozen=True)
@@ -70,6 +134,12 @@ class ForceEstimator:
         self.dt = float(model.opt.timestep)
         self._jac = np.zeros((3, model.nv))
         self._dv = np.zeros(model.nv)
+        c = self.config
+        #: :func:`estimate_step`'s constants (its ``params``)
+        self.params = np.array([self.mass, c.bias_tau_s, c.still_mps, c.still_mps2, c.quiet_s,
+                                float(c.compensate_inertia)])
+        self._ring = np.zeros((int(c.quiet_s / self.dt) + 1 + QUEUE_SLACK, 3))
+        self._scratch = (np.zeros(3), np.zeros(3), np.zeros(3))
         self.reset()
 
     def reset(self) -> None:
@@ -80,25 +150,17 @@ class ForceEstimator:
         self.acc = np.zeros(3)
         self.force = np.zeros(2)
         self._qvel_mark: np.ndarray | None = None
-        self._pending: deque[np.ndarray] = deque()
+        # the bias queue: a ring of residual rows and its (head, length)
+        self._queue = np.zeros(2, dtype=np.int64)
+
+    def pending(self) -> np.ndarray:
+        """The queued residuals (N, sensor frame), oldest first (a new array)."""
+        head, n = self._queue.tolist()
+        return self._ring[(head + np.arange(n)) % len(self._ring)]
 
     def mark(self, data) -> None:
         """Start a sensor window at the current joint velocities (after a reset)."""
         self._qvel_mark = data.qvel.copy()
-
-    def acceleration(self, data, window_s: float) -> np.ndarray:
-        """The sensed body's mean centre-of-mass acceleration (m/s^2, world frame) over the
-        last ``window_s`` from the robot's joint velocities: ``J_com (qvel - qvel_mark) /
-        window_s`` (the sensor averaged its reading over the same window)."""
-        mujoco.mj_jacBodyCom(self.model, data, self._jac, None, self.body)
-        qvel = data.qvel
-        if self._qvel_mark is None:
-            self._qvel_mark = qvel.copy()
-        dv = self._dv  # (qvel - mark) / window, into a buffer: the same element operations
-        np.subtract(qvel, self._qvel_mark, out=dv)
-        np.divide(dv, window_s, out=dv)
-        np.copyto(self._qvel_mark, qvel)
-        return self._jac.dot(dv)  # the same gemv as ``@`` (sensing.FaultySensor._inertial)
 
     def expected(self, R: np.ndarray, acc: np.ndarray) -> np.ndarray:
         """What the sensor reads without a push and without faults (N, sensor frame): the
@@ -118,29 +180,20 @@ class ForceEstimator:
         ``fresh`` sensor sample (averaged over ``window_s``, one step by default) the estimate
         is recomputed and, at rest with ``cue_idle`` (the detector has nothing under way), the
         bias tracked; between samples the last estimate is held."""
-        c = self.config
         if not fresh:
             if not cue_idle:
                 self.quiet, self.at_rest = 0.0, False
-                self._pending.clear()
+                self._queue[:] = 0
             return self.force
         window = self.dt if window_s is None else window_s
-        self.acc = acc = self.acceleration(data, window)
-        residual = reading - self.expected(R, acc)
-        # the sensed body's speed, then its acceleration, asked only while they may decide
-        still = cue_idle and norm(self._jac.dot(data.qvel)) < c.still_mps and \
-            norm(acc) < c.still_mps2
-        if still:
-            self.quiet += window
-            self._pending.append(residual)
-        else:
-            self.quiet = 0.0
-            self._pending.clear()  # the samples just before a push or a start never count
-        self.at_rest = self.quiet >= c.quiet_s - 1e-12
-        a = min(1.0, window / (c.bias_tau_s + window))
-        while len(self._pending) * window > c.quiet_s + 1e-12:
-            self.bias += a * (self._pending.popleft() - self.bias)
-        self.force = -(R.dot(residual - self.bias))[:2]
+        if self._qvel_mark is None:
+            self._qvel_mark = data.qvel.copy()
+        self.acc, self.force = np.zeros(3), np.zeros(2)  # new arrays: a new estimate
+        st = (self._qvel_mark, self._jac, self._dv, self.acc, self.bias, self._ring,
+              self._queue, self.force, *self._scratch)
+        self.quiet, self.at_rest = estimate_step(
+            self.model._address, data._address, self.body, reading, R, data.qvel, window,
+            cue_idle, self.quiet, self.params, st)
         return self.force
 
 

@@ -18,7 +18,21 @@ import math
 from collections.abc import Callable
 
 import mujoco
+import numba as nb
 import numpy as np
+
+from .native import hypot
+
+
+@nb.njit(cache=True)
+def planar_accel(vx, vy, vpx, vpy, t, t_prev, dt):
+    """The base's planar acceleration ``|v - v_prev| / max(t - t_prev, dt)`` (m/s^2) over the
+    time since the last measurement (a caller, e.g. dm_control's environment step, may step
+    the physics without the base's substep). The one arithmetic of both drivers."""
+    span = t - t_prev
+    if dt > span:
+        span = dt
+    return hypot(vx - vpx, vy - vpy) / span
 
 
 class Measurements:
@@ -56,9 +70,7 @@ class Measurements:
         t, qvel = data.time, self._qvel
         vx, vy = qvel.item(vxy_adr[0]), qvel.item(vxy_adr[1])
         v_prev = self._v_prev  # the velocity a contact begun now met
-        # over the time since the last measurement (a caller, e.g. dm_control's environment
-        # step, may step the physics without the base's substep)
-        a = math.hypot(vx - v_prev[0], vy - v_prev[1]) / max(t - self._t_prev, self.dt)
+        a = planar_accel(vx, vy, v_prev[0], v_prev[1], t, self._t_prev, self.dt)
         self._v_prev, self._t_prev = (vx, vy), t
         if a > self.peak_accel_pushed:
             self.peak_accel_pushed = a

@@ -20,15 +20,8 @@ into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (
 velocity command ``F_hat / b``), and a cue ends a move or a hold (:attr:`stop_on_cue`) so that
 the planner replans from the new belief instead of finishing the move.
 
-**Guidance** (:meth:`MobileBase.enable_guidance`; Bajcsy et al. 2017): pushes act at any
-time; the admittance velocity ``v_a`` of ``M dv_a/dt + b v_a = F_hat`` moves the base's
-target (``dp_target/dt = v_a``: the push deforms the planned motion and the base keeps the
-deformation, it does not spring back) and is added to the tracking command as its feedforward;
-``v_a`` decays (time constant ``M / b``) once the push is released; every ``GUIDANCE_PERIOD_S`` of a
-cue under way a *partial* :class:`~pathpref.episode.body.Felt` carries the direction of the
-force felt over that period and its share of one observation (``period / GUIDANCE_EVIDENCE_S``,
-at most ``GUIDANCE_MAX_EVIDENCE`` per cue) to the listener; the cue's final record carries the
-rest (:mod:`pathpref.episode.physics`, "Guidance").
+**Guidance** (:meth:`MobileBase.enable_guidance`; :mod:`.guidance`): pushes act at any time
+and deform the base's motion; the belief is updated while a push lasts.
 
 The base is three parts: the base itself (its joints, controller, decision step, pushes and
 cue stream: this module), its sensing chain (:class:`~.sensing_chain.SensingChain`: sensor,
@@ -45,19 +38,18 @@ import mujoco
 import numpy as np
 
 from ..episode.body import Felt
-from ..episode.physics import GUIDANCE_EVIDENCE_S, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..errors import ConfigError, EpisodeError
-from ..geometry.grid import heading_to_action
 from .coasting import Coaster
 from .controller import ProfiledController, TrackingController
-from .cue_detector import Cue, CueDetector
+from .cue_detector import Cue
 from .decision import DecisionStep
-from .estimator import EstimatorConfig, ForceEstimator
+from .estimator import EstimatorConfig
 from .force_cue import HumanPush, PushProfile
+from .guidance import Guidance
 from .keep_clear import keep_clear
 from .measurements import Measurements
 from .scene import Scene
-from .sensing import FaultySensor, HandleSensor, SensorModel
+from .sensing import SensorModel
 from .sensing_chain import SensingChain
 
 #: the admittance's spring (N/m): a yielding base gives way 0.1 m to 30 N
@@ -128,12 +120,8 @@ class MobileBase:
         self.stop_on_cue = False
         #: pushes at any time are on (:meth:`enable_pushes_any_time`)
         self.any_time = False
-        #: guidance admittance ``(M, b)`` (:meth:`enable_guidance`; None: off) and its state
-        self.guidance: tuple[float, float] | None = None
-        self.v_admit = np.zeros(2)
-        self._evidence = np.zeros(2)  # the impulse since the last evidence record (N s)
-        self._evidence_s = 0.0  # its duration (s)
-        self._evidence_given = 0.0  # the evidence the cue under way has given (observations)
+        #: the guidance admittance and its state (:meth:`enable_guidance`; None: off)
+        self.guidance: Guidance | None = None
         self._onset: tuple[float, int] | None = None
         self._anchor: np.ndarray | None = None
         #: measure the base (:mod:`.measurements`; episodes with physical parameters)
@@ -155,61 +143,6 @@ class MobileBase:
             self._coaster = Coaster(self)
         return self._coaster
 
-    # the sensing chain's parts, as the base's callers read them
-    @property
-    def sensor(self) -> HandleSensor:
-        """The force sensor the chain reads."""
-        return self.sensing.sensor
-
-    @sensor.setter
-    def sensor(self, sensor: HandleSensor) -> None:
-        self.sensing.sensor = sensor
-
-    @property
-    def detector(self) -> CueDetector:
-        """The chain's push detector."""
-        return self.sensing.detector
-
-    @property
-    def sensor_model(self) -> SensorModel | None:
-        """The sensor's faults (None: the ideal raw sensor)."""
-        return self.sensing.sensor_model
-
-    @property
-    def faulty(self) -> FaultySensor | None:
-        """The faulty sensor (None with the ideal one)."""
-        return self.sensing.faulty
-
-    @property
-    def estimator(self) -> ForceEstimator | None:
-        """The push estimator (None with the ideal sensor)."""
-        return self.sensing.estimator
-
-    @property
-    def estimator_config(self) -> EstimatorConfig:
-        """The estimator's settings."""
-        return self.sensing.estimator_config
-
-    @property
-    def force_estimate(self) -> np.ndarray:
-        """The push estimate the detector was last fed (N, world frame)."""
-        return self.sensing.force_estimate
-
-    @property
-    def peak_accel(self) -> float:
-        """The controller's own peak acceleration (m/s^2; :mod:`.measurements`)."""
-        return self.measurements.peak_accel
-
-    @property
-    def peak_accel_pushed(self) -> float:
-        """The peak acceleration over every step (m/s^2; :mod:`.measurements`)."""
-        return self.measurements.peak_accel_pushed
-
-    @property
-    def peak_force(self) -> float:
-        """The largest push estimate (N; :mod:`.measurements`)."""
-        return self.measurements.peak_force
-
     def enable_pushes_any_time(self, admittance_b: float = 80.0) -> None:
         """Pushes at any time (module docstring): the splitting detector, admittance ``b``
         (N s/m: a 30 N push moves the yielding base at 0.375 m/s), stop on a cue."""
@@ -224,7 +157,7 @@ class MobileBase:
         tracking command, the belief updated while a push lasts; moves are not stopped by a
         cue (the push deforms them)."""
         self.sensing.split_pushes()
-        self.guidance = (float(mass), float(damping))
+        self.guidance = Guidance(mass, damping)
         self.any_time = True
 
     # --- state ---------------------------------------------------------------------------
@@ -352,19 +285,22 @@ class MobileBase:
     def _track_onset(self, cue: Cue | None) -> None:
         """Note where and when the cue under way was first felt; an ended cue becomes a
         :class:`~pathpref.episode.body.Felt` record of the stream (module docstring)."""
-        under_way = self.sensing.under_way
-        if self.guidance is not None and (under_way or cue is not None):
-            self._evidence += self.sensing.force_estimate * self.dt
-            self._evidence_s += self.dt
-            if cue is None and self._evidence_s >= GUIDANCE_PERIOD_S - 1e-9:
-                self._give_evidence()
+        under_way, g = self.sensing.under_way, self.guidance
+        if g is not None and (under_way or cue is not None):
+            if g.feel(self.sensing.force_estimate, self.dt) and cue is None:
+                t = float(self.data.time)
+                t0 = self._onset[0] if self._onset is not None else t
+                partial = g.partial(self.cell, t0, t)  # to the listener; not in felt
+                if self.listener is not None:
+                    self.listener(partial)
         if cue is not None:
             t = float(self.data.time)
             t0, cell = self._onset if self._onset is not None else (t, self.cell)
             felt = Felt(cell, cue.heading, t0, t, float(cue.peak_n),
                         (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s),
-                        evidence=None if self.guidance is None else self._take_evidence())
-            self._evidence_given = 0.0  # the next cue has its own evidence
+                        evidence=None if g is None else g.take())
+            if g is not None:
+                g.given = 0.0  # the next cue has its own evidence
             self.felt.append(felt)
             self._onset = (t, self.cell) if under_way else None
             if self.listener is not None:
@@ -374,28 +310,6 @@ class MobileBase:
                 self._onset = (float(self.data.time), self.cell)
         elif self._onset is not None:
             self._onset = None
-
-    def _take_evidence(self) -> tuple[float, float]:
-        """The direction of the force felt since the last evidence record and its weight
-        (module docstring); starts the next period (a cue's total is capped)."""
-        e = self._evidence
-        weight = min(self._evidence_s / GUIDANCE_EVIDENCE_S,
-                     GUIDANCE_MAX_EVIDENCE - self._evidence_given)
-        angle = math.atan2(float(e[1]), float(e[0]))
-        self._evidence_given += max(weight, 0.0)
-        self._evidence[:], self._evidence_s = 0.0, 0.0
-        return angle, max(weight, 0.0)
-
-    def _give_evidence(self) -> None:
-        """A partial record of the cue under way (guidance) to the listener, at the cell the
-        base is in: not a cue, not in :attr:`felt`."""
-        t = float(self.data.time)
-        t0 = self._onset[0] if self._onset is not None else t
-        e = (float(self._evidence[0]), float(self._evidence[1]))
-        angle, weight = self._take_evidence()
-        if self.listener is not None:
-            self.listener(Felt(self.cell, heading_to_action(angle), t0, t, None, e, t - t0,
-                               evidence=(angle, weight), partial=True))
 
     def yielding(self) -> bool:
         """Whether the base yields to a push now (admittance on and a cue under way)."""
@@ -410,7 +324,7 @@ class MobileBase:
         if self._float_for is not c:
             self._float_control = self._can_float()
         if self.guidance is not None:
-            self._admit()
+            self.guidance.admit(self)
         elif self._float_control and (self.admittance_b is None or not self.yielding()):
             self._anchor = None
             q, (ix, iy, iyaw), (a0, a1, a2) = self._qpos, self._float_adr, self._float_act
@@ -448,7 +362,7 @@ class MobileBase:
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)
             if self.guidance is not None:  # the push's velocity as feedforward, within v_max
-                command[:2] += self.v_admit
+                command[:2] += self.guidance.v
                 speed = math.hypot(command[0], command[1])
                 if speed > self.controller.v_max:
                     command[:2] *= self.controller.v_max / speed
@@ -458,36 +372,6 @@ class MobileBase:
                                             a_brake))
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
 
-    def _admit(self) -> None:
-        """One step of the guidance admittance ``v += dt (F_hat - b v) / M`` (explicit Euler;
-        stable for ``dt < 2 M / b``: 0.5 s for the defaults against the 2 ms step) and of the
-        target it deforms, ``p_target += dt v``. Safety: ``|v|`` is capped at the controller's
-        ``v_max``; where the base would not fit (:meth:`_fits`) within its stopping distance
-        ahead, ``|v|^2 / a_max`` (braking at half ``a_max``: a push may oppose the drive), the
-        admittance brakes at ``a_max``; the target never moves where the base does not fit, so
-        a push cannot drive the base into an obstacle or a wall."""
-        mass, damping = self.guidance
-        v, a_max = self.v_admit, self.controller.a_max
-        v += self.dt * (self.sensing.force_estimate - damping * v) / mass
-        speed = math.hypot(v[0], v[1])
-        if speed > self.controller.v_max:
-            v *= self.controller.v_max / speed
-            speed = self.controller.v_max
-        if speed > 1e-9:
-            ahead = self.target + v / a_max  # |v|^2 / a_max ahead, along v
-            if not self._fits(ahead):
-                v *= max(0.0, 1.0 - a_max * self.dt / speed)
-        moved = self.target + self.dt * v
-        if self._fits(moved):
-            self.target = moved
-        else:
-            v[:] = 0.0
-
-    def _fits(self, xy: np.ndarray) -> bool:
-        """Whether the base centred at ``xy`` (m) keeps its footprint's reach from every
-        obstacle and wall (:meth:`.scene.Scene.fits`: the rule of the grid's moves)."""
-        return self.scene.fits(xy)
-
     def admittance_velocity(self) -> np.ndarray:
         """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
         above ``BRACE`` of the drive's force limit is not yielded to: the base brakes back
@@ -496,7 +380,7 @@ class MobileBase:
         pos = self.data.qpos[self.xy]
         if self._anchor is None:
             self._anchor = pos.copy()
-        f = self.force_estimate
+        f = self.sensing.force_estimate
         if float(np.hypot(f[0], f[1])) > BRACE * self.force_limit:
             return -self.controller.kp * (pos - self._anchor)
         return (f - ADMITTANCE_K * (pos - self._anchor)) / self.admittance_b
@@ -504,8 +388,8 @@ class MobileBase:
     def _reset_control(self) -> None:
         """A standing base: no yield under way, the controller's state cleared."""
         self._anchor = None
-        self.v_admit[:] = 0.0
-        self._evidence[:], self._evidence_s, self._evidence_given = 0.0, 0.0, 0.0
+        if self.guidance is not None:
+            self.guidance.reset()
         self.controller.reset()
 
     def receive_push(self, push: HumanPush) -> Cue | None:

@@ -13,10 +13,11 @@ Python loop only if every operation is the same IEEE operation in the same order
   Dekker's products and a differential correction), not the C library's ``hypot``, which
   differs in the last bit on about 1 in 200 inputs.
 
-``MjData``'s scalar ``time`` and ``ncon`` are not arrays in the bindings; :func:`scalar_views`
-finds their byte offsets in the struct once (the offsets whose values follow the bindings'
-attributes through changed states; everything scanned lies before the struct's ``qpos``
-pointer) and returns one-element NumPy views of them.
+``MjData``'s scalar ``ncon`` is not an array in the bindings; :func:`ncon_view` finds its
+byte offset in the struct once (the offset whose value follows the bindings' attribute
+through changed states; everything scanned lies before the struct's ``qpos`` pointer) and
+returns a one-element NumPy view of it. (The kernels track ``time`` themselves, as
+``mj_step`` advances it.)
 
 :func:`ready` is False (with :data:`WHY`) when a library, a symbol or an offset is missing:
 the callers then keep their Python path.
@@ -167,57 +168,50 @@ def _struct_head(data: mujoco.MjData) -> bytes:
     raise RuntimeError("MjData's qpos pointer not found in its struct")
 
 
-def _find_offsets() -> tuple[int, int]:
-    """The byte offsets of ``time`` (float64) and ``ncon`` (int32) in ``mjData``: the only
-    offsets whose values equal the bindings' attributes in every one of several states (two
-    overlapping spheres, then apart; different times)."""
+def _find_offset() -> int:
+    """The byte offset of ``ncon`` (int32) in ``mjData``: the only offset whose value equals
+    the bindings' attribute in every one of several states (four spheres apart, overlapping,
+    apart, far apart)."""
     bodies = "".join(f'<body pos="{0.05 * i} 0 0"><freejoint/><geom size=".1"/></body>'
                      for i in range(4))
     xml = f"<mujoco><worldbody>{bodies}</worldbody></mujoco>"
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
-    t_off = c_off = None
-    for k, spread in enumerate((1.0, 0.0, 1.0, 5.0)):
+    c_off = None
+    for spread in (1.0, 0.0, 1.0, 5.0):
         data.qpos[0::7] = spread * np.arange(4) * 0.05
         mujoco.mj_forward(model, data)
-        data.time = 98765.4321 + 7.0 * k
         head = _struct_head(data)
-        f = np.frombuffer(head[: len(head) // 8 * 8], np.float64)
         n = np.frombuffer(head[: len(head) // 4 * 4], np.int32)
-        t = set((np.flatnonzero(f == data.time) * 8).tolist())
         c = set((np.flatnonzero(n == data.ncon) * 4).tolist())
-        t_off = t if t_off is None else t_off & t
         c_off = c if c_off is None else c_off & c
-    if t_off is None or len(t_off) != 1 or c_off is None or len(c_off) != 1:
-        raise RuntimeError(f"MjData's time / ncon offsets not unique: {t_off} / {c_off}")
-    return t_off.pop(), c_off.pop()
+    if c_off is None or len(c_off) != 1:
+        raise RuntimeError(f"MjData's ncon offset not unique: {c_off}")
+    return c_off.pop()
 
 
-_OFFSETS: tuple[int, int] | None = None
+_OFFSET: int | None = None
 
 
 def ready() -> bool:
     """Whether the compiled path can run here: the libraries and symbols found
-    (:data:`AVAILABLE`) and ``MjData``'s offsets found (once per process; else :data:`WHY`
-    says why and the callers keep their Python path)."""
-    global _OFFSETS, AVAILABLE, WHY
-    if AVAILABLE and _OFFSETS is None:
+    (:data:`AVAILABLE`) and ``MjData``'s ``ncon`` offset found (once per process; else
+    :data:`WHY` says why and the callers keep their Python path)."""
+    global _OFFSET, AVAILABLE, WHY
+    if AVAILABLE and _OFFSET is None:
         try:
-            _OFFSETS = _find_offsets()
+            _OFFSET = _find_offset()
         except RuntimeError as exc:  # pragma: no cover - another MuJoCo's struct
             AVAILABLE, WHY = False, str(exc)
     return AVAILABLE
 
 
-def scalar_views(data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
-    """One-element views of ``data.time`` (float64) and ``data.ncon`` (int32) in the struct
-    (valid while ``data`` lives; checked against the bindings' attributes; call after
-    :func:`ready`)."""
+def ncon_view(data: mujoco.MjData) -> np.ndarray:
+    """A one-element view of ``data.ncon`` (int32) in the struct (valid while ``data`` lives;
+    checked against the bindings' attribute; call after :func:`ready`)."""
     if not ready():
         raise RuntimeError(f"no compiled path here: {WHY}")
-    t_off, c_off = _OFFSETS
-    time = np.ctypeslib.as_array((ctypes.c_double * 1).from_address(data._address + t_off))
-    ncon = np.ctypeslib.as_array((ctypes.c_int32 * 1).from_address(data._address + c_off))
-    if time[0] != data.time or ncon[0] != data.ncon:
-        raise RuntimeError("MjData's time / ncon views disagree with the bindings")
-    return time, ncon
+    ncon = np.ctypeslib.as_array((ctypes.c_int32 * 1).from_address(data._address + _OFFSET))
+    if ncon[0] != data.ncon:
+        raise RuntimeError("MjData's ncon view disagrees with the bindings")
+    return ncon

@@ -53,7 +53,7 @@ class TrialRecorder:
         r = self.runner
         t = r.time_s
         f = r.body.felt_force()
-        sensed = base.sensor.force_xy(base.data)
+        sensed = base.sensing.sensor.force_xy(base.data)
         self.rows["trial_forces"].append((self.k_force, t, float(f[0]), float(f[1]),
                                           float(sensed[0]), float(sensed[1])))
         self.k_force += 1
