@@ -238,11 +238,12 @@ class Coaster:
 
     def ready(self) -> bool:
         """The next step is one the kernel mirrors: nothing pushes, no ``on_substep`` hook,
-        every ``pre_substep`` hook quiet now, no cue under way."""
+        every ``pre_substep`` hook quiet now, no cue under way, no waypoint on the way
+        (:meth:`.decision.DecisionStep.move`)."""
         b = self.base
         s = b.sensing
         f = s.faulty
-        return (not b.pushes and not b.on_substep
+        return (b.decision.final is None and not b.pushes and not b.on_substep
                 and (not b.pre_substep or b.data.time < self._quiet_until())
                 and not b.external_forces and b._onset is None and not s.under_way
                 and f is not None and f._held is not None and s.estimator._qvel_mark is not None

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..episode.physics import RELEASE_WINDOW_S
 
 MOVE, PUSH, HOLD = "move", "push", "hold"
@@ -47,6 +49,8 @@ class DecisionStep:
         self._push = None
         self._t0 = self._t_end = self._min_s = 0.0
         self._until_cue = False
+        #: the move's target while the base first returns to a clear waypoint (None: none)
+        self.final: np.ndarray | None = None
 
     def push(self, push, hold: bool = True) -> DecisionStep:
         """Start the push phase: ``push`` begins now (its ``t0`` is set)."""
@@ -59,9 +63,20 @@ class DecisionStep:
         return self
 
     def move(self, cell: int, limit_s: float, min_s: float = 0.0) -> DecisionStep:
-        """Start the move phase toward the centre of ``cell``."""
+        """Start the move phase toward the centre of ``cell``. A base that a person moved off
+        its cells' centres (guidance, a yield) may stand where the straight way to that
+        centre is not clear of obstacles (the footprint rule, :meth:`.scene.Scene.clear`):
+        it then drives first to the centre of the cell it stands in (a clear waypoint: the
+        grid's moves start there) and on to the target from there (:attr:`final`)."""
         b = self.base
-        b.target = b.scene.cell_centre(cell)
+        target = b.scene.cell_centre(cell)
+        pos = b.data.qpos[b.xy]
+        self.final = None
+        if not b.scene.clear(pos, target):
+            here = b.scene.cell_centre(b.scene.cell_at(pos))
+            if b.scene.clear(pos, here):
+                self.final, target = target, here
+        b.target = target
         self._pos, self._vel = b._planar_views()  # views into MjData: no copy per step
         self._t0 = float(b.data.time)
         self._min_s = float(min_s)
@@ -109,10 +124,16 @@ class DecisionStep:
         t = b.data.time
         if cue is not None and b.stop_on_cue:
             b.target = b.scene.cell_centre(b.cell)  # stop here: the planner replans
+            self.final = None
+        elif self.final is not None and t < self._t_end and not b.yielding() and \
+                b.controller.settled(self._pos, self._vel, b.target):
+            b.target, self.final = self.final, None  # at the waypoint: on to the target
+            return False
         elif not ((t - self._t0 >= self._min_s and
                    b.controller.settled(self._pos, self._vel, b.target) and
                    not b.yielding()) or t >= self._t_end):
             return False
+        self.final = None
         self.phase = None
         return True
 

@@ -7,12 +7,16 @@ drive: for every obstacle or wall whose nearest point lies within reach, with ``
 vector from that point to the base's centre and ``gap`` the distance from the base's edge (the
 footprint's radius) to it, the approach speed ``-v . n`` is capped at
 
-    ``sqrt(2 a (gap - MARGIN_M))``   (0 once ``gap <= MARGIN_M``),
+    ``sqrt(2 a (gap - MARGIN_M))``   while ``gap >= MARGIN_M``,
 
-the speed from which braking at ``a`` stops the base ``MARGIN_M`` short of the obstacle. The
+the speed from which braking at ``a`` stops the base ``MARGIN_M`` short of the obstacle, and
+at ``-BACK_PER_S (MARGIN_M - gap)`` closer in: the base backs out. A velocity servo holding a
+base against a person's steady push drifts with it (29 N against ``kv`` 3000 N s/m: 1 cm/s),
+so a cap of 0 would still let the push lean the base onto the obstacle; backing out
+proportionally settles it about ``F / (kv BACK_PER_S)`` inside the margin instead (2 mm). The
 excess is removed along ``n`` only, so the base still slides along a wall toward its target.
-Two passes over the constraints settle a corner where two obstacles meet. The filter only ever
-slows an approach: it is the identity away from obstacles.
+Two passes over the constraints settle a corner where two obstacles meet. Away from obstacles
+the filter is the identity.
 """
 
 from __future__ import annotations
@@ -26,6 +30,8 @@ from .scene import Scene
 #: how close the base's edge may come to an obstacle under a push (m): inside the footprint's
 #: clearance (0.05 m by default), so a body on a clear move never meets it
 MARGIN_M = 0.02
+#: how fast the base backs out from inside the margin, per metre inside it (1/s)
+BACK_PER_S = 5.0
 #: obstacles farther than this from the base's edge are not considered (m): a base at the
 #: drive's top speed, 1 m/s, braking at 0.8 m/s^2 needs 0.63 m
 LOOK_M = 1.0
@@ -39,7 +45,8 @@ def keep_clear(scene: Scene, pos: np.ndarray, v: np.ndarray, a_brake: float) -> 
     for _ in range(2):
         for d, n in near:
             gap = d * cell - radius
-            cap = math.sqrt(2.0 * a_brake * max(gap - MARGIN_M, 0.0))
+            cap = math.sqrt(2.0 * a_brake * (gap - MARGIN_M)) if gap >= MARGIN_M else \
+                -BACK_PER_S * (MARGIN_M - gap)
             approach = -(v[0] * n[0] + v[1] * n[1])
             if approach > cap:
                 v[:2] += (approach - cap) * n

@@ -57,6 +57,14 @@ class Scene:
         return self.clearance.clear_at(np.asarray(xy, float)[:2] / self.cell_size,
                                        self.world.footprint.reach)
 
+    def clear(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """Whether the footprint swept straight from ``a`` to ``b`` (m) keeps its radius
+        from every obstacle and wall (it may use up the clearance: a base a person moved
+        stands anywhere its radius fits)."""
+        p = np.asarray(a, float)[:2].reshape(1, 2) / self.cell_size
+        q = np.asarray(b, float)[:2].reshape(1, 2) / self.cell_size
+        return bool(self.clearance.clear(p, q, self.world.footprint.radius)[0])
+
     def cell_centre(self, cell: int) -> np.ndarray:
         """Metric position ``(x, y)`` of a free cell's centre."""
         return (self.world.cells[cell] - 0.5) * self.cell_size
