@@ -4,6 +4,8 @@
   ``EpisodeSpec(sim=name)`` / ``--sim name``;
 * ``pathpref.methods``: a method (a class or function taking a
   :class:`~pathpref.planning.policies.PolicyContext`), used as ``--methods name``;
+* ``pathpref.priors``: a preference prior (a class or function taking
+  :class:`~pathpref.inference.priors.PriorInputs`), used as ``--prior name``;
 * ``pathpref.tasks`` and ``pathpref.maps``: dm_control tasks and maps (``pathpref_tasks``).
 
 A package declares them in its metadata, e.g.::
@@ -25,6 +27,7 @@ from .errors import ConfigError
 
 BODIES = "pathpref.bodies"
 METHODS = "pathpref.methods"
+PRIORS = "pathpref.priors"
 
 
 def names(group: str) -> list[str]:

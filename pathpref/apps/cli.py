@@ -14,7 +14,8 @@ import sys
 from collections.abc import Sequence
 
 from ..errors import PathprefError, did_you_mean
-from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS
+from ..inference.priors import PRIORS
+from ..planning.pomdp import DEFAULT_PRESET, PRESETS
 from . import commands as c
 from .checks import RangeAction, atomic_output, check_writable, is_disk_full, write_error
 from .physics_args import physics_options
@@ -160,8 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
-        sp.add_argument("--prior", choices=list(PRIORS), default=None,
-                        help="the path-preference belief's prior (default: the preset's; "
+        sp.add_argument("--prior", default=None, metavar="{" + ",".join(PRIORS) + "}",
+                        help="the path-preference belief's prior, or one another package "
+                        "registers (default: the preset's; "
                         "independent for paper and original, routes for robust: preferences "
                         "that lead to the goal; learned-gamma: independent, with the human's "
                         "rationality inferred over 0.5, 1.5, 5)")

@@ -336,7 +336,7 @@ class POMCP:
         (no observation, no candidate ruled out) every decision then searches from the same
         exact draws: each decision's particles are still exact draws of its posterior, only
         correlated with the previous decision's (``ΔT - 1`` of ``ΔT`` decisions draw nothing)."""
-        if not (self.rewards.use_preference and getattr(belief, "route_prior", False)):
+        if not (self.rewards.use_preference and belief.route_prior):
             return np.zeros(0, np.int64), np.zeros((0, len(self.nbr)), np.int64)
         kept = self._kept_pool
         observed = np.asarray(belief.observed_polytopes(), dtype=np.int64)
@@ -345,11 +345,11 @@ class POMCP:
             return kept[3], kept[4]
         self._kept_pool = kept = None  # freed before the new pool is drawn
         m = self.pool_size()
-        mixture = getattr(belief, "particles", None)
+        mixture = belief.particles(m, np.random.default_rng(int(seed) + 3))
         if mixture is None:
             goals, slots = self._trees(belief, goal_cdf, cdf, m, seed)
         else:  # the homotopy prior: way particles, and trees for the route prior's share
-            m_tree, tree_cdf, goals, slots = mixture(m, np.random.default_rng(int(seed) + 3))
+            m_tree, tree_cdf, goals, slots = mixture
             if m_tree:
                 tg, ts = self._trees(belief, tree_cdf, cdf, m_tree, seed)
                 goals, slots = np.concatenate([tg, goals]), np.concatenate([ts, slots])
