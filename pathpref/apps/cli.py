@@ -215,12 +215,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="goal candidates per instance")
     ev.add_argument("--db", default="results.sqlite",
                     help="results database (SQLite); episodes already in it are skipped")
-    ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
-                    help="grid world or the MuJoCo base with force cues")
+    ev.add_argument("--sim", default="grid",
+                    help="the body: grid (grid world), mujoco (the MuJoCo base with force "
+                    "cues) or a body another package registers (pathpref.bodies)")
     ev.add_argument("--robot", "--task", dest="task", default="navigate",
-                    choices=["navigate", "carry"],
-                    help="which robot: navigate (the base), or carry (arm on the base; needs "
-                    "--sim mujoco); --task is its older name")
+                    help="which robot: navigate (the base), carry (arm on the base; needs "
+                    "--sim mujoco) or another task the body offers; --task is its older name")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
