@@ -136,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
         there."""
         hidden = None if sweep else argparse.SUPPRESS
         sp.add_argument("--preset", default=preset, choices=sorted(PRESETS),
-                        help=PRESET_HELP)
+                        help=PRESET_HELP + " (default: %(default)s)")
         sp.add_argument("--time-budget-ms", action=RangeAction, limits="time_budget_ms",
                         default=None,
                         help="robust search: wall time per decision (anytime; default: the "
@@ -377,7 +377,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--runs", action=RangeAction, limits="runs", default=30,
                    help="grid runs per method behind the rates (30: the stored sweep's cell)")
     d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS),
-                   help=PRESET_HELP + "; the stored sweep says which one made it")
+                   help=PRESET_HELP + " (default: %(default)s); the stored sweep says "
+                   "which one made it")
     d.set_defaults(func=c.cmd_demo)
     _mark_leaves(p)
     return p
