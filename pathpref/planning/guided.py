@@ -90,10 +90,8 @@ its root states come from and how it searches differ.
    blocked move is in the tree as *stay*, so the robot may stand still for one step and be
    told (the root's tie rule, 6, weighs only the moves that go somewhere: a stay tied with
    one of them yields to it). A simulation then adds at most two nodes (a heading's, an
-   action's). Paired against
-   the default on 336 episodes (7 maps, ΔT = 1 and 5, 6 instances x 4 runs): strict success
-   at ΔT = 1 109 -> 124 of 168 (exact p = 0.011), at ΔT = 5 68 -> 77 (p = 0.12); goal reached
-   164 -> 161 and 117 -> 116 (``docs/robust.md``, "Waiting for a push").
+   action's). What it changes in episodes is measured in ``docs/robust.md`` ("Waiting for a
+   push").
 """
 
 from __future__ import annotations
