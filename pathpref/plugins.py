@@ -4,7 +4,11 @@
   ``EpisodeSpec(sim=name)`` / ``--sim name``;
 * ``pathpref.methods``: a method (a class or function taking a
   :class:`~pathpref.planning.policies.PolicyContext`), used as ``--methods name``;
-* ``pathpref.tasks`` and ``pathpref.maps``: dm_control tasks and maps (``pathpref_tasks``).
+* ``pathpref.priors``: a preference prior (a class or function taking
+  :class:`~pathpref.inference.priors.PriorInputs`), used as ``--prior name``;
+* ``pathpref.maps``: a map (a dictionary, a ``MapSpec``, the path of a JSON map, or a function
+  returning one), used wherever a map name goes (``--map name``, ``pathpref map info name``);
+* ``pathpref.tasks``: dm_control tasks (``pathpref_tasks``).
 
 A package declares them in its metadata, e.g.::
 
@@ -25,6 +29,8 @@ from .errors import ConfigError
 
 BODIES = "pathpref.bodies"
 METHODS = "pathpref.methods"
+PRIORS = "pathpref.priors"
+MAPS = "pathpref.maps"
 
 
 def names(group: str) -> list[str]:

@@ -12,8 +12,11 @@
 # `pathpref demo` re-runs with; every row of DB stores it, and a DB holding another preset's
 # rows is refused (remove it first: one sweep, one preset). Then: python scripts/results.py
 # (writes docs/results.md and the JSON, which names this command and the preset). The stored
-# copy keeps the episodes table only (the per-step rows deleted, VACUUM, journal_mode=delete:
-# about 1 MB instead of 13 MB); this script trims DB so at the end.
+# database is trimmed to the episodes table at the end (the per-step rows deleted, VACUUM,
+# journal_mode=delete: about 1 MB instead of 13 MB) and exported as text,
+# docs/results/demo_sweep_keys.tsv (scripts/demo_sweep_keys.py: per cell the number of
+# episodes and a digest of their keys, which tests/test_demo_doc.py reads); the repository
+# keeps that export and the cells JSON, not the database.
 set -e
 DB=${1:-docs/results/demo_sweep.sqlite}
 PY=${PYTHON:-python}
@@ -47,3 +50,4 @@ con.execute("VACUUM")
 con.execute("PRAGMA journal_mode=delete")
 con.close()
 TRIM
+$PY "$(dirname "$0")/demo_sweep_keys.py" "$DB" docs/results/demo_sweep_keys.tsv

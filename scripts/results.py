@@ -60,6 +60,15 @@ CELLS_HOME: dict[str, str] = {
     "docs/results/demo_sweep.sqlite": "pathpref/apps/demo_sweep.json",
 }
 
+
+
+def cells_file(path: Path) -> Path:
+    """Where the cells JSON of database ``path`` lives: :data:`CELLS_HOME`, else beside it
+    (the stored copy of a database not in the repository)."""
+    home = CELLS_HOME.get(_rel(path))
+    return ROOT / home if home is not None else path.with_suffix(".json")
+
+
 _STUDY = ("python scripts/physics_study.py --episodes {episodes} --map {map} --method {method} "
           "--delta-t {delta_t} --seed {seed} --preset {preset} --conditions {conditions}")
 
@@ -310,10 +319,7 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
              "homotopy class; intervals are 95% Wilson intervals unless a table says "
              "otherwise.", ""]
     for path, title, command in dbs:
-        stored = path.with_suffix(".json")  # the cells of a database too large to commit
-        home = CELLS_HOME.get(_rel(path))
-        if home is not None:
-            stored = ROOT / home
+        stored = cells_file(path)
         if path.exists():
             cells, date, source = db_cells(path), file_date(path), f"`{_rel(path)}`"
         elif stored.exists():
@@ -333,8 +339,8 @@ def build(dbs: list[tuple[Path, str, str]], jsons: list[tuple[Path, str, str, st
                 if len(presets) == 1:
                     head["preset"] = presets[0]
                 head["episodes"] = sum(c["n"] for c in cells)
-                (stored if home is not None else cells_dir / f"{path.stem}.json").write_text(
-                    json.dumps({**head, "cells": cells}, indent=1) + "\n")
+                out = stored if _rel(path) in CELLS_HOME else cells_dir / f"{path.stem}.json"
+                out.write_text(json.dumps({**head, "cells": cells}, indent=1) + "\n")
             success_pushes_figure(cells, cells_dir / f"{path.stem}.png")
             lines += [f"![success against pushes]({cells_dir.name}/{path.stem}.png)", ""]
     for path, title, kind, command in jsons:

@@ -104,3 +104,66 @@ def test_a_plugin_that_exits_or_raises_on_import_is_one_line(tmp_path, monkeypat
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("pathpref: error: entry point 'quitter'")
     assert named in err and not db.exists()
+
+
+def test_evaluate_takes_a_plugin_body(example_package, tmp_path, capsys):
+    """``pathpref evaluate --sim stubborn`` runs the package's body: every stored episode is
+    under that simulator and, its robot never leaving the start, none reaches the goal; a
+    task the body does not offer is refused in one line."""
+    import sqlite3
+
+    from pathpref.apps.cli import main
+
+    db = tmp_path / "r.sqlite"
+    argv = ["evaluate", "--map", "simple", "--db", str(db), "--runs", "1", "--instances", "1",
+            "--methods", "compliant", "--delta-t", "5", "--sim", "stubborn", "--no-progress"]
+    assert main(argv) == 0
+    with sqlite3.connect(db) as conn:
+        rows = conn.execute("SELECT sim, task, goal_reached FROM episodes").fetchall()
+    assert rows == [("stubborn", "navigate", 0)]
+    capsys.readouterr()
+    assert main([*argv, "--robot", "carry", "--db", str(tmp_path / "c.sqlite")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "carry" in err[0]
+
+
+RING = '''
+def ring():
+    """A 9 x 9 room around a 3 x 3 block."""
+    return {"name": "ring", "width": 9, "height": 9,
+            "obstacles": [{"cells": {"lower_left": [3, 3], "size": [3, 3]}}],
+            "preference": {"route": [[1, 1], [7, 1], [7, 7], [1, 7]], "closed": True}}
+'''
+
+
+@pytest.fixture
+def ring_package(tmp_path, monkeypatch):
+    install_package(tmp_path, monkeypatch, "pathpref_example_ring", RING, """\
+        [pathpref.maps]
+        ring = pathpref_example_ring:ring
+        """)
+    yield
+    sys.modules.pop("pathpref_example_ring", None)
+
+
+def test_a_plugin_map_works_in_every_command(ring_package, tmp_path, capsys, monkeypatch):
+    """A map another package declares is a map name everywhere: ``pathpref map info ring``
+    describes it (72 free cells, 8 polytopes), an episode runs on it, ``evaluate`` stores
+    its episodes under its name."""
+    import sqlite3
+
+    from pathpref.apps.cli import main
+
+    assert main(["map", "info", "ring"]) == 0
+    out = capsys.readouterr().out
+    info = dict(line.strip().split(": ", 1) for line in out.splitlines() if ": " in line)
+    # 81 cells less the 3 x 3 block; the block's four lines cut the room into 3 x 3 - 1
+    assert (info["name"], info["free_cells"], info["polytopes"]) == ("ring", "72", "8")
+    res = run_episode(EpisodeSpec.single("ring", "compliant", 5, seed=1, t_max=4, n_goals=3))
+    assert res.steps >= 1
+    monkeypatch.chdir(tmp_path)
+    assert main(["evaluate", "--map", "ring", "--db", "r.sqlite", "--runs", "1",
+                 "--instances", "1", "--methods", "compliant", "--delta-t", "5", "--goals",
+                 "3", "--no-progress"]) == 0
+    with sqlite3.connect(tmp_path / "r.sqlite") as conn:
+        assert conn.execute("SELECT DISTINCT map FROM episodes").fetchall() == [("ring",)]

@@ -12,6 +12,7 @@ from pathpref.inference.belief import GoalBelief, PreferenceBelief
 from pathpref.inference.human import ObservationModel
 from pathpref.planning.pomcp import POMCP, _step
 from pathpref.planning.pomdp import get_preset, step_reward
+from pathpref.planning.search_inputs import PaperSettings
 
 PAPER = get_preset("paper")
 
@@ -63,10 +64,10 @@ def test_compiled_step_matches_reference(simple):
         theta[v] = pref_nb
         stamp = np.zeros(P, np.int64)  # already "sampled" for query 0
         r = PAPER.path_preference
-        s2, rew, done = _step(s, a, 0, 0, planner.next_cell, planner.cost, planner.crossed,
-                              planner.cell_poly, planner.nbr, planner.goal_cells,
-                              planner.goal_poly, planner._dummy_cdf(), theta, stamp, r.goal,
-                              r.preferred, r.non_preferred, True)
+        settings = PaperSettings(1, 1, 1.0, float(r.discount), float(r.goal),
+                                 float(r.preferred), float(r.non_preferred), True)
+        s2, rew, done = _step(s, a, 0, 0, planner._paper_tables, planner._dummy_cdf(), theta,
+                              stamp, settings)
         ref = step_reward(simple, s, a, int(planner.goal_cells[0]), pref_nb, r)
         assert (s2, done) == (ref[0], ref[2])
         assert rew == pytest.approx(ref[1])

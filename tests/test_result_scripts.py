@@ -126,3 +126,22 @@ def test_heldout_eval_splits_every_failure(tmp_path):
         line = next(x for x in text.splitlines() if x.startswith(f"| 5 | {method} |"))
         cols = [c.strip() for c in line.strip("|").split("|")]
         assert cols[2] == "4" and [int(c) for c in cols[6:10]] == [timeout, wrong, order, 0]
+
+
+def test_demo_sweep_keys_exports_cells_and_digests(tmp_path):
+    """``scripts/demo_sweep_keys.py`` on a two-episode sweep: one line per cell with its
+    count and the SHA-256 of its sorted keys (computed here independently), read back."""
+    import hashlib
+
+    import demo_sweep_keys
+
+    db = tmp_path / "d.sqlite"
+    specs = sweep_specs("simple", ["compliant", "goal_only"], [5], 1, 1, seed=0, t_max=4,
+                        queries=20)
+    run_sweep(specs, str(db), workers=1, progress=False)
+    out = tmp_path / "keys.tsv"
+    assert demo_sweep_keys.main([str(db), str(out)]) == 0
+    got = demo_sweep_keys.read_export(out)
+    want = {("simple", s.method, "5", "", s.preset):
+            (1, hashlib.sha256(s.key().encode()).hexdigest()) for s in specs}
+    assert got == want

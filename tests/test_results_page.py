@@ -87,6 +87,6 @@ def test_a_database_kept_as_its_cells_json(tmp_path):
 def test_stored_sources_exist():
     for path, *_ in results.DB_SOURCES:  # the database, or the JSON of its cells
         p = results.ROOT / path
-        assert p.exists() or p.with_suffix(".json").exists(), path
+        assert p.exists() or results.cells_file(p).exists(), path
     for path, *_ in results.JSON_SOURCES:
         assert (results.ROOT / path).exists(), path

@@ -67,10 +67,8 @@ def test_known_preference_beats_the_shortest_exit(simple):
 def _root_choice(planner, s, n, q, sq, z):
     """The robust root choice on ``planner``'s arrays, no particles (goal marginal one-hot)."""
     return _choice(s, np.asarray(n, np.int64), np.asarray(q, float), np.asarray(sq, float),
-                   planner.next_cell, planner.cost, planner.blocked, planner.cross_slot,
-                   planner.cell_poly, np.ones(1), planner.ctg, planner.dist,
-                   np.zeros((0, len(planner.nbr)), np.int64), z,
-                   reach_table(planner.dist, 0.95))
+                   planner._robust_tables._replace(reach=reach_table(planner.dist, 0.95)),
+                   np.ones(1), np.zeros((0, len(planner.nbr)), np.int64), z)
 
 
 def test_root_choice_breaks_only_statistical_ties(simple):

@@ -14,7 +14,8 @@ import sys
 from collections.abc import Sequence
 
 from ..errors import PathprefError, did_you_mean
-from ..planning.pomdp import DEFAULT_PRESET, PRESETS, PRIORS
+from ..inference.priors import PRIORS
+from ..planning.pomdp import DEFAULT_PRESET, PRESETS
 from . import commands as c
 from .checks import RangeAction, atomic_output, check_writable, is_disk_full, write_error
 from .physics_args import physics_options
@@ -135,7 +136,7 @@ def build_parser() -> argparse.ArgumentParser:
         there."""
         hidden = None if sweep else argparse.SUPPRESS
         sp.add_argument("--preset", default=preset, choices=sorted(PRESETS),
-                        help=PRESET_HELP)
+                        help=PRESET_HELP + " (default: %(default)s)")
         sp.add_argument("--time-budget-ms", action=RangeAction, limits="time_budget_ms",
                         default=None,
                         help="robust search: wall time per decision (anytime; default: the "
@@ -160,8 +161,9 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--coupling", action=argparse.BooleanOptionalAction, default=None,
                         help="back-edge belief coupling (default: the preset's; on for paper "
                         "and original as in the authors' code, off for robust)")
-        sp.add_argument("--prior", choices=list(PRIORS), default=None,
-                        help="the path-preference belief's prior (default: the preset's; "
+        sp.add_argument("--prior", default=None, metavar="{" + ",".join(PRIORS) + "}",
+                        help="the path-preference belief's prior, or one another package "
+                        "registers (default: the preset's; "
                         "independent for paper and original, routes for robust: preferences "
                         "that lead to the goal; learned-gamma: independent, with the human's "
                         "rationality inferred over 0.5, 1.5, 5)")
@@ -218,12 +220,12 @@ def build_parser() -> argparse.ArgumentParser:
                     help="goal candidates per instance")
     ev.add_argument("--db", default="results.sqlite",
                     help="results database (SQLite); episodes already in it are skipped")
-    ev.add_argument("--sim", default="grid", choices=["grid", "mujoco"],
-                    help="grid world or the MuJoCo base with force cues")
+    ev.add_argument("--sim", default="grid",
+                    help="the body: grid (grid world), mujoco (the MuJoCo base with force "
+                    "cues) or a body another package registers (pathpref.bodies)")
     ev.add_argument("--robot", "--task", dest="task", default="navigate",
-                    choices=["navigate", "carry"],
-                    help="which robot: navigate (the base), or carry (arm on the base; needs "
-                    "--sim mujoco); --task is its older name")
+                    help="which robot: navigate (the base), carry (arm on the base; needs "
+                    "--sim mujoco) or another task the body offers; --task is its older name")
     ev.add_argument("--backend", default="local", help="local (process pool) or ray")
     ev.add_argument("--address", default=None,
                     help="Ray cluster address (auto, ray://host:10001); default: start locally")
@@ -386,7 +388,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--runs", action=RangeAction, limits="runs", default=30,
                    help="grid runs per method behind the rates (30: the stored sweep's cell)")
     d.add_argument("--preset", default=DEFAULT_PRESET, choices=sorted(PRESETS),
-                   help=PRESET_HELP + "; the stored sweep says which one made it")
+                   help=PRESET_HELP + " (default: %(default)s); the stored sweep says "
+                   "which one made it")
     d.set_defaults(func=c.cmd_demo)
     _mark_leaves(p)
     return p

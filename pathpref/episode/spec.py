@@ -9,11 +9,10 @@ from typing import Any
 
 from ..errors import ConfigError, PathprefError
 from ..geometry.maps import MAX_T_MAX
+from ..inference.priors import check_prior
 from ..planning.pomdp import (
     DEFAULT_PRESET,
     PRESETS,
-    PRIOR_CHOICES,
-    PRIORS,
     Preset,
     get_preset,
 )
@@ -133,9 +132,9 @@ class EpisodeSpec:
     #: A grid episode takes the human's settings only (``gamma_h`` ...; physics.grid_human).
     #: Parsed once into ``physical`` and ``human_model`` (typed, not fields)
     physics: str | None = None
-    #: the path-preference belief's prior: "independent" (the paper's), "routes"
-    #: (:mod:`pathpref.inference.routes`) or "learned-gamma" (independent, the human's
-    #: rationality inferred too: :mod:`pathpref.inference.rationality`); left out of the key
+    #: the path-preference belief's prior, a name of :mod:`pathpref.inference.priors`:
+    #: "independent" (the paper's), "routes", "learned-gamma", "homotopy", "circulation" or a
+    #: registered plug-in; left out of the key
     #: when "independent", so the keys of episodes stored before the field existed (all
     #: independent) stay as they were
     prior: str | None = None
@@ -262,8 +261,7 @@ class EpisodeSpec:
                               ("fixed", self.fixed), ("physics", self.physics)):
             if not isinstance(value, str):
                 raise ConfigError(f"{option} must be a string, got {_show(value)}")
-        if self.prior not in PRIORS:
-            raise ConfigError(f"unknown prior '{self.prior}'; choose {PRIOR_CHOICES}")
+        check_prior(self.prior)
         if self.human not in HUMANS:
             raise ConfigError(f"unknown human preference '{self.human}'; choose "
                               f"{' or '.join(HUMANS)}")

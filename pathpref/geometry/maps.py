@@ -55,6 +55,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import plugins
 from ..errors import MapError, did_you_mean
 from .footprint import DEFAULT_FOOTPRINT
 from .polygon import convex_vertices_to_h
@@ -389,8 +390,32 @@ def builtin_map_path(name: str) -> Path:
     return Path(str(resources.files("pathpref.maps").joinpath(f"{name}.json")))
 
 
+def _plugin_map(name: str) -> MapSpec | None:
+    """The map another package declares as ``name`` in the entry-point group
+    ``pathpref.maps`` (:mod:`pathpref.plugins`): a dictionary, a :class:`MapSpec` or the path
+    of an existing JSON map, or a function returning one; None when no package declares it.
+    A built-in name or an existing file always wins (the caller looks there first)."""
+    found = plugins.load(plugins.MAPS, name)
+    if found is None:
+        return None
+    try:
+        given = found() if callable(found) else found
+    except Exception as e:  # noqa: BLE001 - any failure of another package's code
+        raise MapError(f"entry point {name!r} of group {plugins.MAPS} failed to give a map: "
+                       f"{type(e).__name__}: {' '.join(str(e).split())[:200]}") from None
+    if isinstance(given, MapSpec):
+        return given
+    if isinstance(given, dict):
+        return parse_map(given)
+    if isinstance(given, str | os.PathLike) and os.path.isfile(given):
+        return load_map(Path(given))
+    raise MapError(f"map entry point {name!r} must give a map dictionary, a MapSpec or an "
+                   f"existing JSON path, got {given!r}"[:300])
+
+
 def load_map(source: str | Path | dict[str, Any]) -> MapSpec:
-    """Load a map from a built-in name, a JSON file path, or a dictionary."""
+    """Load a map from a built-in name, a JSON file path, a dictionary, or the name of a map
+    another package declares (entry-point group ``pathpref.maps``)."""
     if not isinstance(source, str | Path):
         return parse_map(source)
     s = str(source)
@@ -403,6 +428,9 @@ def load_map(source: str | Path | dict[str, Any]) -> MapSpec:
         except (OSError, ValueError):  # e.g. a name too long for the file system
             exists = False
         if not exists:
+            given = _plugin_map(s)
+            if given is not None:
+                return given
             raise MapError(
                 f"no map named {_short(s, 80)}{did_you_mean(s, BUILTIN_MAPS)}: give a built-in "
                 f"name ({', '.join(BUILTIN_MAPS)}) or the path of a JSON map file"

@@ -105,6 +105,17 @@ class Belief(ABC):
         """Polytopes whose preference the belief has evidence on (none by default)."""
         return []
 
+    #: True when the preferences are a route to the goal (:mod:`.routes`): the robust
+    #: search's root particles are then trees drawn by Wilson's algorithm
+    #: (:func:`pathpref.planning.guided.tree_pool`); False: each ``p_v`` drawn lazily, on its
+    #: own (the independent prior)
+    route_prior = False
+
+    def particles(self, m: int, rng: np.random.Generator):
+        """Root particles the prior draws itself (:meth:`.homotopy_prior.HomotopyBelief.particles`
+        gives the format), or None: the search draws them from the belief's rows."""
+        return None
+
 
 class GoalBelief(Belief):
     """Posterior over goal candidates alone (goal-only baseline)."""
@@ -261,7 +272,6 @@ class PreferenceBelief(Belief):
         w = np.exp(w - w.max())
         return w / w.sum()
 
-    route_prior = False  # the independent prior (see :mod:`.routes` for the route prior)
 
     def local_given_goal(self, v: int) -> np.ndarray:
         """``(G, deg v)`` table ``T_v`` normalised per goal: ``P(p_v = N(v)[k] | g, o_1:t)``

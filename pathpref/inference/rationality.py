@@ -62,8 +62,6 @@ class GammaBelief(Belief):
         gamma_prior: ``pi(gamma)`` (uniform when None).
     """
 
-    route_prior = False  # draws per polytope (independent prior), module docstring
-
     def __init__(self, inner: list[PreferenceBelief], gammas, gamma_prior=None):
         if len(inner) != len(gammas) or not inner:
             raise ValueError("one inner belief per gamma, at least one")

@@ -90,10 +90,8 @@ its root states come from and how it searches differ.
    blocked move is in the tree as *stay*, so the robot may stand still for one step and be
    told (the root's tie rule, 6, weighs only the moves that go somewhere: a stay tied with
    one of them yields to it). A simulation then adds at most two nodes (a heading's, an
-   action's). Paired against
-   the default on 336 episodes (7 maps, ΔT = 1 and 5, 6 instances x 4 runs): strict success
-   at ΔT = 1 109 -> 124 of 168 (exact p = 0.011), at ΔT = 5 68 -> 77 (p = 0.12); goal reached
-   164 -> 161 and 117 -> 116 (``docs/robust.md``, "Waiting for a push").
+   action's). What it changes in episodes is measured in ``docs/robust.md`` ("Waiting for a
+   push").
 """
 
 from __future__ import annotations
@@ -263,19 +261,19 @@ def observed_first_trees(nbr, pref_cdf, goals, root, comp, states, n_states, slo
 
 
 @nb.njit(cache=True, inline="always")
-def _step(s, a, gi, q, next_cell, cross_slot, cell_poly, nbr, goal_cells, pref_cdf, theta,
-          stamp, made_q, known, use_pref, viol, judged):
-    """Generative step: (next cell, violations so far, done). Records preferred crossings made
-    in simulation ``q`` in ``made_q``."""
-    s2 = next_cell[s, a]
-    k = cross_slot[s, a]
-    v = cell_poly[s]
+def _step(s, a, gi, q, world, known, pref_cdf, theta, stamp, made_q, use_pref, viol, judged):
+    """Generative step on the map's tables ``world`` (:class:`.search_inputs.RobustTables`):
+    (next cell, violations so far, done). Records preferred crossings made in simulation
+    ``q`` in ``made_q``."""
+    s2 = world.next_cell[s, a]
+    k = world.cross_slot[s, a]
+    v = world.cell_poly[s]
     if use_pref and k >= 0 and (known[v] or judged):
-        if _theta(v, gi, q, nbr, pref_cdf, theta, stamp) == k:
+        if _theta(v, gi, q, world.nbr, pref_cdf, theta, stamp) == k:
             made_q[v] = q
         else:
             viol += 1
-    return s2, viol, s2 == goal_cells[gi]
+    return s2, viol, s2 == world.goal_cells[gi]
 
 
 @nb.njit(cache=True, inline="always")
@@ -352,12 +350,12 @@ def rollout_moves(next_cell, cost, blocked, cross_slot, ctg, dist):
 
 
 @nb.njit(cache=True, inline="always")
-def _rollout_action(s, tgt, gi, q, blocked, cross_slot, cell_poly, nbr, pref_cdf, theta, stamp,
-                    made_q, informed, use_pref, moves):
+def _rollout_action(s, tgt, gi, q, world, pref_cdf, theta, stamp, made_q, informed, use_pref):
     """The rollout move (module docstring, 2) toward candidate ``tgt``; ``informed``: the
-    rollout follows the particle's ``p_v`` in the polytope it is in; ``moves``:
-    :func:`rollout_moves`."""
-    v = cell_poly[s]
+    rollout follows the particle's ``p_v`` in the polytope it is in; the moves are
+    ``world.moves`` (:func:`rollout_moves`)."""
+    blocked, cross_slot, nbr = world.blocked, world.cross_slot, world.nbr
+    v = world.cell_poly[s]
     if np.random.random() < EPS_RANDOM:  # a random move that stays in v, if there is one
         off = np.random.randint(8)
         for j in range(8):
@@ -369,7 +367,7 @@ def _rollout_action(s, tgt, gi, q, blocked, cross_slot, cell_poly, nbr, pref_cdf
         kv = _theta(v, gi, q, nbr, pref_cdf, theta, stamp)
     # the first move of the set ``moves[s, kv + 1, tgt]`` from a random offset on (the offset
     # itself when the set is empty: no free move, the robot stays whatever it does)
-    return FIRST_FROM[moves[s, kv + 1, tgt], np.random.randint(8)]
+    return FIRST_FROM[world.moves[s, kv + 1, tgt], np.random.randint(8)]
 
 
 @nb.njit(cache=True, inline="always")
@@ -404,20 +402,22 @@ def _stay_move(s, blocked):
 
 
 @nb.njit(cache=True)
-def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cells, goal_cdf,
-                  pref_cdf, known, ctg, dist, hist_v, hist_k, s0, depth, queries, c, discount,
-                  reward, use_pref, seed, budget_s, pool_g, pool_theta, push_next,
-                  push_every, tie_z, moves, lik_flat, lik_off, lik_slots, wait, reach):
-    """PO-UCT of the module docstring; returns
-    ``(best action, root visits, root values, nodes, queries run)``. ``reward``:
-    ``(R_g, rho, a)``, the goal's value, the factor per violation and the share ``a`` of the
-    goal's value that arriving earns whatever the route (module docstring, 1). ``wait``:
-    branch on the expected pushes' headings (``lik_*``: the heading likelihood's
-    :class:`CellTable` arrays) and offer the stay move (module docstring, 7)."""
+def search_robust(world, belief, lik, settings, s0, seed):
+    """PO-UCT of the module docstring from cell ``s0``; returns
+    ``(best action, root visits, root values, nodes, queries run)``. The inputs are records
+    (:mod:`.search_inputs`): ``world`` the map's tables (:class:`RobustTables`), ``belief``
+    the belief's rows and root particles (:class:`BeliefRows`), ``lik`` the heading
+    likelihood (:class:`HeadingTable`) and ``settings`` the search's numbers and switches
+    (:class:`RobustSettings`: ``(goal, rho, arrival)`` the goal's value, the factor per
+    violation and the share of the goal's value that arriving earns whatever the route,
+    module docstring 1; ``wait``: branch on the expected pushes' headings and offer the stay
+    move, module docstring 7)."""
     np.random.seed(seed)
     t0 = _clock()
-    tree = pool_g.shape[0] > 0
-    wait = wait and tree
+    tree = belief.pool_g.shape[0] > 0
+    wait = settings.wait and tree
+    queries, depth = settings.queries, settings.depth
+    nbr, goal_cells, goal_cdf = world.nbr, world.goal_cells, belief.goal_cdf
     # a simulation adds at most one action node, and with waiting one heading node before it
     n_node, n_sa, q_sa, child = new_tree(2 * queries if wait else queries)
     heard = -np.ones((n_node.shape[0] if wait else 1, 8), np.int64)  # node -> heading child
@@ -428,7 +428,7 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     made_q = -np.ones(P, np.int64)
     told_q = -np.ones(P, np.int64)
     G = goal_cells.shape[0]
-    cand = -np.ones(next_cell.shape[0], np.int64)  # cell -> candidate index (-1: none)
+    cand = -np.ones(world.next_cell.shape[0], np.int64)  # cell -> candidate index (-1: none)
     p_goal = np.zeros(G)
     visited_q = -np.ones(G, np.int64)
     prev = 0.0
@@ -440,36 +440,41 @@ def search_robust(next_cell, cost, blocked, cross_slot, cell_poly, nbr, goal_cel
     path_a = np.zeros(depth + 1, np.int64)
     root_sq = np.zeros(8)
     n_nodes, done_q = _simulate(
-        (next_cell, blocked, cross_slot, cell_poly, nbr, goal_cells, known, dist, reach, moves),
-        (goal_cdf, pref_cdf, pool_g, pool_theta, hist_v, hist_k), (lik_flat, lik_off, lik_slots),
-        (n_node, n_sa, q_sa, child, heard),
+        world, belief, lik, (n_node, n_sa, q_sa, child, heard),
         (theta, stamp, fixed, made_q, told_q, cand, p_goal, visited_q, path_node, path_a,
          root_sq),
-        s0, depth, queries, c, discount, reward, use_pref, budget_s, push_next, push_every,
-        wait, t0)
-    a = _root_choice(s0, n_sa[0], q_sa[0], root_sq, next_cell, cost, blocked, cross_slot,
-                     cell_poly, p_goal, ctg, dist, pool_theta, tie_z, reach)
+        settings, s0, t0)
+    a = _root_choice(s0, n_sa[0], q_sa[0], root_sq, world, p_goal, belief.pool_theta,
+                     settings.tie_z)
     return a, n_sa[0].copy(), q_sa[0].copy(), n_nodes, done_q
 
 
 @nb.njit(cache=True, _nrt=False)
-def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discount, reward,
-              use_pref, budget_s, push_next, push_every, wait, t0):
-    """The simulations of :func:`search_robust`, on its arrays (grouped in tuples); returns
+def _simulate(world, belief, lik, nodes, scratch, settings, s0, t0):
+    """The simulations of :func:`search_robust`, on its records and its tree and scratch
+    arrays (grouped in tuples); returns
     ``(nodes, queries run)``. Compiled without reference counting: it allocates nothing,
     and every array it touches is owned by the caller for the whole call, so the counts
     numba would otherwise update around each inlined helper's array arguments (about half
     the search's time, measured) are not needed."""
-    next_cell, blocked, cross_slot, cell_poly, nbr, goal_cells, known, dist, reach, moves = world
-    goal_cdf, pref_cdf, pool_g, pool_theta, hist_v, hist_k = belief
-    lik_flat, lik_off, lik_slots = lik
+    blocked, cell_poly, nbr, goal_cells = world.blocked, world.cell_poly, world.nbr, \
+        world.goal_cells
+    dist, reach = world.dist, world.reach
+    goal_cdf, pref_cdf, known = belief.goal_cdf, belief.pref_cdf, belief.known
+    pool_g, pool_theta, hist_v, hist_k = belief.pool_g, belief.pool_theta, belief.hist_v, \
+        belief.hist_k
     n_node, n_sa, q_sa, child, heard = nodes
     theta, stamp, fixed, made_q, told_q, cand, p_goal, visited_q, path_node, path_a, root_sq = \
         scratch
-    Rg, rho, arrive = reward
+    depth, queries, c, discount = settings.depth, settings.queries, settings.c, \
+        settings.discount
+    Rg, rho, arrive = settings.goal, settings.rho, settings.arrival
+    use_pref, budget_s = settings.use_pref, settings.budget_s
+    push_next, push_every = settings.push_next, settings.push_every
     g_any = Rg * arrive  # what arriving earns whatever the route (0: the strict reward)
     g_rest = Rg * (1.0 - arrive)
     tree = pool_g.shape[0] > 0
+    wait = settings.wait and tree
     G = goal_cells.shape[0]
     n_nodes = 1
     ret_lo, ret_hi = 1e300, -1e300
@@ -510,7 +515,7 @@ def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discoun
             if push_now:
                 told_q[cell_poly[s]] = q
             if in_tree and push_now and wait:  # the push's heading: a node of its own (7)
-                h = _heading(s, gi, theta[cell_poly[s]], G, lik_flat, lik_off, lik_slots)
+                h = _heading(s, gi, theta[cell_poly[s]], G, lik.flat, lik.offsets, lik.slots)
                 och = heard[node, h]
                 if och < 0:
                     och = n_nodes
@@ -555,12 +560,10 @@ def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discoun
                     tgt = _pick_target(s, q, visited_q, p_goal, dist, reach)
                     if tgt < 0:  # every candidate passed: cannot happen for a drawn goal
                         tgt = gi
-                a = _rollout_action(s, tgt, gi, q, blocked, cross_slot, cell_poly, nbr,
-                                    pref_cdf, theta, stamp, made_q,
-                                    tree or known[cell_poly[s]], use_pref, moves)
-            s, viol, done = _step(s, a, gi, q, next_cell, cross_slot, cell_poly, nbr,
-                                  goal_cells, pref_cdf, theta, stamp, made_q, known, use_pref,
-                                  viol, tree and told_q[cell_poly[s]] != q)
+                a = _rollout_action(s, tgt, gi, q, world, pref_cdf, theta, stamp, made_q,
+                                    tree or known[cell_poly[s]], use_pref)
+            s, viol, done = _step(s, a, gi, q, world, known, pref_cdf, theta, stamp, made_q,
+                                  use_pref, viol, tree and told_q[cell_poly[s]] != q)
             L += 1
             if cand[s] >= 0:
                 visited_q[cand[s]] = q
@@ -586,14 +589,16 @@ def _simulate(world, belief, lik, nodes, scratch, s0, depth, queries, c, discoun
 
 
 @nb.njit(cache=True)
-def _root_choice(s, n, q, sq, next_cell, cost, blocked, cross_slot, cell_poly, p_goal, ctg,
-                 dist, pool_theta, z, reach):
+def _root_choice(s, n, q, sq, world, p_goal, pool_theta, z):
     """The root move (module docstring, 6) from the root's visits ``n``, mean returns ``q`` and
     sums of squared returns ``sq``: the best mean, unless other moves are within ``z``
     standard errors of it; among those, the one with the least ``c(s, a) + h(s')`` toward the
     rollouts' first target (:func:`_pick_target` on the goal marginal ``p_goal``), ``h``
     averaged over the root particles' preferred exits ``pool_theta`` (``d(s', target)``
     without particles)."""
+    next_cell, cost, blocked, cross_slot = world.next_cell, world.cost, world.blocked, \
+        world.cross_slot
+    ctg, dist, reach = world.ctg, world.dist, world.reach
     best = best_root_action(n.reshape(1, 8), q.reshape(1, 8))
     if z <= 0 or n[best] < 2:
         return best
@@ -601,7 +606,7 @@ def _root_choice(s, n, q, sq, next_cell, cost, blocked, cross_slot, cell_poly, p
     if tgt < 0:
         return best
     se_b = np.sqrt(max(sq[best] / n[best] - q[best] ** 2, 0.0) / n[best])
-    v = cell_poly[s]
+    v = world.cell_poly[s]
     m = pool_theta.shape[0]
     pick = best
     h_pick = 1e300

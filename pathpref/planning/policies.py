@@ -30,12 +30,9 @@ from ..errors import ConfigError
 from ..geometry.following import preference_following_distance, preferred_move
 from ..geometry.grid import STAY
 from ..geometry.world import World
-from ..inference.belief import Belief, GoalBelief, PreferenceBelief
-from ..inference.circulation_prior import CirculationBelief
-from ..inference.homotopy_prior import HomotopyBelief
+from ..inference.belief import Belief, GoalBelief
 from ..inference.human import ObservationModel
-from ..inference.rationality import GammaBelief
-from ..inference.routes import RouteBelief
+from ..inference.priors import PriorInputs, make_belief
 from .crossing import check_crossing
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
@@ -64,19 +61,11 @@ class PolicyContext:
 
 
 def preference_belief(ctx: PolicyContext, prior: np.ndarray | None = None) -> Belief:
-    """The path-preference belief of the preset's prior (``independent``, with the preset's
-    coupling; ``routes``; ``homotopy``, from ``ctx.start``; ``circulation``; or
-    ``learned-gamma``: the independent one over a grid of the human's rationality, with the
-    preset's coupling), with goal prior ``prior`` (uniform when None)."""
-    if ctx.preset.prior == "routes":
-        return RouteBelief(ctx.model, prior=prior)
-    if ctx.preset.prior == "homotopy":
-        return HomotopyBelief(ctx.model, ctx.start, prior=prior)
-    if ctx.preset.prior == "circulation":
-        return CirculationBelief(ctx.model, ctx.start, prior=prior)
-    if ctx.preset.prior == "learned-gamma":
-        return GammaBelief.independent(ctx.model, prior=prior, coupling=ctx.preset.coupling)
-    return PreferenceBelief(ctx.model, prior=prior, coupling=ctx.preset.coupling)
+    """The path-preference belief of the preset's prior (a name of
+    :mod:`pathpref.inference.priors`: built from the model, ``ctx.start`` and the preset's
+    coupling), with goal prior ``prior`` (uniform when None)."""
+    return make_belief(ctx.preset.prior, PriorInputs(ctx.model, ctx.start, prior,
+                                                     ctx.preset.coupling))
 
 
 class Policy(ABC):

@@ -31,6 +31,15 @@ from ..inference.human import CellTable
 from ..inference.routes import components
 from .guided import observed_first_trees, reach_table, rollout_moves, search_robust, tree_pool
 from .pomdp import Rewards
+from .search_inputs import (
+    NO_HEADINGS,
+    BeliefRows,
+    HeadingTable,
+    PaperSettings,
+    PaperTables,
+    RobustSettings,
+    RobustTables,
+)
 from .tree import best_root_action, init_node, new_tree, sample_index, sample_slot
 
 #: root particles of a route-prior belief per decision (exact draws, :func:`.guided.tree_pool`).
@@ -66,14 +75,17 @@ TIE_Z = 1.0
 
 
 @nb.njit(cache=True, inline="always")
-def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly,
-          pref_cdf, theta, stamp, Rg, Rp, Rn, use_pref):
-    """Generative step; returns (next cell, reward, done). Samples p_v lazily into theta."""
-    s2 = next_cell[s, a]
-    r = -cost[s, a]
-    if use_pref and crossed[s, a] >= 0:
+def _step(s, a, gi, q, world, pref_cdf, theta, stamp, settings):
+    """Generative step on the map's tables ``world`` (:class:`.search_inputs.PaperTables`) with
+    the rewards of ``settings`` (:class:`.search_inputs.PaperSettings`); returns (next cell,
+    reward, done). Samples p_v lazily into theta."""
+    cell_poly, nbr = world.cell_poly, world.nbr
+    Rp, Rn = settings.preferred, settings.non_preferred
+    s2 = world.next_cell[s, a]
+    r = -world.cost[s, a]
+    if settings.use_pref and world.crossed[s, a] >= 0:
         v = cell_poly[s]
-        if goal_poly[gi] == v:
+        if world.goal_poly[gi] == v:
             r += Rn
         else:
             if stamp[v] != q:
@@ -83,42 +95,42 @@ def _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr, goal_cells, goa
                 r += Rp
             else:
                 r += Rn
-    done = s2 == goal_cells[gi]
+    done = s2 == world.goal_cells[gi]
     if done:
-        r += Rg
+        r += settings.goal
     return s2, r, done
 
 
 @nb.njit(cache=True)
-def _search(next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly, goal_cdf,
-            pref_cdf, s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref, seed):
-    """The paper's PO-UCT (module docstring): its tree and buffers, the simulations
-    (:func:`_simulate`), the best root action; returns ``(action, root visits, root values,
-    nodes)``."""
+def _search(world, goal_cdf, pref_cdf, settings, s0, seed):
+    """The paper's PO-UCT (module docstring) from cell ``s0`` on the map's tables ``world``
+    (:class:`.search_inputs.PaperTables`), the belief's cumulative goal marginal and
+    preference rows, and ``settings`` (:class:`.search_inputs.PaperSettings`): its tree and
+    buffers, the simulations (:func:`_simulate`), the best root action; returns ``(action,
+    root visits, root values, nodes)``."""
     np.random.seed(seed)
-    n_node, n_sa, q_sa, child = new_tree(queries)
-    P = nbr.shape[0]
+    depth = settings.depth
+    n_node, n_sa, q_sa, child = new_tree(settings.queries)
+    P = world.nbr.shape[0]
     theta = -np.ones(P, np.int64)
     stamp = -np.ones(P, np.int64)
     path_node = np.zeros(depth + 1, np.int64)
     path_a = np.zeros(depth + 1, np.int64)
     path_r = np.zeros(depth + 1)
-    n_nodes = _simulate(
-        (next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly),
-        (goal_cdf, pref_cdf), (n_node, n_sa, q_sa, child),
-        (theta, stamp, path_node, path_a, path_r),
-        s0, depth, queries, c, discount, Rg, Rp, Rn, use_pref)
+    n_nodes = _simulate(world, (goal_cdf, pref_cdf), (n_node, n_sa, q_sa, child),
+                        (theta, stamp, path_node, path_a, path_r), settings, s0)
     return best_root_action(n_sa, q_sa), n_sa[0].copy(), q_sa[0].copy(), n_nodes
 
 
 @nb.njit(cache=True, _nrt=False)
-def _simulate(world, belief, nodes, scratch, s0, depth, queries, c, discount, Rg, Rp, Rn,
-              use_pref):
-    """The simulations of :func:`_search` on its arrays (grouped in tuples); returns the
+def _simulate(world, belief, nodes, scratch, settings, s0):
+    """The simulations of :func:`_search` on its records and arrays (grouped in tuples);
+    returns the
     number of nodes. Compiled without reference counting (it allocates nothing; the caller
     owns every array for the whole call): the counts numba updates around an inlined
     helper's array arguments cost as much as the search itself."""
-    next_cell, cost, crossed, cell_poly, nbr, goal_cells, goal_poly = world
+    depth, queries, c, discount = settings.depth, settings.queries, settings.c, \
+        settings.discount
     goal_cdf, pref_cdf = belief
     n_node, n_sa, q_sa, child = nodes
     theta, stamp, path_node, path_a, path_r = scratch
@@ -146,9 +158,7 @@ def _simulate(world, belief, nodes, scratch, s0, depth, queries, c, discount, Rg
                     if val > best:
                         best = val
                         a = b
-            s2, r, done = _step(s, a, gi, q, next_cell, cost, crossed, cell_poly, nbr,
-                                goal_cells, goal_poly, pref_cdf, theta, stamp, Rg, Rp, Rn,
-                                use_pref)
+            s2, r, done = _step(s, a, gi, q, world, pref_cdf, theta, stamp, settings)
             path_node[L] = node
             path_a[L] = a
             path_r[L] = r
@@ -165,9 +175,7 @@ def _simulate(world, belief, nodes, scratch, s0, depth, queries, c, discount, Rg
                 disc = 1.0
                 for _ in range(depth - L):
                     b = np.random.randint(8)
-                    s, r2, d2 = _step(s, b, gi, q, next_cell, cost, crossed, cell_poly, nbr,
-                                      goal_cells, goal_poly, pref_cdf, theta, stamp, Rg, Rp,
-                                      Rn, use_pref)
+                    s, r2, d2 = _step(s, b, gi, q, world, pref_cdf, theta, stamp, settings)
                     leaf += disc * r2
                     disc *= discount
                     if d2:
@@ -245,11 +253,14 @@ class POMCP:
         #: the heading likelihood's flat table, offsets and slot counts (empty: no waiting)
         self.wait = likelihood is not None
         if likelihood is None:
-            self._lik = (np.zeros(1), np.zeros(1, np.int64), np.zeros(1, np.int64))
+            self._lik = NO_HEADINGS
         else:
-            self._lik = (np.ascontiguousarray(likelihood.flat, dtype=np.float64),
-                         np.asarray(likelihood.offsets, dtype=np.int64),
-                         np.asarray(likelihood.slots, dtype=np.int64))
+            self._lik = HeadingTable(np.ascontiguousarray(likelihood.flat, dtype=np.float64),
+                                     np.asarray(likelihood.offsets, dtype=np.int64),
+                                     np.asarray(likelihood.slots, dtype=np.int64))
+        self._paper_tables = PaperTables(self.next_cell, self.cost, self.crossed,
+                                         self.cell_poly, self.nbr, self.goal_cells,
+                                         self.goal_poly)
         #: the last root pool and the distribution it was drawn from (:meth:`_pool`)
         self._kept_pool: tuple | None = None
         self.pools_drawn = 0
@@ -264,6 +275,9 @@ class POMCP:
             self.moves = rollout_moves(self.next_cell, self.cost, self.blocked, self.cross_slot,
                                        self.ctg, self.dist)
             self.reach = reach_table(self.dist, float(rewards.discount))
+            self._robust_tables = RobustTables(
+                self.next_cell, self.cost, self.blocked, self.cross_slot, self.cell_poly,
+                self.nbr, self.goal_cells, self.ctg, self.dist, self.reach, self.moves)
 
     def preference_cdf(self, belief: Belief) -> np.ndarray:
         """``(G, P, K)`` cumulative per-polytope rows ``T_v(g, k)`` normalised (uniform where
@@ -287,23 +301,22 @@ class POMCP:
         goal_cdf = np.cumsum(belief.goal_marginal())
         cdf = self.preference_cdf(belief) if self.rewards.use_preference else self._dummy_cdf()
         r = self.rewards
+        depth = int(max(depth, 1))
         if self.tables is not None:
+            rows = BeliefRows(goal_cdf, cdf, self._known(belief), *self._history(history),
+                              *self._pool(belief, goal_cdf, cdf, seed))
+            settings = RobustSettings(
+                depth, self.queries, self.c, float(r.discount), float(r.goal),
+                float(r.goal_after_violation), float(r.arrival), bool(r.use_preference),
+                self.budget_s, int(pushes[0]), max(int(pushes[1]), 1), TIE_Z, self.wait)
             a, visits, values, nodes, done = search_robust(
-                self.next_cell, self.cost, self.blocked, self.cross_slot, self.cell_poly,
-                self.nbr, self.goal_cells, goal_cdf, cdf, self._known(belief), self.ctg,
-                self.dist, *self._history(history), int(cell), int(max(depth, 1)),
-                self.queries, self.c, r.discount,
-                (float(r.goal), float(r.goal_after_violation), float(r.arrival)),
-                r.use_preference, int(seed) % (2**32), self.budget_s,
-                *self._pool(belief, goal_cdf, cdf, seed), int(pushes[0]), max(int(pushes[1]), 1),
-                TIE_Z, self.moves, *self._lik, self.wait, self.reach)
+                self._robust_tables, rows, self._lik, settings, int(cell), int(seed) % (2**32))
             return SearchResult(int(a), visits, values, int(nodes), int(done))
-        a, visits, values, nodes = _search(
-            self.next_cell, self.cost, self.crossed, self.cell_poly, self.nbr, self.goal_cells,
-            self.goal_poly, goal_cdf, cdf, int(cell), int(max(depth, 1)), self.queries, self.c,
-            r.discount, r.goal, r.preferred, r.non_preferred, r.use_preference,
-            int(seed) % (2**32),
-        )
+        settings = PaperSettings(depth, self.queries, self.c, float(r.discount), float(r.goal),
+                                 float(r.preferred), float(r.non_preferred),
+                                 bool(r.use_preference))
+        a, visits, values, nodes = _search(self._paper_tables, goal_cdf, cdf, settings,
+                                           int(cell), int(seed) % (2**32))
         return SearchResult(int(a), visits, values, int(nodes), self.queries)
 
     def root_particles(self) -> tuple[np.ndarray, np.ndarray] | None:
@@ -335,7 +348,7 @@ class POMCP:
         (no observation, no candidate ruled out) every decision then searches from the same
         exact draws: each decision's particles are still exact draws of its posterior, only
         correlated with the previous decision's (``ΔT - 1`` of ``ΔT`` decisions draw nothing)."""
-        if not (self.rewards.use_preference and getattr(belief, "route_prior", False)):
+        if not (self.rewards.use_preference and belief.route_prior):
             return np.zeros(0, np.int64), np.zeros((0, len(self.nbr)), np.int64)
         kept = self._kept_pool
         observed = np.asarray(belief.observed_polytopes(), dtype=np.int64)
@@ -344,11 +357,11 @@ class POMCP:
             return kept[3], kept[4]
         self._kept_pool = kept = None  # freed before the new pool is drawn
         m = self.pool_size()
-        mixture = getattr(belief, "particles", None)
+        mixture = belief.particles(m, np.random.default_rng(int(seed) + 3))
         if mixture is None:
             goals, slots = self._trees(belief, goal_cdf, cdf, m, seed)
         else:  # the homotopy prior: way particles, and trees for the route prior's share
-            m_tree, tree_cdf, goals, slots = mixture(m, np.random.default_rng(int(seed) + 3))
+            m_tree, tree_cdf, goals, slots = mixture
             if m_tree:
                 tg, ts = self._trees(belief, tree_cdf, cdf, m_tree, seed)
                 goals, slots = np.concatenate([tg, goals]), np.concatenate([ts, slots])

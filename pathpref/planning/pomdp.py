@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 
 from ..errors import ConfigError
 from ..geometry.grid import STAY
+from ..inference.priors import check_prior
 
 
 @dataclass(frozen=True)
@@ -115,11 +116,6 @@ class Preset:
     budget_waits: bool = False
 
 
-#: the preference priors of the path-preference belief (:attr:`Preset.prior`)
-PRIORS = ("independent", "routes", "learned-gamma", "homotopy", "circulation")
-#: the priors as an error message lists them
-PRIOR_CHOICES = ", ".join(PRIORS[:-1]) + " or " + PRIORS[-1]
-
 
 PRESETS: dict[str, Preset] = {
     "paper": Preset(
@@ -175,8 +171,8 @@ def get_preset(name: str, **overrides) -> Preset:
     """A preset of :data:`PRESETS` by name, with optional field overrides."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
-    if overrides.get("prior") not in (None, *PRIORS):
-        raise ConfigError(f"unknown prior '{overrides['prior']}'; choose {PRIOR_CHOICES}")
+    if overrides.get("prior") is not None:
+        check_prior(overrides["prior"])
     preset = PRESETS[name]
     overrides = {k: v for k, v in overrides.items() if v is not None}
     return replace(preset, **overrides) if overrides else preset

@@ -57,6 +57,7 @@ from ..errors import ConfigError
 from ..experiments.store import ResultStore
 from ..experiments.trials import TrialWriter, dumps
 from .answers import calibration_row, import_legacy, tlx_row
+from .controls import Controls
 from .plan import Study, Trial
 from .record import TrialRecorder
 from .session import TrialRunner
@@ -68,6 +69,9 @@ class FrontEnd(Protocol):
     """What shows a trial to the participant and carries their pushes to the physics."""
 
     name: str
+    #: the questionnaire to ask after the trials (the study's; None: none). Set by the study
+    #: before the first trial; a front end that cannot ask one ignores it
+    questionnaire: str | None
 
     def begin_trial(self, position: int, total: int, runner: TrialRunner) -> None:
         """Show the trial and wait until the participant is ready; attach physics hooks
@@ -254,11 +258,10 @@ class Session:
         self._queue: list[tuple[str, Any]] = []
         self._queue_lock = threading.Lock()
         controls = front.source()
-        if controls is not None and hasattr(controls, "on_calibration"):
+        if isinstance(controls, Controls):  # calibrations and answers come through them
             controls.on_calibration.append(self._record_calibration)
             controls.on_tlx.append(self._record_tlx)
-        if study.questionnaire and hasattr(front, "questionnaire"):
-            front.questionnaire = study.questionnaire
+        front.questionnaire = study.questionnaire
         try:
             store = ResultStore(db)
             writer = TrialWriter(store.conn, participant)

@@ -165,6 +165,8 @@ class ScriptedFrontEnd:
     messages do. Runs as fast as the machine allows (no real-time pacing)."""
 
     name = "script"
+    #: never shown: the script answers the questionnaire by its ``tlx`` entries
+    questionnaire: str | None = None
 
     def __init__(self, script: PushScript):
         self.script = script

@@ -127,6 +127,8 @@ class ViewerFrontEnd:
     opens the window and returns its handle and threads (replaceable for headless tests)."""
 
     name = "viewer"
+    #: the viewer asks no questionnaire
+    questionnaire: str | None = None
 
     def __init__(self, launch=launch_viewer, realtime: bool = True):
         self.launch = launch

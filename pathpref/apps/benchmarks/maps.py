@@ -19,6 +19,7 @@ from ...geometry.maps import load_map
 from ...geometry.world import World
 from ...inference.belief import GoalBelief, PreferenceBelief
 from ...inference.human import ObservationModel
+from ...inference.priors import PriorInputs, make_belief
 from ...inference.routes import RouteBelief
 from ...planning.crossing import check_crossing
 from ...planning.pomcp import POMCP
@@ -166,8 +167,7 @@ def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> 
         start = int(rng.integers(world.n_cells))
         model = ObservationModel.build(world, goals)
         # the robust preset's belief (route prior), one push: the start polytope is known
-        pushed = RouteBelief(model) if robust.prior == "routes" else \
-            PreferenceBelief(model, coupling=robust.coupling)
+        pushed = make_belief(robust.prior, PriorInputs(model, start, coupling=robust.coupling))
         pushed.update(start, int(rng.integers(8)))
         for planner, belief, out in (
             (POMCP(world, goals, preset.path_preference), PreferenceBelief(model), t_pp),
