@@ -32,7 +32,8 @@ Episode metrics (``success``, ``pushes``, ``violations``, ``cues_felt``, ``retur
 last time step) and every Gymnasium ``info``.
 
 Reward: :func:`pathpref.planning.pomdp.transition_reward` (the paper's, SPEC 6, the one rule
-the POMDP uses) with the human's true preference. The episode ends at the goal (discount 0) or
+the POMDP uses) with the human's true preference; with ``reward="potential"`` the loop-free
+rule of :mod:`.reward` (the preference as a potential). The episode ends at the goal (discount 0) or
 after ``T_max`` decisions (discount 1). Seeds: the ``k``-th episode after ``load(seed=s)``
 draws its instance from ``seed_for(s, k)`` and its run from ``seed_for(s, k, 0)``, so a task
 is reproducible episode by episode. ``env.task.policy_action()`` is the loaded method's own
