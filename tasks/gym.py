@@ -16,7 +16,10 @@ limit (discount 1); stepping after either without ``reset`` is a one-line error.
 same episode every time; ``reset()`` moves to the next episode. Observations are the dm_env
 ones, as float64 boxes bounded where the spec is; ``render_mode="rgb_array"`` renders the top
 camera. Keyword arguments are the task's (``task_kwargs``), plus ``environment_kwargs`` and
-``time_limit`` of :func:`pathpref_tasks.load`.
+``time_limit`` of :func:`pathpref_tasks.load`. Each id is registered with a string entry point
+(:data:`ENTRY_POINT`: ``gym.spec(id).to_json()`` works) and ``max_episode_steps``
+(:func:`max_episode_steps`); ``info`` also holds ``is_success``, ``is_intervention`` and
+``intervention_heading`` every step (:meth:`PathprefEnv._info`).
 
 Vectorised (each sub-environment gets its own seed from ``reset(seed=...)``)::
 
@@ -26,15 +29,19 @@ Vectorised (each sub-environment gets its own seed from ``reset(seed=...)``)::
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from dm_env import specs
 from gymnasium import spaces
 
 from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
+from pathpref.geometry.maps import load_map
 
+from .navigate_control import CONTROL_TIMESTEP
 from .registry import BUILTIN_TASKS, gym_id, gym_ids
 
 #: the largest render size asked for at all (the scene's offscreen buffer may allow less)
@@ -43,10 +50,33 @@ MAX_RENDER = 8192
 #: gymnasium id -> built-in dm_control task name (derived: :func:`pathpref_tasks.gym_id`)
 IDS = {gym_id(name): name for name in BUILTIN_TASKS}
 
+#: the entry point every id is registered with (a string, so ``gym.spec(id).to_json()`` works)
+ENTRY_POINT = "pathpref_tasks.gym:PathprefEnv"
+#: the built-in maps whose horizons ``max_episode_steps`` must cover
+HORIZON_MAPS = ("simple", "office", "classroom")
+#: the longest decision step of the default physics (s), for the control-rate horizon
+DECISION_S_MAX = 3.4
+
+
+def max_episode_steps(task: str) -> int:
+    """The ``max_episode_steps`` an id is registered with: the longest natural episode of its
+    task over the built-in maps (:data:`HORIZON_MAPS`) with the default arguments, so the
+    ``TimeLimit`` never cuts an episode the task would have run: ``max T_max`` decisions
+    (60, ``classroom``), and at control rate ``max T_max * decision_s / control_timestep``
+    (60 * 3.4 s / 0.02 s = 10200 steps). The task still ends its own episode first (``t_max``,
+    ``time_limit``); another package's task, not imported at registration, gets the decision
+    bound."""
+    t_max = max(load_map(m).t_max for m in HORIZON_MAPS)
+    cls = BUILTIN_TASKS.get(task)
+    if cls is not None and not cls.decides:
+        return int(math.ceil(t_max * DECISION_S_MAX / CONTROL_TIMESTEP))
+    return int(t_max)
+
 
 def box(spec) -> spaces.Box:
     """The Box of a dm_env spec: its bounds for a ``BoundedArray``, else unbounded."""
-    lo, hi = getattr(spec, "minimum", -np.inf), getattr(spec, "maximum", np.inf)
+    lo, hi = (spec.minimum, spec.maximum) if isinstance(spec, specs.BoundedArray) else \
+        (-np.inf, np.inf)
     return spaces.Box(np.broadcast_to(np.asarray(lo, np.float64), spec.shape).copy(),
                       np.broadcast_to(np.asarray(hi, np.float64), spec.shape).copy(),
                       shape=spec.shape, dtype=np.float64)
@@ -84,9 +114,10 @@ class PathprefEnv(gym.Env):
                                        environment_kwargs=environment_kwargs,
                                        time_limit=time_limit)
         self._env = self._load(self.task_kwargs.get("seed", 0))
-        self._over = False
+        self._over, self._pushes = False, 0
         a = self._env.action_spec()
-        self.action_space = spaces.Discrete(a.num_values) if hasattr(a, "num_values") else \
+        self.action_space = spaces.Discrete(a.num_values) \
+            if isinstance(a, specs.DiscreteArray) else \
             spaces.Box(np.float32(a.minimum), np.float32(a.maximum), shape=a.shape,
                        dtype=np.float32)
         self.observation_space = spaces.Dict({
@@ -111,7 +142,7 @@ class PathprefEnv(gym.Env):
         if seed is not None:
             self._env = self._load(int(seed))
         ts = self._env.reset()
-        self._over = False
+        self._over, self._pushes = False, 0
         return self._obs(ts), self._info()
 
     def step(self, action):
@@ -130,10 +161,20 @@ class PathprefEnv(gym.Env):
     def _info(self) -> dict[str, Any]:
         """The episode's metrics so far (``Navigate.episode_metrics``: ``success``,
         ``goal_reached``, ``violations``, ``pushes``, ``cues_felt``, ``return``, ...; the
-        body's measurements at the last step only) and ``t``, the decisions (cell changes
-        at control rate) taken."""
+        body's measurements at the last step only), ``t``, the decisions (cell changes
+        at control rate) taken, ``is_success`` (``success``, the key SB3 reads),
+        ``is_intervention`` (the human pushed during this step, or in ``reset`` for the
+        first info: the key gym-hil and LeRobot read) and ``intervention_heading``, the
+        heading (0..7) the human meant by the last push of this step, -1 without one."""
         task = self._env.task
-        return {**task.episode_metrics(body=self._over), "t": task.runner.t}
+        metrics = task.episode_metrics(body=self._over)
+        pushes = int(metrics["pushes"])
+        pushed = pushes > self._pushes
+        self._pushes = pushes
+        push = task.body.last_push
+        heading = int(push.intended_heading) if pushed and push is not None else -1
+        return {**metrics, "t": task.runner.t, "is_success": bool(metrics["success"]),
+                "is_intervention": bool(pushed), "intervention_heading": heading}
 
     def render(self):
         """The top camera as an ``(height, width, 3)`` uint8 image (``rgb_array``)."""
@@ -152,4 +193,5 @@ def register_envs() -> None:
     package of tasks)."""
     for env_id, task in gym_ids().items():
         if env_id not in gym.registry:
-            gym.register(id=env_id, entry_point=PathprefEnv, kwargs={"task": task})
+            gym.register(id=env_id, entry_point=ENTRY_POINT, kwargs={"task": task},
+                         max_episode_steps=max_episode_steps(task))

@@ -32,7 +32,8 @@ Episode metrics (``success``, ``pushes``, ``violations``, ``cues_felt``, ``retur
 last time step) and every Gymnasium ``info``.
 
 Reward: :func:`pathpref.planning.pomdp.transition_reward` (the paper's, SPEC 6, the one rule
-the POMDP uses) with the human's true preference. The episode ends at the goal (discount 0) or
+the POMDP uses) with the human's true preference; with ``reward="potential"`` the loop-free
+rule of :mod:`.reward` (the preference as a potential). The episode ends at the goal (discount 0) or
 after ``T_max`` decisions (discount 1). Seeds: the ``k``-th episode after ``load(seed=s)``
 draws its instance from ``seed_for(s, k)`` and its run from ``seed_for(s, k, 0)``, so a task
 is reproducible episode by episode. ``env.task.policy_action()`` is the loaded method's own
@@ -87,6 +88,7 @@ from pathpref.sim.scene import Scene
 
 from .drawing import TaskDrawing
 from .plugins import entry_point_map
+from .reward import REWARDS, potential_reward, preference_potential
 from .stage import ForceFilter, Physics, StagedBody, StepInteraction
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
@@ -161,7 +163,7 @@ class Navigate(base.Task):
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int | None = None,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate", force: bool = False, decision_s: float | None = None,
-                 physics: Any = None):
+                 physics: Any = None, reward: str = "paper"):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -192,6 +194,11 @@ class Navigate(base.Task):
                 f"got {self.decision_s:g}")
         # the environment's reward is the paper's (SPEC 6) whatever preset the planner uses
         self.rewards = get_preset("paper").path_preference
+        if reward not in REWARDS:
+            raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {reward!r}")
+        #: the reward rule: ``paper`` (SPEC 6) or ``potential`` (:mod:`.reward`, no loops)
+        self.reward = reward
+        self._phi: np.ndarray | None = None
         self.episode = -1
         self.runner: EpisodeRunner | None = None
         self.base: MobileBase | None = None
@@ -239,6 +246,8 @@ class Navigate(base.Task):
         #: the sum of the episode's rewards (the Environment adds each step's)
         self.episode_return = 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
+        self._phi = None if self.reward == "paper" else preference_potential(
+            self.world, self.runner.instance.goal_cell, self.runner.pref)
         #: what the robot felt since the last observation (the observations of the step)
         self.interaction = StepInteraction(self.base)
         physics.drawing = TaskDrawing(self)  # the task in every render
@@ -309,8 +318,12 @@ class Navigate(base.Task):
             raise EpisodeError(f"decision step ended in phase {phase}")
 
     def _step_reward(self, before: int, after: int, a: int) -> float:
-        """The paper's reward (SPEC 6) of the move, with the human's true preference."""
+        """The reward of the move with the human's true preference: the paper's (SPEC 6), or
+        the potential-shaped one (:func:`~.reward.potential_reward`)."""
         r = self.runner
+        if self._phi is not None:
+            return potential_reward(self.world, self._phi, before, after, a,
+                                    r.instance.goal_cell, self.rewards.goal)
         v = int(self.world.cell_polytope[before])
         return transition_reward(self.world, before, after, a, r.instance.goal_cell,
                                  int(r.pref[v]), self.rewards)

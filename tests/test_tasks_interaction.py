@@ -107,7 +107,9 @@ def test_gymnasium_info_carries_the_episode_metrics(env_id):
         _, r, term, trunc, info = env.step(np.zeros(2, np.float32) if control else 8)
         total += r
         done = term or trunc
-    assert info == {**env.unwrapped._env.episode_metrics, "t": info["t"]}
+    shared = ("t", "is_success", "is_intervention", "intervention_heading")
+    assert info == {**env.unwrapped._env.episode_metrics, **{k: info[k] for k in shared}}
+    assert info["is_success"] == info["success"]
     assert "pushes_missed" in info  # the default physics: the cue metrics
     assert math.isclose(info["return"], total, rel_tol=1e-12, abs_tol=1e-12)
     assert info["success"] == (info["goal_reached"] and info["violations"] == 0)

@@ -1,0 +1,40 @@
+"""The Gymnasium conventions of every registered id: string entry points (``to_json``),
+``max_episode_steps`` covering every built-in map's horizon, and the ``info`` keys other
+libraries read (``is_success``, ``is_intervention``, ``intervention_heading``) at every step."""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import pathpref_tasks
+import pytest
+from pathpref_tasks.gym import ENTRY_POINT, IDS
+
+from pathpref.geometry.maps import load_map
+
+
+@pytest.mark.parametrize("env_id", sorted(IDS))
+def test_every_id_has_a_string_entry_point_and_a_horizon(env_id):
+    spec = gym.spec(env_id)
+    assert spec.entry_point == ENTRY_POINT
+    assert json.loads(spec.to_json())["id"] == env_id
+    # classroom's T_max (60 decisions) is the longest built-in horizon: never cut short
+    assert load_map("classroom").t_max == 60
+    control_rate = not pathpref_tasks.registry.BUILTIN_TASKS[IDS[env_id]].decides
+    assert spec.max_episode_steps == (10200 if control_rate else 60)
+
+
+def test_info_has_the_shared_keys_every_step():
+    env = gym.make("pathpref/Navigate-v0", map="simple", delta_t=1)
+    _, info = env.reset(seed=0)
+    # the human's first push is played in reset (delta_t=1: one push per decision)
+    assert info["is_intervention"] is True and 0 <= info["intervention_heading"] <= 7
+    for _ in range(3):
+        _, _, terminated, truncated, info = env.step(8)  # stay: the human pushes again
+        assert info["is_success"] == info["success"]
+        assert isinstance(info["is_intervention"], bool)
+        assert (info["intervention_heading"] >= 0) == info["is_intervention"]
+        if terminated or truncated:
+            break
+    env.close()
