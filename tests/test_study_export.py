@@ -46,6 +46,8 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
             reader = make_reader(f)
             topics: dict[str, list] = {}
             for schema, channel, message in reader.iter_messages():
+                if channel.topic.startswith("/ros/"):
+                    continue  # the typed ROS 2 twins: test_mcap_ros2_messages_decode_typed
                 assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
                 topics.setdefault(channel.topic, []).append(
                     (message.log_time, json.loads(message.data)))
@@ -69,6 +71,41 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
         x, y = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = ? AND t = 0", k)[0]
         pos = topics["/pose"][0][1]["pose"]["position"]
         assert (pos["x"], pos["y"]) == ((x - 0.5) * 0.5, (y - 0.5) * 0.5)  # 0.5 m cells
+
+
+
+def test_mcap_ros2_messages_decode_typed(demo_db, tmp_path):
+    """The /ros/ channels decode with mcap-ros2-support's decoder as geometry_msgs messages:
+    one WrenchStamped per trial_forces row with the stored force, stamped at the row's time;
+    one PoseStamped per decision step at the cell centre (0.5 m cells)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        got: dict[str, list] = {}
+        for schema, channel, message, msg in reader.iter_decoded_messages(
+                topics=["/ros/force/applied", "/ros/force/sensed", "/ros/pose"]):
+            assert channel.message_encoding == "cdr" and schema.encoding == "ros2msg"
+            got.setdefault(channel.topic, []).append((schema.name, message.log_time, msg))
+    forces = rows(demo_db, "SELECT fx, fy, sensed_fx, sensed_fy FROM trial_forces "
+                  "WHERE trial = 1 ORDER BY k")
+    for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
+        msgs = got[topic]
+        assert {name for name, _, _ in msgs} == {"geometry_msgs/msg/WrenchStamped"}
+        assert [(m.wrench.force.x, m.wrench.force.y) for _, _, m in msgs] == [
+            (f[cols[0]], f[cols[1]]) for f in forces]  # float64 in CDR: exact
+        assert all(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec == t
+                   for _, t, m in msgs)
+        assert {m.header.frame_id for _, _, m in msgs} == {"world"}
+    steps = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    poses = got["/ros/pose"]
+    assert {name for name, _, _ in poses} == {"geometry_msgs/msg/PoseStamped"}
+    assert [(m.pose.position.x, m.pose.position.y, m.pose.orientation.w)
+            for _, _, m in poses] == [((x - 0.5) * 0.5, (y - 0.5) * 0.5, 1.0) for x, y in steps]
 
 
 def test_tidy_csv_folder(demo_db, tmp_path):

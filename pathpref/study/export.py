@@ -23,7 +23,12 @@ Into ``OUT/PARTICIPANT/``:
   - ``/belief``: the goal probabilities after every update, with the candidates' cells;
   - ``/pose``: ``foxglove.PoseInFrame`` of the base at every decision step: the centre of the
     cell it stood on, ``(cell - 0.5) * cell_size`` m with the scene's default cell size
-    (:data:`pathpref.sim.scene.CELL_SIZE_M`; the continuous pose is not stored).
+    (:data:`pathpref.sim.scene.CELL_SIZE_M`; the continuous pose is not stored);
+  - the same forces and poses as ROS 2 messages (CDR encoding, ``ros2msg`` schemas, through
+    ``mcap-ros2-support``; :mod:`.ros2_msgs`), which Foxglove and rerun's MCAP import decode as
+    typed data: ``/ros/force/applied`` and ``/ros/force/sensed`` (``geometry_msgs/msg/
+    WrenchStamped``, one per ``trial_forces`` row) and ``/ros/pose`` (``geometry_msgs/msg/
+    PoseStamped``, one per decision step).
 
   Log times are the trial's start (``started_utc``, whole seconds) plus the row's ``time_s``,
   in nanoseconds since the Unix epoch.
@@ -58,6 +63,7 @@ from ..experiments.store import ResultStore
 from ..experiments.trial_rows import MAX_TIME_S, check_goals, check_row, checked
 from ..experiments.trials import STUDY_TABLES, has_study_tables, participants_hint
 from ..sim.scene import CELL_SIZE_M
+from . import ros2_msgs
 from .answers import load_answers
 
 CHUNK_ROWS = 4096
@@ -123,24 +129,35 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
             counts[topic] = 0
             return w.register_channel(topic, "json", sid)
 
-        def put(cid: int, topic: str, time_s: float, msg: dict) -> None:
+        def ros_channel(topic: str, definition: tuple[str, str]):
+            sid = w.register_schema(definition[0], "ros2msg", definition[1].encode())
+            counts[topic] = 0
+            return w.register_channel(topic, "cdr", sid), ros2_msgs.encoder(definition)
+
+        def put(cid: int, topic: str, time_s: float, msg: dict, encode=None) -> None:
             ns, _ = _stamp(t0, time_s)
-            w.add_message(cid, log_time=ns, publish_time=ns,
-                          data=json.dumps(msg).encode(), sequence=counts[topic])
+            data = json.dumps(msg).encode() if encode is None else encode(msg)
+            w.add_message(cid, log_time=ns, publish_time=ns, data=data,
+                          sequence=counts[topic])
             counts[topic] += 1
 
         applied = channel("/force/applied", WRENCH_SCHEMA)
         sensed = channel("/force/sensed", WRENCH_SCHEMA)
+        ros_applied = ros_channel("/ros/force/applied", ros2_msgs.WRENCH_STAMPED)
+        ros_sensed = ros_channel("/ros/force/sensed", ros2_msgs.WRENCH_STAMPED)
         zero = {"x": 0.0, "y": 0.0, "z": 0.0}
         for r in checked("trial_forces", _rows(conn, "trial_forces", participant, k, "k"),
                          db):
-            _, ts = _stamp(t0, r["time_s"])
-            for cid, topic, fx, fy in ((applied, "/force/applied", r["fx"], r["fy"]),
-                                       (sensed, "/force/sensed", r["sensed_fx"],
-                                        r["sensed_fy"])):
+            ns, ts = _stamp(t0, r["time_s"])
+            for cid, ros, topic, fx, fy in (
+                    (applied, ros_applied, "/force/applied", r["fx"], r["fy"]),
+                    (sensed, ros_sensed, "/force/sensed", r["sensed_fx"], r["sensed_fy"])):
+                force = {"x": fx, "y": fy, "z": 0.0}
                 put(cid, topic, r["time_s"], {"timestamp": ts, "frame_id": "world",
-                                              "force": {"x": fx, "y": fy, "z": 0.0},
-                                              "torque": zero})
+                                              "force": force, "torque": zero})
+                put(ros[0], "/ros" + topic, r["time_s"], {
+                    "header": ros2_msgs.header(ns), "wrench": {"force": force,
+                                                               "torque": zero}}, ros[1])
         for table, topic in (("trial_pushes", "/pushes"), ("trial_cues", "/cues")):
             cid = channel(topic, _row_schema(f"pathpref.{table}", table))
             for r in checked(table, _rows(conn, table, participant, k, "k"), db):
@@ -154,13 +171,16 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
                                               "p": check_goals(r, len(cands), db),
                                               "candidates": cands})
         cid = channel("/pose", POSE_SCHEMA)
+        ros_pose = ros_channel("/ros/pose", ros2_msgs.POSE_STAMPED)
         for r in checked("trial_steps", _rows(conn, "trial_steps", participant, k, "t"), db):
-            _, ts = _stamp(t0, r["time_s"])
-            put(cid, "/pose", r["time_s"], {
-                "timestamp": ts, "frame_id": "world", "pose": {
-                    "position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
+            ns, ts = _stamp(t0, r["time_s"])
+            pose = {"position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
                                  "y": (r["y"] - 0.5) * CELL_SIZE_M, "z": 0.0},
-                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}})
+                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+            put(cid, "/pose", r["time_s"], {"timestamp": ts, "frame_id": "world",
+                                            "pose": pose})
+            put(ros_pose[0], "/ros/pose", r["time_s"], {"header": ros2_msgs.header(ns),
+                                                        "pose": pose}, ros_pose[1])
         w.finish()
     return counts
 
