@@ -419,3 +419,55 @@ def test_replay_of_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, c
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and named in err, err
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["t.sqlite"]
+
+
+def _rerun_cli() -> str | None:
+    import shutil as sh
+    import sys
+
+    here = Path(sys.executable).parent / "rerun"
+    return str(here) if here.exists() else sh.which("rerun")
+
+
+def _rerun_catalog() -> bool:
+    try:
+        import datafusion  # noqa: F401  (rerun-sdk[catalog])
+        import pandas  # noqa: F401
+        import rerun.server  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(_rerun_cli() is None or not _rerun_catalog(),
+                    reason="rerun-sdk[catalog] (the rerun CLI and rr.server) not installed")
+def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
+    """rerun's MCAP importer (``rerun mcap convert``) makes /ros/pose an InstancePoses3D and
+    each /ros/force/* message a decoded geometry_msgs WrenchStamped, read back from the .rrd
+    through rerun's own Python reader (``rr.server``): one per trial_forces row with the stored
+    force, in order (the JSON twins stay raw bytes)."""
+    import subprocess
+
+    import rerun as rr
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    rrd = tmp_path / "t1.rrd"
+    subprocess.run([_rerun_cli(), "mcap", "convert", str(out / "demo" / "trial-01.mcap"),
+                    "-o", str(rrd)], check=True, capture_output=True, timeout=120)
+    forces = rows(demo_db, "SELECT fx, fy, sensed_fx, sensed_fy FROM trial_forces "
+                  "WHERE trial = 1 ORDER BY k")
+    with rr.server.Server(datasets={"t": [str(rrd)]}) as server:
+        ds = server.client().get_dataset("t")
+        names = {str(c.name) for c in ds.schema()}
+        assert "/ros/pose:InstancePoses3D:translations" in names
+        assert "/force/applied:McapMessage:data" in names
+        for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
+            table = ds.filter_contents([topic]).reader(
+                index="message_log_time").to_arrow_table()
+            col = f"{topic}:geometry_msgs.msg.WrenchStamped:message"
+            got = [(m["wrench"]["force"]["x"], m["wrench"]["force"]["y"])
+                   for cell in table.sort_by("message_log_time").column(col).to_pylist()
+                   if cell for m in cell]
+            assert got == [(f[cols[0]], f[cols[1]]) for f in forces], topic
