@@ -108,6 +108,52 @@ def test_mcap_ros2_messages_decode_typed(demo_db, tmp_path):
             for _, _, m in poses] == [((x - 0.5) * 0.5, (y - 0.5) * 0.5, 1.0) for x, y in steps]
 
 
+
+def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
+    """/scene, /scene/belief and /tf decode with the protobuf decoder as Foxglove messages:
+    the walls of the 10x10 map (0..5 m) and its table (cells 5-6: 2..3 m), the route through
+    the stored cells, one coloured sphere per goal candidate per belief update with opacity
+    0.15 + 0.85 p, and one world -> base transform per decision step."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        got: dict[str, list] = {}
+        for schema, _, message, msg in reader.iter_decoded_messages(
+                topics=["/scene", "/scene/belief", "/tf"]):
+            got.setdefault(message.channel_id, []).append((schema.name, msg))
+    by_name: dict[str, list] = {}
+    for msgs in got.values():
+        by_name.setdefault(msgs[0][0], []).append([m for _, m in msgs])
+    (scene, beliefs), (tfs,) = sorted(by_name["foxglove.SceneUpdate"], key=len), \
+        by_name["foxglove.FrameTransform"]
+    (entity,) = scene[0].entities
+    walls, table, route = entity.lines
+    assert [(p.x, p.y) for p in walls.points] == [(0, 0), (5, 0), (5, 5), (0, 5)]
+    assert sorted((p.x, p.y) for p in table.points) == [(2, 2), (2, 3), (3, 2), (3, 3)]
+    trial = rows(demo_db, "SELECT route, candidates FROM trials WHERE trial = 1")[0]
+    assert [(p.x, p.y) for p in route.points] == [
+        ((x - 0.5) * 0.5, (y - 0.5) * 0.5) for x, y in json.loads(trial[0])]
+    stored = [json.loads(g) for (g,) in rows(
+        demo_db, "SELECT goals FROM trial_beliefs WHERE trial = 1 ORDER BY k")]
+    assert len(beliefs) == len(stored)
+    cands = json.loads(trial[1])
+    for msg, p in zip(beliefs, stored, strict=True):
+        spheres = msg.entities[0].spheres
+        assert [(s.pose.position.x, s.pose.position.y) for s in spheres] == [
+            ((x - 0.5) * 0.5, (y - 0.5) * 0.5) for x, y in cands]
+        assert [s.color.a for s in spheres] == pytest.approx([0.15 + 0.85 * q for q in p],
+                                                              abs=1e-12)
+    steps = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    assert [(m.parent_frame_id, m.child_frame_id, m.translation.x, m.translation.y)
+            for m in tfs] == [("world", "base", (x - 0.5) * 0.5, (y - 0.5) * 0.5)
+                              for x, y in steps]
+
+
 def test_tidy_csv_folder(demo_db, tmp_path):
     assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
                  str(tmp_path), "--no-mcap"]) == 0

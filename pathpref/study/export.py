@@ -58,12 +58,13 @@ import tempfile
 from datetime import datetime
 from pathlib import Path
 
+from ..episode.cache import cached_map
 from ..errors import ConfigError, PathprefError
 from ..experiments.store import ResultStore
 from ..experiments.trial_rows import MAX_TIME_S, check_goals, check_row, checked
 from ..experiments.trials import STUDY_TABLES, has_study_tables, participants_hint
 from ..sim.scene import CELL_SIZE_M
-from . import ros2_msgs
+from . import mcap_scene, ros2_msgs
 from .answers import load_answers
 
 CHUNK_ROWS = 4096
@@ -106,15 +107,32 @@ def _stamp(t0_ns: int, time_s: float) -> tuple[int, dict]:
     return ns, {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
+def scene_topics(fx_channel, put, t0: int, trial: dict, cands: list) -> None:
+    """``/scene``: one ``foxglove.SceneUpdate`` at the trial's start (:mod:`.mcap_scene`):
+    walls and obstacles of the trial's map (left out when the map no longer loads: a map file
+    moved since the study), the preferred route, start and goal."""
+    try:
+        spec = cached_map(trial["map"])
+        size, obstacles = (spec.width, spec.height), [o.vertices.tolist()
+                                                      for o in spec.obstacles]
+    except (PathprefError, OSError):
+        size, obstacles = None, []
+    cid = fx_channel("/scene", mcap_scene.fx_type("SceneUpdate"))
+    put(cid, "/scene", 0.0, mcap_scene.scene_update(
+        t0, size, obstacles, json.loads(trial["route"]), json.loads(trial["start"]),
+        json.loads(trial["goal"])))
+
+
 def write_mcap(conn, participant: str, trial: dict, out: Path,
                db: str | Path = "database") -> dict[str, int]:
     """One trial (its ``trials`` row ``trial``, checked) as an MCAP file (module docstring);
     the number of messages per topic. Every row is checked as it is read (``db`` names the
     file in the error)."""
     try:
+        import foxglove.messages  # noqa: F401  (the scene, :mod:`.mcap_scene`)
         from mcap.writer import Writer
     except ImportError:
-        raise ConfigError("MCAP export needs the mcap package: pip install "
+        raise ConfigError("MCAP export needs the mcap and foxglove-sdk packages: pip install "
                           "'pathpref[export]' (or pass --no-mcap)") from None
     k = trial["trial"]
     t0 = int(datetime.fromisoformat(trial["started_utc"]).timestamp()) * 1_000_000_000
@@ -134,9 +152,16 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
             counts[topic] = 0
             return w.register_channel(topic, "cdr", sid), ros2_msgs.encoder(definition)
 
-        def put(cid: int, topic: str, time_s: float, msg: dict, encode=None) -> None:
+        def fx_channel(topic: str, message_type) -> int:
+            name, encoding, data = mcap_scene.schema(message_type)
+            sid = w.register_schema(name, encoding, data)
+            counts[topic] = 0
+            return w.register_channel(topic, "protobuf", sid)
+
+        def put(cid: int, topic: str, time_s: float, msg, encode=None) -> None:
             ns, _ = _stamp(t0, time_s)
-            data = json.dumps(msg).encode() if encode is None else encode(msg)
+            data = (msg.encode() if hasattr(msg, "encode") else
+                    json.dumps(msg).encode() if encode is None else encode(msg))
             w.add_message(cid, log_time=ns, publish_time=ns, data=data,
                           sequence=counts[topic])
             counts[topic] += 1
@@ -163,15 +188,20 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
             for r in checked(table, _rows(conn, table, participant, k, "k"), db):
                 put(cid, topic, r["t_start"] if table == "trial_pushes" else r["time_s"], r)
         cands = json.loads(trial["candidates"])
+        scene_topics(fx_channel, put, t0, trial, cands)
+        belief_goals = fx_channel("/scene/belief", mcap_scene.fx_type("SceneUpdate"))
         cid = channel("/belief", {"title": "pathpref.Belief", "type": "object", "properties": {
             "cause": {"type": "string"}, "p": {"type": "array", "items": {"type": "number"}},
             "candidates": {"type": "array"}}})
         for r in _rows(conn, "trial_beliefs", participant, k, "k"):
-            put(cid, "/belief", r["time_s"], {"cause": r["cause"],
-                                              "p": check_goals(r, len(cands), db),
+            p = check_goals(r, len(cands), db)
+            put(cid, "/belief", r["time_s"], {"cause": r["cause"], "p": p,
                                               "candidates": cands})
+            put(belief_goals, "/scene/belief", r["time_s"],
+                mcap_scene.belief_update(_stamp(t0, r["time_s"])[0], cands, p))
         cid = channel("/pose", POSE_SCHEMA)
         ros_pose = ros_channel("/ros/pose", ros2_msgs.POSE_STAMPED)
+        tf = fx_channel("/tf", mcap_scene.fx_type("FrameTransform"))
         for r in checked("trial_steps", _rows(conn, "trial_steps", participant, k, "t"), db):
             ns, ts = _stamp(t0, r["time_s"])
             pose = {"position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
@@ -181,6 +211,8 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
                                             "pose": pose})
             put(ros_pose[0], "/ros/pose", r["time_s"], {"header": ros2_msgs.header(ns),
                                                         "pose": pose}, ros_pose[1])
+            put(tf, "/tf", r["time_s"], mcap_scene.base_transform(
+                ns, pose["position"]["x"], pose["position"]["y"]))
         w.finish()
     return counts
 
