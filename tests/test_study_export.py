@@ -46,8 +46,8 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
             reader = make_reader(f)
             topics: dict[str, list] = {}
             for schema, channel, message in reader.iter_messages():
-                if channel.topic.startswith("/ros/"):
-                    continue  # the typed ROS 2 twins: test_mcap_ros2_messages_decode_typed
+                if channel.topic.startswith(("/ros/", "/scene", "/tf")):
+                    continue  # ROS 2 and Foxglove protobuf topics: tested below
                 assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
                 topics.setdefault(channel.topic, []).append(
                     (message.log_time, json.loads(message.data)))
@@ -154,13 +154,43 @@ def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
                               for x, y in steps]
 
 
+
+def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
+    """trial_path holds the base every 5th 2 ms physics step (10 ms apart), starting at the
+    start cell's centre; path.csv and /ros/path (PoseStamped) carry every row unchanged."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    path = rows(demo_db, "SELECT time_s, x, y, ee_x FROM trial_path WHERE trial = 1 "
+                "ORDER BY k")
+    n_forces = rows(demo_db, "SELECT count(*) FROM trial_forces WHERE trial = 1")[0][0]
+    assert len(path) == (n_forces + 4) // 5 > 500
+    gaps = [b[0] - a[0] for a, b in zip(path[:-1], path[1:])]
+    assert max(gaps) == pytest.approx(0.010, abs=1e-9) == min(gaps)
+    x, y = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 AND t = 0")[0]
+    assert path[0][1:3] == pytest.approx(((x - 0.5) * 0.5, (y - 0.5) * 0.5), abs=1e-3)
+    assert {p[3] for p in path} == {None}  # the plain base carries nothing
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    with open(out / "demo" / "path.csv", newline="") as f:
+        table = [r for r in csv.DictReader(f) if r["trial"] == "1"]
+    assert [(float(r["time_s"]), float(r["x"]), float(r["y"])) for r in table] == [
+        p[:3] for p in path]
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        poses = [(m.pose.position.x, m.pose.position.y) for _, _, _, m in
+                 reader.iter_decoded_messages(topics=["/ros/path", "/ros/end_effector"])]
+    assert poses == [p[1:3] for p in path]
+
+
 def test_tidy_csv_folder(demo_db, tmp_path):
     assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
                  str(tmp_path), "--no-mcap"]) == 0
     folder = tmp_path / "demo"
     assert sorted(p.name for p in folder.iterdir()) == [
-        "beliefs.csv", "calibration.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv",
-        "tlx.csv", "trials.csv"]
+        "beliefs.csv", "calibration.csv", "cues.csv", "forces.csv", "path.csv", "pushes.csv",
+        "steps.csv", "tlx.csv", "trials.csv"]
 
     def read(name):
         with open(folder / name, newline="") as f:
@@ -298,7 +328,8 @@ def test_parquet_beside_csv_reads_back_with_arrow(demo_db, tmp_path, capsys):
     assert main(["study", "export", str(demo_db), "--participant", "demo", "--out", str(out),
                  "--no-mcap", "--format", "both"]) == 0
     folder = out / "demo"
-    stems = ["beliefs", "calibration", "cues", "forces", "pushes", "steps", "tlx", "trials"]
+    stems = ["beliefs", "calibration", "cues", "forces", "path", "pushes", "steps", "tlx",
+             "trials"]
     assert sorted(p.name for p in folder.iterdir()) == sorted(
         [f"{s}.csv" for s in stems] + [f"{s}.parquet" for s in stems])
     for stem in stems:

@@ -8,7 +8,8 @@ Into ``OUT/PARTICIPANT/``:
   pyarrow, ``pip install 'pathpref[parquet]'``) or both (``--format both``); one observation
   per row, one table per file, a header row, ``participant`` and ``trial`` in every row:
   ``trials.csv`` (the trial rows as stored), ``steps.csv``, ``forces.csv`` (every control
-  step, 2 ms), ``pushes.csv``, ``cues.csv`` and ``beliefs.csv`` (long form: one row per
+  step, 2 ms), ``path.csv`` (the base's and end effector's positions, 100 Hz),
+  ``pushes.csv``, ``cues.csv`` and ``beliefs.csv`` (long form: one row per
   belief update *and goal candidate*: ``k, time_s, cause, goal, goal_x, goal_y, p``);
   ``calibration.csv`` and ``tlx.csv``: the participant's gamepad calibrations and NASA-TLX
   answers (:mod:`.answers`; also those older sessions wrote as JSON lines beside the
@@ -28,7 +29,9 @@ Into ``OUT/PARTICIPANT/``:
     ``mcap-ros2-support``; :mod:`.ros2_msgs`), which Foxglove and rerun's MCAP import decode as
     typed data: ``/ros/force/applied`` and ``/ros/force/sensed`` (``geometry_msgs/msg/
     WrenchStamped``, one per ``trial_forces`` row) and ``/ros/pose`` (``geometry_msgs/msg/
-    PoseStamped``, one per decision step).
+    PoseStamped``, one per decision step); ``/ros/path`` (``PoseStamped``, the base's
+    recorded position, every ``trial_path`` row, 100 Hz) and ``/ros/end_effector`` (the same
+    for the end effector, when the robot has one).
 
   Log times are the trial's start (``started_utc``, whole seconds) plus the row's ``time_s``,
   in nanoseconds since the Unix epoch.
@@ -68,6 +71,7 @@ from . import mcap_scene, ros2_msgs
 from .answers import load_answers
 
 CHUNK_ROWS = 4096
+IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
 TIME = {"type": "object", "properties": {"sec": {"type": "integer"},
                                          "nsec": {"type": "integer"}}}
@@ -187,6 +191,19 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
             cid = channel(topic, _row_schema(f"pathpref.{table}", table))
             for r in checked(table, _rows(conn, table, participant, k, "k"), db):
                 put(cid, topic, r["t_start"] if table == "trial_pushes" else r["time_s"], r)
+        path = ros_channel("/ros/path", ros2_msgs.POSE_STAMPED)
+        hand = None
+        for r in checked("trial_path", _rows(conn, "trial_path", participant, k, "k"), db):
+            ns, _ = _stamp(t0, r["time_s"])
+            put(path[0], "/ros/path", r["time_s"], {"header": ros2_msgs.header(ns), "pose": {
+                "position": {"x": r["x"], "y": r["y"], "z": 0.0}, "orientation": IDENTITY}},
+                path[1])
+            if r["ee_x"] is not None:
+                hand = hand or ros_channel("/ros/end_effector", ros2_msgs.POSE_STAMPED)
+                put(hand[0], "/ros/end_effector", r["time_s"], {
+                    "header": ros2_msgs.header(ns), "pose": {"position": {
+                        "x": r["ee_x"], "y": r["ee_y"], "z": r["ee_z"]},
+                        "orientation": IDENTITY}}, hand[1])
         cands = json.loads(trial["candidates"])
         scene_topics(fx_channel, put, t0, trial, cands)
         belief_goals = fx_channel("/scene/belief", mcap_scene.fx_type("SceneUpdate"))
@@ -394,7 +411,7 @@ def _export_into(c, db, participant: str, trials: list[dict], cal: list[dict],
 
     for table, order in (("trials", "trial"), ("trial_steps", "trial, t"),
                          ("trial_forces", "trial, k"), ("trial_pushes", "trial, k"),
-                         ("trial_cues", "trial, k")):
+                         ("trial_cues", "trial, k"), ("trial_path", "trial, k")):
         cols = columns(table)
         stem = "trials" if table == "trials" else table[6:]
         counts |= _write_table(folder, stem, cols, (

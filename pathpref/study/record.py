@@ -3,8 +3,10 @@
 
 Per physics step (the control rate, 2 ms) the applied force and the sensed force; a push is a
 maximal run of steps with applied force above :data:`PUSH_ON_N`; effort is the integral of
-``|F| dt`` of the applied force (N s). Per cue: time, cell, heading, magnitude; per belief
-update (start, each cue, each decision): the goal probabilities. Rows are flushed to the
+``|F| dt`` of the applied force (N s). Every
+:data:`~pathpref.experiments.trials.PATH_EVERY`-th physics step (100 Hz at 2 ms) the base's
+position and the end effector's (``trial_path``). Per cue: time, cell, heading, magnitude; per
+belief update (start, each cue, each decision): the goal probabilities. Rows are flushed to the
 database in one transaction after every decision step.
 """
 
@@ -16,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..episode import Felt
-from ..experiments.trials import TrialWriter
+from ..experiments.trials import PATH_EVERY, TrialWriter
 from ..sim.mobile_base import MobileBase
 from ..viz.rerun_log import RerunLogger
 from .session import TrialRunner
@@ -33,7 +35,9 @@ class TrialRecorder:
                  rerun: Path | None = None):
         self.writer, self.trial, self.runner = writer, trial, runner
         self.rows: dict[str, list[tuple]] = {t: [] for t in (
-            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs")}
+            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs",
+            "trial_path")}
+        self.k_path = 0
         self.k_force = self.k_belief = self.k_push = self.n_cues = 0
         self.effort = 0.0
         self.push: list[float] | None = None  # [t_start, peak, impulse_x, impulse_y]
@@ -56,6 +60,8 @@ class TrialRecorder:
         sensed = base.sensor.force_xy(base.data)
         self.rows["trial_forces"].append((self.k_force, t, float(f[0]), float(f[1]),
                                           float(sensed[0]), float(sensed[1])))
+        if self.k_force % PATH_EVERY == 0:
+            self._path_row(t, base)
         self.k_force += 1
         n = float(np.hypot(*f))
         self.effort += n * self.dt
@@ -69,6 +75,13 @@ class TrialRecorder:
             self._end_push(t)
         if self.rerun and self.k_force % RERUN_EVERY == 0:
             self.rerun.log_frame(float(base.data.time), base.position.copy())
+
+    def _path_row(self, t: float, base: MobileBase) -> None:
+        x, y = (float(v) for v in base.position[:2])
+        ee = base.end_effector
+        e = (None, None, None) if ee is None else tuple(float(v) for v in ee[:3])
+        self.rows["trial_path"].append((self.k_path, t, x, y, *e))
+        self.k_path += 1
 
     def _end_push(self, t: float) -> None:
         s, peak, jx, jy = self.push
