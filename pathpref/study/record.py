@@ -32,8 +32,9 @@ class TrialRecorder:
     ``rerun`` is the trial's ``.rrd`` path (None: no rerun file)."""
 
     def __init__(self, writer: TrialWriter, trial: int, runner: TrialRunner,
-                 rerun: Path | None = None):
+                 rerun: Path | None = None, lsl=None):
         self.writer, self.trial, self.runner = writer, trial, runner
+        self.lsl = lsl  # LslOutlets (:mod:`.lsl`) or None
         self.rows: dict[str, list[tuple]] = {t: [] for t in (
             "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs",
             "trial_path")}
@@ -50,6 +51,8 @@ class TrialRecorder:
         runner.base.on_substep.insert(0, self._substep)  # first: the force of this step
         runner.on_cue.append(self._cue)
         runner.on_belief.append(self._belief)
+        if self.lsl:
+            self.lsl.event("trial_start", trial)
         self._belief("start")
         self._step_row()
 
@@ -60,6 +63,8 @@ class TrialRecorder:
         sensed = base.sensor.force_xy(base.data)
         self.rows["trial_forces"].append((self.k_force, t, float(f[0]), float(f[1]),
                                           float(sensed[0]), float(sensed[1])))
+        if self.lsl:
+            self.lsl.force(*self.rows["trial_forces"][-1][2:])
         if self.k_force % PATH_EVERY == 0:
             self._path_row(t, base)
         self.k_force += 1
@@ -81,11 +86,15 @@ class TrialRecorder:
         ee = base.end_effector
         e = (None, None, None) if ee is None else tuple(float(v) for v in ee[:3])
         self.rows["trial_path"].append((self.k_path, t, x, y, *e))
+        if self.lsl:
+            self.lsl.pose(x, y, e)
         self.k_path += 1
 
     def _end_push(self, t: float) -> None:
         s, peak, jx, jy = self.push
         self.rows["trial_pushes"].append((self.k_push, s, t, peak, jx, jy))
+        if self.lsl:
+            self.lsl.event("push", self.trial, k=self.k_push, t_start=s, t_end=t, peak_n=peak)
         self.k_push += 1
         self.push = None
 
@@ -95,12 +104,18 @@ class TrialRecorder:
             self.n_cues, self.runner.time_s, int(x), int(y), int(cue.heading),
             float(cue.peak_n), float(cue.impulse[0]), float(cue.impulse[1]),
             float(cue.duration_s)))
+        if self.lsl:
+            self.lsl.event("cue", self.trial, k=self.n_cues, time_s=self.runner.time_s,
+                           heading=int(cue.heading))
         self.n_cues += 1
 
     def _belief(self, cause: str) -> None:
         p = self.runner.policy.belief.goal_marginal()
         self.rows["trial_beliefs"].append((self.k_belief, self.runner.time_s, cause,
                                            json.dumps([round(float(v), 6) for v in p])))
+        if self.lsl:
+            self.lsl.event("belief", self.trial, k=self.k_belief, cause=cause,
+                           p=[round(float(v), 6) for v in p])
         self.k_belief += 1
 
     def _step_row(self) -> None:
@@ -137,6 +152,8 @@ class TrialRecorder:
         if self.rerun:
             self.rerun.close()
         res = r.result
+        if self.lsl:
+            self.lsl.event("trial_end", self.trial, goal_reached=bool(res.goal_reached))
         return {"outcome": "success" if res.goal_reached else "timeout",
                 "success": int(res.goal_reached), "time_s": r.time_s, "steps": res.steps,
                 "pushes": self.k_push, "cues": self.n_cues, "effort_ns": self.effort,
