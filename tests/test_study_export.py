@@ -184,6 +184,27 @@ def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
     assert poses == [p[1:3] for p in path]
 
 
+
+def test_export_of_a_file_without_the_path_table(demo_db, tmp_path):
+    """A study file written before trial_path existed exports whole: path.csv is its header,
+    the MCAP has no /ros/path messages, every other table as before."""
+    from mcap.reader import make_reader
+
+    db = tmp_path / "old.sqlite"
+    shutil.copy(demo_db, db)
+    with sqlite3.connect(db) as c:
+        c.execute("DROP TABLE trial_path")
+    out = tmp_path / "out"
+    assert main(["study", "export", str(db), "--participant", "demo", "--out", str(out)]) == 0
+    assert (out / "demo" / "path.csv").read_text().splitlines() == [
+        "participant,trial,k,time_s,x,y,ee_x,ee_y,ee_z"]
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {ch.id: ch.topic for ch in summary.channels.values()}
+    counts = {topics[i]: n for i, n in summary.statistics.channel_message_counts.items()}
+    assert counts.get("/ros/path", 0) == 0 and counts["/ros/force/applied"] > 1000
+
+
 def test_tidy_csv_folder(demo_db, tmp_path):
     assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
                  str(tmp_path), "--no-mcap"]) == 0

@@ -65,7 +65,12 @@ from ..episode.cache import cached_map
 from ..errors import ConfigError, PathprefError
 from ..experiments.store import ResultStore
 from ..experiments.trial_rows import MAX_TIME_S, check_goals, check_row, checked
-from ..experiments.trials import STUDY_TABLES, has_study_tables, participants_hint
+from ..experiments.trials import (
+    LATE_STUDY_TABLES,
+    STUDY_TABLES,
+    has_study_tables,
+    participants_hint,
+)
 from ..sim.scene import CELL_SIZE_M
 from . import mcap_scene, ros2_msgs
 from .answers import load_answers
@@ -91,7 +96,13 @@ def _row_schema(title: str, table: str) -> dict:
 
 
 def _rows(conn, table: str, participant: str, trial: int | None, order: str):
-    """The rows of ``table`` for the participant (and trial), a chunk at a time."""
+    """The rows of ``table`` for the participant (and trial), a chunk at a time; none from a
+    late table (:data:`~pathpref.experiments.trials.LATE_STUDY_TABLES`) a file written before
+    it lacks."""
+    if table in LATE_STUDY_TABLES and not conn.execute(
+            "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)
+    ).fetchone():
+        return
     where = "WHERE participant = ?" + (" AND trial = ?" if trial is not None else "")
     cur = conn.execute(f"SELECT * FROM {table} {where} ORDER BY {order}",
                        (participant,) if trial is None else (participant, trial))
