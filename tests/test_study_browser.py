@@ -167,6 +167,9 @@ def test_browser_drag_end_to_end(tmp_path):
         with playwright.sync_playwright() as pw:
             browser = pw.chromium.launch(executable_path=CHROMIUM, args=ARGS)
             page = browser.new_page(viewport={"width": 1100, "height": 700})
+            refused: list[str] = []  # no favicon or other request the page makes may fail
+            page.on("requestfailed", lambda r: refused.append(r.url))
+            page.on("response", lambda r: r.status >= 400 and refused.append(r.url))
             page.goto(url)
             page.wait_for_function("window.study.scene !== null", timeout=EVENT_MS)
             page.click("#start")
@@ -188,6 +191,10 @@ def test_browser_drag_end_to_end(tmp_path):
                 latency.append(time.perf_counter() - t0)
                 _wait_sim(page, 1.0)
             fps = page.evaluate("window.study.fps")
+            shown = page.inner_text("body")
+            # headless chromium fetches no favicon; a desktop browser would ask /favicon.ico
+            # (refused without the token) unless the page declares its own, empty icon
+            icon = page.evaluate("document.querySelector('link[rel=icon]').href")
             shot = tmp_path / "page.png"
             page.screenshot(path=str(shot))
             page.wait_for_function("window.study.scene.status === 'finished'", timeout=EVENT_MS)
@@ -198,6 +205,8 @@ def test_browser_drag_end_to_end(tmp_path):
             proc.kill()
     assert proc.returncode == 0, out
     assert fps > 0  # the page draws (its rate is printed: a benchmark, not a timed test)
+    assert "per second" not in shown and "fps" not in shown.lower()  # not the participant's
+    assert refused == [] and icon == "data:,"
     print(f"page {fps:.0f} fps; drag release to cue on the page: "
           f"{[round(1000 * v) for v in latency]} ms")
     c = sqlite3.connect(db)

@@ -46,6 +46,8 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
             reader = make_reader(f)
             topics: dict[str, list] = {}
             for schema, channel, message in reader.iter_messages():
+                if channel.topic.startswith(("/ros/", "/scene", "/tf")):
+                    continue  # ROS 2 and Foxglove protobuf topics: tested below
                 assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
                 topics.setdefault(channel.topic, []).append(
                     (message.log_time, json.loads(message.data)))
@@ -71,13 +73,145 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
         assert (pos["x"], pos["y"]) == ((x - 0.5) * 0.5, (y - 0.5) * 0.5)  # 0.5 m cells
 
 
+
+def test_mcap_ros2_messages_decode_typed(demo_db, tmp_path):
+    """The /ros/ channels decode with mcap-ros2-support's decoder as geometry_msgs messages:
+    one WrenchStamped per trial_forces row with the stored force, stamped at the row's time;
+    one PoseStamped per decision step at the cell centre (0.5 m cells)."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        got: dict[str, list] = {}
+        for schema, channel, message, msg in reader.iter_decoded_messages(
+                topics=["/ros/force/applied", "/ros/force/sensed", "/ros/pose"]):
+            assert channel.message_encoding == "cdr" and schema.encoding == "ros2msg"
+            got.setdefault(channel.topic, []).append((schema.name, message.log_time, msg))
+    forces = rows(demo_db, "SELECT fx, fy, sensed_fx, sensed_fy FROM trial_forces "
+                  "WHERE trial = 1 ORDER BY k")
+    for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
+        msgs = got[topic]
+        assert {name for name, _, _ in msgs} == {"geometry_msgs/msg/WrenchStamped"}
+        assert [(m.wrench.force.x, m.wrench.force.y) for _, _, m in msgs] == [
+            (f[cols[0]], f[cols[1]]) for f in forces]  # float64 in CDR: exact
+        assert all(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec == t
+                   for _, t, m in msgs)
+        assert {m.header.frame_id for _, _, m in msgs} == {"world"}
+    steps = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    poses = got["/ros/pose"]
+    assert {name for name, _, _ in poses} == {"geometry_msgs/msg/PoseStamped"}
+    assert [(m.pose.position.x, m.pose.position.y, m.pose.orientation.w)
+            for _, _, m in poses] == [((x - 0.5) * 0.5, (y - 0.5) * 0.5, 1.0) for x, y in steps]
+
+
+
+def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
+    """/scene, /scene/belief and /tf decode with the protobuf decoder as Foxglove messages:
+    the walls of the 10x10 map (0..5 m) and its table (cells 5-6: 2..3 m), the route through
+    the stored cells, one coloured sphere per goal candidate per belief update with opacity
+    0.15 + 0.85 p, and one world -> base transform per decision step."""
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        got: dict[str, list] = {}
+        for schema, _, message, msg in reader.iter_decoded_messages(
+                topics=["/scene", "/scene/belief", "/tf"]):
+            got.setdefault(message.channel_id, []).append((schema.name, msg))
+    by_name: dict[str, list] = {}
+    for msgs in got.values():
+        by_name.setdefault(msgs[0][0], []).append([m for _, m in msgs])
+    (scene, beliefs), (tfs,) = sorted(by_name["foxglove.SceneUpdate"], key=len), \
+        by_name["foxglove.FrameTransform"]
+    (entity,) = scene[0].entities
+    walls, table, route = entity.lines
+    assert [(p.x, p.y) for p in walls.points] == [(0, 0), (5, 0), (5, 5), (0, 5)]
+    assert sorted((p.x, p.y) for p in table.points) == [(2, 2), (2, 3), (3, 2), (3, 3)]
+    trial = rows(demo_db, "SELECT route, candidates FROM trials WHERE trial = 1")[0]
+    assert [(p.x, p.y) for p in route.points] == [
+        ((x - 0.5) * 0.5, (y - 0.5) * 0.5) for x, y in json.loads(trial[0])]
+    stored = [json.loads(g) for (g,) in rows(
+        demo_db, "SELECT goals FROM trial_beliefs WHERE trial = 1 ORDER BY k")]
+    assert len(beliefs) == len(stored)
+    cands = json.loads(trial[1])
+    for msg, p in zip(beliefs, stored, strict=True):
+        spheres = msg.entities[0].spheres
+        assert [(s.pose.position.x, s.pose.position.y) for s in spheres] == [
+            ((x - 0.5) * 0.5, (y - 0.5) * 0.5) for x, y in cands]
+        assert [s.color.a for s in spheres] == pytest.approx([0.15 + 0.85 * q for q in p],
+                                                              abs=1e-12)
+    steps = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    assert [(m.parent_frame_id, m.child_frame_id, m.translation.x, m.translation.y)
+            for m in tfs] == [("world", "base", (x - 0.5) * 0.5, (y - 0.5) * 0.5)
+                              for x, y in steps]
+
+
+
+def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
+    """trial_path holds the base every 5th 2 ms physics step (10 ms apart), starting at the
+    start cell's centre; path.csv and /ros/path (PoseStamped) carry every row unchanged."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    path = rows(demo_db, "SELECT time_s, x, y, ee_x FROM trial_path WHERE trial = 1 "
+                "ORDER BY k")
+    n_forces = rows(demo_db, "SELECT count(*) FROM trial_forces WHERE trial = 1")[0][0]
+    assert len(path) == (n_forces + 4) // 5 > 500
+    gaps = [b[0] - a[0] for a, b in zip(path[:-1], path[1:])]
+    assert max(gaps) == pytest.approx(0.010, abs=1e-9) == min(gaps)
+    x, y = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 AND t = 0")[0]
+    assert path[0][1:3] == pytest.approx(((x - 0.5) * 0.5, (y - 0.5) * 0.5), abs=1e-3)
+    assert {p[3] for p in path} == {None}  # the plain base carries nothing
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    with open(out / "demo" / "path.csv", newline="") as f:
+        table = [r for r in csv.DictReader(f) if r["trial"] == "1"]
+    assert [(float(r["time_s"]), float(r["x"]), float(r["y"])) for r in table] == [
+        p[:3] for p in path]
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        poses = [(m.pose.position.x, m.pose.position.y) for _, _, _, m in
+                 reader.iter_decoded_messages(topics=["/ros/path", "/ros/end_effector"])]
+    assert poses == [p[1:3] for p in path]
+
+
+
+def test_export_of_a_file_without_the_path_table(demo_db, tmp_path):
+    """A study file written before trial_path existed exports whole: path.csv is its header,
+    the MCAP has no /ros/path messages, every other table as before."""
+    from mcap.reader import make_reader
+
+    db = tmp_path / "old.sqlite"
+    shutil.copy(demo_db, db)
+    with sqlite3.connect(db) as c:
+        c.execute("DROP TABLE trial_path")
+    out = tmp_path / "out"
+    assert main(["study", "export", str(db), "--participant", "demo", "--out", str(out)]) == 0
+    assert (out / "demo" / "path.csv").read_text().splitlines() == [
+        "participant,trial,k,time_s,x,y,ee_x,ee_y,ee_z"]
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {ch.id: ch.topic for ch in summary.channels.values()}
+    counts = {topics[i]: n for i, n in summary.statistics.channel_message_counts.items()}
+    assert counts.get("/ros/path", 0) == 0 and counts["/ros/force/applied"] > 1000
+
+
 def test_tidy_csv_folder(demo_db, tmp_path):
     assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
                  str(tmp_path), "--no-mcap"]) == 0
     folder = tmp_path / "demo"
     assert sorted(p.name for p in folder.iterdir()) == [
-        "beliefs.csv", "calibration.csv", "cues.csv", "forces.csv", "pushes.csv", "steps.csv",
-        "tlx.csv", "trials.csv"]
+        "beliefs.csv", "calibration.csv", "cues.csv", "forces.csv", "path.csv", "pushes.csv",
+        "steps.csv", "tlx.csv", "trials.csv"]
 
     def read(name):
         with open(folder / name, newline="") as f:
@@ -215,7 +349,8 @@ def test_parquet_beside_csv_reads_back_with_arrow(demo_db, tmp_path, capsys):
     assert main(["study", "export", str(demo_db), "--participant", "demo", "--out", str(out),
                  "--no-mcap", "--format", "both"]) == 0
     folder = out / "demo"
-    stems = ["beliefs", "calibration", "cues", "forces", "pushes", "steps", "tlx", "trials"]
+    stems = ["beliefs", "calibration", "cues", "forces", "path", "pushes", "steps", "tlx",
+             "trials"]
     assert sorted(p.name for p in folder.iterdir()) == sorted(
         [f"{s}.csv" for s in stems] + [f"{s}.parquet" for s in stems])
     for stem in stems:
@@ -382,3 +517,55 @@ def test_replay_of_a_tampered_trial_row_is_one_line(demo_db, tmp_path, capsys, c
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and named in err, err
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["t.sqlite"]
+
+
+def _rerun_cli() -> str | None:
+    import shutil as sh
+    import sys
+
+    here = Path(sys.executable).parent / "rerun"
+    return str(here) if here.exists() else sh.which("rerun")
+
+
+def _rerun_catalog() -> bool:
+    try:
+        import datafusion  # noqa: F401  (rerun-sdk[catalog])
+        import pandas  # noqa: F401
+        import rerun.server  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@pytest.mark.skipif(_rerun_cli() is None or not _rerun_catalog(),
+                    reason="rerun-sdk[catalog] (the rerun CLI and rr.server) not installed")
+def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
+    """rerun's MCAP importer (``rerun mcap convert``) makes /ros/pose an InstancePoses3D and
+    each /ros/force/* message a decoded geometry_msgs WrenchStamped, read back from the .rrd
+    through rerun's own Python reader (``rr.server``): one per trial_forces row with the stored
+    force, in order (the JSON twins stay raw bytes)."""
+    import subprocess
+
+    import rerun as rr
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    rrd = tmp_path / "t1.rrd"
+    subprocess.run([_rerun_cli(), "mcap", "convert", str(out / "demo" / "trial-01.mcap"),
+                    "-o", str(rrd)], check=True, capture_output=True, timeout=120)
+    forces = rows(demo_db, "SELECT fx, fy, sensed_fx, sensed_fy FROM trial_forces "
+                  "WHERE trial = 1 ORDER BY k")
+    with rr.server.Server(datasets={"t": [str(rrd)]}) as server:
+        ds = server.client().get_dataset("t")
+        names = {str(c.name) for c in ds.schema()}
+        assert "/ros/pose:InstancePoses3D:translations" in names
+        assert "/force/applied:McapMessage:data" in names
+        for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
+            table = ds.filter_contents([topic]).reader(
+                index="message_log_time").to_arrow_table()
+            col = f"{topic}:geometry_msgs.msg.WrenchStamped:message"
+            got = [(m["wrench"]["force"]["x"], m["wrench"]["force"]["y"])
+                   for cell in table.sort_by("message_log_time").column(col).to_pylist()
+                   if cell for m in cell]
+            assert got == [(f[cols[0]], f[cols[1]]) for f in forces], topic

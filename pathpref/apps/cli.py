@@ -340,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "person pushes)")
     sr.add_argument("--resume", action="store_true",
                     help="continue a participant's trials (the unfinished one runs again)")
+    sr.add_argument("--lsl", action="store_true",
+                    help="stream force, pose and events as Lab Streaming Layer outlets "
+                    "(needs pylsl: pip install 'pathpref[lsl]'; docs/study_export.md)")
     sr.set_defaults(func=c.cmd_study_run)
     se = stsub.add_parser("export", help="a participant's trials as a tidy CSV/Parquet folder "
                           "and one MCAP file per trial (docs/study_export.md)")

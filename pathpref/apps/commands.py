@@ -526,7 +526,12 @@ def cmd_study_run(args: argparse.Namespace) -> int:
         script = PushScript.load(args.script)
         script.check_names(study)
     # every refusal (lock, existing participant, study file) before a page is served
-    session = Session(study, args.participant, args.db, resume=args.resume)
+    lsl = None
+    if getattr(args, "lsl", False):
+        from ..study.lsl import LslOutlets
+
+        lsl = LslOutlets(args.participant)
+    session = Session(study, args.participant, args.db, resume=args.resume, lsl=lsl)
     try:
         if script is not None:
             from ..study.script import ScriptedFrontEnd

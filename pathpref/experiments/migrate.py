@@ -375,24 +375,28 @@ def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]]
     return whole, broken, orphans
 
 
+#: the tables of a trial's rows that must run without gaps
+PER_TRIAL = ("trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs",
+             "trial_path")
+
+
 def _whole_trials(tables: dict[str, list[dict[str, Any]]]) -> tuple[set[tuple], int]:
     """The ``(participant, trial)`` of the study trials whose rows are whole, and the number
     of trials left out. Whole: the ``trials`` row reads back; ``trial_steps`` has ``t = 0..n``
     (``n = steps`` for a finished trial), ``trial_forces`` and ``trial_beliefs`` have
-    ``k = 0..m`` for some ``m``, and a finished trial has ``k = 0..pushes-1`` pushes and
-    ``k = 0..cues-1`` cues. An unfinished trial (``study run --resume`` runs it again) needs
-    only gap-free rows."""
+    ``k = 0..m`` for some ``m`` (``trial_path`` too, possibly empty), and a finished trial
+    has ``k = 0..pushes-1`` pushes and ``k = 0..cues-1`` cues. An unfinished trial (``study
+    run --resume`` runs it again) needs only gap-free rows."""
     seq: dict[tuple[str, tuple], list[int]] = defaultdict(list)
-    for table in ("trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs"):
+    for table in PER_TRIAL:
         col = "t" if table == "trial_steps" else "k"
-        for r in tables[table]:
+        for r in tables.get(table, ()):  # trial_path: absent from older files
             seq[(table, (r["participant"], r["trial"]))].append(r[col])
     whole: set[tuple] = set()
     broken = 0
     for r in tables["trials"]:
         key = (r["participant"], r["trial"])
-        got = {t: sorted(seq.get((t, key), [])) for t in (
-            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs")}
+        got = {t: sorted(seq.get((t, key), [])) for t in PER_TRIAL}
         ok = all(v == list(range(len(v))) for v in got.values())
         if r["status"] == "done":
             ok = ok and (len(got["trial_steps"]) == (r["steps"] or 0) + 1

@@ -44,7 +44,8 @@ TRIAL_NULLABLE = ("outcome", "success", "time_s", "steps", "pushes", "cues", "ef
                   "violations", "wall_s", "physics", "robot", "homotopy_success", "rerun",
                   "condition", "map_hash", "study", "study_hash", "front_end")
 #: the columns of the other tables that may be NULL (a trial's answer's name)
-NULLABLE = {"study_tlx": ("name",), "study_calibrations": ("device",)}
+NULLABLE = {"study_tlx": ("name",), "study_calibrations": ("device",),
+            "trial_path": ("ee_x", "ee_y", "ee_z")}
 FIX = "the row was changed outside pathpref; restore the database from a copy"
 TYPES = {t: dict(cols) for t, cols, _ in STUDY_TABLES}
 

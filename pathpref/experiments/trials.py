@@ -75,13 +75,21 @@ STUDY_TABLES: tuple[tuple[str, tuple[tuple[str, str], ...], str], ...] = (
         ("mental", "INTEGER"), ("physical", "INTEGER"), ("temporal", "INTEGER"),
         ("performance", "INTEGER"), ("effort", "INTEGER"), ("frustration", "INTEGER"),
         ("raw_tlx", "REAL")), "participant, trial"),
+    ("trial_path", (
+        ("participant", "TEXT"), ("trial", "INTEGER"), ("k", "INTEGER"), ("time_s", "REAL"),
+        ("x", "REAL"), ("y", "REAL"), ("ee_x", "REAL"), ("ee_y", "REAL"), ("ee_z", "REAL")),
+        "participant, trial, k"),
 )
 STUDY_TABLE_NAMES = tuple(t for t, _, _ in STUDY_TABLES)
 #: the study tables added to schema 5 after its first study files were written: a file may
 #: lack them (read as empty; created in place when opened for writing): the participant's
 #: gamepad calibrations (``k = 0, 1, ...`` in order; ``trial``: the position of the trial
 #: under way or next, 0 before the first) and NASA-TLX answers (one per finished trial)
-LATE_STUDY_TABLES = ("study_calibrations", "study_tlx")
+#: and the continuous path (``trial_path``: the base's position, m in the scene's world frame,
+#: and the end effector's, NULL for the plain base, every :data:`PATH_EVERY`-th physics step)
+LATE_STUDY_TABLES = ("study_calibrations", "study_tlx", "trial_path")
+#: physics steps between two ``trial_path`` rows: with the 2 ms step, 100 rows per second
+PATH_EVERY = 5
 #: the participant's own records, not a trial's: kept when a trial is discarded or lost
 SESSION_TABLES = ("study_calibrations",)
 TRIAL_COLUMNS = tuple(c for c, _ in STUDY_TABLES[0][1])

@@ -147,8 +147,10 @@ class Session:
     """``participant``'s session of ``study`` in ``db``, checked and locked (module docstring);
     :meth:`run` runs it, :meth:`close` releases the lock (``run`` does, at its end)."""
 
-    def __init__(self, study: Study, participant: str, db: str | Path, resume: bool = False):
+    def __init__(self, study: Study, participant: str, db: str | Path, resume: bool = False,
+                 lsl=None):
         check_participant(participant)
+        self.lsl = lsl  # LslOutlets (:mod:`.lsl`) streaming the trials, or None
         self.study, self.participant, self.db, self.resume = study, participant, Path(db), resume
         self.path = lock_path(db, participant)
         self.fd: int | None = None
@@ -279,7 +281,8 @@ class Session:
                     self.position = position
                     self._flush(writer)
                     run_trial(study, trial, position, len(order), participant, db, writer,
-                              front, log, between=lambda: self._flush(writer))
+                              front, log, between=lambda: self._flush(writer),
+                              lsl=self.lsl)
                     self._flush(writer)
                 return writer.trials()
             except Exception as e:
@@ -319,7 +322,7 @@ def run_study(study: Study, participant: str, db: str | Path, front: FrontEnd,
 
 def run_trial(study: Study, trial: Trial, position: int, total: int, participant: str,
               db: str | Path, writer: TrialWriter, front: FrontEnd, log=print,
-              between=None) -> dict:
+              between=None, lsl=None) -> dict:
     """Run one trial through ``front`` and record it (row written first as ``running``);
     ``between()`` (when given) runs after every decision step."""
     runner = TrialRunner(trial, study.seed, front.source())
@@ -341,7 +344,7 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
     recorder: TrialRecorder | None = None
     wall = time.perf_counter()
     try:
-        recorder = TrialRecorder(writer, position, runner, rerun)
+        recorder = TrialRecorder(writer, position, runner, rerun, lsl)
         while not runner.done:
             runner.decide()
             recorder.after_decision()

@@ -8,7 +8,8 @@ Into ``OUT/PARTICIPANT/``:
   pyarrow, ``pip install 'pathpref[parquet]'``) or both (``--format both``); one observation
   per row, one table per file, a header row, ``participant`` and ``trial`` in every row:
   ``trials.csv`` (the trial rows as stored), ``steps.csv``, ``forces.csv`` (every control
-  step, 2 ms), ``pushes.csv``, ``cues.csv`` and ``beliefs.csv`` (long form: one row per
+  step, 2 ms), ``path.csv`` (the base's and end effector's positions, 100 Hz),
+  ``pushes.csv``, ``cues.csv`` and ``beliefs.csv`` (long form: one row per
   belief update *and goal candidate*: ``k, time_s, cause, goal, goal_x, goal_y, p``);
   ``calibration.csv`` and ``tlx.csv``: the participant's gamepad calibrations and NASA-TLX
   answers (:mod:`.answers`; also those older sessions wrote as JSON lines beside the
@@ -23,7 +24,14 @@ Into ``OUT/PARTICIPANT/``:
   - ``/belief``: the goal probabilities after every update, with the candidates' cells;
   - ``/pose``: ``foxglove.PoseInFrame`` of the base at every decision step: the centre of the
     cell it stood on, ``(cell - 0.5) * cell_size`` m with the scene's default cell size
-    (:data:`pathpref.sim.scene.CELL_SIZE_M`; the continuous pose is not stored).
+    (:data:`pathpref.sim.scene.CELL_SIZE_M`; the continuous pose is not stored);
+  - the same forces and poses as ROS 2 messages (CDR encoding, ``ros2msg`` schemas, through
+    ``mcap-ros2-support``; :mod:`.ros2_msgs`), which Foxglove and rerun's MCAP import decode as
+    typed data: ``/ros/force/applied`` and ``/ros/force/sensed`` (``geometry_msgs/msg/
+    WrenchStamped``, one per ``trial_forces`` row) and ``/ros/pose`` (``geometry_msgs/msg/
+    PoseStamped``, one per decision step); ``/ros/path`` (``PoseStamped``, the base's
+    recorded position, every ``trial_path`` row, 100 Hz) and ``/ros/end_effector`` (the same
+    for the end effector, when the robot has one).
 
   Log times are the trial's start (``started_utc``, whole seconds) plus the row's ``time_s``,
   in nanoseconds since the Unix epoch.
@@ -53,14 +61,22 @@ import tempfile
 from datetime import datetime
 from pathlib import Path
 
+from ..episode.cache import cached_map
 from ..errors import ConfigError, PathprefError
 from ..experiments.store import ResultStore
 from ..experiments.trial_rows import MAX_TIME_S, check_goals, check_row, checked
-from ..experiments.trials import STUDY_TABLES, has_study_tables, participants_hint
+from ..experiments.trials import (
+    LATE_STUDY_TABLES,
+    STUDY_TABLES,
+    has_study_tables,
+    participants_hint,
+)
 from ..sim.scene import CELL_SIZE_M
+from . import mcap_scene, ros2_msgs
 from .answers import load_answers
 
 CHUNK_ROWS = 4096
+IDENTITY = {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
 VEC3 = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
 TIME = {"type": "object", "properties": {"sec": {"type": "integer"},
                                          "nsec": {"type": "integer"}}}
@@ -80,7 +96,13 @@ def _row_schema(title: str, table: str) -> dict:
 
 
 def _rows(conn, table: str, participant: str, trial: int | None, order: str):
-    """The rows of ``table`` for the participant (and trial), a chunk at a time."""
+    """The rows of ``table`` for the participant (and trial), a chunk at a time; none from a
+    late table (:data:`~pathpref.experiments.trials.LATE_STUDY_TABLES`) a file written before
+    it lacks."""
+    if table in LATE_STUDY_TABLES and not conn.execute(
+            "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?", (table,)
+    ).fetchone():
+        return
     where = "WHERE participant = ?" + (" AND trial = ?" if trial is not None else "")
     cur = conn.execute(f"SELECT * FROM {table} {where} ORDER BY {order}",
                        (participant,) if trial is None else (participant, trial))
@@ -100,15 +122,32 @@ def _stamp(t0_ns: int, time_s: float) -> tuple[int, dict]:
     return ns, {"sec": ns // 1_000_000_000, "nsec": ns % 1_000_000_000}
 
 
+def scene_topics(fx_channel, put, t0: int, trial: dict, cands: list) -> None:
+    """``/scene``: one ``foxglove.SceneUpdate`` at the trial's start (:mod:`.mcap_scene`):
+    walls and obstacles of the trial's map (left out when the map no longer loads: a map file
+    moved since the study), the preferred route, start and goal."""
+    try:
+        spec = cached_map(trial["map"])
+        size, obstacles = (spec.width, spec.height), [o.vertices.tolist()
+                                                      for o in spec.obstacles]
+    except (PathprefError, OSError):
+        size, obstacles = None, []
+    cid = fx_channel("/scene", mcap_scene.fx_type("SceneUpdate"))
+    put(cid, "/scene", 0.0, mcap_scene.scene_update(
+        t0, size, obstacles, json.loads(trial["route"]), json.loads(trial["start"]),
+        json.loads(trial["goal"])))
+
+
 def write_mcap(conn, participant: str, trial: dict, out: Path,
                db: str | Path = "database") -> dict[str, int]:
     """One trial (its ``trials`` row ``trial``, checked) as an MCAP file (module docstring);
     the number of messages per topic. Every row is checked as it is read (``db`` names the
     file in the error)."""
     try:
+        import foxglove.messages  # noqa: F401  (the scene, :mod:`.mcap_scene`)
         from mcap.writer import Writer
     except ImportError:
-        raise ConfigError("MCAP export needs the mcap package: pip install "
+        raise ConfigError("MCAP export needs the mcap and foxglove-sdk packages: pip install "
                           "'pathpref[export]' (or pass --no-mcap)") from None
     k = trial["trial"]
     t0 = int(datetime.fromisoformat(trial["started_utc"]).timestamp()) * 1_000_000_000
@@ -123,44 +162,85 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
             counts[topic] = 0
             return w.register_channel(topic, "json", sid)
 
-        def put(cid: int, topic: str, time_s: float, msg: dict) -> None:
+        def ros_channel(topic: str, definition: tuple[str, str]):
+            sid = w.register_schema(definition[0], "ros2msg", definition[1].encode())
+            counts[topic] = 0
+            return w.register_channel(topic, "cdr", sid), ros2_msgs.encoder(definition)
+
+        def fx_channel(topic: str, message_type) -> int:
+            name, encoding, data = mcap_scene.schema(message_type)
+            sid = w.register_schema(name, encoding, data)
+            counts[topic] = 0
+            return w.register_channel(topic, "protobuf", sid)
+
+        def put(cid: int, topic: str, time_s: float, msg, encode=None) -> None:
             ns, _ = _stamp(t0, time_s)
-            w.add_message(cid, log_time=ns, publish_time=ns,
-                          data=json.dumps(msg).encode(), sequence=counts[topic])
+            data = (msg.encode() if hasattr(msg, "encode") else
+                    json.dumps(msg).encode() if encode is None else encode(msg))
+            w.add_message(cid, log_time=ns, publish_time=ns, data=data,
+                          sequence=counts[topic])
             counts[topic] += 1
 
         applied = channel("/force/applied", WRENCH_SCHEMA)
         sensed = channel("/force/sensed", WRENCH_SCHEMA)
+        ros_applied = ros_channel("/ros/force/applied", ros2_msgs.WRENCH_STAMPED)
+        ros_sensed = ros_channel("/ros/force/sensed", ros2_msgs.WRENCH_STAMPED)
         zero = {"x": 0.0, "y": 0.0, "z": 0.0}
         for r in checked("trial_forces", _rows(conn, "trial_forces", participant, k, "k"),
                          db):
-            _, ts = _stamp(t0, r["time_s"])
-            for cid, topic, fx, fy in ((applied, "/force/applied", r["fx"], r["fy"]),
-                                       (sensed, "/force/sensed", r["sensed_fx"],
-                                        r["sensed_fy"])):
+            ns, ts = _stamp(t0, r["time_s"])
+            for cid, ros, topic, fx, fy in (
+                    (applied, ros_applied, "/force/applied", r["fx"], r["fy"]),
+                    (sensed, ros_sensed, "/force/sensed", r["sensed_fx"], r["sensed_fy"])):
+                force = {"x": fx, "y": fy, "z": 0.0}
                 put(cid, topic, r["time_s"], {"timestamp": ts, "frame_id": "world",
-                                              "force": {"x": fx, "y": fy, "z": 0.0},
-                                              "torque": zero})
+                                              "force": force, "torque": zero})
+                put(ros[0], "/ros" + topic, r["time_s"], {
+                    "header": ros2_msgs.header(ns), "wrench": {"force": force,
+                                                               "torque": zero}}, ros[1])
         for table, topic in (("trial_pushes", "/pushes"), ("trial_cues", "/cues")):
             cid = channel(topic, _row_schema(f"pathpref.{table}", table))
             for r in checked(table, _rows(conn, table, participant, k, "k"), db):
                 put(cid, topic, r["t_start"] if table == "trial_pushes" else r["time_s"], r)
+        path = ros_channel("/ros/path", ros2_msgs.POSE_STAMPED)
+        hand = None
+        for r in checked("trial_path", _rows(conn, "trial_path", participant, k, "k"), db):
+            ns, _ = _stamp(t0, r["time_s"])
+            put(path[0], "/ros/path", r["time_s"], {"header": ros2_msgs.header(ns), "pose": {
+                "position": {"x": r["x"], "y": r["y"], "z": 0.0}, "orientation": IDENTITY}},
+                path[1])
+            if r["ee_x"] is not None:
+                hand = hand or ros_channel("/ros/end_effector", ros2_msgs.POSE_STAMPED)
+                put(hand[0], "/ros/end_effector", r["time_s"], {
+                    "header": ros2_msgs.header(ns), "pose": {"position": {
+                        "x": r["ee_x"], "y": r["ee_y"], "z": r["ee_z"]},
+                        "orientation": IDENTITY}}, hand[1])
         cands = json.loads(trial["candidates"])
+        scene_topics(fx_channel, put, t0, trial, cands)
+        belief_goals = fx_channel("/scene/belief", mcap_scene.fx_type("SceneUpdate"))
         cid = channel("/belief", {"title": "pathpref.Belief", "type": "object", "properties": {
             "cause": {"type": "string"}, "p": {"type": "array", "items": {"type": "number"}},
             "candidates": {"type": "array"}}})
         for r in _rows(conn, "trial_beliefs", participant, k, "k"):
-            put(cid, "/belief", r["time_s"], {"cause": r["cause"],
-                                              "p": check_goals(r, len(cands), db),
+            p = check_goals(r, len(cands), db)
+            put(cid, "/belief", r["time_s"], {"cause": r["cause"], "p": p,
                                               "candidates": cands})
+            put(belief_goals, "/scene/belief", r["time_s"],
+                mcap_scene.belief_update(_stamp(t0, r["time_s"])[0], cands, p))
         cid = channel("/pose", POSE_SCHEMA)
+        ros_pose = ros_channel("/ros/pose", ros2_msgs.POSE_STAMPED)
+        tf = fx_channel("/tf", mcap_scene.fx_type("FrameTransform"))
         for r in checked("trial_steps", _rows(conn, "trial_steps", participant, k, "t"), db):
-            _, ts = _stamp(t0, r["time_s"])
-            put(cid, "/pose", r["time_s"], {
-                "timestamp": ts, "frame_id": "world", "pose": {
-                    "position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
+            ns, ts = _stamp(t0, r["time_s"])
+            pose = {"position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
                                  "y": (r["y"] - 0.5) * CELL_SIZE_M, "z": 0.0},
-                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}})
+                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
+            put(cid, "/pose", r["time_s"], {"timestamp": ts, "frame_id": "world",
+                                            "pose": pose})
+            put(ros_pose[0], "/ros/pose", r["time_s"], {"header": ros2_msgs.header(ns),
+                                                        "pose": pose}, ros_pose[1])
+            put(tf, "/tf", r["time_s"], mcap_scene.base_transform(
+                ns, pose["position"]["x"], pose["position"]["y"]))
         w.finish()
     return counts
 
@@ -342,7 +422,7 @@ def _export_into(c, db, participant: str, trials: list[dict], cal: list[dict],
 
     for table, order in (("trials", "trial"), ("trial_steps", "trial, t"),
                          ("trial_forces", "trial, k"), ("trial_pushes", "trial, k"),
-                         ("trial_cues", "trial, k")):
+                         ("trial_cues", "trial, k"), ("trial_path", "trial, k")):
         cols = columns(table)
         stem = "trials" if table == "trials" else table[6:]
         counts |= _write_table(folder, stem, cols, (

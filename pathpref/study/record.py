@@ -3,8 +3,10 @@
 
 Per physics step (the control rate, 2 ms) the applied force and the sensed force; a push is a
 maximal run of steps with applied force above :data:`PUSH_ON_N`; effort is the integral of
-``|F| dt`` of the applied force (N s). Per cue: time, cell, heading, magnitude; per belief
-update (start, each cue, each decision): the goal probabilities. Rows are flushed to the
+``|F| dt`` of the applied force (N s). Every
+:data:`~pathpref.experiments.trials.PATH_EVERY`-th physics step (100 Hz at 2 ms) the base's
+position and the end effector's (``trial_path``). Per cue: time, cell, heading, magnitude; per
+belief update (start, each cue, each decision): the goal probabilities. Rows are flushed to the
 database in one transaction after every decision step.
 """
 
@@ -16,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..episode import Felt
-from ..experiments.trials import TrialWriter
+from ..experiments.trials import PATH_EVERY, TrialWriter
 from ..sim.mobile_base import MobileBase
 from ..viz.rerun_log import RerunLogger
 from .session import TrialRunner
@@ -30,10 +32,13 @@ class TrialRecorder:
     ``rerun`` is the trial's ``.rrd`` path (None: no rerun file)."""
 
     def __init__(self, writer: TrialWriter, trial: int, runner: TrialRunner,
-                 rerun: Path | None = None):
+                 rerun: Path | None = None, lsl=None):
         self.writer, self.trial, self.runner = writer, trial, runner
+        self.lsl = lsl  # LslOutlets (:mod:`.lsl`) or None
         self.rows: dict[str, list[tuple]] = {t: [] for t in (
-            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs")}
+            "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs",
+            "trial_path")}
+        self.k_path = 0
         self.k_force = self.k_belief = self.k_push = self.n_cues = 0
         self.effort = 0.0
         self.push: list[float] | None = None  # [t_start, peak, impulse_x, impulse_y]
@@ -46,6 +51,8 @@ class TrialRecorder:
         runner.base.on_substep.insert(0, self._substep)  # first: the force of this step
         runner.on_cue.append(self._cue)
         runner.on_belief.append(self._belief)
+        if self.lsl:
+            self.lsl.event("trial_start", trial)
         self._belief("start")
         self._step_row()
 
@@ -56,6 +63,10 @@ class TrialRecorder:
         sensed = base.sensing.sensor.force_xy(base.data)
         self.rows["trial_forces"].append((self.k_force, t, float(f[0]), float(f[1]),
                                           float(sensed[0]), float(sensed[1])))
+        if self.lsl:
+            self.lsl.force(*self.rows["trial_forces"][-1][2:])
+        if self.k_force % PATH_EVERY == 0:
+            self._path_row(t, base)
         self.k_force += 1
         n = float(np.hypot(*f))
         self.effort += n * self.dt
@@ -70,9 +81,20 @@ class TrialRecorder:
         if self.rerun and self.k_force % RERUN_EVERY == 0:
             self.rerun.log_frame(float(base.data.time), base.position.copy())
 
+    def _path_row(self, t: float, base: MobileBase) -> None:
+        x, y = (float(v) for v in base.position[:2])
+        ee = base.end_effector
+        e = (None, None, None) if ee is None else tuple(float(v) for v in ee[:3])
+        self.rows["trial_path"].append((self.k_path, t, x, y, *e))
+        if self.lsl:
+            self.lsl.pose(x, y, e)
+        self.k_path += 1
+
     def _end_push(self, t: float) -> None:
         s, peak, jx, jy = self.push
         self.rows["trial_pushes"].append((self.k_push, s, t, peak, jx, jy))
+        if self.lsl:
+            self.lsl.event("push", self.trial, k=self.k_push, t_start=s, t_end=t, peak_n=peak)
         self.k_push += 1
         self.push = None
 
@@ -82,12 +104,18 @@ class TrialRecorder:
             self.n_cues, self.runner.time_s, int(x), int(y), int(cue.heading),
             float(cue.peak_n), float(cue.impulse[0]), float(cue.impulse[1]),
             float(cue.duration_s)))
+        if self.lsl:
+            self.lsl.event("cue", self.trial, k=self.n_cues, time_s=self.runner.time_s,
+                           heading=int(cue.heading))
         self.n_cues += 1
 
     def _belief(self, cause: str) -> None:
         p = self.runner.policy.belief.goal_marginal()
         self.rows["trial_beliefs"].append((self.k_belief, self.runner.time_s, cause,
                                            json.dumps([round(float(v), 6) for v in p])))
+        if self.lsl:
+            self.lsl.event("belief", self.trial, k=self.k_belief, cause=cause,
+                           p=[round(float(v), 6) for v in p])
         self.k_belief += 1
 
     def _step_row(self) -> None:
@@ -124,6 +152,8 @@ class TrialRecorder:
         if self.rerun:
             self.rerun.close()
         res = r.result
+        if self.lsl:
+            self.lsl.event("trial_end", self.trial, goal_reached=bool(res.goal_reached))
         return {"outcome": "success" if res.goal_reached else "timeout",
                 "success": int(res.goal_reached), "time_s": r.time_s, "steps": res.steps,
                 "pushes": self.k_push, "cues": self.n_cues, "effort_ns": self.effort,
