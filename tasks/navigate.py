@@ -72,6 +72,7 @@ from dm_env import specs
 from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
 from pathpref.episode.physics import CELL_SIZE_M
 from pathpref.episode.physics import Physics as PhysicalParameters
+from pathpref.episode.safety import contact_safe
 from pathpref.episode.spec import check_limit, check_number
 from pathpref.errors import ConfigError, EpisodeError
 from pathpref.geometry.arrangement import check_arrangement_size
@@ -385,19 +386,21 @@ class Navigate(base.Task):
 
     def episode_metrics(self, body: bool = True) -> dict[str, float | bool]:
         """The episode so far (final once the episode is over): ``success`` (goal reached
-        without a violation), ``goal_reached``, ``violations``, ``back_crossings``,
-        ``steps`` (decisions, or cell changes at control rate), ``pushes`` (the human's
-        inputs), ``cues_felt`` (cues the detector gave), ``sim_time_s``, ``p_true_goal``
-        (the belief's probability of the true goal), ``return`` (sum of rewards) and, with
-        ``body``, the body's measurements (:meth:`pathpref.sim.body.MujocoBody.metrics`:
-        with physics the cue metrics ``pushes_missed``, ``pushes_misread``, ...,
-        ``collisions``; the arm's tilt; they go over the episode's physics steps, so a
-        Gymnasium ``info`` has them at the episode's last step only)."""
+        without a violation and no unsafe contact), ``contact_safe``, ``goal_reached``,
+        ``violations``, ``back_crossings``, ``steps`` (decisions, or cell changes at control
+        rate), ``pushes`` (the human's inputs), ``cues_felt`` (cues the detector gave),
+        ``sim_time_s``, ``p_true_goal`` (the belief's probability of the true goal),
+        ``return`` (sum of rewards) and, with ``body``, the body's measurements
+        (:meth:`pathpref.sim.body.MujocoBody.metrics`: with physics the cue metrics
+        ``pushes_missed``, ``pushes_misread``, ..., ``collisions``; the arm's tilt; they go
+        over the episode's physics steps, so a Gymnasium ``info`` has them at the episode's
+        last step only)."""
         r = self.runner
         res = r.result
         out: dict[str, float | bool] = dict(self.body.metrics()) if body else {}
         out.update({
-            "success": bool(res.success), "goal_reached": bool(res.goal_reached),
+            "success": bool(res.success) and not self.contact_unsafe(),
+            "contact_safe": not self.contact_unsafe(), "goal_reached": bool(res.goal_reached),
             "violations": int(res.violations), "back_crossings": int(res.back_crossings),
             "steps": int(res.steps), "pushes": int(res.inputs),
             "cues_felt": int(len(self.base.felt)), "sim_time_s": float(self.base.data.time),
@@ -405,13 +408,25 @@ class Navigate(base.Task):
             "return": float(self.episode_return)})
         return out
 
+    def contact_unsafe(self) -> bool:
+        """Whether the base has struck an obstacle or a wall beyond the limits of
+        :mod:`pathpref.episode.safety` (measured with physical parameters only)."""
+        return not contact_safe(self.base.measurements.metrics()) if self.base.measure \
+            else False
+
     def get_reward(self, physics: Physics) -> float:
-        """The reward of the last step (:meth:`_step_reward`)."""
-        return float(self._reward)
+        """The reward of the last step (:meth:`_step_reward`); a step that ends the episode
+        with an unsafe contact (:meth:`get_termination`) also loses the goal's reward, so
+        striking an obstacle never pays (ending early would otherwise spare the move
+        costs)."""
+        penalty = self.rewards.goal if self.contact_unsafe() else 0.0
+        return float(self._reward) - penalty
 
     def get_termination(self, physics: Physics):
-        """0 (terminal) at the goal, 1 (time limit) after ``T_max`` decisions, else None."""
-        if self.runner.result.goal_reached:
+        """0 (terminal) at the goal or at an unsafe contact (:meth:`contact_unsafe`: as in
+        every report, a contact-unsafe episode is no success), 1 (time limit) after
+        ``T_max`` decisions, else None."""
+        if self.runner.result.goal_reached or self.contact_unsafe():
             return 0.0
         if self.runner.t >= self.runner.spec.t_max:
             return 1.0

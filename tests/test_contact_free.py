@@ -95,3 +95,26 @@ def test_the_contact_limits_decide_success_everywhere():
     assert failure_kind(row) == "contact"
     res.metrics = touch
     assert res.success and failure_kind(result_row(res)) is None
+
+
+def test_the_tasks_end_and_penalise_an_unsafe_contact():
+    """The dm_control task ends the episode at a contact beyond the limits, takes the goal's
+    reward off that step and reports no success; a safe touch changes nothing."""
+    from pathpref_tasks import load
+
+    env = load("navigate", delta_t=2, seed=0, t_max=6, physics={"timing": "interval"})
+    ts = env.reset()
+    task = env.task
+    ts = env.step(task.policy_action())
+    assert not ts.last() and task.episode_metrics()["contact_safe"]
+    m = task.base.measurements
+    m.collisions, m.impact_speed, m.contact_force = 1, 0.01, 10.0  # a light, slow touch
+    ts = env.step(task.policy_action())
+    assert not ts.last() or task.runner.result.goal_reached
+    m.contact_force = 80.0  # pressed with 80 N: unsafe
+    a = task.policy_action()
+    ts = env.step(a)
+    assert ts.last() and ts.discount == 0.0
+    assert ts.reward == pytest.approx(task._reward - task.rewards.goal)
+    metrics = task.episode_metrics()
+    assert metrics["success"] is False and metrics["contact_safe"] is False
