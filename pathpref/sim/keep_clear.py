@@ -9,7 +9,8 @@ footprint's radius) to it, the approach speed ``-v . n`` is capped at
 
     ``sqrt(2 a (gap - MARGIN_M))``   while ``gap >= MARGIN_M``,
 
-the speed from which braking at ``a`` stops the base ``MARGIN_M`` short of the obstacle, and
+the speed from which braking at ``a`` stops the base ``MARGIN_M`` short of the obstacle (only
+obstacles within the stopping distance ``|v|^2 / (2 a)`` plus the margin can be met), and
 at ``-BACK_PER_S (MARGIN_M - gap)`` closer in: the base backs out. A velocity servo holding a
 base against a person's steady push drifts with it (29 N against ``kv`` 3000 N s/m: 1 cm/s),
 so a cap of 0 would still let the push lean the base onto the obstacle; backing out
@@ -32,16 +33,17 @@ from .scene import Scene
 MARGIN_M = 0.02
 #: how fast the base backs out from inside the margin, per metre inside it (1/s)
 BACK_PER_S = 5.0
-#: obstacles farther than this from the base's edge are not considered (m): a base at the
-#: drive's top speed, 1 m/s, braking at 0.8 m/s^2 needs 0.63 m
-LOOK_M = 1.0
+#: beyond its stopping distance ``|v|^2 / (2 a)`` and the margin, obstacles this much farther
+#: from the base's edge are considered too (m); farther ones cannot be reached before it stops
+LOOK_M = 0.05
 
 
 def keep_clear(scene: Scene, pos: np.ndarray, v: np.ndarray, a_brake: float) -> np.ndarray:
     """``v`` (m/s, planar, modified in place and returned) with its approach to every nearby
     obstacle and wall capped (module docstring); ``pos`` the base's centre (m)."""
     cell, radius = scene.cell_size, scene.world.footprint.radius * scene.cell_size
-    near = scene.clearance.near(np.asarray(pos, float) / cell, (radius + LOOK_M) / cell)
+    reach = (v[0] * v[0] + v[1] * v[1]) / (2.0 * a_brake) + MARGIN_M + LOOK_M
+    near = scene.clearance.near(np.asarray(pos, float) / cell, (radius + reach) / cell)
     for _ in range(2):
         for d, n in near:
             gap = d * cell - radius
