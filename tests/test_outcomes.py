@@ -23,11 +23,16 @@ from pathpref.experiments.outcomes import (
 from pathpref.experiments.report import load_records, markdown_tables
 from pathpref.experiments.store import ResultStore, row_spec
 
+#: a contact pressed at 30 N (over the 20 N limit of pathpref/episode/safety.py)
+HIT = '{"collisions": 1.0, "contact_impact_speed": 0.01, "contact_peak_force_n": 30.0}'
 
-def _row(status="ok", goal=1, violations=0, homotopy=1, slack=25):
+
+def _row(status="ok", goal=1, violations=0, homotopy=1, slack=25, metrics="{}"):
+    safe = metrics == "{}"
     return {"status": status, "goal_reached": goal, "violations": violations,
             "pref_followed": int(violations == 0), "homotopy_success": homotopy,
-            "success": int(status == "ok" and goal and violations == 0), "slack": slack}
+            "success": int(status == "ok" and goal and violations == 0 and safe),
+            "slack": slack, "metrics": metrics}
 
 
 def test_every_failure_falls_in_one_kind_decided_in_order():
@@ -36,6 +41,9 @@ def test_every_failure_falls_in_one_kind_decided_in_order():
         (_row(homotopy=0), None),  # strict success though the class differs: not a failure
         (_row(status="failed", goal=0, homotopy=0), "not_run"),
         (_row(status="failed", goal=1, violations=3, homotopy=0), "not_run"),
+        (_row(metrics=HIT), "contact"),  # reached in order, but struck an obstacle
+        (_row(goal=0, violations=2, homotopy=0, metrics=HIT), "contact"),
+        (_row(status="failed", goal=0, metrics=HIT), "not_run"),
         (_row(goal=0, violations=2, homotopy=0), "time_out"),
         (_row(goal=0, violations=0, homotopy=None), "time_out"),
         (_row(goal=1, violations=1, homotopy=0), "wrong_side"),
@@ -46,9 +54,9 @@ def test_every_failure_falls_in_one_kind_decided_in_order():
         assert failure_kind(row) == kind, row
     rows = [r for r, _ in cases]
     split = failure_split(rows)
-    assert split == {"not_run": 2, "time_out": 2, "wrong_side": 1, "out_of_order": 1,
-                     "unclassified": 1}
-    assert sum(split.values()) == sum(not r["success"] for r in rows) == 7
+    assert split == {"not_run": 3, "contact": 2, "time_out": 2, "wrong_side": 1,
+                     "out_of_order": 1, "unclassified": 1}
+    assert sum(split.values()) == sum(not r["success"] for r in rows) == 10
     assert failure_split(rows, exclude_failed=True)["not_run"] == 0
     assert tuple(split) == FAILURE_KINDS
 
