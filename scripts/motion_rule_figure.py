@@ -2,8 +2,10 @@
 
 Left: the paper's rule (a move that crosses two lines at once is blocked) makes a straight move
 between two free cells impossible. Right: pathpref's rule: the straight move crosses both lines
-at once and records a *move edge* between the polytope it left and the one it entered.
-Run: ``python scripts/motion_rule_figure.py docs/motion_rule.png``.
+at once and records a *move edge* between the polytope it left and the one it entered. Drawn
+for a point robot (``POINT_ROBOT``: the corner rule alone); the default robot's footprint
+removes this move, which passes within its reach of the table (docs/motion_rule.md, "The
+robot's footprint"). Run: ``python scripts/motion_rule_figure.py docs/motion_rule.png``.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.patches import Polygon  # noqa: E402
 
+from pathpref.geometry.footprint import POINT_ROBOT  # noqa: E402
 from pathpref.geometry.generate import rotated_rectangle  # noqa: E402
 from pathpref.geometry.polygon import h_polygon  # noqa: E402
 from pathpref.geometry.world import load_world  # noqa: E402
@@ -26,7 +29,7 @@ from pathpref.viz.mapdraw import draw_map  # noqa: E402
 def main(out: str) -> None:
     box = rotated_rectangle(np.array([3.75, 2.08]), np.array([2.2, 1.0]), 1.107)
     world = load_world({"name": "one rotated table", "width": 7, "height": 6,
-                        "obstacles": [{"vertices": box.tolist()}]})
+                        "obstacles": [{"vertices": box.tolist()}]}, footprint=POINT_ROBOT)
     arr, m = world.arrangement, world.motion
     e = int(np.flatnonzero(world.graph.edge_hyperplane < 0)[0])  # the one move edge
     i, a = (int(x[0]) for x in np.nonzero(m.crossed_edge == e))
