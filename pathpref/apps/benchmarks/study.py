@@ -42,6 +42,7 @@ def _client(url: str, origin: str, n: int, out: dict) -> None:
                     break
             if status == "waiting":
                 ws.send('{"type": "start"}')
+        time.sleep(GAP_S)  # as a person would: look before the first push
         for k in range(n):
             dx, dy = DIRECTIONS[k % len(DIRECTIONS)]
             push = json.dumps({"type": "push", "fx": PUSH_N * dx, "fy": PUSH_N * dy})
@@ -80,7 +81,7 @@ def bench_study(quick: bool = False) -> dict[str, Any]:
     study = parse_study({"trials": [{
         "name": "bench", "map": "simple", "start": [5, 2], "goal": [5, 9],
         "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [2, 2], [2, 9], [5, 9]],
-        "time_limit_s": 2 + n * (PUSH_S + GAP_S + 0.5), "queries": 300}]})
+        "time_limit_s": 4 + n * (PUSH_S + GAP_S + 1.0), "queries": 300}]})
     front = BrowserFrontEnd(port=0)
     out: dict = {}
     client = threading.Thread(target=_client, args=(
