@@ -53,3 +53,14 @@ def load(group: str, name: str) -> Any | None:
         raise ConfigError(f"entry point {name!r} of group {group} ({ep.value}) failed to "
                           f"load: {type(e).__name__}: {text}; fix or uninstall the package "
                           "that declares it") from None
+
+
+def load_callable(group: str, name: str, what: str) -> Any | None:
+    """:func:`load`, checked: the object must be callable (``what`` names what it must be,
+    for the one-line ConfigError, e.g. "a method (a class or function taking a
+    PolicyContext)"); None when no package declares ``name``."""
+    found = load(group, name)
+    if found is not None and not callable(found):
+        raise ConfigError(f"entry point {name!r} of group {group} must name {what}, got "
+                          f"{found!r}")
+    return found

@@ -84,12 +84,10 @@ def known_prior(name: object) -> bool:
         return False
     if name in PRIORS:
         return True
-    found = plugins.load(plugins.PRIORS, name)
+    found = plugins.load_callable(plugins.PRIORS, name,
+                                  "a prior (a class or function taking PriorInputs)")
     if found is None:
         return False
-    if not callable(found):
-        raise ConfigError(f"entry point {name!r} of group {plugins.PRIORS} must name a prior "
-                          f"(a class or function taking PriorInputs), got {found!r}")
     register_prior(name, found)
     return True
 

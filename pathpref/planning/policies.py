@@ -301,12 +301,11 @@ def _known(name: str) -> bool:
     in the entry-point group ``pathpref.methods`` (loaded and registered then)."""
     if name in METHODS:
         return True
-    found = plugins.load(plugins.METHODS, name) if isinstance(name, str) else None
+    found = plugins.load_callable(
+        plugins.METHODS, name, "a method (a class or function taking a PolicyContext)"
+    ) if isinstance(name, str) else None
     if found is None:
         return False
-    if not callable(found):
-        raise ConfigError(f"entry point {name!r} of group {plugins.METHODS} must name a method "
-                          f"(a class or function taking a PolicyContext), got {found!r}")
     register_method(name, found)
     return True
 
