@@ -82,7 +82,7 @@ from pathpref.geometry.world import World
 from pathpref.planning.pomdp import DEFAULT_PRESET, get_preset, transition_reward
 from pathpref.sim.body import base_params, build_base, scene_for
 from pathpref.sim.controller import TrackingController
-from pathpref.sim.decision import HOLD, MOVE, PUSH, RELEASE_WINDOW_S
+from pathpref.sim.decision import HOLD, MOVE, PUSH, RELEASE_WINDOW_S, move_limit
 from pathpref.sim.force_cue import HumanPush, PushProfile
 from pathpref.sim.mobile_base import MobileBase
 from pathpref.sim.scene import Scene
@@ -217,7 +217,7 @@ class Navigate(base.Task):
         step leaves after the push window."""
         limit = MOVE_LIMIT_S if self.physics is None else \
             self.physics.move_limit_s(CELL_SIZE)
-        return min(limit, self.decision_s - self.push_window_s - 2 * self.dt)
+        return move_limit(limit, self.decision_s, self.push_window_s, self.dt)
 
     def physical_decision_s(self) -> float:
         """The default step with physics: the one rule every door uses,
@@ -297,7 +297,10 @@ class Navigate(base.Task):
         self._action, self._heading = self.runner.start_step(STAY if a == STAY_ACTION else a)
         cell = self.body.cell
         target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])
-        self.base.decision.move(target, self.move_limit_s)
+        guided = self.physics is not None and self.physics.human.timing == "guidance"
+        # a guided step is one timed move of the whole step in every door (.decision)
+        self.base.decision.move(target, self.move_limit_s,
+                                steps=self.n_sub_steps if guided else None)
         self._reward = 0.0
         self.interaction.start()
         if self.body.human is not None:  # the corrective human watches the move begin

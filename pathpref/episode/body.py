@@ -101,6 +101,12 @@ class Body(ABC):
         """How many inputs the human has given (bodies that took the human over)."""
         return 0
 
+    def path_crossings(self) -> list[tuple[int, int, bool]] | None:
+        """The polytope crossings ``(v, w, person_led)`` along the robot's continuous path
+        since the last call, for a body whose path a person leads (guidance); None (the
+        default): a step is judged by its start and end cells."""
+        return None
+
 
 class GridBody(Body):
     """The grid world (SPEC 3): headings are observed exactly, moves follow the grid motion."""

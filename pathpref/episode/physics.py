@@ -25,9 +25,10 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   moment of motion; ``rate``: a Poisson process of mean interval ``interval_s``; ``corrective``:
   after a reaction time, when the robot starts a move the human finds wrong, with probability
   ``p_correct``, or a right one, with ``p_needless``; ``guidance``: Bajcsy et al.'s sustained
-  corrections, at the ``interval`` times the human holds the handle for a log-normal time of
-  median ``hold_s`` while the base drives, the base complies and the belief is updated online
-  from the force's direction, below); ``interval_s`` 0 means ``delta_t``
+  corrections, at the ``interval`` times the human holds the handle (at most a log-normal
+  time of median ``hold_s``) while the base drives, the base complies and the belief is
+  updated online from the deformation, below; ``guide``: the guiding person, ``closed`` or
+  ``open``); ``interval_s`` 0 means ``delta_t``
   decision steps of :meth:`Physics.step_s` seconds (the one rule); push strength log-normal with
   median ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n,
   peak_max_n]``; duration log-normal with median ``duration_s`` and spread ``duration_spread``,
@@ -48,13 +49,18 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   ``admittance_m`` (kg): the guided base's admittance ``M dv/dt + b v = F_hat``, ``v`` added to
   its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017).
 
-**Guidance** (``timing = guidance``): every ``GUIDANCE_PERIOD_S`` of a push under way the
-robot updates its belief with the direction ``theta`` of the force felt over that period, by
-the continuous likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h, kappa)``
-(``kappa = DIRECTION_KAPPA``) to the power ``period / GUIDANCE_EVIDENCE_S`` (a push held for
-the default median 2 s is one observation, delivered while it lasts; a longer one is more, up
-to ``GUIDANCE_MAX_EVIDENCE``: the robot's model, whatever the simulated human's ``hold_s``);
-the cue's heading is the next decision's input, as for a tap.
+**Guidance** (``timing = guidance``): the person takes the handle on the ``interval`` clock
+and the base complies (:mod:`pathpref.sim.guidance`); the person is closed-loop by default
+(``guide = closed``: pushes toward their route, harder the further the base is off it, lets go
+when it heads the right way, :mod:`pathpref.sim.guiding_human`) or holds one drawn heading
+(``open``). Every ``GUIDANCE_PERIOD_S`` of a push under way the robot updates its belief with
+the direction ``theta`` of the *deformation* (where the push took the plan over that period),
+by the continuous likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h,
+kappa)`` (``kappa = DIRECTION_KAPPA``) to the power ``|D| / 0.5 m`` (a push that moves the plan
+one cell is one observation, at most ``GUIDANCE_MAX_EVIDENCE`` per push). A guided decision step
+lasts exactly :meth:`Physics.step_s` in every door: the move ends when the base settles or
+when a push ends (the base then holds the cell it is in), and the next decision, with the
+updated belief and the push's heading as its input, comes at the step's end.
   The drive must deliver what the controller plans: ``a_max <= (force_limit_n - friction_n) /
   mass_kg`` and ``v_max`` within the velocity servos' range (``DRIVE_V_MAX``); other
   combinations are refused with one line.
@@ -73,6 +79,10 @@ SENSORS = ("ideal", "ft300s", "realistic")
 TIMINGS = ("decision", "interval", "rate", "corrective", "guidance")
 SHAPES = ("half_sine", "bell")
 BASES = ("holonomic", "diffdrive")
+#: the simulated person under ``guidance`` timing: ``closed``, who pushes toward their route
+#: and lets go when the robot heads the right way (:mod:`pathpref.sim.guiding_human`), or
+#: ``open``, who holds one drawn heading for the whole push
+GUIDES = ("closed", "open")
 
 #: allowed range of each number: name -> (lowest, highest); the CLI flag is ``--`` + the name
 #: with dashes
@@ -94,7 +104,7 @@ RANGES: dict[str, tuple[float, float]] = {
 #: the overrides that may be left at "the preset's" (stored as -1)
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
 CHOICES: dict[str, tuple[str, ...]] = {"sensor": SENSORS, "timing": TIMINGS, "shape": SHAPES,
-                                       "base": BASES}
+                                       "base": BASES, "guide": GUIDES}
 
 
 #: the error of a physics value nested too deeply to read (its fields are flat)
@@ -117,13 +127,23 @@ DRIVE_V_MAX = 1.5
 #: fields added after rows were stored: left out of the canonical JSON at their default, so
 #: the keys of stored episodes are unchanged
 QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0,
-                  "arm_stiffness": 1000.0, "sensor_thermal_n": 0.0}
+                  "arm_stiffness": 1000.0, "sensor_thermal_n": 0.0, "guide": "closed"}
+#: quiet fields written whatever their value under a timing (a guided episode names its
+#: person, so rows of the earlier open-loop person never share a key with it)
+NAMED_UNDER = {"guide": "guidance"}
+
+
+def _canonical(flat: dict) -> str:
+    """Canonical JSON of flat fields: sorted keys, the fields of ``QUIET_DEFAULTS`` only when
+    not at their default (or under their :data:`NAMED_UNDER` timing)."""
+    timing = flat.get("timing")
+    d = {k: v for k, v in flat.items() if k not in QUIET_DEFAULTS or
+         v != QUIET_DEFAULTS[k] or NAMED_UNDER.get(k) == timing}
+    return json.dumps(d, sort_keys=True, separators=(",", ":"))
 #: the robot's model of how far a push's direction strays from the heading the human chose:
 #: von Mises concentration ``1 / sigma^2`` for the human model's default 10 degrees
 #: (:meth:`~pathpref.inference.belief.Belief.update_direction`)
 DIRECTION_KAPPA = 1.0 / math.radians(10.0) ** 2
-#: how long a sustained push is held to count as one observation (s; the robot's model)
-GUIDANCE_EVIDENCE_S = QUIET_DEFAULTS["hold_s"]
 #: the most evidence one sustained push gives (in observations), however long it lasts
 GUIDANCE_MAX_EVIDENCE = 2.0
 #: how often a sustained push's direction updates the belief while it lasts (s)
@@ -223,6 +243,8 @@ class HumanModel:
     strength_confidence: float = 0.0
     #: ``guidance`` timing: the median of how long the human holds the handle (s)
     hold_s: float = QUIET_DEFAULTS["hold_s"]
+    #: ``guidance`` timing: the person (:data:`GUIDES`)
+    guide: str = QUIET_DEFAULTS["guide"]
 
     def __post_init__(self) -> None:
         _check(self)
@@ -231,8 +253,12 @@ class HumanModel:
                               f"({self.peak_max_n:g} N), got {self.peak_min_n:g}")
 
     def to_json(self) -> str:
-        """Canonical JSON (sorted keys)."""
-        return json.dumps(asdict(self), sort_keys=True, separators=(",", ":"))
+        """Canonical JSON (sorted keys; ``guide`` only under ``guidance`` timing or when not
+        its default)."""
+        d = asdict(self)
+        if d["guide"] == QUIET_DEFAULTS["guide"] and d["timing"] != "guidance":
+            del d["guide"]
+        return json.dumps(d, sort_keys=True, separators=(",", ":"))
 
     def stored(self) -> str:
         """A grid episode's ``physics``: ``""`` for the default human (grid keys unchanged),
@@ -339,9 +365,7 @@ class Physics:
     def to_json(self) -> str:
         """Canonical flat JSON (sorted keys; the fields of ``QUIET_DEFAULTS`` only when not at
         their default): the spec's ``physics`` string and key part."""
-        d = {k: v for k, v in self.flat().items()
-             if k not in QUIET_DEFAULTS or v != QUIET_DEFAULTS[k]}
-        return json.dumps(d, sort_keys=True, separators=(",", ":"))
+        return _canonical(self.flat())
 
     @staticmethod
     def parse(text: str) -> dict:

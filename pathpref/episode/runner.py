@@ -134,6 +134,8 @@ class EpisodeRunner:
         #: the last step's move (cell before, action, cell after; None before step 1)
         self.last_move: tuple[int, int, int] | None = None
         self.last_crossing: tuple[int, int] | None = None
+        #: crossings a person led (bodies judged along their path, :meth:`_cross`)
+        self.path_metrics = {"person_crossings": 0.0, "person_violations": 0.0}
         self.t = 0
         self.pending_heading: int | None = None
         self.started = False
@@ -262,6 +264,8 @@ class EpisodeRunner:
         self.result.wall_s = time.perf_counter() - self.t0
         if self.done:
             self.result.metrics = self.body.metrics()
+            if self.body.path_crossings() is not None:
+                self.result.metrics.update(self.path_metrics)
         return self.result.log[-1]
 
     def step(self, action: int | None = None) -> StepLog:
@@ -279,7 +283,12 @@ class EpisodeRunner:
         before = self.cell
         self.cell = cell
         self.last_move = (before, int(action), cell)
-        self._score(before, cell)
+        path = self.body.path_crossings()
+        if path is None:
+            self._score(before, cell)
+        else:  # judged along the path: the person's crossings beside the robot's own
+            for v, w, person in path:
+                self._cross(v, w, person)
         self.t += 1
         self.result.steps = self.t
         self._arrive(cell)
@@ -304,14 +313,25 @@ class EpisodeRunner:
         return route_homotopic(self.world, self.pref, self.instance.start, goal, path)
 
     def _score(self, before: int, after: int) -> None:
-        """The success rule on the move ``before -> after``: leaving ``v`` toward anything but
-        ``p_v`` (when ``p_v != -1``) is a violation; crossing straight back through the face
-        just crossed is a back-crossing. The policy is told of every polytope change."""
+        """The success rule on the move ``before -> after`` (:meth:`_cross`)."""
         v, w = int(self.world.cell_polytope[before]), int(self.world.cell_polytope[after])
-        if v == w:
-            return
+        if v != w:
+            self._cross(v, w, False)
+
+    def _cross(self, v: int, w: int, person: bool) -> None:
+        """The success rule on a crossing from polytope ``v`` into ``w``: leaving ``v``
+        toward anything but ``p_v`` (when ``p_v != -1``) is a violation, the robot's own
+        unless a person led the robot across (``person``: counted in the metrics
+        ``person_violations`` of ``person_crossings``, not in ``violations``); crossing
+        straight back through the face just crossed is a back-crossing. The policy is told of
+        every polytope change."""
+        if person:
+            self.path_metrics["person_crossings"] += 1.0
         if self.pref[v] >= 0 and self.pref[v] != w:
-            self.result.violations += 1
+            if person:
+                self.path_metrics["person_violations"] += 1.0
+            else:
+                self.result.violations += 1
         if self.last_crossing == (w, v):
             self.result.back_crossings += 1
         self.last_crossing = (v, w)

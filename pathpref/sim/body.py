@@ -33,10 +33,12 @@ from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
 from .controller import ProfiledController, TrackingController
-from .decision import RELEASE_WINDOW_S
+from .decision import RELEASE_WINDOW_S, move_limit, timed_steps
 from .diffdrive import DiffDriveBase
 from .force_cue import HumanPush, PushProfile
+from .guiding_human import GuidingHuman
 from .mobile_base import MobileBase
+from .path_crossings import PathCrossings
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, Scene, build_scene
 
@@ -77,6 +79,8 @@ class MujocoBody(Body):
         self.base: MobileBase = base
         self.profile = self.base.profile
         self.human: PushingHuman | None = None
+        #: the crossings along the path (guidance; None: a step is judged by its end cells)
+        self.path: PathCrossings | None = None
         #: decision-timing pushes: (intended heading, detected heading or -1, latency s)
         self.readings: list[tuple[int, int, float]] = []
 
@@ -84,6 +88,13 @@ class MujocoBody(Body):
         """Reset the physics with the base at the centre of ``cell``."""
         self.base.reset(cell)
         self.cell = cell
+        if self.path is not None:
+            self.path.reset(cell)
+
+    def path_crossings(self) -> list[tuple[int, int, bool]] | None:
+        """Guidance: the polytope crossings along the path since the last call, labelled
+        person-led or not (:mod:`.path_crossings`); else None."""
+        return None if self.path is None else self.path.take()
 
     def attach_human(self, heading_at, probs) -> bool:
         """Take the human over when the physics' timing is not ``decision`` (pushes at any
@@ -91,13 +102,17 @@ class MujocoBody(Body):
         self.probs = probs
         if self.physics is None or self.physics.human.timing == "decision":
             return False
-        drive = self.physics.drive
-        if self.physics.human.timing == "guidance":
+        drive, human = self.physics.drive, self.physics.human
+        person = PushingHuman
+        if human.timing == "guidance":
             self.base.enable_guidance(drive.admittance_m, drive.admittance_b)
+            person = GuidingHuman if human.guide == "closed" else PushingHuman
+            self.path = PathCrossings(self.base, self.world)
+            self.base.on_substep.append(self.path)
         else:
             self.base.enable_pushes_any_time(drive.admittance_b)
-        self.human = PushingHuman(self.physics.human, self.rng.spawn(1)[0], self.delta_t,
-                                  heading_at, probs, self.physics.step_s(self.scene.cell_size))
+        self.human = person(human, self.rng.spawn(1)[0], self.delta_t, heading_at, probs,
+                            self.physics.step_s(self.scene.cell_size))
         self.human.attach(self.base)
         return True
 
@@ -204,11 +219,22 @@ class MujocoBody(Body):
         self.cell = self.base.cell
         self.human.robot_moves(self.cell, None if target == self.cell else action)
         step = self.physics.step_s(self.scene.cell_size)
+        if self.physics.human.timing == "guidance":  # the one guided step of every door
+            self.base.decision.move(target, _guided_limit(self.physics, self.scene.cell_size,
+                                                          step, self.base.dt),
+                                    steps=timed_steps(step, self.base.dt)).run()
+            self.cell = self.base.cell
+            return self.cell
         if target == self.cell:
             self.cell = self.base.hold(step)
         else:
             self.cell = self.base.move_to(target, min_s=step)
         return self.cell
+
+
+def _guided_limit(physics: Physics, cell_size: float, step_s: float, dt: float) -> float:
+    """The drive's limit within a guided step of ``step_s`` (:func:`.decision.move_limit`)."""
+    return move_limit(physics.move_limit_s(cell_size), step_s, physics.push_window_s(), dt)
 
 
 def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.Generator,

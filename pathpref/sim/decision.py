@@ -13,7 +13,9 @@ A decision step is a sequence of phases, each started by one call and advanced b
 * **move** (:meth:`DecisionStep.move`): the base drives to a cell centre. It ends when the base
   has settled on it (after at least ``min_s``) and is not yielding to a push, when
   ``max(limit_s, min_s)`` has passed, or, with ``base.stop_on_cue`` (pushes at any time), at a
-  cue: the base then holds the cell it is in.
+  cue: the base then holds the cell it is in. A *timed* move (``steps``, guidance: every door
+  runs a guided decision step for exactly that many physics steps, :func:`timed_steps`) holds
+  the cell it ended in, a person's pushes still deforming the hold, until its last step.
 * **hold** (:meth:`DecisionStep.hold`): the base stands at its cell's centre for ``seconds``
   (forever by default: until the caller starts another phase); with ``base.stop_on_cue`` (or
   ``until_cue``) a cue ends it.
@@ -35,6 +37,19 @@ from ..episode.physics import RELEASE_WINDOW_S
 MOVE, PUSH, HOLD = "move", "push", "hold"
 
 
+def timed_steps(step_s: float, dt: float) -> int:
+    """The physics steps of a decision step of ``step_s`` seconds at the timestep ``dt``
+    (the count dm_control's Environment takes for a control timestep, ``round(step_s /
+    dt)``): a timed move (guidance) lasts exactly this many in every door."""
+    return max(1, int(round(step_s / dt)))
+
+
+def move_limit(limit_s: float, step_s: float, push_window_s: float, dt: float) -> float:
+    """The longest move of a decision step of ``step_s`` seconds: the drive's ``limit_s``,
+    within what the step leaves after the push window (and two physics steps)."""
+    return min(limit_s, step_s - push_window_s - 2 * dt)
+
+
 class DecisionStep:
     """The phases of a decision step on ``base`` (a :class:`~.mobile_base.MobileBase`; module
     docstring). ``phase`` is the phase under way (None: none)."""
@@ -49,6 +64,10 @@ class DecisionStep:
         self._push = None
         self._t0 = self._t_end = self._min_s = 0.0
         self._until_cue = False
+        #: a timed move's physics steps (None: the move ends when it ends) and count so far
+        self._steps: int | None = None
+        self._n = 0
+        self._driving = False
         #: the move's target while the base first returns to a clear waypoint (None: none)
         self.final: np.ndarray | None = None
 
@@ -62,12 +81,14 @@ class DecisionStep:
         self._t_end = push.t0 + push.profile.duration_s + RELEASE_WINDOW_S
         return self
 
-    def move(self, cell: int, limit_s: float, min_s: float = 0.0) -> DecisionStep:
+    def move(self, cell: int, limit_s: float, min_s: float = 0.0,
+             steps: int | None = None) -> DecisionStep:
         """Start the move phase toward the centre of ``cell``. A base that a person moved off
         its cells' centres (guidance, a yield) may stand where the straight way to that
         centre is not clear of obstacles (the footprint rule, :meth:`.scene.Scene.clear`):
         it then drives first to the centre of the cell it stands in (a clear waypoint: the
-        grid's moves start there) and on to the target from there (:attr:`final`)."""
+        grid's moves start there) and on to the target from there (:attr:`final`).
+        ``steps``: a timed move of exactly that many physics steps (module docstring)."""
         b = self.base
         target = b.scene.cell_centre(cell)
         pos = b.data.qpos[b.xy]
@@ -81,6 +102,7 @@ class DecisionStep:
         self._t0 = float(b.data.time)
         self._min_s = float(min_s)
         self._t_end = self._t0 + max(float(limit_s), self._min_s)
+        self._steps, self._n, self._driving = steps, 0, True
         self.phase = MOVE
         return self
 
@@ -119,7 +141,24 @@ class DecisionStep:
 
     def _move_ended(self, cue) -> bool:
         """The move's end check after a physics step that gave ``cue`` (module docstring);
-        True (and no phase under way) when the move ended."""
+        True (and no phase under way) when the move ended; a timed move holds the cell the
+        drive ended in until its last physics step."""
+        if self._steps is None:
+            return self._drive_ended(cue)
+        self._n += 1
+        if self._driving and self._drive_ended(cue):
+            self._driving, self.phase = False, MOVE
+            b = self.base
+            if cue is None:  # settled or out of time: hold here (a cue already set it)
+                b.target = b.scene.cell_centre(b.cell)
+        if self._n < self._steps:
+            return False
+        self.phase, self._steps = None, None
+        return True
+
+    def _drive_ended(self, cue) -> bool:
+        """The drive's end check (module docstring): True (and no phase under way) when the
+        base has settled, the time is out or a cue stopped it."""
         b = self.base
         t = b.data.time
         if cue is not None and b.stop_on_cue:
@@ -143,7 +182,8 @@ class DecisionStep:
         applies (the same numbers), the others through :meth:`advance`."""
         coaster = self.base.coaster
         while True:
-            if coaster is not None and self.phase == MOVE and coaster.ready():
+            if coaster is not None and self.phase == MOVE and self._steps is None and \
+                    coaster.ready():
                 if coaster.move(self):
                     return self
             elif self.advance():

@@ -1,13 +1,20 @@
-"""Guidance (Bajcsy et al. 2017): a push deforms the base's motion while it lasts.
+"""Guidance (Bajcsy et al. 2017): a push deforms the base's motion while it lasts, and the
+deformation is the evidence.
 
 The admittance velocity ``v`` of ``M dv/dt + b v = F_hat`` moves the base's target
 (``dp_target/dt = v``: the base keeps the deformation, it does not spring back) and is added
 to the tracking command as its feedforward; ``v`` decays (time constant ``M / b``) once the
-push is released. Every ``GUIDANCE_PERIOD_S`` of a cue under way a *partial*
-:class:`~pathpref.episode.body.Felt` carries the direction of the force felt over that period
-and its share of one observation (``period / GUIDANCE_EVIDENCE_S``, at most
-``GUIDANCE_MAX_EVIDENCE`` per cue); the cue's final record carries the rest
-(:mod:`pathpref.episode.physics`, "Guidance").
+push is released.
+
+**The deformation as evidence.** The target's displacement by the admittance, ``D = sum dt v``
+over the steps where it moved, is where the push took the plan relative to where the plan was
+going (the plan's own target does not move during a step). Every ``GUIDANCE_PERIOD_S`` of a cue
+under way a *partial* :class:`~pathpref.episode.body.Felt` carries the direction ``theta`` of
+the period's ``D`` (from the cue's first step) and its weight ``|D| / DEFORMATION_EVIDENCE_M`` (a push that moves the plan
+one cell, 0.5 m, is one observation; at most ``GUIDANCE_MAX_EVIDENCE`` per cue); the cue's final
+record carries the rest. The belief takes it with the likelihood ``P(theta | s, g, p) = sum_h
+P(h | s, g, p) VM(theta; mu_h, kappa)`` to that power (:mod:`pathpref.episode.physics`,
+"Guidance"). A push the base cannot follow (into a wall) moves nothing and tells nothing.
 """
 
 from __future__ import annotations
@@ -17,8 +24,11 @@ import math
 import numpy as np
 
 from ..episode.body import Felt
-from ..episode.physics import GUIDANCE_EVIDENCE_S, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
+from ..episode.physics import CELL_SIZE_M, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..geometry.grid import heading_to_action
+
+#: the deformation worth one observation (m): one cell
+DEFORMATION_EVIDENCE_M = CELL_SIZE_M
 
 
 class Guidance:
@@ -30,12 +40,14 @@ class Guidance:
         self.v = np.zeros(2)
         self.evidence = np.zeros(2)  # the impulse since the last evidence record (N s)
         self.evidence_s = 0.0  # its duration (s)
+        self.deformation = np.zeros(2)  # the target's displacement since the last record (m)
         self.given = 0.0  # the evidence the cue under way has given (observations)
 
     def reset(self) -> None:
         """A standing base: no admittance velocity, no evidence."""
         self.v[:] = 0.0
         self.evidence[:], self.evidence_s, self.given = 0.0, 0.0, 0.0
+        self.deformation[:] = 0.0
 
     def admit(self, base) -> None:
         """One step of ``v += dt (F_hat - b v) / M`` (explicit Euler; stable for
@@ -59,24 +71,31 @@ class Guidance:
         moved = base.target + dt * v
         if fits(moved):
             base.target = moved
+            self.deformation += dt * v
         else:
             v[:] = 0.0
 
     def feel(self, force: np.ndarray, dt: float) -> bool:
-        """Add one step's force to the evidence; whether a period is full."""
+        """Add one step's force to the evidence; whether a period is full. A cue's first
+        step starts its deformation afresh (the tail of an earlier push's deformation, once
+        the detector let it go, is not this cue's evidence)."""
+        if self.evidence_s == 0.0 and self.given == 0.0:
+            self.deformation[:] = 0.0
         self.evidence += force * dt
         self.evidence_s += dt
         return self.evidence_s >= GUIDANCE_PERIOD_S - 1e-9
 
     def take(self) -> tuple[float, float]:
-        """The direction of the force felt since the last evidence record and its weight
+        """The direction of the deformation since the last evidence record and its weight
         (module docstring); starts the next period (a cue's total is capped)."""
-        e = self.evidence
-        weight = min(self.evidence_s / GUIDANCE_EVIDENCE_S, GUIDANCE_MAX_EVIDENCE - self.given)
-        angle = math.atan2(float(e[1]), float(e[0]))
-        self.given += max(weight, 0.0)
+        d = self.deformation
+        size = math.hypot(float(d[0]), float(d[1]))
+        weight = max(0.0, min(size / DEFORMATION_EVIDENCE_M, GUIDANCE_MAX_EVIDENCE - self.given))
+        angle = math.atan2(float(d[1]), float(d[0]))
+        self.given += weight
         self.evidence[:], self.evidence_s = 0.0, 0.0
-        return angle, max(weight, 0.0)
+        self.deformation[:] = 0.0
+        return angle, weight
 
     def partial(self, cell: int, t0: float, t: float) -> Felt:
         """A partial record of the cue under way at ``cell`` (felt since ``t0``, now ``t``):

@@ -154,11 +154,12 @@ class MobileBase:
     def enable_guidance(self, mass: float, damping: float) -> None:
         """Guidance (module docstring): pushes at any time, the splitting detector, the
         admittance ``M dv/dt + b v = F_hat`` (``mass`` kg, ``damping`` N s/m) added to the
-        tracking command, the belief updated while a push lasts; moves are not stopped by a
-        cue (the push deforms them)."""
+        tracking command, the belief updated while a push lasts; a push's end stops the
+        move (the planner revises the plan at the step's end, :mod:`.decision`)."""
         self.sensing.split_pushes()
         self.guidance = Guidance(mass, damping)
         self.any_time = True
+        self.stop_on_cue = True
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:

@@ -1,0 +1,270 @@
+"""Guidance the way Bajcsy et al.'s participants corrected a robot: the closed-loop person, the
+deformation as evidence, the one timed step of every door, crossings along the path."""
+
+from __future__ import annotations
+
+import math
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+import pathpref.sim  # noqa: E402,F401
+from pathpref.episode import EpisodeSpec, Physics  # noqa: E402
+from pathpref.episode.body import GridBody  # noqa: E402
+from pathpref.episode.cache import cached_world  # noqa: E402
+from pathpref.episode.physics import HumanModel  # noqa: E402
+from pathpref.episode.runner import EpisodeRunner  # noqa: E402
+from pathpref.sim.body import scene_for  # noqa: E402
+from pathpref.sim.guidance import DEFORMATION_EVIDENCE_M  # noqa: E402
+from pathpref.sim.guiding_human import GUIDE_SPEED, HOLD_SHARE, GuidingHuman  # noqa: E402
+from pathpref.sim.mobile_base import MobileBase  # noqa: E402
+from pathpref.sim.path_crossings import PathCrossings  # noqa: E402
+
+EAST, NORTH = 2, 0  # ACTION_ANGLES: N, NE, E, SE, S, SW, W, NW
+
+
+def _guided_base(cell_xy=(2, 2), mass=20.0, damping=80.0):
+    world = cached_world("simple")
+    base = MobileBase(scene_for(world))
+    base.enable_guidance(mass, damping)
+    base.reset(world.cell(cell_xy))
+    return world, base
+
+
+def _person(base, heading: int, **human):
+    """A closed-loop person whose route always wants ``heading``, no noise, grasping 0.1 s
+    after attaching, once (a long interval)."""
+    probs = np.full(8, 0.01)
+    probs[heading] = 0.93
+    model = HumanModel(**{**dict(timing="guidance", reaction_s=0.1, interval_s=600.0,
+                                 jitter=0.0, noise_deg=0.0, peak_spread=1.0,
+                                 duration_spread=1.0), **human})
+    person = GuidingHuman(model, np.random.default_rng(0), 5, lambda c: heading,
+                          lambda c: probs)
+    person.attach(base)
+    return person
+
+
+def test_the_person_pushes_their_way_and_lets_go_when_the_base_follows():
+    """Worked out: a standing base is pushed east with the full 25 N (deviation 1); the
+    admittance (20 kg, 80 N s/m) carries it east, the person's force falls toward the hold
+    share as the base reaches the wanted 0.3 m/s, and once it heads east at >= 0.15 m/s for
+    the release reaction (0.4 s) the person lets go, long before the 8 s hold limit."""
+    _, base = _guided_base()
+    person = _person(base, EAST, peak_n=25.0, hold_s=8.0, reaction_s=0.4)
+    x0 = float(base.position[0])
+    forces = []
+    base.on_substep.append(lambda b, p: forces.append(
+        person.push.now[:2].copy() if person.push is not None else np.zeros(2)))
+    base.decision.hold(6.0, until_cue=False).run()
+    push = person.given[0]
+    assert push.released_at is not None
+    held = push.released_at - push.t0
+    assert 0.5 <= held < 3.0  # let go when the base followed, not at the 8 s limit
+    f = np.array(forces)
+    mag = np.hypot(f[:, 0], f[:, 1])
+    assert np.all(np.abs(f[mag > 1.0, 1]) < 1e-9) and np.all(f[mag > 1.0, 0] > 0)  # east
+    # dev = 1 while the base stands: the ramp's share of 25 N; it falls as the base follows
+    assert 0.6 * 25.0 < mag.max() <= 25.0
+    k_release = int(round((push.released_at - 0.002) / base.dt))
+    # the loop's equilibrium: v = F / b with F = F_p (S + (1 - S)(1 - v / V)) gives
+    # v = F_p / (b + F_p (1 - S) / V) = 25 / 130 m/s and F = 80 v = 15.4 N
+    assert mag[k_release - 5] == pytest.approx(80.0 * 25.0 / 130.0, abs=1.0)
+    assert float(base.position[0]) - x0 > 0.08  # it went the person's way, ~0.19 m/s for ~0.6 s
+    assert person.push is None  # released and ramped down
+
+
+def test_the_person_keeps_a_light_hold_while_the_base_goes_their_way():
+    """The force law F = F_p (S + (1 - S) e): a base already moving east at the wanted speed
+    is pushed with S F_p only."""
+    _, base = _guided_base()
+    person = _person(base, EAST, peak_n=30.0)
+    base.data.qvel[base.vxy[0]] = GUIDE_SPEED
+    t = float(base.data.time) + 0.5
+    base.data.time = t  # the grasp is due; the ramp is over 0.2 s after it
+    person(base)
+    base.data.time = t + 0.3
+    person(base)
+    assert np.hypot(*person.push.now[:2]) == pytest.approx(HOLD_SHARE * 30.0, rel=1e-9)
+
+
+def test_a_person_pushing_into_a_wall_lets_go_at_the_longest_hold():
+    """Bounded whatever the evidence: the base cannot follow a push into the wall (the target
+    never moves where the base does not fit), so the person never sees it go their way and
+    lets go at the longest hold (here 1.5 s, no spread)."""
+    world = cached_world("simple")
+    w = world.spec.width
+    start = next(world.cell((w, y)) for y in range(1, world.spec.height + 1)
+                 if world.arrangement.cell_index[w - 1, y - 1] >= 0)
+    base = MobileBase(scene_for(world))
+    base.enable_guidance(20.0, 80.0)
+    base.reset(start)
+    person = _person(base, EAST, peak_n=40.0, hold_s=1.5, reaction_s=0.6)
+    base.decision.hold(4.0, until_cue=False).run()
+    push = person.given[0]
+    assert push.released_at - push.t0 == pytest.approx(1.5, abs=0.01)
+    assert len(person.given) == 1
+
+
+def test_the_deformation_is_the_evidence():
+    """A 20 N push east on a standing guided base: every partial record's evidence points
+    along the deformation (east) with weight |D| / 0.5 m; the weights add up to the target's
+    total displacement over 0.5 m (capped at 2 observations)."""
+    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
+    from pathpref.sim.force_cue import HumanPush, PushProfile
+
+    _, base = _guided_base()
+    seen = []
+    base.listener = seen.append
+    target0 = base.target.copy()
+    base.pushes.append(HumanPush(0.0, float(base.data.time),
+                                 PushProfile(peak_n=20.0, duration_s=2.0, noise_deg=0.0,
+                                             shape="plateau"), EAST))
+    base.decision.hold(3.0, until_cue=False).run()
+    assert seen and any(not f.partial for f in seen)
+    for f in seen:
+        angle, weight = f.evidence
+        if weight > 1e-3:
+            assert abs(angle) < math.radians(2.0)
+    moved = float(base.target[0] - target0[0])  # hold keeps the cell's centre as target
+    total = sum(f.evidence[1] for f in seen)
+    # the deformation while the cue was under way: all but the ramp before the detector
+    # fires and the admittance's tail after it lets go (tau = M / b = 0.25 s)
+    assert 0.8 * moved / DEFORMATION_EVIDENCE_M <= total <= \
+        min(moved / DEFORMATION_EVIDENCE_M, GUIDANCE_MAX_EVIDENCE) + 1e-9
+
+
+def test_guidance_records_update_the_belief_as_enumeration_does(simple):
+    """The deformation records of a guided episode, taken by the preference belief, give the
+    posterior enumeration over every preference gives (the likelihood of
+    :mod:`pathpref.sim.guidance`)."""
+    from pathpref.episode.physics import DIRECTION_KAPPA
+    from pathpref.inference.belief import PreferenceBelief
+    from tests.test_belief import brute_direction_posterior
+
+    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=3, sim="mujoco",
+                              queries=50, t_max=6, physics=Physics.of(timing="guidance"))
+    runner = EpisodeRunner(spec)
+    seen = []
+    door = runner.body.base.listener
+
+    def listen(felt):
+        seen.append(felt)
+        door(felt)
+
+    runner.body.base.listener = listen
+    while not runner.done:
+        runner.step()
+    obs = [(f.cell, f.evidence[0], f.evidence[1]) for f in seen if f.evidence[1] > 0]
+    assert len(obs) >= 3
+    belief = PreferenceBelief(runner.model)
+    for s, angle, w in obs:
+        belief.update_direction(s, angle, DIRECTION_KAPPA, w)
+    post, _ = brute_direction_posterior(runner.model, obs, DIRECTION_KAPPA)
+    assert np.allclose(belief.goal_marginal(), post.sum(axis=1), atol=1e-9)
+
+
+def test_a_guided_step_is_the_same_in_the_cli_and_the_task():
+    """One end-of-step rule under guidance: the ``--sim mujoco`` body and the dm_control task
+    run the same episode (same seeds, the policy's own actions) along the same cells, with
+    the same pushes."""
+    from pathpref_tasks import load
+
+    physics = Physics.of(timing="guidance")
+    spec_kw = dict(seed=7, queries=40, t_max=8)
+    env = load("navigate", map="simple", method="path_preference", delta_t=2,
+               physics=physics, **spec_kw)
+    env.reset()
+    task = env.task
+    cells_task = [task.runner.cell]
+    while not task.runner.done:
+        env.step(task.policy_action())
+        cells_task.append(task.runner.cell)
+    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=7, instance=0,
+                              sim="mujoco", queries=40, t_max=8, physics=physics)
+    assert spec.instance_seed == task.runner.spec.instance_seed
+    assert spec.run_seed == task.runner.spec.run_seed
+    runner = EpisodeRunner(spec)
+    cells_cli = [runner.cell]
+    while not runner.done:
+        runner.step()
+        cells_cli.append(runner.cell)
+    assert cells_cli == cells_task
+    assert runner.result.inputs == task.runner.result.inputs
+
+
+class _FakeBase:
+    def __init__(self):
+        self.data = type("D", (), {"time": 0.0})()
+        self.pushes = []
+        self.cell = 0
+        self.guidance = type("G", (), {"mass": 20.0, "damping": 80.0})()
+
+
+def test_crossings_along_the_path_are_labelled_with_who_made_them():
+    """A crossing while a push acts, or within 3 M / b = 0.75 s after it ends, is the
+    person's; later ones and ones with no push are the robot's."""
+    from pathpref.sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    a, b = 0, int(np.flatnonzero(world.cell_polytope != world.cell_polytope[0])[0])
+    base, path = _FakeBase(), None
+    path = PathCrossings(base, world)
+    path.reset(a)
+    base.pushes.append(HumanPush(0.0, 1.0, PushProfile(20.0, 1.0, 0.0, "plateau"), EAST))
+    changes = {250: b, 750: a, 1350: b, 1400: a}  # physics steps of 2 ms; push 1.0..2.0 s
+    for k in range(1, 1600):
+        base.data.time = 0.002 * k
+        base.cell = changes.get(k, base.cell)
+        path(base)
+    pa, pb = int(world.cell_polytope[a]), int(world.cell_polytope[b])
+    assert path.take() == [(pa, pb, False), (pb, pa, True), (pa, pb, True), (pb, pa, False)]
+    assert path.take() == []
+
+
+class _LedBody(GridBody):
+    """A grid body that reports scripted crossings along its path."""
+
+    script: list = []
+
+    def path_crossings(self):
+        out, self.script = list(self.script), []
+        return out
+
+
+def test_the_runner_judges_the_robots_crossings_and_reports_the_persons():
+    """A violation the person led is reported (``person_violations``), not counted against
+    the robot (``violations``); the robot's own is counted."""
+    world = cached_world("simple")
+    spec = EpisodeSpec.single("simple", "path_preference", 5, seed=1, t_max=3)
+    body = _LedBody(world, spec)
+    runner = EpisodeRunner(spec, world, body)
+    pref = runner.pref
+    v = next(v for v in range(world.n_polytopes) if pref[v] >= 0)
+    wrong = next(int(w) for w in range(world.n_polytopes)
+                 if w != v and w != pref[v] and world.graph.edge_between(v, w) >= 0)
+    body.script = [(v, wrong, True)]
+    runner.step()
+    assert runner.result.violations == 0
+    body.script = [(v, wrong, False)]
+    runner.step()
+    assert runner.result.violations == 1
+    while not runner.done:
+        runner.step()
+    assert runner.result.metrics["person_violations"] == 1.0
+    assert runner.result.metrics["person_crossings"] == 1.0
+
+
+def test_the_guided_person_is_named_in_the_key_and_nowhere_else():
+    """``guide`` is written under guidance timing (old open-loop rows never share a key) and
+    left out elsewhere (every other stored key unchanged)."""
+    assert '"guide":"closed"' in Physics.of(timing="guidance").to_json()
+    assert '"guide":"open"' in Physics.of(timing="guidance", guide="open").to_json()
+    assert "guide" not in Physics.of(timing="interval").to_json()
+    assert "guide" not in Physics().to_json()
+    assert "guide" not in HumanModel(gamma_h=0.5).to_json()
+    with pytest.raises(Exception, match="guide"):
+        Physics.of(timing="guidance", guide="sideways")
