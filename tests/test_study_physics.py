@@ -196,7 +196,11 @@ def test_a_study_database_from_before_the_columns_opens_replays_and_grows(
 
 @pytest.mark.parametrize("over, message", [
     ({"physics": {"timing": "rate"}},
-     r"trials\[0\]\.physics\.timing is the simulated human's; a trial's human is the "
+     r"trials\[0\]\.physics\.timing must be decision or guidance \(decision: the "
+     r"participant's pushes are read as cues; guidance: the base also complies to them\), "
+     r"got 'rate'"),
+    ({"physics": {"gamma_h": 2}},
+     r"trials\[0\]\.physics\.gamma_h is the simulated human's; a trial's human is the "
      "participant"),
     ({"physics": {"sensor": "perfect"}},
      r"trials\[0\]\.physics sensor \(--sensor\) must be one of ideal, ft300s, realistic"),
@@ -213,3 +217,32 @@ def test_bad_physics_or_robot_one_line_naming_the_field(over, message):
     with pytest.raises(ConfigError, match=message) as e:
         parse_study({"trials": [t]})
     assert "\n" not in str(e.value)
+
+
+def test_a_scripted_study_with_guidance_trials_completes(tmp_path):
+    """A guidance trial: the participant's sustained drag moves the compliant base (the
+    recorded path goes west under a 25 N westward drag of 1.5 s: the admittance's 0.31 m/s
+    gives about 0.4 m) and the scripted study runs to its end with its outcome recorded."""
+    study = json.loads(STUDY.read_text())
+    study["trials"] = study["trials"][:1]
+    study["trials"][0]["physics"] = {"timing": "guidance"}
+    (tmp_path / "g.json").write_text(json.dumps(study))
+    drags = {"trials": {"left": [
+        {"t": 0.3, "fx": -25, "fy": 0, "duration": 1.5},
+        {"t": 4.0, "fx": 0, "fy": 25, "duration": 2.0},
+        {"t": 9.0, "fx": 0, "fy": 25, "duration": 2.0},
+        {"t": 14.0, "fx": 25, "fy": 0, "duration": 1.5}]}}
+    (tmp_path / "drags.json").write_text(json.dumps(drags))
+    db = tmp_path / "g.sqlite"
+    assert main(["study", "run", str(tmp_path / "g.json"), "--participant", "p1", "--db",
+                 str(db), "--script", str(tmp_path / "drags.json")]) == 0
+    c = sqlite3.connect(db)
+    status, outcome, physics = c.execute(
+        "SELECT status, outcome, physics FROM trials").fetchone()
+    assert status == "done" and outcome in ("success", "timeout")
+    assert json.loads(physics)["timing"] == "guidance"
+    path = c.execute("SELECT time_s, x FROM trial_path ORDER BY k").fetchall()
+    x0 = path[0][1]
+    x_after = min(x for t, x in path if 0.3 <= t <= 2.5)
+    assert x0 - x_after > 0.25
+    assert main(["db", "check", str(db)]) == 0

@@ -105,16 +105,32 @@ class MujocoBody(Body):
         drive, human = self.physics.drive, self.physics.human
         person = PushingHuman
         if human.timing == "guidance":
-            self.base.enable_guidance(drive.admittance_m, drive.admittance_b)
+            self.enable_guidance()
             person = GuidingHuman if human.guide == "closed" else PushingHuman
-            self.path = PathCrossings(self.base, self.world)
-            self.base.on_substep.append(self.path)
         else:
             self.base.enable_pushes_any_time(drive.admittance_b)
         self.human = person(human, self.rng.spawn(1)[0], self.delta_t, heading_at, probs,
                             self.physics.step_s(self.scene.cell_size))
         self.human.attach(self.base)
         return True
+
+    def enable_guidance(self) -> None:
+        """The base complies to pushes with the drive's guidance admittance and the path is
+        judged along the way (:mod:`.guidance`, :mod:`.path_crossings`)."""
+        drive = self.physics.drive
+        self.base.enable_guidance(drive.admittance_m, drive.admittance_b)
+        self.path = PathCrossings(self.base, self.world)
+        self.base.on_substep.append(self.path)
+
+    def guided_move(self, target: int) -> int:
+        """The guided decision step of every door (:mod:`.decision`): a timed move toward the
+        centre of ``target`` lasting exactly ``Physics.step_s``; the cell the base ends in."""
+        step = self.physics.step_s(self.scene.cell_size)
+        self.base.decision.move(target, _guided_limit(self.physics, self.scene.cell_size, step,
+                                                      self.base.dt),
+                                steps=timed_steps(step, self.base.dt)).run()
+        self.cell = self.base.cell
+        return self.cell
 
     @property
     def last_cue(self):
@@ -220,11 +236,7 @@ class MujocoBody(Body):
         self.human.robot_moves(self.cell, None if target == self.cell else action)
         step = self.physics.step_s(self.scene.cell_size)
         if self.physics.human.timing == "guidance":  # the one guided step of every door
-            self.base.decision.move(target, _guided_limit(self.physics, self.scene.cell_size,
-                                                          step, self.base.dt),
-                                    steps=timed_steps(step, self.base.dt)).run()
-            self.cell = self.base.cell
-            return self.cell
+            return self.guided_move(target)
         if target == self.cell:
             self.cell = self.base.hold(step)
         else:

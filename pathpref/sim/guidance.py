@@ -10,7 +10,8 @@ push is released.
 over the steps where it moved, is where the push took the plan relative to where the plan was
 going (the plan's own target does not move during a step). Every ``GUIDANCE_PERIOD_S`` of a cue
 under way a *partial* :class:`~pathpref.episode.body.Felt` carries the direction ``theta`` of
-the period's ``D`` (from the cue's first step) and its weight ``|D| / DEFORMATION_EVIDENCE_M`` (a push that moves the plan
+the period's ``D`` (from the cue's first step) and its weight ``|D| /
+DEFORMATION_EVIDENCE_M`` (a push that moves the plan
 one cell, 0.5 m, is one observation; at most ``GUIDANCE_MAX_EVIDENCE`` per cue); the cue's final
 record carries the rest. The belief takes it with the likelihood ``P(theta | s, g, p) = sum_h
 P(h | s, g, p) VM(theta; mu_h, kappa)`` to that power (:mod:`pathpref.episode.physics`,

@@ -29,8 +29,11 @@ Per trial (a field missing from a trial is taken from ``defaults``):
   :class:`~pathpref.episode.physics.Physics` flat fields (``{"sensor": "ideal"}``, ``{"base":
   "diffdrive", "v_max": 0.8}``; the fields left out keep their defaults) or ``"legacy"`` (the
   ideal sensor and original base of the first studies); default: ``Physics()``, as every
-  door's. The simulated human's fields (``timing``, ``gamma_h``, ...) are refused: a trial's
-  human is the participant;
+  door's. The simulated human's fields (``gamma_h``, ``peak_n``, ...) are refused: a trial's
+  human is the participant; ``timing`` may be ``guidance``: the base complies to the
+  participant's push (Bajcsy-style guidance, every door's guided decision step) and the trial
+  is judged along the base's path, the crossings made while the participant pushes reported
+  beside the robot's own;
 * ``robot``: ``navigate`` (the base) or ``carry`` (the Jaco arm on the base; the participant
   pushes its tray); default ``navigate``.
 
@@ -74,6 +77,8 @@ DEFAULTS = {"method": "path_preference", "preset": DEFAULT_PRESET, "queries": No
             "time_limit_s": 60.0, "condition": {}, "physics": None, "robot": "navigate"}
 #: the robots of a trial: the MuJoCo body's tasks (``pathpref.sim.body.MujocoBody.tasks``)
 STUDY_ROBOTS = ("navigate", "carry")
+#: the trial timings: the participant pushes; under ``guidance`` the base also complies
+STUDY_TIMINGS = ("decision", "guidance")
 MAX_TRIALS = 1000
 
 
@@ -291,7 +296,12 @@ def _physics(value: Any, where: str) -> str:
     if not isinstance(value, dict):
         raise ConfigError(f"{where}.physics must be an object of physics fields, e.g. "
                           '{"sensor": "realistic"}, or "legacy"')
-    human = sorted(k for k in value if FIELDS.get(k, ("",))[0] == "human")
+    human = sorted(k for k in value if FIELDS.get(k, ("",))[0] == "human" and k != "timing")
+    if value.get("timing", "decision") not in STUDY_TIMINGS:
+        raise ConfigError(f"{where}.physics.timing must be {' or '.join(STUDY_TIMINGS)} "
+                          "(decision: the participant's pushes are read as cues; guidance: the "
+                          "base also complies to them), got "
+                          f"{str(value.get('timing'))[:40]!r}")
     if human:
         raise ConfigError(f"{where}.physics.{human[0]} is the simulated human's; a trial's "
                           "human is the participant: leave it out")

@@ -79,7 +79,11 @@ class StudyBody(MujocoBody):
         return self.base.data.xfrc_applied[self.base.pushed_body, :2].copy()
 
     def attach_human(self, heading_at, probs) -> bool:
-        """No simulated human: the participant pushes (whatever the physics' timing)."""
+        """No simulated human: the participant pushes. With ``timing`` ``guidance`` the base
+        complies to the participant's push (Bajcsy-style guidance, :mod:`pathpref.sim.guidance`)
+        and the trial is judged along its path."""
+        if self.physics is not None and self.physics.human.timing == "guidance":
+            self.enable_guidance()
         return False
 
     def push(self, heading: int) -> None:
@@ -87,9 +91,13 @@ class StudyBody(MujocoBody):
         they are read."""
 
     def move(self, action: int) -> int:
-        """Drive to the grid neighbour (at least :data:`MIN_STEP_S`); the cell reached."""
+        """Drive to the grid neighbour (at least :data:`MIN_STEP_S`; a guided trial's step is
+        every door's guided step); the cell reached."""
+        self.cell = self.base.cell
         target = self.cell if action == STAY else int(self.world.motion.next_cell[self.cell,
                                                                                   action])
+        if self.path is not None:
+            return self.guided_move(target)
         self.cell = self.base.move_to(target, min_s=MIN_STEP_S)
         return self.cell
 
@@ -153,12 +161,18 @@ class TrialRunner(EpisodeRunner):
     def observe(self, felt: Felt) -> None:
         """A cue read by the robot's own sensing enters the belief at once through the
         runner's one door (the heading shown to the policy at the next decision is the last
-        cue since the previous one); then the trial's listeners are told."""
+        cue since the previous one); then the trial's listeners are told. A guided push's
+        partial records (:class:`~pathpref.episode.body.Felt`) move the belief (cause
+        ``guidance``) but are not cues."""
         if self.done:
             return
         super().observe(felt)
-        self.cues.append((self.time_s, felt.cell, felt))
         self._plan = None
+        if felt.partial:  # guidance: a push under way moved the belief; not a cue
+            for hook in self.on_belief:
+                hook("guidance")
+            return
+        self.cues.append((self.time_s, felt.cell, felt))
         for hook in self.on_cue:
             hook(felt)
         for hook in self.on_belief:
