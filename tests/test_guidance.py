@@ -268,3 +268,37 @@ def test_the_guided_person_is_named_in_the_key_and_nowhere_else():
     assert "guide" not in HumanModel(gamma_h=0.5).to_json()
     with pytest.raises(Exception, match="guide"):
         Physics.of(timing="guidance", guide="sideways")
+
+
+def _lean_then_push(detector, push_deg: float):
+    """A hand rests on the handle at 12 N east (arriving over 0.3 s at 1 s, leaving over 0.3 s
+    at 20 s); a 25 N half-sine push of 0.5 s toward ``push_deg`` at 10 s. The cues with the
+    time each ended."""
+    dt, cues = detector.dt, []
+    a = math.radians(push_deg)
+    for k in range(int(22.0 / dt)):
+        t = k * dt
+        hand = 12.0 * min(1.0, max(0.0, (t - 1.0) / 0.3)) * \
+            (1.0 - min(1.0, max(0.0, (t - 20.0) / 0.3)))
+        push = 25.0 * math.sin(math.pi * (t - 10.0) / 0.5) if 10.0 <= t <= 10.5 else 0.0
+        cue = detector.update(np.array([hand + push * math.cos(a), push * math.sin(a)]))
+        if cue is not None:
+            cues.append((t, cue))
+    return cues
+
+
+@pytest.mark.parametrize("push_deg, heading", [(0.0, EAST), (90.0, NORTH)])
+def test_a_resting_hand_above_threshold_becomes_the_baseline(push_deg, heading):
+    """Leaning at 12 N (above the 8 N onset) for 19 s: the lean becomes the baseline after 3 s
+    steady and is reported (``leaned``), the push at 10 s is felt as one cue toward its
+    heading, ending within the release window, and the hand leaving gives no cue. (Before,
+    the lean held one cue active until the hand left: the push merged into it.)"""
+    from pathpref.sim.cue_detector import FilteredCueDetector
+
+    detector = FilteredCueDetector(0.002, split=True)
+    cues = _lean_then_push(detector, push_deg)
+    assert detector.leaned == 1
+    assert len(cues) == 1
+    t, cue = cues[0]
+    assert 10.0 < t < 10.5 + 0.2 and cue.heading == heading
+    assert np.all(detector.lean == 0.0)  # the lean left and gave the baseline back

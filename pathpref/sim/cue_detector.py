@@ -237,6 +237,16 @@ class FilteredCueDetector(CueDetector):
       only if its peak stood out of that level by more than ``on`` (a push followed by a
       resting hand), else dropped (a hand arriving at 6 N plus noise). A cue thus ends either
       back at the baseline (below ``off`` for ``off_s``) or at a new one;
+    * **leaning** (a hand resting above ``on``: a person leaning on the handle at 10-15 N for
+      20 s, which no ``settle_s`` window below ``on`` absorbs, would hold one cue active and
+      blind the detector to the next push): an active cue whose ``e`` has stayed within ``off``
+      of its mean for ``lean_s`` (3 s, longer than a deliberate correction is held steady),
+      that mean's magnitude below ``lean_n`` (20 N), ends there the same way, the mean added to
+      the baseline and remembered as the lean ``L`` (:attr:`leaned` counts them: a condition
+      to report); a push on top of the lean is then felt as any push. When the hand leaves,
+      ``e`` jumps toward ``-L``: a would-be onset within 45 degrees of ``-L`` and no stronger
+      than ``|L| + off`` is the lean ending, the baseline gives ``L`` back and no cue is
+      given (a push against the lean no stronger than it reads the same way and is missed);
     * the impulse sums ``e`` only while ``|e| > off``, so the release tail (pure noise) does
       not turn the cue's direction.
 
@@ -247,16 +257,20 @@ class FilteredCueDetector(CueDetector):
                  on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
                  off_s: float = DETECTOR["off_s"], on_k: float = 6.0, off_k: float = 3.0,
                  floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0,
-                 baseline_tau_s: float = 1.0, hold_s: float = 0.15, settle_s: float = 0.5):
+                 baseline_tau_s: float = 1.0, hold_s: float = 0.15, settle_s: float = 0.5,
+                 lean_s: float = 3.0, lean_n: float = 20.0):
         for name, v in (("tau_s", tau_s), ("floor_tau_s", floor_tau_s),
                         ("baseline_tau_s", baseline_tau_s), ("hold_s", hold_s),
-                        ("settle_s", settle_s)):
+                        ("settle_s", settle_s), ("lean_s", lean_s), ("lean_n", lean_n)):
             if not (math.isfinite(v) and v >= 0) or (name == "settle_s" and v <= on_s):
                 raise ConfigError(f"detector {name} must be a finite number >= 0"
                                   f"{' and > on_s' if name == 'settle_s' else ''}, got {v}")
         self.tau_s, self.on_k, self.off_k, self.floor_tau_s = tau_s, on_k, off_k, floor_tau_s
         self.base_on_n, self.base_off_n = on_n, off_n
         self.baseline_tau_s, self.hold_s, self.settle_s = baseline_tau_s, hold_s, settle_s
+        self.lean_s, self.lean_n = max(lean_s, settle_s), lean_n
+        #: resting hands above ``on`` taken into the baseline (class docstring)
+        self.leaned = 0
         self._alpha = dt / (tau_s + dt)
         self._beta = dt / (floor_tau_s + dt)
         self._gamma = dt / (baseline_tau_s + dt)
@@ -273,6 +287,7 @@ class FilteredCueDetector(CueDetector):
         self._clear()
         self.f = np.zeros(2)
         self.baseline = np.zeros(2)
+        self.lean = np.zeros(2)  # the resting hand in the baseline (N; zero: none)
         # the calibration queue: a ring of (fx, fy) rows and its (head, length)
         self._ring = np.zeros((self._hold_n + 4, 2))
         self._queue = np.zeros(2, dtype=np.int64)
@@ -318,6 +333,8 @@ class FilteredCueDetector(CueDetector):
         e = np.array([ex, ey])
         mag = float(np.hypot(ex, ey))
         if not self.active:
+            if self._lean_ends(e, mag):
+                return None
             self._onset(e, mag)
             if self.active:
                 self._queue[:] = 0  # the push's rising edge never calibrates
@@ -326,6 +343,19 @@ class FilteredCueDetector(CueDetector):
         if settled is not False:
             return settled
         return self._active(e, mag, mag > self.off_n)
+
+    def _lean_ends(self, e: np.ndarray, mag: float) -> bool:
+        """Whether a would-be onset ``e`` is the remembered lean leaving (class docstring):
+        then the baseline gives the lean back."""
+        L = self.lean
+        size = float(np.hypot(L[0], L[1]))
+        if size == 0.0 or mag > size + self.off_n or \
+                -float(e @ L) < math.cos(math.pi / 4) * mag * size:
+            return False
+        self.baseline = self.baseline - L
+        self.lean = np.zeros(2)
+        self._clear()
+        return True
 
     def _settling(self, e: np.ndarray, mag: float) -> Cue | None | bool:
         """The settle rule (class docstring): False while the cue goes on, else the cue that
@@ -346,9 +376,14 @@ class FilteredCueDetector(CueDetector):
         level = self._settle_sum / self._settle
         lift = float(np.hypot(level[0], level[1]))
         if lift >= self.on_n:
-            self._settle, self._settle_sum = 0.0, np.zeros(2)
-            self._settle_impulse = np.zeros(2)
-            return False
+            if lift < self.lean_n and self._settle < self.lean_s - 1e-12:
+                return False  # perhaps a lean: keep the window
+            if lift >= self.lean_n:
+                self._settle, self._settle_sum = 0.0, np.zeros(2)
+                self._settle_impulse = np.zeros(2)
+                return False
+            self.lean = self.lean + level  # a resting hand above on
+            self.leaned += 1
         cue = None
         if self._peak - lift > self.on_n:
             cue = Cue(self._impulse - self._settle_impulse, self._peak,
