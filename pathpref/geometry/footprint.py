@@ -28,9 +28,11 @@ A reach of 0.5 or more would.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numba as nb
 import numpy as np
 
 if TYPE_CHECKING:
@@ -109,8 +111,10 @@ class Clearance:
         self._A = np.concatenate([o.A for o in spec.obstacles]) if vs else np.zeros((0, 2))
         self._b = np.concatenate([o.b for o in spec.obstacles]) if vs else np.zeros(0)
         self._row_starts = np.cumsum([0] + [len(o.b) for o in spec.obstacles[:-1]])
-        self._edge_owner = np.repeat(np.arange(len(vs)), [len(v) for v in vs]) if vs else \
-            np.zeros(0, dtype=int)
+        self._edge_starts = np.cumsum([0] + [len(v) for v in vs[:-1]]) if vs else \
+            np.zeros(0, dtype=np.int64)
+        if not vs:
+            self._row_starts = np.zeros(0, dtype=np.int64)
 
     def distance(self, P: np.ndarray, Q: np.ndarray, within: float = np.inf) -> np.ndarray:
         """``(N,)`` least distance from segment ``[P_i, Q_i]`` to any obstacle (``inf``
@@ -152,42 +156,91 @@ class Clearance:
     def clear_at(self, xy: np.ndarray, reach: float) -> bool:
         """Whether a disc of radius ``reach`` centred at ``xy`` (map units) touches no
         obstacle and lies inside the map: the point case of :meth:`clear`, over all
-        obstacles' edges at once (a physics step's check)."""
-        p = np.asarray(xy, float)[:2]
-        x, y = float(p[0]), float(p[1])
-        if min(x, y, self.width - x, self.height - y) < reach:
-            return False
-        if not len(self._b):
-            return True
-        inside = np.logical_and.reduceat(self._A @ p - self._b <= 0.0, self._row_starts)
-        if inside.any():
-            return False
-        return bool(point_segment_distance(p, self._e0, self._e1).min() >= reach)
+        obstacles' edges (a physics step's check; compiled, :func:`_clear_at`)."""
+        p = np.asarray(xy, float)
+        return bool(_clear_at(float(p[0]), float(p[1]), float(self.width), float(self.height),
+                              float(reach), self._A, self._b, self._row_starts, self._e0,
+                              self._e1))
 
     def near(self, xy: np.ndarray, within: float) -> list[tuple[float, np.ndarray]]:
         """The obstacles and walls within ``within`` of the point ``xy`` (map units): per
         obstacle (and wall), its distance ``d`` and the unit vector from its nearest point to
         ``xy`` (the direction that leads away from it). A point inside an obstacle is at
-        distance 0 from it, with the direction of its nearest edge's outward normal."""
-        p = np.asarray(xy, float)[:2]
-        out: list[tuple[float, np.ndarray]] = []
-        for d, n in ((p[0], (1.0, 0.0)), (p[1], (0.0, 1.0)), (self.width - p[0], (-1.0, 0.0)),
-                     (self.height - p[1], (0.0, -1.0))):
-            if d < within:
-                out.append((max(float(d), 0.0), np.array(n)))
-        if not len(self._b):
-            return out
-        e = self._e1 - self._e0
-        t = np.clip(np.einsum("ij,ij->i", p - self._e0, e) / np.einsum("ij,ij->i", e, e), 0, 1)
-        closest = self._e0 + t[:, None] * e
-        dist = np.linalg.norm(p - closest, axis=1)
-        inside = np.logical_and.reduceat(self._A @ p - self._b <= 0.0, self._row_starts)
-        for k in np.unique(self._edge_owner[dist < within]):
-            rows = np.flatnonzero(self._edge_owner == k)
-            j = rows[np.argmin(dist[rows])]
-            if inside[k]:
-                normal = np.array([e[j, 1], -e[j, 0]]) / np.linalg.norm(e[j])  # CCW: outward
-                out.append((0.0, normal))
-            elif dist[j] > 0:
-                out.append((float(dist[j]), (p - closest[j]) / dist[j]))
-        return out
+        distance 0 from it, with the direction of its nearest edge's outward normal (compiled,
+        :func:`_near`)."""
+        p = np.asarray(xy, float)
+        n, out = _near(float(p[0]), float(p[1]), float(within), float(self.width),
+                       float(self.height), self._A, self._b, self._row_starts, self._e0,
+                       self._e1, self._edge_starts)
+        return [(float(out[i, 0]), out[i, 1:3].copy()) for i in range(n)]
+
+
+@nb.njit(cache=True)
+def _inside(x, y, A, b, start, end):
+    """Whether ``(x, y)`` satisfies rows ``start..end-1`` of ``A p <= b`` (one obstacle)."""
+    for r in range(start, end):
+        if A[r, 0] * x + A[r, 1] * y - b[r] > 0.0:
+            return False
+    return True
+
+
+@nb.njit(cache=True)
+def _to_edge(x, y, e0, e1, j):
+    """``(distance, closest x, closest y)`` from ``(x, y)`` to edge ``j``: ``t = clip((p -
+    a) . e / e . e, 0, 1)``, the closest point ``a + t e``."""
+    ex, ey = e1[j, 0] - e0[j, 0], e1[j, 1] - e0[j, 1]
+    t = ((x - e0[j, 0]) * ex + (y - e0[j, 1]) * ey) / (ex * ex + ey * ey)
+    t = min(max(t, 0.0), 1.0)
+    cx, cy = e0[j, 0] + t * ex, e0[j, 1] + t * ey
+    return math.sqrt((x - cx) * (x - cx) + (y - cy) * (y - cy)), cx, cy
+
+
+@nb.njit(cache=True)
+def _clear_at(x, y, width, height, reach, A, b, row_starts, e0, e1):
+    """:meth:`Clearance.clear_at` on plain arrays: inside the map by ``reach``, inside no
+    obstacle (every row of ``A p <= b``), and at least ``reach`` from every edge."""
+    if min(min(x, y), min(width - x, height - y)) < reach:
+        return False
+    k_n = len(row_starts)
+    for k in range(k_n):
+        end = row_starts[k + 1] if k + 1 < k_n else len(b)
+        if _inside(x, y, A, b, row_starts[k], end):
+            return False
+    for j in range(len(e0)):
+        if _to_edge(x, y, e0, e1, j)[0] < reach:
+            return False
+    return True
+
+
+@nb.njit(cache=True)
+def _near(x, y, within, width, height, A, b, row_starts, e0, e1, edge_starts):
+    """:meth:`Clearance.near` on plain arrays: ``(n, rows)``, row ``i < n`` = ``(d, nx,
+    ny)``; walls first (x = 0, y = 0, x = width, y = height), then per obstacle with an edge
+    within ``within`` its nearest edge (the first of equals)."""
+    k_n = len(edge_starts)
+    out = np.empty((4 + k_n, 3))
+    n = 0
+    walls = ((x, 1.0, 0.0), (y, 0.0, 1.0), (width - x, -1.0, 0.0), (height - y, 0.0, -1.0))
+    for d, nx, ny in walls:
+        if d < within:
+            out[n, 0], out[n, 1], out[n, 2] = max(d, 0.0), nx, ny
+            n += 1
+    for k in range(k_n):
+        end = edge_starts[k + 1] if k + 1 < k_n else len(e0)
+        best, bj, bx, by = np.inf, -1, 0.0, 0.0
+        for j in range(edge_starts[k], end):
+            d, cx, cy = _to_edge(x, y, e0, e1, j)
+            if d < best:
+                best, bj, bx, by = d, j, cx, cy
+        if bj < 0 or not best < within:
+            continue
+        r_end = row_starts[k + 1] if k + 1 < k_n else len(b)
+        if _inside(x, y, A, b, row_starts[k], r_end):
+            ex, ey = e1[bj, 0] - e0[bj, 0], e1[bj, 1] - e0[bj, 1]
+            length = math.sqrt(ex * ex + ey * ey)
+            out[n, 0], out[n, 1], out[n, 2] = 0.0, ey / length, -ex / length  # CCW: outward
+            n += 1
+        elif best > 0:
+            out[n, 0], out[n, 1], out[n, 2] = best, (x - bx) / best, (y - by) / best
+            n += 1
+    return n, out

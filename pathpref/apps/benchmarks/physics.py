@@ -631,23 +631,15 @@ def timed_phases(spent: list[float]):
         DecisionStep.run = run
 
 
-def physics_overhead(episodes: int = 5) -> dict[str, float]:
-    """The Python cost of the physics step, on the ``episode_s`` episodes (``Physics()``).
-
-    An episode of wall time ``T`` spends ``T_phys`` in its ``N`` physics steps and the rest,
-    ``T - T_phys``, in planning and bookkeeping; with ``b`` the bare ``mj_step`` time of its
-    scene (:func:`bare_step_us`), ``overhead_vs_bare_mujoco = T / (T - T_phys + N b)``: the
-    episode against bare MuJoCo plus planning (1 when the step has no Python), and
-    ``python_us_per_step = T_phys / N - b``; medians over the episodes.
-    ``overhead_vs_bare_mujoco_control``: ``navigate_control`` (``Physics()``, random velocity
-    commands at 50 Hz, resets excluded) against ``b`` per physics step of its steps, also
-    under the name ``navigate_control_vs_bare``."""
+def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
+    """Per episode of ``physics`` (simple, path preference, ΔT 5, ``T_max`` 30): the ratio
+    ``T / (T - T_phys + N b)`` of :func:`physics_overhead`, the Python per physics step
+    ``T_phys / N - b`` (us) and ``b`` (us)."""
     from ... import sim  # noqa: F401 - registers the MuJoCo body
-    from ...episode import Physics
     from ...episode.runner import EpisodeRunner
 
     ratios, python_us, bare = [], [], []
-    physics = Physics().to_json()
+    physics = physics.to_json()
     run_episode(EpisodeSpec.single("simple", "path_preference", 5, seed=11, sim="mujoco",
                                    t_max=3, physics=physics))  # compile scene and planner
     for i in range(episodes):
@@ -666,6 +658,34 @@ def physics_overhead(episodes: int = 5) -> dict[str, float]:
         ratios.append(wall / (wall - spent[0] + n * b * 1e-6))
         python_us.append(1e6 * spent[0] / n - b)
         bare.append(b)
+    return ratios, python_us, bare
+
+
+def guidance_overhead(episodes: int = 3) -> dict[str, float]:
+    """``guidance_episode_vs_bare``: a guided episode (``timing`` guidance, the closed-loop
+    person) against bare MuJoCo plus planning, as :func:`physics_overhead` measures the
+    default episode (median over ``episodes``); ``guidance_python_us_per_step``."""
+    from ...episode import Physics
+
+    ratios, python_us, _ = episodes_vs_bare(Physics.of(timing="guidance"), episodes)
+    return {"guidance_episode_vs_bare": median(ratios),
+            "guidance_python_us_per_step": median(python_us)}
+
+
+def physics_overhead(episodes: int = 5) -> dict[str, float]:
+    """The Python cost of the physics step, on the ``episode_s`` episodes (``Physics()``).
+
+    An episode of wall time ``T`` spends ``T_phys`` in its ``N`` physics steps and the rest,
+    ``T - T_phys``, in planning and bookkeeping; with ``b`` the bare ``mj_step`` time of its
+    scene (:func:`bare_step_us`), ``overhead_vs_bare_mujoco = T / (T - T_phys + N b)``: the
+    episode against bare MuJoCo plus planning (1 when the step has no Python), and
+    ``python_us_per_step = T_phys / N - b``; medians over the episodes.
+    ``overhead_vs_bare_mujoco_control``: ``navigate_control`` (``Physics()``, random velocity
+    commands at 50 Hz, resets excluded) against ``b`` per physics step of its steps, also
+    under the name ``navigate_control_vs_bare``."""
+    from ...episode import Physics
+
+    ratios, python_us, bare = episodes_vs_bare(Physics(), episodes)
     from pathpref_tasks import load
 
     env = load("navigate_control", task_kwargs={"map": "simple", "method": "goal_only",
@@ -756,6 +776,7 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "render_fps": render_fps(frames=20 if quick else 60),
         "render_fps_video": render_fps_video(frames=20 if quick else 60),
         **physics_overhead(2 if quick else 5),
+        **guidance_overhead(1 if quick else 3),
     }
 
 
