@@ -13,9 +13,10 @@ A decision step is a sequence of phases, each started by one call and advanced b
 * **move** (:meth:`DecisionStep.move`): the base drives to a cell centre. It ends when the base
   has settled on it (after at least ``min_s``) and is not yielding to a push, when
   ``max(limit_s, min_s)`` has passed, or, with ``base.stop_on_cue`` (pushes at any time), at a
-  cue: the base then holds the cell it is in. A *timed* move (``steps``, guidance: every door
-  runs a guided decision step for exactly that many physics steps, :func:`timed_steps`) holds
-  the cell it ended in, a person's pushes still deforming the hold, until its last step.
+  cue: the base then holds the cell it is in (a guided base: where the push left it). A
+  *timed* move (``steps``, guidance: every door runs a guided decision step for exactly that
+  many physics steps, :func:`timed_steps`) holds where it ended, a person's pushes still
+  deforming the hold, until its last step.
 * **hold** (:meth:`DecisionStep.hold`): the base stands at its cell's centre for ``seconds``
   (forever by default: until the caller starts another phase); with ``base.stop_on_cue`` (or
   ``until_cue``) a cue ends it.
@@ -162,7 +163,10 @@ class DecisionStep:
         b = self.base
         t = b.data.time
         if cue is not None and b.stop_on_cue:
-            b.target = b.scene.cell_centre(b.cell)  # stop here: the planner replans
+            if b.guidance is None:  # stop here: the planner replans
+                b.target = b.scene.cell_centre(b.cell)
+            # guided: the base keeps where the person took it (the deformed target, which
+            # the admittance's tail still moves), not its cell's centre
             self.final = None
         elif self.final is not None and t < self._t_end and not b.yielding() and \
                 b.controller.settled(self._pos, self._vel, b.target):
