@@ -40,26 +40,23 @@ from .controller import ProfiledController, profiled_goal, ramp_step, settled_at
 from .cue_detector import FilteredCueDetector, filter_step
 from .estimator import estimate_step
 from .measurements import planar_accel
-from .native import (
-    OBJ_BODY,
-    hypot,
-    matTvec,
-    mj_objectAcceleration,
-    mj_step,
-)
+from .native import hypot, mj_step
+from .sensing import W_MEAN, W_WINDOW_S, window_step
 
 #: hand-back reasons of :func:`_coast`
 READY, END, DETECT, CONTACTS, DIVERGED = range(5)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
 #: measurements, the detector's hand-back ``e`` and the velocity a contact met
-(S0, S1, S2, NEXT_T, WINDOW_S, FRESH, QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK,
- PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(24)
+(QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK, PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX,
+ EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(18)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
  T_END, STILL, T_STOP, H, N_CS) = range(19)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
-(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, DRIFT, AUTORESET,
+(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
  N_IS) = range(16)
+#: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
+CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
 BAD_STATE = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
                       int(mujoco.mjtWarning.mjWARN_BADQVEL),
@@ -76,7 +73,7 @@ def _bad_states(warnings):
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
+def _coast(mj, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
     """Physics steps of the move phase until a hand-back (module docstring); returns
     ``(reason, steps)``. ``held`` receives the last sample, ``est``
     (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
@@ -84,13 +81,14 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
     ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
     sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
     ``drive`` the controller's last command, the target and a
-    scratch pair; ``sensor`` the faulty sensor's drift bias, its held sample and scratch;
+    scratch pair; ``sensor`` the faulty sensor's drift bias, its held sample, its
+    window (:func:`~.sensing.window_step`'s ``win``, the sensor's own) and scratch;
     ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants. Simulated time is
     ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
     last, target, err = drive
-    sbias, held, acc6, ma, xbuf = sensor
+    sbias, held, win, scratch = sensor
     f, baseline, dring, dqueue, dparams = det
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce = est[7]
@@ -117,31 +115,13 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
             if not math.isfinite(qvel[i]):
                 return DIVERGED, step + 1
         t = fs[TIME]
-        # --- FaultySensor.read: the window's sum, with the extra mass's inertia
+        # --- FaultySensor.read: the window, with the extra mass's inertia
         a = ns[SADR]
-        r0, r1, r2 = sensordata[a], sensordata[a + 1], sensordata[a + 2]
-        if cs[EXTRA_M] == 0.0:
-            fs[S0] += r0
-            fs[S1] += r1
-            fs[S2] += r2
-        else:
-            mj_objectAcceleration(mp, dp, OBJ_BODY, ns[BODY], acc6.ctypes.data, 0)
-            for i in range(3):
-                ma[i] = acc6[3 + i] * cs[EXTRA_M]
-            matTvec(R, ma, xbuf)
-            fs[S0] += r0 + xbuf[0]
-            fs[S1] += r1 + xbuf[1]
-            fs[S2] += r2 + xbuf[2]
-        ns[COUNT] += 1
-        if fs[NEXT_T] == -math.inf:
-            fs[NEXT_T] = t
-        fresh = t >= fs[NEXT_T] - 1e-9
-        fs[FRESH] = 1.0 if fresh else 0.0
+        fresh = window_step(mp, dp, ns[BODY], sensordata[a:a + 3], R, cs[EXTRA_M], scratch, win,
+                            t, cs[DT], cs[PERIOD], False)
         measured = False
         if fresh:
-            cnt = ns[COUNT]
-            fs[WINDOW_S] = cnt * cs[DT]
-            m0, m1, m2 = fs[S0] / cnt, fs[S1] / cnt, fs[S2] / cnt
+            m0, m1, m2 = win[W_MEAN], win[W_MEAN + 1], win[W_MEAN + 2]
             # FaultySensor._emit (no thermal offset: Coaster.ready)
             if ns[DRIFT]:
                 z0 = rng.standard_normal()
@@ -157,12 +137,8 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
             held[0] = m0 + sbias[0] + n0
             held[1] = m1 + sbias[1] + n1
             held[2] = m2 + sbias[2] + n2
-            fs[S0] = fs[S1] = fs[S2] = 0.0
-            ns[COUNT] = 0
-            while fs[NEXT_T] <= t + 1e-9:
-                fs[NEXT_T] += cs[PERIOD]
             # ForceEstimator.update (cue idle, fresh)
-            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, fs[WINDOW_S], True,
+            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S], True,
                                     fs[QUIET], eparams, est)
             fs[QUIET], fs[AT_REST] = q, 1.0 if rest else 0.0
             measured = True
@@ -189,7 +165,7 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
                 h = hypot(eforce[0], eforce[1])
                 if h > fs[PEAK_FORCE]:
                     fs[PEAK_FORCE] = h
-            if ncon[0] > 0:
+            if sensordata[ns[CADR]] > 0.0:  # mjData.ncon, from the contact sensor
                 return CONTACTS, step + 1
             fs[TOUCHING] = 0.0
         # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
@@ -224,6 +200,7 @@ class Coaster:
         own kind: a plain :class:`~.mobile_base.MobileBase`)."""
         s, c = base.sensing, base.controller
         return (enabled() and s.sensor_model is not None
+                and mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR) >= 0
                 and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
                 and type(c) is ProfiledController and base.guidance is None)
 
@@ -253,10 +230,9 @@ class Coaster:
     def _bind(self) -> None:
         b = self.base
         d = b.data
-        self._ncon = native.ncon_view(d)
         self._warnings = d.warning.number
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
-        self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
+        self._scratch = np.zeros(15)  # sensing.physical_reading's
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
         self._err = np.zeros(2)
         self._data = d
@@ -272,8 +248,6 @@ class Coaster:
         f, est, det = s.faulty, s.estimator, s.detector
         spec = f.spec
         fs = np.zeros(N_FS)
-        fs[S0:S2 + 1] = f._sum
-        fs[NEXT_T], fs[WINDOW_S], fs[FRESH] = f._next_t, f.window_s, float(f.fresh)
         fs[QUIET], fs[AT_REST] = est.quiet, float(est.at_rest)
         fs[VAR], fs[ON], fs[OFF] = det.var, det.on_n, det.off_n
         fs[VPX], fs[VPY] = m._v_prev
@@ -286,9 +260,10 @@ class Coaster:
         ix, iy, iyaw = b._float_adr
         a0, a1, a2 = b._float_act
         ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
-                       s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
+                       s.sensor.adr, f.body, det._hold_n, int(b.measure),
                        int(spec.drift_n_per_sqrt_s > 0),
-                       int(not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET)],
+                       int(not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET),
+                       b.model.sensor(CONTACT_SENSOR).adr[0]],
                       dtype=np.int64)
         b._anchor = None
         if not b.external_forces:
@@ -298,17 +273,14 @@ class Coaster:
                   eforce, *est._scratch)
         d = self._data
         fs[TIME] = d.time
-        reason, _ = _coast((b.model._address, d._address), self._ncon,
+        reason, _ = _coast((b.model._address, d._address),
                            (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R,
                             self._warnings),
                            (c.last, b.target, self._err),
-                           (f.bias, held, self._acc6, self._ma, self._x), f.rng, est.params,
+                           (f.bias, held, f.win, self._scratch), f.rng, est.params,
                            est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
                            fs, cs, ns, self.MAX_STEPS)
         # --- the state back into the Python objects
-        f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
-        f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
-        f.fresh, f.window_s = bool(fs[FRESH]), float(fs[WINDOW_S])
         if not np.array_equal(held, f._held, equal_nan=True):
             f._held = held
         new_estimate = not np.array_equal(eforce, est.force, equal_nan=True) or \
