@@ -254,3 +254,32 @@ def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
     while base.data.time < t_on:
         step.advance()
     assert base.data.time == t_on and _state(base) == on
+
+
+@pytest.mark.cross_cpu
+@pytest.mark.parametrize("physics", [{}, {"timing": "interval"}])
+def test_the_control_rate_task_drives_the_same_compiled(monkeypatch, reasons, physics):
+    """``navigate_control`` with realistic sensing (pushes every decision, or the simulated
+    human's own clock), random velocity commands and the task's own policy: its runs of drive
+    steps on the kernel (:meth:`~pathpref.sim.coasting.Coaster.drive`) give every observation,
+    reward and final state of the Python steps, bit for bit."""
+    from pathpref_tasks import load
+
+    def run():
+        env = load("navigate_control", map="simple", method="goal_only", seed=3, queries=30,
+                   physics=physics)
+        spec, rng = env.action_spec(), np.random.default_rng(1)
+        env.reset()
+        seen = []
+        for k in range(300):  # 6 s of physics at 50 Hz
+            a = env.task.policy_action() if k % 3 == 0 else \
+                rng.uniform(spec.minimum, spec.maximum)
+            ts = env.step(a)
+            seen.append((ts.reward, [np.asarray(v).tobytes() for v in ts.observation.values()]))
+            if ts.last():
+                env.reset()
+        return _state(env.task.base), seen
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+    assert reasons["steps"] > 1000  # most physics steps ran on the kernel
