@@ -144,12 +144,14 @@ class NavigateControl(Navigate):
     def substeps(self, n: int) -> None:
         """``n`` physics steps, each what :meth:`substep` does: outside a push phase, where the
         base's compiled steps apply (:meth:`~pathpref.sim.coasting.Coaster.drive`: the realistic
-        sensing chain idle, nothing pushing), runs of them in one call with the force filter's
-        update, the same numbers; every other step through :meth:`substep`."""
+        sensing chain idle, nothing pushing, no contact), runs of them in one call with the
+        force filter's update, the same numbers; every other step through :meth:`substep`."""
         done = 0
         while done < n:  # every pass takes at least one physics step
             coaster = self.base.coaster
-            if coaster is not None and self.base.decision.phase != PUSH and coaster.ready():
+            # (not while the base touches something: the kernel would hand every step back)
+            if coaster is not None and self.base.decision.phase != PUSH and \
+                    self.base.data.ncon == 0 and coaster.ready():
                 k, partial = coaster.drive(n - done, self.filter)
                 done += k
                 if partial:  # the step's task part after the base's (as substep)
