@@ -21,9 +21,10 @@ settled, or its time is up). It runs only where it applies (:meth:`Coaster.appli
 :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase` on the profiled
 controller's float path, the faulty sensor without thermal drift and its estimator, the
 filtered detector idle, no pushes, guidance or external forces, no hook but a quiet one (the
-simulated human of pushes at any time runs the kernel up to its next push). Every other step takes
-the Python path (the control-rate tasks too: they advance one physics step per call).
-``PATHPREF_COMPILED_STEPS=0`` turns it off.
+simulated human of pushes at any time runs the kernel up to its next push), a scene with the
+contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
+(:meth:`Coaster.drive`: the agent's velocity held, :class:`~.controller.HeldVelocity`, no move
+to end). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it off.
 """
 
 from __future__ import annotations
@@ -208,8 +209,10 @@ class Coaster:
 
     @staticmethod
     def applies(base) -> bool:
-        """The base's setup is one the kernel mirrors (module docstring; the base checks its
-        own kind: a plain :class:`~.mobile_base.MobileBase`)."""
+        """The base's setup is one the kernel mirrors (module docstring: the realistic chain
+        without thermal drift, the profiled or held-velocity controller, no guidance, the
+        scene's contact sensor; the base checks its own kind: a plain
+        :class:`~.mobile_base.MobileBase`)."""
         s, c = base.sensing, base.controller
         return (enabled() and s.sensor_model is not None
                 and mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR) >= 0
