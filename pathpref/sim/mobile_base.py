@@ -38,14 +38,14 @@ import mujoco
 import numpy as np
 
 from ..episode.body import Felt
-from ..errors import ConfigError, EpisodeError
+from ..errors import EpisodeError
 from .admittance import yield_velocity
 from .coasting import Coaster
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue
 from .decision import DecisionStep
 from .estimator import EstimatorConfig
-from .force_cue import HumanPush, PushProfile
+from .force_cue import HumanPush, PushProfile, apply_force
 from .guidance import Guidance
 from .keep_clear import keep_clear
 from .measurements import Measurements
@@ -255,16 +255,13 @@ class MobileBase:
     def _apply_pushes(self, push: HumanPush | None) -> None:
         """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
         dropped."""
-        d, t = self.data, float(self.data.time)
+        t = float(self.data.time)
         self.pushes = [p for p in self.pushes if t <= p.t0 + p.profile.duration_s]
         total = np.zeros(3)
         for p in [*self.pushes, *([push] if push is not None else [])]:
             if p.active(t):
                 total += p.force(t)
-        if not np.isfinite(total).all():
-            raise ConfigError("push force is not finite; check the push parameters")
-        d.xfrc_applied[self.pushed_body, :] = 0.0
-        d.xfrc_applied[self.pushed_body, :3] = total
+        apply_force(self.data, self.pushed_body, total)
 
     def _track_onset(self, cue: Cue | None) -> None:
         """Note where and when the cue under way was first felt; an ended cue becomes a
