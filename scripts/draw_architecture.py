@@ -134,7 +134,7 @@ def draw(out: Path, root: Path = ROOT) -> tuple[Counter, Counter]:
     ax.set_ylim(-0.8, 1.6 * (len(ranks) - 1) + 0.8)
     ax.axis("off")
     fig.tight_layout()
-    fig.savefig(out, dpi=160)
+    fig.savefig(out, dpi=110)
     plt.close(fig)
     return sizes, edges
 
