@@ -34,6 +34,7 @@ import math
 import numpy as np
 
 from ..episode.physics import RELEASE_WINDOW_S
+from ..errors import ConfigError
 
 MOVE, PUSH, HOLD = "move", "push", "hold"
 
@@ -99,7 +100,11 @@ class DecisionStep:
             if b.scene.clear(pos, here):
                 self.final, target = target, here
         b.target = target
-        self._pos, self._vel = b._planar_views()  # views into MjData: no copy per step
+        # views into MjData (its buffers stay put; navigate.xml's slide joints are adjacent)
+        q, v = int(b.xy[0]), int(b.vxy[0])
+        if b.xy[1] != q + 1 or b.vxy[1] != v + 1:  # pragma: no cover - navigate.xml's order
+            raise ConfigError("the base's joints slide_x and slide_y must be adjacent")
+        self._pos, self._vel = b.data.qpos[q:q + 2], b.data.qvel[v:v + 2]
         self._t0 = float(b.data.time)
         self._min_s = float(min_s)
         self._t_end = self._t0 + max(float(limit_s), self._min_s)
