@@ -50,9 +50,9 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017).
 
 **Guidance** (``timing = guidance``): the person takes the handle on the ``interval`` clock
-and the base complies (:mod:`pathpref.sim.guidance`); the person is closed-loop by default
+and the base complies (the simulator's ``guidance``); the person is closed-loop by default
 (``guide = closed``: pushes toward their route, harder the further the base is off it, lets go
-when it heads the right way, :mod:`pathpref.sim.guiding_human`) or holds one drawn heading
+when it heads the right way, the simulator's ``guiding_human``) or holds one drawn heading
 (``open``). Every ``GUIDANCE_PERIOD_S`` of a push under way the robot updates its belief with
 the direction ``theta`` of the *deformation* (where the push took the plan over that period),
 by the continuous likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h,
@@ -81,7 +81,7 @@ TIMINGS = ("decision", "interval", "rate", "corrective", "guidance")
 SHAPES = ("half_sine", "bell")
 BASES = ("holonomic", "diffdrive")
 #: the simulated person under ``guidance`` timing: ``closed``, who pushes toward their route
-#: and lets go when the robot heads the right way (:mod:`pathpref.sim.guiding_human`), or
+#: and lets go when the robot heads the right way (the simulator's ``guiding_human``), or
 #: ``open``, who holds one drawn heading for the whole push
 GUIDES = ("closed", "open")
 

@@ -34,7 +34,6 @@ from ..episode.physics import DETECTOR
 from ..errors import ConfigError
 from ..geometry.grid import heading_to_action
 
-
 #: how far from the lean's opposite a would-be onset may point and still be the resting hand
 #: leaving (degrees; :class:`FilteredCueDetector`)
 LEAVE_DEG = 25.0
