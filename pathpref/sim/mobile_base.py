@@ -114,8 +114,6 @@ class MobileBase:
         self.admittance_b: float | None = None
         #: end a move or a hold as soon as a cue is felt (the planner replans)
         self.stop_on_cue = False
-        #: pushes at any time are on (:meth:`enable_pushes_any_time`)
-        self.any_time = False
         #: the guidance admittance and its state (:meth:`enable_guidance`; None: off)
         self.guidance: Guidance | None = None
         self._onset: tuple[float, int] | None = None
@@ -145,7 +143,6 @@ class MobileBase:
         self.sensing.split_pushes()
         self.admittance_b = float(admittance_b)
         self.stop_on_cue = True
-        self.any_time = True
 
     def enable_guidance(self, mass: float, damping: float) -> None:
         """Guidance (module docstring): pushes at any time, the splitting detector, the
@@ -154,7 +151,6 @@ class MobileBase:
         move (the planner revises the plan at the step's end, :mod:`.decision`)."""
         self.sensing.split_pushes()
         self.guidance = Guidance(mass, damping)
-        self.any_time = True
         self.stop_on_cue = True
 
     # --- state ---------------------------------------------------------------------------
