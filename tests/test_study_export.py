@@ -46,7 +46,7 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
             reader = make_reader(f)
             topics: dict[str, list] = {}
             for schema, channel, message in reader.iter_messages():
-                if channel.topic.startswith(("/ros/", "/scene", "/tf")):
+                if channel.topic.startswith(("/ros/", "/scene", "/tf", "/events")):
                     continue  # ROS 2 and Foxglove protobuf topics: tested below
                 assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
                 topics.setdefault(channel.topic, []).append(
@@ -153,6 +153,74 @@ def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
             for m in tfs] == [("world", "base", (x - 0.5) * 0.5, (y - 0.5) * 0.5)
                               for x, y in steps]
 
+
+
+def test_pushes_and_cues_are_typed_foxglove_events_and_arrows(demo_db, tmp_path):
+    """/events/pushes and /events/cues decode (protobuf decoder) as foxglove.Event: one per
+    stored row, in order, spanning the push (t_start..t_end) or the cue's push (time_s -
+    duration_s..time_s) on the trial's clock, with every column back exactly from its
+    metadata; /scene/pushes and /scene/cues draw one arrow each along the impulse, from the
+    base's recorded position at the push's start or from the cue's cell centre."""
+    import math
+    from datetime import datetime
+
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    seen = 0
+    for k in (1, 2):
+        got: dict[str, list] = {}
+        with open(out / "demo" / f"trial-{k:02d}.mcap", "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for schema, channel, _, msg in reader.iter_decoded_messages(topics=[
+                    "/events/pushes", "/events/cues", "/scene/pushes", "/scene/cues"]):
+                got.setdefault(channel.topic, []).append((schema.name, msg))
+        started = rows(demo_db, "SELECT started_utc FROM trials WHERE trial = ?", k)[0][0]
+        t0 = int(datetime.fromisoformat(started).timestamp())
+        for kind, table, cols in (
+                ("pushes", "trial_pushes", ("k", "t_start", "t_end", "peak_n", "impulse_x",
+                                            "impulse_y")),
+                ("cues", "trial_cues", ("k", "time_s", "x", "y", "heading", "magnitude_n",
+                                        "impulse_x", "impulse_y", "duration_s"))):
+            stored = rows(demo_db, f"SELECT {', '.join(cols)} FROM {table} WHERE trial = ? "
+                          "ORDER BY k", k)
+            events = got.get(f"/events/{kind}", [])
+            assert len(events) == len(stored) > 0, (k, kind)
+            for (name, ev), r in zip(events, stored, strict=True):
+                meta = {m.key: m.value for m in ev.metadata}
+                assert name == "foxglove.Event"
+                assert meta["kind"] == {"pushes": "push", "cues": "cue"}[kind]
+                assert meta["participant"] == "demo" and int(meta["trial"]) == k
+                back = tuple(int(meta[c]) if c in ("k", "x", "y", "heading") else
+                             float(meta[c]) for c in cols)
+                assert back == r  # exact: repr of a float round-trips
+                row = dict(zip(cols, r, strict=True))
+                start, end = ((row["t_start"], row["t_end"]) if kind == "pushes" else
+                              (max(0.0, row["time_s"] - row["duration_s"]), row["time_s"]))
+                for stamp, want in ((ev.start_time, start), (ev.end_time, end)):
+                    got_s = stamp.seconds - t0 + stamp.nanos * 1e-9
+                    assert got_s == pytest.approx(want, abs=1e-6)
+            arrows = got.get(f"/scene/{kind}", [])
+            assert len(arrows) == len(stored)
+            for (_, upd), r in zip(arrows, stored, strict=True):
+                row = dict(zip(cols, r, strict=True))
+                (a,) = upd.entities[0].arrows
+                q = a.pose.orientation
+                angle = 2 * math.atan2(q.z, q.w)
+                want = math.atan2(row["impulse_y"], row["impulse_x"])
+                assert math.remainder(angle - want, 2 * math.pi) == pytest.approx(0, abs=1e-9)
+                if kind == "cues":
+                    at = ((row["x"] - 0.5) * 0.5, (row["y"] - 0.5) * 0.5)
+                else:
+                    at = rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = ? AND "
+                              "time_s <= ? ORDER BY k DESC LIMIT 1", k, row["t_start"])[0]
+                assert (a.pose.position.x, a.pose.position.y) == pytest.approx(at, abs=1e-12)
+                assert 0 < a.shaft_length <= 1.5
+            seen += len(stored)
+    assert seen >= 4
 
 
 def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
