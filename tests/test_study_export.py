@@ -10,6 +10,7 @@ import shutil
 import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pathpref.apps.cli import main
@@ -352,10 +353,59 @@ def test_replay_streams_frames_and_holds_no_list(demo_db, tmp_path, monkeypatch)
     monkeypatch.setattr(render.VideoWriter, "append", append)
     n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "v.mp4", 32, 24)
     time_s = rows(demo_db, "SELECT time_s FROM trials WHERE trial = 1")[0][0]
-    assert n == seen["n"] and abs(n - time_s * 25) <= 2
+    assert n == seen["n"] and abs(n - (time_s * 25 + 1 + 25)) <= 2  # + last frame, 1 s card
     # a frame list would keep every frame alive: distinct ids for all; streamed frames are
     # freed and their memory reused, so ids repeat
     assert len(seen["ids"]) < n
+
+
+def test_replay_video_shows_the_trail_and_ends_with_the_outcome_card(demo_db, tmp_path,
+                                                                     monkeypatch):
+    """The top view draws the base's trail: every trail point lies on the recorded path
+    (trial_path, within 1 cm: the replay runs the same physics), consecutive points >= 5 cm
+    apart, and by the end it spans the trip; the video ends with the final frame and the
+    outcome card held for 1 s (25 identical frames, the frame faded, the card's box white)."""
+    from pathpref.sim import render
+    from pathpref.study import replay
+
+    frames, trails = [], []
+    real_append, real_views = render.VideoWriter.append, render.RolloutRenderer.views
+
+    def append(self, frame):
+        frames.append(np.array(frame))
+        real_append(self, frame)
+
+    def views(self, data, overlay):
+        trails.append(None if overlay.trail is None else np.array(overlay.trail))
+        return real_views(self, data, overlay)
+
+    monkeypatch.setattr(render.VideoWriter, "append", append)
+    monkeypatch.setattr(render.RolloutRenderer, "views", views)
+    replay.replay_trial(demo_db, "demo", 1, tmp_path / "c.mp4", 160, 90)
+    path = np.array(rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = 1 ORDER BY k"))
+    last = trails[-1]
+    assert len(last) > 20
+    gap = np.hypot(*np.diff(last[:-1], axis=0).T)
+    assert gap.min() >= replay.TRAIL_STEP_M - 1e-12
+    near = np.min(np.hypot(*(last[:, None, :] - path[None, :, :]).transpose(2, 0, 1)), axis=1)
+    assert near.max() < 0.01
+    assert np.hypot(*(last[0] - path[0])) < 0.01 and np.hypot(*(last[-1] - path[-1])) < 0.01
+    card, final = frames[-1], frames[-26]
+    assert all(np.array_equal(f, card) for f in frames[-25:])
+    assert not np.array_equal(final, card)
+    h, w = card.shape[:2]
+    assert (card[h // 2 - 2:h // 2 + 2, w // 2 - 2:w // 2 + 2] >= 250).all()  # the box
+    assert card.mean() > final.mean() + 20  # faded towards white
+    lines = [t for t, _ in replay.study_outcome_lines(
+        {"outcome": "success", "time_s": 16.04, "violations": 0, "pushes": 7, "cues": 7,
+         "effort_ns": 98.14, "steps": 9})]
+    assert lines == ["SUCCESS: goal reached in 16.0 s", "preferred route followed",
+                     "pushes: 7   cues: 7   effort: 98.1 N s", "decision steps: 9"]
+    assert replay.study_outcome_lines(
+        {"outcome": "timeout", "time_s": 30.0, "violations": 2, "pushes": 1, "cues": 0,
+         "effort_ns": 3.0, "steps": 30})[:2] == [
+        ("TIMEOUT: goal not reached in 30.0 s", (190, 30, 30)),
+        ("preferred route: 2 violation(s)", (190, 30, 30))]
 
 
 def test_salvage_keeps_the_study_tables(demo_db, tmp_path, capsys):
@@ -386,7 +436,7 @@ def test_salvage_keeps_the_study_tables(demo_db, tmp_path, capsys):
 
 def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
     """The replay's frames carry the info panel (it was blank): the trial, the step, the
-    belief and the recorded outcome, on every frame."""
+    belief and the recorded outcome, on every frame but the outcome card's (held 1 s)."""
     from pathpref.study import replay
 
     infos = []
@@ -398,7 +448,7 @@ def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
 
     monkeypatch.setattr(replay, "info_panel", spy)
     n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "p.mp4", 320, 180)
-    assert len(infos) == n > 0
+    assert len(infos) == n - 25 > 0
     outcome, time_s, cues = rows(demo_db, "SELECT outcome, time_s, cues FROM trials WHERE "
                                  "trial = 1")[0]
     assert infos[0].title.startswith("demo trial 1: ")
