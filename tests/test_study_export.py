@@ -687,3 +687,137 @@ def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
                    for cell in table.sort_by("message_log_time").column(col).to_pylist()
                    if cell for m in cell]
             assert got == [(f[cols[0]], f[cols[1]]) for f in forces], topic
+
+
+def _lerobot_layout(root: Path) -> tuple[dict, object, object]:
+    """The dataset at ``root`` checked against LeRobot v3's documented layout (meta/info.json,
+    meta/tasks.parquet, meta/episodes/chunk-XXX/file-XXX.parquet, data/chunk-XXX/file-XXX
+    .parquet; every feature a column of its dtype and shape; LeRobot's five own columns;
+    episodes contiguous in ``index``); (info, frames, episodes) as pyarrow tables."""
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    pd = pytest.importorskip("pandas")
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["codebase_version"] == "v3.0" and info["video_path"] is None
+    assert info["data_path"] == "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+    for k in ("timestamp", "frame_index", "episode_index", "index", "task_index"):
+        assert info["features"][k]["shape"] == [1]
+    episodes = pq.read_table(root / "meta" / "episodes" / "chunk-000" / "file-000.parquet")
+    eps = episodes.to_pylist()
+    files = sorted({(e["data/chunk_index"], e["data/file_index"]) for e in eps})
+    frames = pa.concat_tables(pq.read_table(root / info["data_path"].format(
+        chunk_index=c, file_index=f)) for c, f in files)
+    types = {"float32": pa.float32(), "int64": pa.int64(), "bool": pa.bool_()}
+    for k, ft in info["features"].items():
+        want = types[ft["dtype"]] if ft["shape"] == [1] else pa.list_(types[ft["dtype"]],
+                                                                      ft["shape"][0])
+        assert frames.schema.field(k).type == want, k
+    assert frames.num_rows == info["total_frames"] and len(eps) == info["total_episodes"]
+    assert frames.column("index").to_pylist() == list(range(frames.num_rows))
+    tasks = pd.read_parquet(root / "meta" / "tasks.parquet")
+    assert len(tasks) == info["total_tasks"] and list(tasks.columns) == ["task_index"]
+    task_of = {int(v): k for k, v in tasks["task_index"].items()}
+    fi, ei, ts, ti = (frames.column(c).to_pylist() for c in (
+        "frame_index", "episode_index", "timestamp", "task_index"))
+    at = 0
+    for e in eps:
+        assert (e["dataset_from_index"], e["dataset_to_index"]) == (at, at + e["length"])
+        seg = range(at, at + e["length"])
+        assert [fi[i] for i in seg] == list(range(e["length"]))
+        assert {ei[i] for i in seg} == {e["episode_index"]}
+        assert {task_of[ti[i]] for i in seg} == set(e["tasks"])
+        assert max(abs(ts[i] - fi[i] / info["fps"]) for i in seg) < 1e-4  # float32 seconds
+        at += e["length"]
+    return info, frames, episodes
+
+
+def _lerobot_loader_check(root: Path, frames) -> None:
+    """LeRobot's own loader on the dataset, when installed (the optional 'lerobot' extra):
+    every frame's state as written."""
+    try:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    except ImportError:
+        return
+    ds = LeRobotDataset("local/pathpref", root=root)
+    assert len(ds) == frames.num_rows
+    for i in (0, frames.num_rows // 2, frames.num_rows - 1):
+        got = ds[i]["observation.state"].tolist()
+        assert got == pytest.approx(frames.column("observation.state")[i].as_py(), abs=0)
+
+
+def test_lerobot_dataset_of_study_trials(demo_db, tmp_path, capsys):
+    """``pathpref dataset`` (study): a LeRobot v3 dataset, an episode per finished trial, a
+    frame per trial_path row (100 fps): the state is the recorded position, the intervention
+    the force applied at that physics step (trial_forces at the same time), is_intervention
+    |F| > 0.5 N, the action the velocity to the next frame, the robot's action the decision in
+    force; stats.json's means those of the frames."""
+    root = tmp_path / "ds"
+    assert main(["dataset", str(demo_db), "--out", str(root)]) == 0
+    assert "LeRobot v3.0 dataset, 2 episodes" in capsys.readouterr().out
+    info, frames, episodes = _lerobot_layout(root)
+    assert info["fps"] == 100
+    eps = episodes.to_pylist()
+    assert [e["source_key"] for e in eps] == ["demo/1", "demo/2"]
+    assert eps[0]["tasks"] == [
+        "reach goal (5, 9) of map simple along the route " + " ".join(
+            f"({x}, {y})" for x, y in json.loads(rows(demo_db, "SELECT route FROM trials "
+                                                      "WHERE trial = 1")[0][0]))]
+    col = {c: frames.column(c).to_pylist() for c in frames.column_names}
+    pushed = 0
+    for e in eps:
+        trial = int(e["source_key"].split("/")[1])
+        path = rows(demo_db, "SELECT time_s, x, y FROM trial_path WHERE trial = ? ORDER BY k",
+                    trial)
+        force = dict(((round(t, 6), (fx, fy)) for t, fx, fy in rows(
+            demo_db, "SELECT time_s, fx, fy FROM trial_forces WHERE trial = ?", trial)))
+        steps = rows(demo_db, "SELECT time_s, action FROM trial_steps WHERE trial = ? "
+                     "ORDER BY t", trial)
+        assert e["length"] == len(path)
+        seg = range(e["dataset_from_index"], e["dataset_to_index"])
+        xy = np.array([p[1:] for p in path])
+        assert np.array([col["observation.state"][i] for i in seg]) == pytest.approx(
+            xy.astype(np.float32), abs=0)
+        f = np.array([force.get(round(p[0], 6), (0.0, 0.0)) for p in path])
+        assert np.array([col["intervention"][i] for i in seg]) == pytest.approx(
+            f.astype(np.float32), abs=0)
+        on = list(np.hypot(f[:, 0], f[:, 1]) > 0.5)
+        assert [col["is_intervention"][i] for i in seg] == on
+        pushed += sum(on)
+        v = np.vstack([np.diff(xy, axis=0) * 100, [0.0, 0.0]])
+        assert np.array([col["action"][i] for i in seg]) == pytest.approx(v, abs=1e-3)
+        acts = [[a for s, a in steps if s <= p[0] + 1e-9][-1] for p in path]
+        assert [col["observation.robot_action"][i] for i in seg] == acts
+    assert pushed > 100  # the demo's pushes are a second or so each
+    stats = json.loads((root / "meta" / "stats.json").read_text())
+    assert stats["observation.state"]["mean"] == pytest.approx(
+        np.mean(col["observation.state"], axis=0), abs=1e-5)
+    assert stats["is_intervention"]["mean"] == [pytest.approx(pushed / frames.num_rows)]
+    assert stats["observation.state"]["count"] == [frames.num_rows]
+    _lerobot_loader_check(root, frames)
+    assert main(["dataset", str(demo_db), "--out", str(root)]) == 2  # never over a folder
+
+
+def test_lerobot_dataset_of_physical_episodes(tmp_path, capsys):
+    """``pathpref dataset --source episodes`` on a one-episode ``--sim mujoco`` sweep: a frame
+    per decision step (fps 1), the state the cell after step t, the intervention the heading
+    observed from the push after it (row t + 1), is_intervention row t's, the action the next
+    one (row t + 1's); the frames that are interventions are the episode's inputs."""
+    db = tmp_path / "sweep.sqlite"
+    assert main(["evaluate", "--sim", "mujoco", "--methods", "path_preference", "--delta-t",
+                 "5", "--instances", "1", "--runs", "1", "--goals", "3", "--queries", "100",
+                 "--db", str(db), "--no-progress", "--workers", "1"]) == 0
+    root = tmp_path / "eps"
+    assert main(["dataset", str(db), "--out", str(root), "--source", "episodes"]) == 0
+    info, frames, episodes = _lerobot_layout(root)
+    assert info["fps"] == 1 and info["total_episodes"] == 1
+    (key, inputs), = rows(db, "SELECT key, inputs FROM episodes")
+    assert episodes.column("source_key").to_pylist() == [key]
+    steps = rows(db, "SELECT x, y, action, heading, is_intervention FROM steps WHERE key = ? "
+                 "ORDER BY t", key)
+    col = {c: frames.column(c).to_pylist() for c in frames.column_names}
+    assert col["observation.state"] == [[float(s[0]), float(s[1])] for s in steps]
+    assert col["intervention"] == [s[3] for s in steps[1:]] + [-1]
+    assert col["action"] == [s[2] for s in steps[1:]] + [-1]
+    assert col["is_intervention"] == [bool(s[4]) for s in steps]
+    assert sum(col["is_intervention"]) == inputs > 0
+    _lerobot_loader_check(root, frames)
