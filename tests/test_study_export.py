@@ -659,7 +659,8 @@ def _rerun_catalog() -> bool:
                     reason="rerun-sdk[catalog] (the rerun CLI and rr.server) not installed")
 def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
     """rerun's MCAP importer (``rerun mcap convert``) makes /ros/pose an InstancePoses3D and
-    each /ros/force/* message a decoded geometry_msgs WrenchStamped, read back from the .rrd
+    each /ros/force/* message a decoded geometry_msgs WrenchStamped and each push and cue a
+    decoded foxglove.Event (one per row, its k in the metadata), read back from the .rrd
     through rerun's own Python reader (``rr.server``): one per trial_forces row with the stored
     force, in order (the JSON twins stay raw bytes)."""
     import subprocess
@@ -679,6 +680,14 @@ def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
         names = {str(c.name) for c in ds.schema()}
         assert "/ros/pose:InstancePoses3D:translations" in names
         assert "/force/applied:McapMessage:data" in names
+        for topic, table in (("/events/pushes", "trial_pushes"), ("/events/cues", "trial_cues")):
+            col = f"{topic}:foxglove.Event:message"  # decoded: a typed event, not bytes
+            ks = [int(next(kv["value"] for kv in m["metadata"] if kv["key"] == "k"))
+                  for cell in ds.filter_contents([topic]).reader(
+                      index="message_log_time").to_arrow_table().column(col).to_pylist()
+                  if cell for m in cell]
+            assert sorted(ks) == [k for (k,) in rows(
+                demo_db, f"SELECT k FROM {table} WHERE trial = 1 ORDER BY k")], topic
         for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
             table = ds.filter_contents([topic]).reader(
                 index="message_log_time").to_arrow_table()
