@@ -803,7 +803,17 @@ def test_lerobot_dataset_of_study_trials(demo_db, tmp_path, capsys):
     assert stats["is_intervention"]["mean"] == [pytest.approx(pushed / frames.num_rows)]
     assert stats["observation.state"]["count"] == [frames.num_rows]
     _lerobot_loader_check(root, frames)
-    assert main(["dataset", str(demo_db), "--out", str(root)]) == 2  # never over a folder
+    before = _tree(root)
+    capsys.readouterr()
+    for args, said in (([str(demo_db), "--out", str(root)], "exists; give a new folder"),
+                       ([str(demo_db), "--out", str(tmp_path / "e"), "--source", "episodes"],
+                        "holds no --sim mujoco episodes"),
+                       ([str(tmp_path / "none.sqlite"), "--out", str(tmp_path / "n")],
+                        "no results database")):
+        assert main(["dataset", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and said in err, err
+    assert _tree(root) == before and sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
 
 
 def test_lerobot_dataset_of_physical_episodes(tmp_path, capsys):
@@ -830,3 +840,6 @@ def test_lerobot_dataset_of_physical_episodes(tmp_path, capsys):
     assert col["is_intervention"] == [bool(s[4]) for s in steps]
     assert sum(col["is_intervention"]) == inputs > 0
     _lerobot_loader_check(root, frames)
+    assert main(["dataset", str(db), "--out", str(tmp_path / "s")]) == 2  # no study trials
+    assert "holds no finished study trials" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

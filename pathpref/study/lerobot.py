@@ -284,6 +284,9 @@ def _write_study(conn, db, root: Path) -> dict:
     w = LeRobotWriter(root, 100, STUDY_FEATURES, "pathpref_mobile_base")
     trials = list(checked("trials", _iter(
         conn, "SELECT * FROM trials WHERE status = 'done' ORDER BY participant, trial", ()), db))
+    if not trials:
+        raise ConfigError(f"{db} holds no finished study trials (record them with 'pathpref "
+                          "study run'; a sweep's episodes: --source episodes)")
     for t in trials:
         w.add_episode(task_text(json.loads(t["goal"]), t["map"], json.loads(t["route"])),
                       _study_frames(conn, db, t["participant"], t["trial"], 100),
