@@ -74,6 +74,33 @@ def test_other_hosts_need_the_token():
         loop.close()
 
 
+def test_favicon_is_declared_and_never_refused():
+    """A desktop browser asks ``/favicon.ico`` on its own, without the token: answered
+    204 with no body and not counted as refused; the served page declares its empty icon
+    (``<link rel="icon" href="data:,">``), so a browser that reads it asks nothing."""
+    from html.parser import HTMLParser
+
+    front = BrowserFrontEnd(port=0)
+    try:
+        base = f"http://127.0.0.1:{front.port}"
+        assert _get(base + "/favicon.ico") == (204, b"")
+        assert _get(base + "/other.ico")[0] == 403  # only the icon is spared the token
+        assert front.refused_requests == 1
+        status, page = _get(base + f"/?token={front.token}")
+    finally:
+        front.close()
+    icons = []
+
+    class Links(HTMLParser):
+        def handle_starttag(self, tag, attrs):
+            a = dict(attrs)
+            if tag == "link" and "icon" in (a.get("rel") or "").split():
+                icons.append(a.get("href"))
+
+    Links().feed(page.decode())
+    assert status == 200 and icons == ["data:,"]
+
+
 def test_malformed_and_oversized_messages_are_ignored(caplog):
     from websockets.sync.client import connect
 
@@ -192,8 +219,8 @@ def test_browser_drag_end_to_end(tmp_path):
                 _wait_sim(page, 1.0)
             fps = page.evaluate("window.study.fps")
             shown = page.inner_text("body")
-            # headless chromium fetches no favicon; a desktop browser would ask /favicon.ico
-            # (refused without the token) unless the page declares its own, empty icon
+            # headless chromium fetches no favicon (test_favicon_is_declared_and_never_refused
+            # requests it as a desktop browser would); the page declares its own, empty icon
             icon = page.evaluate("document.querySelector('link[rel=icon]').href")
             shot = tmp_path / "page.png"
             page.screenshot(path=str(shot))

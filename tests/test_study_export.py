@@ -10,6 +10,7 @@ import shutil
 import sqlite3
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from pathpref.apps.cli import main
@@ -46,7 +47,7 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
             reader = make_reader(f)
             topics: dict[str, list] = {}
             for schema, channel, message in reader.iter_messages():
-                if channel.topic.startswith(("/ros/", "/scene", "/tf")):
+                if channel.topic.startswith(("/ros/", "/scene", "/tf", "/events")):
                     continue  # ROS 2 and Foxglove protobuf topics: tested below
                 assert channel.message_encoding == "json" and schema.encoding == "jsonschema"
                 topics.setdefault(channel.topic, []).append(
@@ -153,6 +154,74 @@ def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
             for m in tfs] == [("world", "base", (x - 0.5) * 0.5, (y - 0.5) * 0.5)
                               for x, y in steps]
 
+
+
+def test_pushes_and_cues_are_typed_foxglove_events_and_arrows(demo_db, tmp_path):
+    """/events/pushes and /events/cues decode (protobuf decoder) as foxglove.Event: one per
+    stored row, in order, spanning the push (t_start..t_end) or the cue's push (time_s -
+    duration_s..time_s) on the trial's clock, with every column back exactly from its
+    metadata; /scene/pushes and /scene/cues draw one arrow each along the impulse, from the
+    base's recorded position at the push's start or from the cue's cell centre."""
+    import math
+    from datetime import datetime
+
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    seen = 0
+    for k in (1, 2):
+        got: dict[str, list] = {}
+        with open(out / "demo" / f"trial-{k:02d}.mcap", "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for schema, channel, _, msg in reader.iter_decoded_messages(topics=[
+                    "/events/pushes", "/events/cues", "/scene/pushes", "/scene/cues"]):
+                got.setdefault(channel.topic, []).append((schema.name, msg))
+        started = rows(demo_db, "SELECT started_utc FROM trials WHERE trial = ?", k)[0][0]
+        t0 = int(datetime.fromisoformat(started).timestamp())
+        for kind, table, cols in (
+                ("pushes", "trial_pushes", ("k", "t_start", "t_end", "peak_n", "impulse_x",
+                                            "impulse_y")),
+                ("cues", "trial_cues", ("k", "time_s", "x", "y", "heading", "magnitude_n",
+                                        "impulse_x", "impulse_y", "duration_s"))):
+            stored = rows(demo_db, f"SELECT {', '.join(cols)} FROM {table} WHERE trial = ? "
+                          "ORDER BY k", k)
+            events = got.get(f"/events/{kind}", [])
+            assert len(events) == len(stored) > 0, (k, kind)
+            for (name, ev), r in zip(events, stored, strict=True):
+                meta = {m.key: m.value for m in ev.metadata}
+                assert name == "foxglove.Event"
+                assert meta["kind"] == {"pushes": "push", "cues": "cue"}[kind]
+                assert meta["participant"] == "demo" and int(meta["trial"]) == k
+                back = tuple(int(meta[c]) if c in ("k", "x", "y", "heading") else
+                             float(meta[c]) for c in cols)
+                assert back == r  # exact: repr of a float round-trips
+                row = dict(zip(cols, r, strict=True))
+                start, end = ((row["t_start"], row["t_end"]) if kind == "pushes" else
+                              (max(0.0, row["time_s"] - row["duration_s"]), row["time_s"]))
+                for stamp, want in ((ev.start_time, start), (ev.end_time, end)):
+                    got_s = stamp.seconds - t0 + stamp.nanos * 1e-9
+                    assert got_s == pytest.approx(want, abs=1e-6)
+            arrows = got.get(f"/scene/{kind}", [])
+            assert len(arrows) == len(stored)
+            for (_, upd), r in zip(arrows, stored, strict=True):
+                row = dict(zip(cols, r, strict=True))
+                (a,) = upd.entities[0].arrows
+                q = a.pose.orientation
+                angle = 2 * math.atan2(q.z, q.w)
+                want = math.atan2(row["impulse_y"], row["impulse_x"])
+                assert math.remainder(angle - want, 2 * math.pi) == pytest.approx(0, abs=1e-9)
+                if kind == "cues":
+                    at = ((row["x"] - 0.5) * 0.5, (row["y"] - 0.5) * 0.5)
+                else:
+                    at = rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = ? AND "
+                              "time_s <= ? ORDER BY k DESC LIMIT 1", k, row["t_start"])[0]
+                assert (a.pose.position.x, a.pose.position.y) == pytest.approx(at, abs=1e-12)
+                assert 0 < a.shaft_length <= 1.5
+            seen += len(stored)
+    assert seen >= 4
 
 
 def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
@@ -284,10 +353,59 @@ def test_replay_streams_frames_and_holds_no_list(demo_db, tmp_path, monkeypatch)
     monkeypatch.setattr(render.VideoWriter, "append", append)
     n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "v.mp4", 32, 24)
     time_s = rows(demo_db, "SELECT time_s FROM trials WHERE trial = 1")[0][0]
-    assert n == seen["n"] and abs(n - time_s * 25) <= 2
+    assert n == seen["n"] and abs(n - (time_s * 25 + 1 + 25)) <= 2  # + last frame, 1 s card
     # a frame list would keep every frame alive: distinct ids for all; streamed frames are
     # freed and their memory reused, so ids repeat
     assert len(seen["ids"]) < n
+
+
+def test_replay_video_shows_the_trail_and_ends_with_the_outcome_card(demo_db, tmp_path,
+                                                                     monkeypatch):
+    """The top view draws the base's trail: every trail point lies on the recorded path
+    (trial_path, within 1 cm: the replay runs the same physics), consecutive points >= 5 cm
+    apart, and by the end it spans the trip; the video ends with the final frame and the
+    outcome card held for 1 s (25 identical frames, the frame faded, the card's box white)."""
+    from pathpref.sim import render
+    from pathpref.study import replay
+
+    frames, trails = [], []
+    real_append, real_views = render.VideoWriter.append, render.RolloutRenderer.views
+
+    def append(self, frame):
+        frames.append(np.array(frame))
+        real_append(self, frame)
+
+    def views(self, data, overlay):
+        trails.append(None if overlay.trail is None else np.array(overlay.trail))
+        return real_views(self, data, overlay)
+
+    monkeypatch.setattr(render.VideoWriter, "append", append)
+    monkeypatch.setattr(render.RolloutRenderer, "views", views)
+    replay.replay_trial(demo_db, "demo", 1, tmp_path / "c.mp4", 160, 90)
+    path = np.array(rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = 1 ORDER BY k"))
+    last = trails[-1]
+    assert len(last) > 20
+    gap = np.hypot(*np.diff(last[:-1], axis=0).T)
+    assert gap.min() >= replay.TRAIL_STEP_M - 1e-12
+    near = np.min(np.hypot(*(last[:, None, :] - path[None, :, :]).transpose(2, 0, 1)), axis=1)
+    assert near.max() < 0.01
+    assert np.hypot(*(last[0] - path[0])) < 0.01 and np.hypot(*(last[-1] - path[-1])) < 0.01
+    card, final = frames[-1], frames[-26]
+    assert all(np.array_equal(f, card) for f in frames[-25:])
+    assert not np.array_equal(final, card)
+    h, w = card.shape[:2]
+    assert (card[h // 2 - 2:h // 2 + 2, w // 2 - 2:w // 2 + 2] >= 250).all()  # the box
+    assert card.mean() > final.mean() + 20  # faded towards white
+    lines = [t for t, _ in replay.study_outcome_lines(
+        {"outcome": "success", "time_s": 16.04, "violations": 0, "pushes": 7, "cues": 7,
+         "effort_ns": 98.14, "steps": 9})]
+    assert lines == ["SUCCESS: goal reached in 16.0 s", "preferred route followed",
+                     "pushes: 7   cues: 7   effort: 98.1 N s", "decision steps: 9"]
+    assert replay.study_outcome_lines(
+        {"outcome": "timeout", "time_s": 30.0, "violations": 2, "pushes": 1, "cues": 0,
+         "effort_ns": 3.0, "steps": 30})[:2] == [
+        ("TIMEOUT: goal not reached in 30.0 s", (190, 30, 30)),
+        ("preferred route: 2 violation(s)", (190, 30, 30))]
 
 
 def test_salvage_keeps_the_study_tables(demo_db, tmp_path, capsys):
@@ -318,7 +436,7 @@ def test_salvage_keeps_the_study_tables(demo_db, tmp_path, capsys):
 
 def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
     """The replay's frames carry the info panel (it was blank): the trial, the step, the
-    belief and the recorded outcome, on every frame."""
+    belief and the recorded outcome, on every frame but the outcome card's (held 1 s)."""
     from pathpref.study import replay
 
     infos = []
@@ -330,7 +448,7 @@ def test_replay_video_has_its_info_panel(demo_db, tmp_path, monkeypatch):
 
     monkeypatch.setattr(replay, "info_panel", spy)
     n = replay.replay_trial(demo_db, "demo", 1, tmp_path / "p.mp4", 320, 180)
-    assert len(infos) == n > 0
+    assert len(infos) == n - 25 > 0
     outcome, time_s, cues = rows(demo_db, "SELECT outcome, time_s, cues FROM trials WHERE "
                                  "trial = 1")[0]
     assert infos[0].title.startswith("demo trial 1: ")
@@ -541,7 +659,8 @@ def _rerun_catalog() -> bool:
                     reason="rerun-sdk[catalog] (the rerun CLI and rr.server) not installed")
 def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
     """rerun's MCAP importer (``rerun mcap convert``) makes /ros/pose an InstancePoses3D and
-    each /ros/force/* message a decoded geometry_msgs WrenchStamped, read back from the .rrd
+    each /ros/force/* message a decoded geometry_msgs WrenchStamped and each push and cue a
+    decoded foxglove.Event (one per row, its k in the metadata), read back from the .rrd
     through rerun's own Python reader (``rr.server``): one per trial_forces row with the stored
     force, in order (the JSON twins stay raw bytes)."""
     import subprocess
@@ -561,6 +680,14 @@ def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
         names = {str(c.name) for c in ds.schema()}
         assert "/ros/pose:InstancePoses3D:translations" in names
         assert "/force/applied:McapMessage:data" in names
+        for topic, table in (("/events/pushes", "trial_pushes"), ("/events/cues", "trial_cues")):
+            col = f"{topic}:foxglove.Event:message"  # decoded: a typed event, not bytes
+            ks = [int(next(kv["value"] for kv in m["metadata"] if kv["key"] == "k"))
+                  for cell in ds.filter_contents([topic]).reader(
+                      index="message_log_time").to_arrow_table().column(col).to_pylist()
+                  if cell for m in cell]
+            assert sorted(ks) == [k for (k,) in rows(
+                demo_db, f"SELECT k FROM {table} WHERE trial = 1 ORDER BY k")], topic
         for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
             table = ds.filter_contents([topic]).reader(
                 index="message_log_time").to_arrow_table()
@@ -569,3 +696,150 @@ def test_rerun_mcap_import_yields_typed_entities(demo_db, tmp_path):
                    for cell in table.sort_by("message_log_time").column(col).to_pylist()
                    if cell for m in cell]
             assert got == [(f[cols[0]], f[cols[1]]) for f in forces], topic
+
+
+def _lerobot_layout(root: Path) -> tuple[dict, object, object]:
+    """The dataset at ``root`` checked against LeRobot v3's documented layout (meta/info.json,
+    meta/tasks.parquet, meta/episodes/chunk-XXX/file-XXX.parquet, data/chunk-XXX/file-XXX
+    .parquet; every feature a column of its dtype and shape; LeRobot's five own columns;
+    episodes contiguous in ``index``); (info, frames, episodes) as pyarrow tables."""
+    pa = pytest.importorskip("pyarrow")
+    pq = pytest.importorskip("pyarrow.parquet")
+    pd = pytest.importorskip("pandas")
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["codebase_version"] == "v3.0" and info["video_path"] is None
+    assert info["data_path"] == "data/chunk-{chunk_index:03d}/file-{file_index:03d}.parquet"
+    for k in ("timestamp", "frame_index", "episode_index", "index", "task_index"):
+        assert info["features"][k]["shape"] == [1]
+    episodes = pq.read_table(root / "meta" / "episodes" / "chunk-000" / "file-000.parquet")
+    eps = episodes.to_pylist()
+    files = sorted({(e["data/chunk_index"], e["data/file_index"]) for e in eps})
+    frames = pa.concat_tables(pq.read_table(root / info["data_path"].format(
+        chunk_index=c, file_index=f)) for c, f in files)
+    types = {"float32": pa.float32(), "int64": pa.int64(), "bool": pa.bool_()}
+    for k, ft in info["features"].items():
+        want = types[ft["dtype"]] if ft["shape"] == [1] else pa.list_(types[ft["dtype"]],
+                                                                      ft["shape"][0])
+        assert frames.schema.field(k).type == want, k
+    assert frames.num_rows == info["total_frames"] and len(eps) == info["total_episodes"]
+    assert frames.column("index").to_pylist() == list(range(frames.num_rows))
+    tasks = pd.read_parquet(root / "meta" / "tasks.parquet")
+    assert len(tasks) == info["total_tasks"] and list(tasks.columns) == ["task_index"]
+    task_of = {int(v): k for k, v in tasks["task_index"].items()}
+    fi, ei, ts, ti = (frames.column(c).to_pylist() for c in (
+        "frame_index", "episode_index", "timestamp", "task_index"))
+    at = 0
+    for e in eps:
+        assert (e["dataset_from_index"], e["dataset_to_index"]) == (at, at + e["length"])
+        seg = range(at, at + e["length"])
+        assert [fi[i] for i in seg] == list(range(e["length"]))
+        assert {ei[i] for i in seg} == {e["episode_index"]}
+        assert {task_of[ti[i]] for i in seg} == set(e["tasks"])
+        assert max(abs(ts[i] - fi[i] / info["fps"]) for i in seg) < 1e-4  # float32 seconds
+        at += e["length"]
+    return info, frames, episodes
+
+
+def _lerobot_loader_check(root: Path, frames) -> None:
+    """LeRobot's own loader on the dataset, when installed (the optional 'lerobot' extra):
+    every frame's state as written."""
+    try:
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    except ImportError:
+        return
+    ds = LeRobotDataset("local/pathpref", root=root)
+    assert len(ds) == frames.num_rows
+    for i in (0, frames.num_rows // 2, frames.num_rows - 1):
+        got = ds[i]["observation.state"].tolist()
+        assert got == pytest.approx(frames.column("observation.state")[i].as_py(), abs=0)
+
+
+def test_lerobot_dataset_of_study_trials(demo_db, tmp_path, capsys):
+    """``pathpref dataset`` (study): a LeRobot v3 dataset, an episode per finished trial, a
+    frame per trial_path row (100 fps): the state is the recorded position, the intervention
+    the force applied at that physics step (trial_forces at the same time), is_intervention
+    |F| > 0.5 N, the action the velocity to the next frame, the robot's action the decision in
+    force; stats.json's means those of the frames."""
+    root = tmp_path / "ds"
+    assert main(["dataset", str(demo_db), "--out", str(root)]) == 0
+    assert "LeRobot v3.0 dataset, 2 episodes" in capsys.readouterr().out
+    info, frames, episodes = _lerobot_layout(root)
+    assert info["fps"] == 100
+    eps = episodes.to_pylist()
+    assert [e["source_key"] for e in eps] == ["demo/1", "demo/2"]
+    assert eps[0]["tasks"] == [
+        "reach goal (5, 9) of map simple along the route " + " ".join(
+            f"({x}, {y})" for x, y in json.loads(rows(demo_db, "SELECT route FROM trials "
+                                                      "WHERE trial = 1")[0][0]))]
+    col = {c: frames.column(c).to_pylist() for c in frames.column_names}
+    pushed = 0
+    for e in eps:
+        trial = int(e["source_key"].split("/")[1])
+        path = rows(demo_db, "SELECT time_s, x, y FROM trial_path WHERE trial = ? ORDER BY k",
+                    trial)
+        force = dict(((round(t, 6), (fx, fy)) for t, fx, fy in rows(
+            demo_db, "SELECT time_s, fx, fy FROM trial_forces WHERE trial = ?", trial)))
+        steps = rows(demo_db, "SELECT time_s, action FROM trial_steps WHERE trial = ? "
+                     "ORDER BY t", trial)
+        assert e["length"] == len(path)
+        seg = range(e["dataset_from_index"], e["dataset_to_index"])
+        xy = np.array([p[1:] for p in path])
+        assert np.array([col["observation.state"][i] for i in seg]) == pytest.approx(
+            xy.astype(np.float32), abs=0)
+        f = np.array([force.get(round(p[0], 6), (0.0, 0.0)) for p in path])
+        assert np.array([col["intervention"][i] for i in seg]) == pytest.approx(
+            f.astype(np.float32), abs=0)
+        on = list(np.hypot(f[:, 0], f[:, 1]) > 0.5)
+        assert [col["is_intervention"][i] for i in seg] == on
+        pushed += sum(on)
+        v = np.vstack([np.diff(xy, axis=0) * 100, [0.0, 0.0]])
+        assert np.array([col["action"][i] for i in seg]) == pytest.approx(v, abs=1e-3)
+        acts = [[a for s, a in steps if s <= p[0] + 1e-9][-1] for p in path]
+        assert [col["observation.robot_action"][i] for i in seg] == acts
+    assert pushed > 100  # the demo's pushes are a second or so each
+    stats = json.loads((root / "meta" / "stats.json").read_text())
+    assert stats["observation.state"]["mean"] == pytest.approx(
+        np.mean(col["observation.state"], axis=0), abs=1e-5)
+    assert stats["is_intervention"]["mean"] == [pytest.approx(pushed / frames.num_rows)]
+    assert stats["observation.state"]["count"] == [frames.num_rows]
+    _lerobot_loader_check(root, frames)
+    before = _tree(root)
+    capsys.readouterr()
+    for args, said in (([str(demo_db), "--out", str(root)], "exists; give a new folder"),
+                       ([str(demo_db), "--out", str(tmp_path / "e"), "--source", "episodes"],
+                        "holds no --sim mujoco episodes"),
+                       ([str(tmp_path / "none.sqlite"), "--out", str(tmp_path / "n")],
+                        "no results database")):
+        assert main(["dataset", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and said in err, err
+    assert _tree(root) == before and sorted(p.name for p in tmp_path.iterdir()) == ["ds"]
+
+
+def test_lerobot_dataset_of_physical_episodes(tmp_path, capsys):
+    """``pathpref dataset --source episodes`` on a one-episode ``--sim mujoco`` sweep: a frame
+    per decision step (fps 1), the state the cell after step t, the intervention the heading
+    observed from the push after it (row t + 1), is_intervention row t's, the action the next
+    one (row t + 1's); the frames that are interventions are the episode's inputs."""
+    db = tmp_path / "sweep.sqlite"
+    assert main(["evaluate", "--sim", "mujoco", "--methods", "path_preference", "--delta-t",
+                 "5", "--instances", "1", "--runs", "1", "--goals", "3", "--queries", "100",
+                 "--db", str(db), "--no-progress", "--workers", "1"]) == 0
+    root = tmp_path / "eps"
+    assert main(["dataset", str(db), "--out", str(root), "--source", "episodes"]) == 0
+    info, frames, episodes = _lerobot_layout(root)
+    assert info["fps"] == 1 and info["total_episodes"] == 1
+    (key, inputs), = rows(db, "SELECT key, inputs FROM episodes")
+    assert episodes.column("source_key").to_pylist() == [key]
+    steps = rows(db, "SELECT x, y, action, heading, is_intervention FROM steps WHERE key = ? "
+                 "ORDER BY t", key)
+    col = {c: frames.column(c).to_pylist() for c in frames.column_names}
+    assert col["observation.state"] == [[float(s[0]), float(s[1])] for s in steps]
+    assert col["intervention"] == [s[3] for s in steps[1:]] + [-1]
+    assert col["action"] == [s[2] for s in steps[1:]] + [-1]
+    assert col["is_intervention"] == [bool(s[4]) for s in steps]
+    assert sum(col["is_intervention"]) == inputs > 0
+    _lerobot_loader_check(root, frames)
+    assert main(["dataset", str(db), "--out", str(tmp_path / "s")]) == 2  # no study trials
+    assert "holds no finished study trials" in capsys.readouterr().err
+    assert not (tmp_path / "s").exists()

@@ -355,6 +355,15 @@ def build_parser() -> argparse.ArgumentParser:
                     "'pathpref[parquet]') or both")
     se.set_defaults(func=c.cmd_study_export)
 
+    ds_ = sub.add_parser("dataset", help="study trials or physical episodes as a LeRobot v3 "
+                         "dataset (docs/study_export.md)")
+    ds_.add_argument("db", help="results database (study trials or a --sim mujoco sweep)")
+    ds_.add_argument("--out", required=True, help="a new folder: the dataset's root")
+    ds_.add_argument("--source", choices=["study", "episodes"], default="study",
+                     help="study: every finished trial at 100 frames/s (default); episodes: "
+                     "the --sim mujoco episodes, a frame per decision step")
+    ds_.set_defaults(func=c.cmd_dataset)
+
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")
     rpl.add_argument("db", help="results database holding study trials")
     rpl.add_argument("--participant", required=True, help="the participant's id")

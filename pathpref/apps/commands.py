@@ -572,6 +572,18 @@ def cmd_study_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_dataset(args: argparse.Namespace) -> int:
+    """``pathpref dataset``: study trials or physical episodes as a LeRobot v3 dataset."""
+    check_database(args.db, "database", must_exist=True)
+    from ..study.lerobot import export_dataset
+
+    info = export_dataset(args.db, args.out, args.source)
+    print(f"wrote {args.out}: LeRobot {info['codebase_version']} dataset, "
+          f"{info['total_episodes']} episodes, {info['total_frames']} frames at "
+          f"{info['fps']} fps")
+    return 0
+
+
 def cmd_replay(args: argparse.Namespace) -> int:
     """``pathpref replay``: a recorded study trial as a video."""
     out = check_writable(args.out, "--out", (".mp4",))

@@ -25,11 +25,17 @@ from ..geometry.world import World
 from ..sim.body import MujocoBody
 from ..sim.render import Overlay, PushTrace, RolloutRenderer, VideoWriter, applied_push
 from ..viz.mapdraw import preference_arrows
-from ..viz.video import PanelInfo, belief_rgba, compose, info_panel, outcome_card, outcome_lines
+from ..viz.video import (
+    CARD_S,
+    PanelInfo,
+    belief_rgba,
+    compose,
+    info_panel,
+    outcome_card,
+    outcome_lines,
+)
 
 VIDEO_FPS = 25
-#: seconds the outcome card is held at the end of a video
-CARD_S = 1.0
 #: the video's default size and the named ones ``--size`` offers
 DEFAULT_SIZE = (960, 540)
 HOLD_S = 2.0  # s of simulated time a push or cue stays drawn (>= 1 s of video at speed 2)

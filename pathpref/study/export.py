@@ -138,6 +138,57 @@ def scene_topics(fx_channel, put, t0: int, trial: dict, cands: list) -> None:
         json.loads(trial["goal"])))
 
 
+#: arrow shaft per newton of a push's peak or a cue's magnitude (m/N), and its cap (m)
+ARROW_M_PER_N, ARROW_MAX_M = 0.02, 1.5
+
+
+def _base_at(conn, participant: str, trial: int, time_s: float) -> tuple[float, float] | None:
+    """The base's recorded position (``trial_path``) at or before ``time_s``, or None."""
+    if not conn.execute("SELECT 1 FROM sqlite_master WHERE type = 'table' AND "
+                        "name = 'trial_path'").fetchone():
+        return None
+    r = conn.execute("SELECT x, y FROM trial_path WHERE participant = ? AND trial = ? AND "
+                     "time_s <= ? ORDER BY k DESC LIMIT 1", (participant, trial, time_s)
+                     ).fetchone()
+    return None if r is None or None in r else (float(r[0]), float(r[1]))
+
+
+def event_topics(channel, fx_channel, put, conn, participant: str, k: int, t0: int,
+                 db) -> None:
+    """Every push and cue of trial ``k``, three ways: ``/pushes``, ``/cues`` (the row as JSON,
+    as before); ``/events/pushes``, ``/events/cues`` (``foxglove.Event``: from ``t_start`` to
+    ``t_end`` for a push, from ``time_s - duration_s`` to ``time_s`` for a cue, the row's fields
+    as metadata, :func:`.mcap_scene.event`); ``/scene/pushes``, ``/scene/cues``
+    (``foxglove.SceneUpdate``: an arrow along the impulse, :data:`ARROW_M_PER_N` per newton of
+    peak or magnitude up to :data:`ARROW_MAX_M`, from the base's recorded position at the
+    push's start (no arrow when the trial has no path) or from the cue's cell centre, shown for
+    the push's duration or 1 s). A push's messages are logged at its start, a cue's when it
+    was detected (``time_s``)."""
+    for table, kind, colour in (("trial_pushes", "push", (1.0, 0.5, 0.0)),
+                                ("trial_cues", "cue", (0.6, 0.1, 0.8))):
+        topic = f"/{kind}es" if kind == "push" else f"/{kind}s"
+        cid = channel(topic, _row_schema(f"pathpref.{table}", table))
+        ev = fx_channel(f"/events{topic}", mcap_scene.fx_type("Event"))
+        arrows = fx_channel(f"/scene{topic}", mcap_scene.fx_type("SceneUpdate"))
+        for r in checked(table, _rows(conn, table, participant, k, "k"), db):
+            if kind == "push":
+                start, end, force = r["t_start"], r["t_end"], r["peak_n"]
+                at = _base_at(conn, participant, k, start)
+            else:
+                start, end, force = max(0.0, r["time_s"] - r["duration_s"]), r["time_s"], \
+                    r["magnitude_n"]
+                at = ((r["x"] - 0.5) * CELL_SIZE_M, (r["y"] - 0.5) * CELL_SIZE_M)
+            when = start if kind == "push" else end  # a cue is known when detected
+            put(cid, topic, when, r)
+            put(ev, f"/events{topic}", when, mcap_scene.event(
+                _stamp(t0, start)[0], _stamp(t0, end)[0], kind, r))
+            if at is not None:
+                put(arrows, f"/scene{topic}", when, mcap_scene.arrow_update(
+                    _stamp(t0, when)[0], f"{kind}-{r['k']}", at[0], at[1], r["impulse_x"],
+                    r["impulse_y"], min(ARROW_MAX_M, ARROW_M_PER_N * force),
+                    end - start if kind == "push" else 1.0, colour))
+
+
 def write_mcap(conn, participant: str, trial: dict, out: Path,
                db: str | Path = "database") -> dict[str, int]:
     """One trial (its ``trials`` row ``trial``, checked) as an MCAP file (module docstring);
@@ -198,10 +249,7 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
                 put(ros[0], "/ros" + topic, r["time_s"], {
                     "header": ros2_msgs.header(ns), "wrench": {"force": force,
                                                                "torque": zero}}, ros[1])
-        for table, topic in (("trial_pushes", "/pushes"), ("trial_cues", "/cues")):
-            cid = channel(topic, _row_schema(f"pathpref.{table}", table))
-            for r in checked(table, _rows(conn, table, participant, k, "k"), db):
-                put(cid, topic, r["t_start"] if table == "trial_pushes" else r["time_s"], r)
+        event_topics(channel, fx_channel, put, conn, participant, k, t0, db)
         path = ros_channel("/ros/path", ros2_msgs.POSE_STAMPED)
         hand = None
         for r in checked("trial_path", _rows(conn, "trial_path", participant, k, "k"), db):

@@ -8,12 +8,18 @@ MCAP export, in metres on the ``world`` frame (a map unit is one cell of
   centres of its cells) and the start (grey) and goal (green) cells as spheres;
 * :func:`belief_update`: the goal candidates as spheres, coloured by the robot's probability
   ``p`` of each (red, opacity ``0.15 + 0.85 p``, diameter ``(0.2 + 0.6 p) c``);
-* :func:`base_transform`: the ``world -> base`` frame transform of a pose.
+* :func:`base_transform`: the ``world -> base`` frame transform of a pose;
+* :func:`event`: a push or cue as a ``foxglove.Event`` (its start and end time, and every
+  field of its row as metadata: ``key`` the column, ``value`` the stored value as text,
+  ``repr`` of a float so ``float(value)`` gives it back exactly; ``kind`` ``push``/``cue``);
+* :func:`arrow_update`: a push or cue drawn as an arrow from the base's position along its
+  direction ``(dx, dy)``, shaft ``length`` m, shown for ``lifetime_s``.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 
 from ..sim.scene import CELL_SIZE_M
 
@@ -100,3 +106,33 @@ def base_transform(ns: int, x: float, y: float, qz: float = 0.0, qw: float = 1.0
     return fx.FrameTransform(timestamp=_stamp(fx, ns), parent_frame_id="world",
                              child_frame_id=child, translation=fx.Vector3(x=x, y=y, z=0.0),
                              rotation=fx.Quaternion(x=0.0, y=0.0, z=qz, w=qw))
+
+
+def _metadata_value(v) -> str:
+    return "" if v is None else repr(v) if isinstance(v, float) else str(v)
+
+
+def event(start_ns: int, end_ns: int, kind: str, row: Mapping):
+    """A ``foxglove.Event`` from ``start_ns`` to ``end_ns`` (module docstring)."""
+    fx = _fx()
+    return fx.Event(start_time=_stamp(fx, start_ns), end_time=_stamp(fx, end_ns), metadata=[
+        fx.KeyValuePair(key="kind", value=kind)] + [
+        fx.KeyValuePair(key=k, value=_metadata_value(v)) for k, v in row.items()])
+
+
+def arrow_update(ns: int, entity: str, x: float, y: float, dx: float, dy: float,
+                 length: float, lifetime_s: float, colour: tuple[float, float, float]):
+    """One arrow (module docstring): tail at ``(x, y)`` m, pointing along ``(dx, dy)`` (a
+    rotation of ``atan2(dy, dx)`` about z), head 0.15 m long, red-green-blue ``colour``."""
+    fx = _fx()
+    half = 0.5 * math.atan2(dy, dx)
+    life = max(0.0, lifetime_s)
+    return fx.SceneUpdate(entities=[fx.SceneEntity(
+        timestamp=_stamp(fx, ns), frame_id="world", id=entity,
+        lifetime=fx.Duration(sec=int(life), nsec=int(round((life % 1.0) * 1e9)) % 1_000_000_000),
+        arrows=[fx.ArrowPrimitive(
+            pose=fx.Pose(position=fx.Vector3(x=x, y=y, z=0.3),
+                         orientation=fx.Quaternion(x=0.0, y=0.0, z=math.sin(half),
+                                                   w=math.cos(half))),
+            shaft_length=length, shaft_diameter=0.04, head_length=0.15, head_diameter=0.1,
+            color=fx.Color(r=colour[0], g=colour[1], b=colour[2], a=1.0))])])

@@ -17,6 +17,12 @@ replay's outcome (``success``/``timeout``), step count and cue count must equal 
 its trial time the row's ``time_s`` (to 1e-6 s). A row changed after the trial (a timeout
 relabelled a success) is refused with one line naming the column, and no video is kept.
 
+**The video** shows the base's trail (a point each time it has moved
+:data:`TRAIL_STEP_M` since the last, the latest :data:`TRAIL_MAX` drawn) and ends, like a
+rollout's, with the final frame and then the outcome card
+(:func:`pathpref.viz.video.outcome_card`, :func:`study_outcome_lines`) held for
+:data:`~pathpref.viz.video.CARD_S` seconds.
+
 **Bounded memory.** Frames go to the encoder as they are drawn
 (:class:`~pathpref.sim.render.VideoWriter`); nothing holds the frames of a trial (a 3600 s
 trial is 90000 frames).
@@ -33,12 +39,31 @@ from ..experiments.store import ResultStore
 from ..experiments.trial_rows import check_trial_row, checked
 from ..experiments.trials import has_study_tables, participants_hint, read_rows
 from ..sim.render import Overlay, RolloutRenderer, VideoWriter
-from ..viz.video import PanelInfo, belief_rgba, compose, info_panel
+from ..viz.video import CARD_S, PanelInfo, belief_rgba, compose, info_panel, outcome_card
 from .plan import Trial, trial_from_row
 from .record import PUSH_ON_N
 from .session import TrialRunner
 
 VIDEO_FPS = 25
+#: the trail gains a point when the base has moved this far (m) since the last one
+TRAIL_STEP_M = 0.05
+#: trail points drawn (the latest; each is a line segment in the scene)
+TRAIL_MAX = 400
+
+
+def study_outcome_lines(row: dict) -> list[tuple[str, tuple[int, int, int]]]:
+    """The outcome card's lines (text, colour) for a study trial's row: the outcome and
+    time, the route (followed, or its violations), pushes, cues, effort and steps."""
+    good, bad, ink = (20, 140, 60), (190, 30, 30), (30, 30, 30)
+    head = (f"SUCCESS: goal reached in {row['time_s']:.1f} s", good) \
+        if row["outcome"] == "success" else (
+        f"TIMEOUT: goal not reached in {row['time_s']:.1f} s", bad)
+    v = row["violations"]
+    route = "preferred route followed" if v == 0 else f"preferred route: {v} violation(s)"
+    return [head, (route, good if v == 0 else bad),
+            (f"pushes: {row['pushes']}   cues: {row['cues']}   effort: "
+             f"{row['effort_ns']:.1f} N s", ink),
+            (f"decision steps: {row['steps']}", ink)]
 
 
 class RecordedPushes:
@@ -159,16 +184,15 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
     route = np.array(spec.route)
     polygons = world.arrangement.polygons
     k = {"n": 0}
+    trail = [base.position.copy()]
 
-    def hook(b, push) -> None:
-        k["n"] += 1
-        if k["n"] % every:
-            return
+    def frame(b) -> np.ndarray:
         o = Overlay(goal_cells=goals, goal_rgba=belief_rgba(runner.policy.belief.goal_marginal()),
                     true_goal=spec.goal_index, polygons=polygons,
                     current=int(world.cell_polytope[b.cell]), robot_xy=b.position.copy(),
                     push_origin=b.data.xpos[b.pushed_body].copy(),
-                    push_force=np.array([*runner.body.applied, 0.0]), route=route)
+                    push_force=np.array([*runner.body.applied, 0.0]), route=route,
+                    trail=np.array(trail[-TRAIL_MAX:] + [b.position[:2].copy()]))
         top, persp = renderer.views(b.data, o)
         panel = None
         if renderer.column >= 16 and height - renderer.persp_h >= 16:
@@ -183,7 +207,17 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
                 cue_heading=None if cue is None else int(cue[2].heading),
                 extra=[f"time limit {spec.time_limit_s:g} s",
                        f"recorded: {row['outcome']} in {row['time_s']:.1f} s"]))
-        video.append(compose(top, persp, panel, width, height))
+        return compose(top, persp, panel, width, height)
+
+    def hook(b, push) -> None:
+        if np.hypot(*(b.position[:2] - trail[-1][:2])) >= TRAIL_STEP_M:
+            trail.append(b.position[:2].copy())
+            if len(trail) > 2 * TRAIL_MAX:
+                del trail[:-TRAIL_MAX]  # bounded: only the latest TRAIL_MAX are drawn
+        k["n"] += 1
+        if k["n"] % every:
+            return
+        video.append(frame(b))
 
     def departs(at: int) -> ConfigError:
         return ConfigError(f"the replay departs from the recording at decision step {at} "
@@ -200,6 +234,11 @@ def replay_trial(db: str | Path, participant: str, trial: int, out: str | Path,
             if len(runner.result.log) != len(recorded):
                 raise departs(len(runner.result.log))
             verify_outcome(row, runner)
+            last = frame(base)
+            video.append(last)
+            card = outcome_card(last, study_outcome_lines(row))
+            for _ in range(int(round(CARD_S * VIDEO_FPS))):
+                video.append(card)
         finally:
             renderer.close()
     except BaseException:

@@ -15,6 +15,10 @@ thread) publishes the state, and the driving page's messages go to
   the WebSocket, must carry it too (compared in constant time, ``hmac.compare_digest``), on
   127.0.0.1 as on any other ``--host``. A page of an earlier session (another participant)
   holds an old token and is refused with HTTP 403.
+* *No icon*: ``/favicon.ico``, which a browser asks for on its own (without the token), is
+  answered ``204 No Content`` (nothing served, nothing counted as refused); the page also
+  declares an empty icon (``<link rel="icon" href="data:,">``), so browsers that honour it do
+  not ask at all.
 * *Origin and Host*: a WebSocket handshake must carry an ``Origin`` equal to the page's own
   (``http://`` + its ``Host`` header), so another site's page cannot connect even when it
   knows the token; bound to loopback, the ``Host`` must name a loopback address (no DNS
@@ -193,6 +197,8 @@ class BrowserFrontEnd:
 
     def _process_request(self, connection, request):
         path = urlsplit(request.path).path
+        if path == "/favicon.ico":  # a browser's own request, never with the token: no icon,
+            return connection.respond(HTTPStatus.NO_CONTENT, "")  # nothing refused or logged
         if not self._allowed(request.path):
             self._refused("without the session's token")
             return connection.respond(HTTPStatus.FORBIDDEN, "a valid ?token= is required\n")

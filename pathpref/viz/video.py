@@ -182,6 +182,10 @@ def frame_grid(frames: list[np.ndarray], cols: int = 3, scale: float = 0.5) -> n
     return grid
 
 
+#: seconds the outcome card is held at the end of a video
+CARD_S = 1.0
+
+
 def outcome_lines(result) -> list[tuple[str, tuple[int, int, int]]]:
     """The outcome card's lines (text, colour) for an :class:`~pathpref.episode.EpisodeResult`:
     success (goal reached by the preferred route), the route, homotopy-level success (goal
