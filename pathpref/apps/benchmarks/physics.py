@@ -661,6 +661,34 @@ def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
     return ratios, python_us, bare
 
 
+def guided_push(task: str = "carry", force_n: float = 25.0, seconds: float = 2.0,
+                after_s: float = 1.0) -> float:
+    """A steady push of ``force_n`` east for ``seconds`` on the standing robot of ``task`` under
+    guidance (``Physics.of(timing="guidance")``: the body's own construction and
+    :meth:`~pathpref.sim.body.MujocoBody.enable_guidance`) at ``simple``'s (3, 3): the base's
+    largest displacement (m) until ``after_s`` past the release. For ``carry`` the push is
+    on the tray: the arm's impedance takes it and the base's guidance admittance follows
+    (``guidance_carry_push_displacement_m``)."""
+    from ...episode import Physics
+    from ...sim.body import MujocoBody
+
+    world = cached_world("simple")
+    spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", robot=task,
+                              physics=Physics.of(timing="guidance").to_json())
+    body = MujocoBody(world, spec, np.random.default_rng(0))
+    body.enable_guidance()
+    base = body.base
+    base.reset(world.cell((3, 3)))
+    base.hold(0.3)
+    p0, t0 = base.position.copy(), float(base.data.time)
+    base.pushes = [SteadyPush((force_n, 0.0), t0, seconds)]
+    worst = 0.0
+    while base.data.time < t0 + seconds + after_s:
+        base.substep()
+        worst = max(worst, float(np.linalg.norm(base.position - p0)))
+    return worst
+
+
 def guidance_overhead(episodes: int = 3) -> dict[str, float]:
     """``guidance_episode_vs_bare``: a guided episode (``timing`` guidance, the closed-loop
     person) against bare MuJoCo plus planning, as :func:`physics_overhead` measures the
@@ -777,6 +805,8 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "render_fps_video": render_fps_video(frames=20 if quick else 60),
         **physics_overhead(2 if quick else 5),
         **guidance_overhead(1 if quick else 3),
+        "guidance_carry_push_displacement_m": guided_push("carry"),
+        "guidance_navigate_push_displacement_m": guided_push("navigate"),
     }
 
 
