@@ -631,9 +631,10 @@ def timed_phases(spent: list[float]):
         DecisionStep.run = run
 
 
-def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
-    """Per episode of ``physics`` (simple, path preference, ΔT 5, ``T_max`` 30): the ratio
-    ``T / (T - T_phys + N b)`` of :func:`physics_overhead`, the Python per physics step
+def episodes_vs_bare(physics, episodes: int, robot: str = "navigate"
+                     ) -> tuple[list, list, list]:
+    """Per episode of ``physics`` (simple, path preference, ΔT 5, ``T_max`` 30, ``robot``): the
+    ratio ``T / (T - T_phys + N b)`` of :func:`physics_overhead`, the Python per physics step
     ``T_phys / N - b`` (us) and ``b`` (us)."""
     from ... import sim  # noqa: F401 - registers the MuJoCo body
     from ...episode.runner import EpisodeRunner
@@ -641,10 +642,10 @@ def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
     ratios, python_us, bare = [], [], []
     physics = physics.to_json()
     run_episode(EpisodeSpec.single("simple", "path_preference", 5, seed=11, sim="mujoco",
-                                   t_max=3, physics=physics))  # compile scene and planner
+                                   t_max=3, physics=physics, robot=robot))  # compile
     for i in range(episodes):
         spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
-                                  sim="mujoco", t_max=30, physics=physics)
+                                  sim="mujoco", t_max=30, physics=physics, robot=robot)
         runner = EpisodeRunner(spec)
         base = runner.body.base
         b = bare_step_us(base.model, base.data)
@@ -698,6 +699,17 @@ def guidance_overhead(episodes: int = 3) -> dict[str, float]:
     ratios, python_us, _ = episodes_vs_bare(Physics.of(timing="guidance"), episodes)
     return {"guidance_episode_vs_bare": median(ratios),
             "guidance_python_us_per_step": median(python_us)}
+
+
+def carry_overhead(episodes: int = 3) -> dict[str, float]:
+    """``carry_episode_vs_bare``: a physical ``carry`` episode (``Physics()``) against bare
+    MuJoCo plus planning on its own scene, as :func:`physics_overhead` measures the default
+    episode (median over ``episodes``); ``carry_python_us_per_step``."""
+    from ...episode import Physics
+
+    ratios, python_us, _ = episodes_vs_bare(Physics(), episodes, robot="carry")
+    return {"carry_episode_vs_bare": median(ratios),
+            "carry_python_us_per_step": median(python_us)}
 
 
 def physics_overhead(episodes: int = 5) -> dict[str, float]:
@@ -853,6 +865,7 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         **carry_moves(20 if quick else 60),
         "carry_overshoot_legacy_mm": carry_moves(20 if quick else 60,
                                                  physical=False)["carry_overshoot_mm"],
+        **carry_overhead(1 if quick else 3),
         "max_penetration_mm_move_ends": max(legacy_pens),
         "tip_margin_min": min(tips),
         "ik_solves_per_s": ik_rate,
