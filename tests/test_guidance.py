@@ -306,18 +306,14 @@ def test_a_resting_hand_above_threshold_becomes_the_baseline(push_deg, heading):
 
 def test_the_carry_robot_complies_to_a_guiding_push_on_its_tray():
     """25 N on the tray for 2 s under guidance: the arm's impedance takes the push and the
-    base's guidance admittance follows it. Admittance ``M dv/dt + b v = F`` (defaults M, b of
-    ``Physics().drive``) from rest moves the target by ``F/b (T - tau (1 - e^{-T/tau}))``
-    during the push plus ``v(T) tau`` of decay afterwards (tau = M / b), within ``v_max``:
-    the plain base's figure, and the carry base must reach it too (it stood still before)."""
+    base's guidance admittance follows it as far as the admittance's closed form (the
+    defaults M, b of ``Physics().drive``) takes a target; before, it stood still."""
     from pathpref.apps.benchmarks.physics import guided_push
+    from tests.admittance_helpers import admittance_travel
 
     drive = Physics().drive
-    M, b, F, T = drive.admittance_m, drive.admittance_b, 25.0, 2.0
-    tau = M / b
-    v_T = min(F / b * (1.0 - math.exp(-T / tau)), drive.v_max)
-    ideal = F / b * (T - tau * (1.0 - math.exp(-T / tau))) \
-        + v_T * tau * (1.0 - math.exp(-1.0 / tau))
-    carry = guided_push("carry", F, T, after_s=1.0)
+    ideal = admittance_travel(25.0, 2.0, 1.0, drive.admittance_m, drive.admittance_b,
+                              drive.v_max)
+    carry = guided_push("carry", 25.0, 2.0, after_s=1.0)
     assert carry >= 0.3
     assert carry == pytest.approx(ideal, rel=0.1)

@@ -104,3 +104,17 @@ def test_a_push_on_the_tray_deflects_it_by_the_arms_joint_compliance(model, body
         out = tidybot.tray_push(body, 30.0, 3.0, after_s=1.0, headings=(heading,))
         assert out["deviation_mm"] == pytest.approx(static_mm, rel=0.15)
         assert out["recovery_s"] < 1.0
+
+
+def test_under_guidance_the_tidybot_follows_a_push_on_its_tray(body):
+    """The base's admittance takes the force the tray's sensor feels: the closed form's travel
+    (the project's guidance defaults) within 5%, the tray still level."""
+    from pathpref.episode import Physics
+    from tests.admittance_helpers import admittance_travel
+
+    drive = Physics().drive
+    moved = tidybot.guided_push(body, drive.admittance_m, drive.admittance_b, 25.0, 2.0, 1.0)
+    body.admittance = None
+    assert moved == pytest.approx(admittance_travel(25.0, 2.0, 1.0, drive.admittance_m,
+                                                    drive.admittance_b, drive.v_max), rel=0.05)
+    assert body.data.xmat[body.body].reshape(3, 3)[2, 2] == pytest.approx(1.0, abs=1e-3)

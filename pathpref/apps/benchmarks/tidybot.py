@@ -7,6 +7,8 @@ Menagerie carrying the tray with whole-body IK (:mod:`pathpref.sim.tidybot`).
 * ``whole_body_base_share``: the share of a 0.3 m end-effector target straight ahead reached
   by base motion after 3 s (:func:`~pathpref.sim.tidybot.base_share`), and
   ``whole_body_error_m`` the tray's distance from that target then;
+* ``tidybot_guidance_push_displacement_m``: 25 N on the tray for 2 s (and 1 s after) under
+  the project's guidance admittance (:func:`~pathpref.sim.tidybot.guided_push`);
 * the model's figures (:func:`~pathpref.sim.tidybot.physical_figures`) and
   ``tidybot_load_s`` (compiling the model with its meshes).
 """
@@ -28,7 +30,12 @@ def bench_tidybot(quick: bool = False) -> dict[str, Any]:
     share = tidybot.base_share(wb, 0.3, 3.0)
     push = tidybot.tray_push(wb, 30.0, 3.0, headings=(0.0, 90.0) if quick else
                              (0.0, 90.0, 180.0, 270.0))
+    from ...episode import Physics
+
+    drive = Physics().drive
+    guided = tidybot.guided_push(wb, drive.admittance_m, drive.admittance_b)
     return {"robot_model": tidybot.robot_model(model),
+            "tidybot_guidance_push_displacement_m": guided,
             "tray_deviation_30n_3s_mm": push["deviation_mm"],
             "tray_recovery_s": push["recovery_s"],
             "whole_body_base_share": share["share"],
