@@ -82,9 +82,9 @@ def tidybot_xml() -> Path:
     return path
 
 
-def build_tidybot(tray: bool = True) -> mujoco.MjModel:
-    """Compile the TidyBot on a floor (module docstring), with the tray at ``pinch_site``
-    when ``tray``; a failed load is a ConfigError of one line naming the file."""
+def build_tidybot() -> mujoco.MjModel:
+    """Compile the TidyBot on a floor with the tray at ``pinch_site`` (module docstring); a
+    failed load is a ConfigError of one line naming the file."""
     path = tidybot_xml()
     try:
         spec = mujoco.MjSpec.from_file(str(path))
@@ -93,14 +93,13 @@ def build_tidybot(tray: bool = True) -> mujoco.MjModel:
                     rgba=[0.55, 0.55, 0.52, 1.0])
         wb.add_light(pos=[0.0, 0.0, 3.0], dir=[0.0, 0.0, -1.0],
                      type=mujoco.mjtLightType.mjLIGHT_DIRECTIONAL)
-        if tray:
-            spec.attach(mujoco.MjSpec.from_file(str(mjcf_path("carry_tool.xml"))),
-                        prefix="tool/", site=spec.site("pinch_site"))
+        spec.attach(mujoco.MjSpec.from_file(str(mjcf_path("carry_tool.xml"))),
+                    prefix="tool/", site=spec.site("pinch_site"))
         arm, hand = spec.body("gen3/base_link"), spec.body("bracelet_link")
         for b in spec.bodies:
             if _below(b, arm):
                 b.gravcomp = 1.0
-            if tray and _below(b, hand) and not b.name.startswith("tool/"):
+            if _below(b, hand) and not b.name.startswith("tool/"):
                 # the gripper holds the plate: no contact between them, so the whole push
                 # passes the tray's force sensor
                 spec.add_exclude(bodyname1=b.name, bodyname2="tool/tray")
@@ -124,9 +123,9 @@ def _below(body, top) -> bool:
 
 
 def robot_model(model: mujoco.MjModel) -> str:
-    """The compiled model's name (``tidybot`` for Menagerie's file)."""
-    return mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MODEL, 0) or model.names.split(
-        b"\x00", 1)[0].decode()
+    """The compiled model's name (``tidybot`` for Menagerie's file): MuJoCo stores it first in
+    the model's names buffer."""
+    return model.names.split(b"\x00", 1)[0].decode()
 
 
 def footprint_radius_m(model: mujoco.MjModel) -> float:
