@@ -1,13 +1,13 @@
 """Render the Stanford TidyBot carrying the tray (``pathpref.sim.tidybot``) mid-push: a 30 N
 push on the tray toward +y, 1 s in, the frame written as ``docs/tidybot_frame.png``.
 
-    MUJOCO_GL=egl python scripts/tidybot_frame.py [OUT.png]
+    MUJOCO_GL=egl python scripts/tidybot_frame.py [--out OUT.png]
 """
 
 from __future__ import annotations
 
+import argparse
 import os
-import sys
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -37,4 +37,6 @@ def main(out: str = "docs/tidybot_frame.png") -> None:
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:2])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="docs/tidybot_frame.png", help="the PNG to write")
+    main(ap.parse_args().out)
