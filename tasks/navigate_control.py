@@ -42,7 +42,7 @@ from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
 from pathpref.geometry.grid import STAY
 from pathpref.sim.body import build_base
-from pathpref.sim.controller import ProfiledController, TrackingController
+from pathpref.sim.controller import HeldVelocity, TrackingController
 from pathpref.sim.decision import PUSH
 from pathpref.sim.mobile_base import MobileBase
 
@@ -76,26 +76,10 @@ class VelocityCommand(TrackingController):
         return self.u
 
 
-@dataclass(frozen=True)
-class CommandedVelocity(ProfiledController):
-    """The agent's velocity as the drive of a physical base follows it (the task's physics
-    set): the held command ``u[:2]`` is the goal velocity, reached within ``a_max`` by the
-    profiled controller's ramp (``|dv| <= a_max dt`` per physics step), the yaw regulated to
-    zero; the differential-drive base turns toward it, the physical arm's base follows it."""
-
-    #: the held command (vx, vy, unused); state, updated in place
-    u: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False)
-    #: the agent's velocity, not a target: the diff-drive base turns toward it everywhere
-    tracks_target: ClassVar[bool] = False
-
-    def hold(self, v: np.ndarray, yaw: float = 0.0) -> None:
-        """Hold ``v = (vx, vy)`` (m/s) until the next call (the yaw is regulated at every
-        physics step by the profiled law)."""
-        self.u[:2] = v
-
-    def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
-        """The held command (the position and target play no part)."""
-        return float(self.u[0]), float(self.u[1])
+#: the agent's velocity as the drive of a physical base follows it (the task's physics set;
+#: :class:`~pathpref.sim.controller.HeldVelocity`): the differential-drive base turns toward
+#: it, the physical arm's base follows it
+CommandedVelocity = HeldVelocity
 
 
 class NavigateControl(Navigate):
@@ -138,6 +122,7 @@ class NavigateControl(Navigate):
         self._plan: int | None = None
         self._plan_cue = None
         super().initialize_episode(physics)
+        physics.substeps = self.substeps
 
     def _start_push(self, push) -> None:
         """The push phase of the base's decision step, while the agent keeps driving (the
@@ -155,6 +140,27 @@ class NavigateControl(Navigate):
             self.base.substep()
         self.filter.update()
         self.interaction.update()
+
+    def substeps(self, n: int) -> None:
+        """``n`` physics steps, each what :meth:`substep` does: outside a push phase, where the
+        base's compiled steps apply (:meth:`~pathpref.sim.coasting.Coaster.drive`: the realistic
+        sensing chain idle, nothing pushing, no contact), runs of them in one call with the
+        force filter's update, the same numbers; every other step through :meth:`substep`."""
+        done = 0
+        while done < n:  # every pass takes at least one physics step
+            coaster = self.base.coaster
+            # (not while the base touches something: the kernel would hand every step back)
+            if coaster is not None and self.base.decision.phase != PUSH and \
+                    self.base.data.ncon == 0 and coaster.ready():
+                k, partial = coaster.drive(n - done, self.filter)
+                done += k
+                if partial:  # the step's task part after the base's (as substep)
+                    self.filter.update()
+                    self.interaction.update()
+                if k:
+                    continue
+            self.substep()
+            done += 1
 
     def _push_over(self) -> None:
         """The push phase ended: note how it was read (no hold: the agent drives)."""

@@ -8,7 +8,9 @@ task sets controls), ``physics.step(n_sub_steps)`` (the Environment advances the
 :meth:`Physics.step` advances each of its ``n_sub_steps`` through the task's ``substep``: the
 robot's onboard loop (its controller, the pushed body's force, ``mj_step``, sensing, cue
 detection and every ``on_substep`` hook: renderers and loggers see every physics step), so the
-time an environment step advances is exactly ``control_timestep()``.
+time an environment step advances is exactly ``control_timestep()``. A task may take the
+steps as one run (``substeps``: ``navigate_control`` runs its drive on the base's compiled
+steps, the same numbers).
 """
 
 from __future__ import annotations
@@ -32,6 +34,9 @@ class Physics(dm_mujoco.Physics):
     physics step (module docstring); without one it is dm_control's plain ``mj_step``."""
 
     substep: Callable[[], None] | None = None
+    #: the task's runs of physics steps (``substeps(n)``: ``n`` steps, each as ``substep``
+    #: would take it, on compiled steps where they apply); None: ``substep`` one at a time
+    substeps: Callable[[int], None] | None = None
     #: the task drawn into every render (:class:`~.drawing.TaskDrawing`, a callable of an
     #: ``MjvScene``); None draws the physics only
     drawing: Callable[[object], None] | None = None
@@ -57,6 +62,9 @@ class Physics(dm_mujoco.Physics):
             super().step(nstep)
             return
         with self.check_invalid_state():
+            if self.substeps is not None:
+                self.substeps(nstep)
+                return
             for _ in range(nstep):
                 self.substep()
 

@@ -9,61 +9,23 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-#: layer rank of each room; a module may import ranks <= its own (sim and viz: not each other)
-RANK = {"errors": 0, "geometry": 1, "maps": 1, "mjcf": 1, "inference": 2, "planning": 3,
-        "episode": 4, "experiments": 5, "sim": 6, "viz": 6, "tasks": 7, "study": 7, "apps": 8}
+sys.path.insert(0, str(ROOT / "scripts"))
+
+from draw_architecture import RANK, draw, imports, modules, room_of  # noqa: E402
+
 SIMULATORS = ("mujoco", "dm_control", "dm_env", "mink", "rerun")
 UPPER_NAMES = ("pathpref.sim", "pathpref.viz", "pathpref.study", "pathpref.apps",
                "pathpref_tasks")
 
 
-def _room(module: str) -> str | None:
-    parts = module.split(".")
-    if parts[0] == "pathpref_tasks":
-        return "tasks"
-    if parts[0] != "pathpref" or len(parts) < 2:
-        return None
-    return parts[1]
-
-
-def _modules():
-    for path in sorted((ROOT / "pathpref").rglob("*.py")):
-        rel = path.relative_to(ROOT).with_suffix("")
-        name = ".".join(rel.parts[:-1] if rel.name == "__init__" else rel.parts)
-        yield name, path, path.name == "__init__.py"
-    for path in sorted((ROOT / "tasks").glob("*.py")):
-        yield f"pathpref_tasks.{path.stem}".removesuffix(".__init__"), path, False
-
-
-def _imports(name: str, path: Path, is_pkg: bool):
-    tree = ast.parse(path.read_text())
-    package = name if is_pkg else name.rsplit(".", 1)[0]
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            for a in node.names:
-                yield a.name
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - node.level + 1]
-                mod = ".".join(base + ([node.module] if node.module else []))
-                if node.module is None:
-                    for a in node.names:
-                        yield f"{mod}.{a.name}"
-                    continue
-                yield mod
-            else:
-                yield node.module
-
-
 def test_arrows_point_down():
     bad = []
-    for name, path, is_pkg in _modules():
-        room = _room(name)
+    for name, path, is_pkg in modules(ROOT):
+        room = room_of(name)
         if room not in RANK:
             continue  # pathpref/__init__.py and __main__.py: the package's face
-        for imp in _imports(name, path, is_pkg):
-            target = _room(imp)
+        for imp in imports(name, path, is_pkg):
+            target = room_of(imp)
             if target is None or target == room or target not in RANK:
                 continue
             if RANK[target] > RANK[room] or {room, target} == {"sim", "viz"}:
@@ -73,11 +35,11 @@ def test_arrows_point_down():
 
 def test_lower_layers_name_no_simulator_or_upper_module():
     bad = []
-    for name, path, is_pkg in _modules():
-        room = _room(name)
+    for name, path, is_pkg in modules(ROOT):
+        room = room_of(name)
         if room not in RANK or RANK[room] > RANK["experiments"]:
             continue
-        for imp in _imports(name, path, is_pkg):
+        for imp in imports(name, path, is_pkg):
             if imp.split(".")[0] in SIMULATORS:
                 bad.append(f"{path.relative_to(ROOT)} imports {imp}")
         for node in ast.walk(ast.parse(path.read_text())):
@@ -101,3 +63,17 @@ def test_the_rule_catches_an_upward_import(tmp_path, monkeypatch):
             assert "bad.py" in str(e)
         else:
             raise AssertionError(f"{test.__name__} missed an upward import")
+
+
+def test_the_house_is_drawn_from_theimports(tmp_path):
+    """scripts/draw_architecture.py draws the room graph: every room of the rule, an arrow
+    for an import between rooms (``sim`` imports ``geometry``; nothing imports ``apps``),
+    none pointing up, a PNG written."""
+    out = tmp_path / "house.png"
+    sizes, edges = draw(out)
+    assert set(sizes) >= {"geometry", "inference", "planning", "episode", "experiments", "sim",
+                          "viz", "tasks", "study", "apps"}
+    assert edges["sim", "geometry"] > 0 and edges["apps", "sim"] > 0
+    assert not any(t == "apps" for _, t in edges)
+    assert not any(RANK[t] > RANK[r] for r, t in edges)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 20_000

@@ -12,7 +12,6 @@ import pickle
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-import mujoco  # noqa: E402
 import numba as nb  # noqa: E402
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
@@ -65,7 +64,7 @@ def _state(base) -> bytes:
         sorted(base.physical_metrics().items()), base.controller.last.tobytes(),
         s.force_estimate.tobytes(), s.estimator.bias.tobytes(), s.estimator.quiet,
         s.estimator.at_rest, s.estimator.pending().tobytes(),
-        s.faulty.bias.tobytes(), s.faulty._sum, s.faulty._count, s.faulty._next_t,
+        s.faulty.bias.tobytes(), s.faulty.win.tobytes(),
         s.faulty._held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
         s.detector.var, s.detector.on_n, s.detector.off_n, s.detector.pending().tobytes(),
         s.detector.active, s.faulty.rng.bit_generator.state["state"]))
@@ -191,19 +190,19 @@ def test_blas_products_are_numpys():
             assert r == math.sqrt(v.dot(v))
 
 
-def test_ncon_view_follows_mjdata():
-    """The view of ``ncon`` reads what the bindings read, through steps and contacts."""
-    xml = ('<mujoco><worldbody><geom type="plane" size="5 5 .1"/>'
-           '<body pos="0 0 .3"><freejoint/><geom size=".1"/></body></worldbody></mujoco>')
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    ncon = native.ncon_view(data)
+def test_the_contact_sensor_counts_mjdatas_contacts(monkeypatch):
+    """The scene's contact sensor (what the kernel reads) holds ``MjData.ncon`` after every
+    step of a base driven into a wall: none at first, then contacts."""
+    monkeypatch.setenv("PATHPREF_COMPILED_STEPS", "0")
+    base, world = _base()
+    adr = base.model.sensor(coasting.CONTACT_SENSOR).adr[0]
+    base.target = np.array([-1.0, -1.0])  # outside the walls
     seen = set()
-    for _ in range(400):
-        mujoco.mj_step(model, data)
-        assert ncon[0] == data.ncon
-        seen.add(int(data.ncon))
-    assert seen == {0, 1}  # it fell onto the plane
+    for _ in range(1500):
+        base.substep()
+        assert base.data.sensordata[adr] == base.data.ncon
+        seen.add(int(base.data.ncon))
+    assert 0 in seen and max(seen) >= 1
 
 
 @pytest.mark.parametrize("task,physics,coasts", [
@@ -255,3 +254,32 @@ def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
     while base.data.time < t_on:
         step.advance()
     assert base.data.time == t_on and _state(base) == on
+
+
+@pytest.mark.cross_cpu
+@pytest.mark.parametrize("physics", [{}, {"timing": "interval"}])
+def test_the_control_rate_task_drives_the_same_compiled(monkeypatch, reasons, physics):
+    """``navigate_control`` with realistic sensing (pushes every decision, or the simulated
+    human's own clock), random velocity commands and the task's own policy: its runs of drive
+    steps on the kernel (:meth:`~pathpref.sim.coasting.Coaster.drive`) give every observation,
+    reward and final state of the Python steps, bit for bit."""
+    from pathpref_tasks import load
+
+    def run():
+        env = load("navigate_control", map="simple", method="goal_only", seed=3, queries=30,
+                   physics=physics)
+        spec, rng = env.action_spec(), np.random.default_rng(1)
+        env.reset()
+        seen = []
+        for k in range(300):  # 6 s of physics at 50 Hz
+            a = env.task.policy_action() if k % 3 == 0 else \
+                rng.uniform(spec.minimum, spec.maximum)
+            ts = env.step(a)
+            seen.append((ts.reward, [np.asarray(v).tobytes() for v in ts.observation.values()]))
+            if ts.last():
+                env.reset()
+        return _state(env.task.base), seen
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+    assert reasons["steps"] > 1000  # most physics steps ran on the kernel

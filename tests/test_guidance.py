@@ -109,32 +109,44 @@ def test_a_person_pushing_into_a_wall_lets_go_at_the_longest_hold():
     assert len(person.given) == 1
 
 
-def test_the_deformation_is_the_evidence():
-    """A 20 N push east on a standing guided base: every partial record's evidence points
-    along the deformation (east) with weight |D| / 0.5 m; the weights add up to the target's
-    total displacement over 0.5 m (capped at 2 observations)."""
-    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
+def _pushed_evidence(peak_n: float, duration_s: float):
+    """A push east on a standing guided base: the records felt and the target's travel."""
     from pathpref.sim.force_cue import HumanPush, PushProfile
 
     _, base = _guided_base()
-    seen = []
+    seen, xs = [], {}
     base.listener = seen.append
-    target0 = base.target.copy()
+    base.on_substep.append(lambda b, p: xs.__setitem__(round(float(b.data.time), 6),
+                                                       float(b.target[0])))
     base.pushes.append(HumanPush(0.0, float(base.data.time),
-                                 PushProfile(peak_n=20.0, duration_s=2.0, noise_deg=0.0,
-                                             shape="plateau"), EAST))
-    base.decision.hold(3.0, until_cue=False).run()
+                                 PushProfile(peak_n=peak_n, duration_s=duration_s,
+                                             noise_deg=0.0, shape="plateau"), EAST))
+    base.decision.hold(duration_s + 1.0, until_cue=False).run()
+    cue = next(f for f in seen if not f.partial)
+    t0, t1 = round(cue.t_felt - base.dt, 6), round(cue.t_cue, 6)
+    return seen, xs[t1] - xs[t0]  # the target's travel while the cue was under way
+
+
+def test_the_deformation_is_the_evidence():
+    """A push east on a standing guided base: every record's evidence points along the
+    deformation (east) with weight |D| / 0.1 m; a short push's weights add up to the target's
+    travel while the cue was under way (from its first felt step to its end) over 0.1 m, a
+    long one's to the cap of 2 per push."""
+    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
+
+    seen, moved = _pushed_evidence(12.0, 0.5)
     assert seen and any(not f.partial for f in seen)
     for f in seen:
         angle, weight = f.evidence
         if weight > 1e-3:
             assert abs(angle) < math.radians(2.0)
-    moved = float(base.target[0] - target0[0])  # hold keeps the cell's centre as target
     total = sum(f.evidence[1] for f in seen)
-    # the deformation while the cue was under way: all but the ramp before the detector
-    # fires and the admittance's tail after it lets go (tau = M / b = 0.25 s)
-    assert 0.8 * moved / DEFORMATION_EVIDENCE_M <= total <= \
-        min(moved / DEFORMATION_EVIDENCE_M, GUIDANCE_MAX_EVIDENCE) + 1e-9
+    assert 0.02 < moved < 0.1 * GUIDANCE_MAX_EVIDENCE
+    # within a physics step of travel at either end (0.25 m/s x 2 ms of 0.02 m: 2.5 %)
+    assert total == pytest.approx(moved / DEFORMATION_EVIDENCE_M, rel=0.025)
+    seen, moved = _pushed_evidence(20.0, 2.0)
+    assert moved > 0.3
+    assert sum(f.evidence[1] for f in seen) == pytest.approx(GUIDANCE_MAX_EVIDENCE, abs=1e-12)
 
 
 def test_guidance_records_update_the_belief_as_enumeration_does(simple):

@@ -50,17 +50,18 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017).
 
 **Guidance** (``timing = guidance``): the person takes the handle on the ``interval`` clock
-and the base complies (:mod:`pathpref.sim.guidance`); the person is closed-loop by default
+and the base complies (the simulator's ``guidance``); the person is closed-loop by default
 (``guide = closed``: pushes toward their route, harder the further the base is off it, lets go
-when it heads the right way, :mod:`pathpref.sim.guiding_human`) or holds one drawn heading
+when it heads the right way, the simulator's ``guiding_human``) or holds one drawn heading
 (``open``). Every ``GUIDANCE_PERIOD_S`` of a push under way the robot updates its belief with
 the direction ``theta`` of the *deformation* (where the push took the plan over that period),
 by the continuous likelihood ``P(theta | s, g, p) = sum_h P(h | s, g, p) VM(theta; mu_h,
-kappa)`` (``kappa = DIRECTION_KAPPA``) to the power ``|D| / 0.5 m`` (a push that moves the plan
-one cell is one observation, at most ``GUIDANCE_MAX_EVIDENCE`` per push). A guided decision step
-lasts exactly :meth:`Physics.step_s` in every door: the move ends when the base settles or
-when a push ends (the base then holds the cell it is in), and the next decision, with the
-updated belief and the push's heading as its input, comes at the step's end.
+kappa)`` (``kappa = DIRECTION_KAPPA``) to the power ``|D| / 0.1 m`` (a push that has moved
+the plan 0.1 m is one observation, as a tap is; at most ``GUIDANCE_MAX_EVIDENCE`` per push).
+A guided decision step lasts exactly :meth:`Physics.step_s` in every door: the drive ends
+when the base settles or when a push ends (the base then stays where the push left it), and
+the next decision, with the updated belief and the push's heading as its input, comes at the
+step's end.
   The drive must deliver what the controller plans: ``a_max <= (force_limit_n - friction_n) /
   mass_kg`` and ``v_max`` within the velocity servos' range (``DRIVE_V_MAX``); other
   combinations are refused with one line.
@@ -80,7 +81,7 @@ TIMINGS = ("decision", "interval", "rate", "corrective", "guidance")
 SHAPES = ("half_sine", "bell")
 BASES = ("holonomic", "diffdrive")
 #: the simulated person under ``guidance`` timing: ``closed``, who pushes toward their route
-#: and lets go when the robot heads the right way (:mod:`pathpref.sim.guiding_human`), or
+#: and lets go when the robot heads the right way (the simulator's ``guiding_human``), or
 #: ``open``, who holds one drawn heading for the whole push
 GUIDES = ("closed", "open")
 

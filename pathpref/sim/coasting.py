@@ -21,9 +21,10 @@ settled, or its time is up). It runs only where it applies (:meth:`Coaster.appli
 :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase` on the profiled
 controller's float path, the faulty sensor without thermal drift and its estimator, the
 filtered detector idle, no pushes, guidance or external forces, no hook but a quiet one (the
-simulated human of pushes at any time runs the kernel up to its next push). Every other step takes
-the Python path (the control-rate tasks too: they advance one physics step per call).
-``PATHPREF_COMPILED_STEPS=0`` turns it off.
+simulated human of pushes at any time runs the kernel up to its next push), a scene with the
+contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
+(:meth:`Coaster.drive`: the agent's velocity held, :class:`~.controller.HeldVelocity`, no move
+to end). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it off.
 """
 
 from __future__ import annotations
@@ -36,30 +37,27 @@ import numba as nb
 import numpy as np
 
 from . import native
-from .controller import ProfiledController, profiled_goal, ramp_step, settled_at
+from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
 from .cue_detector import FilteredCueDetector, filter_step
 from .estimator import estimate_step
 from .measurements import planar_accel
-from .native import (
-    OBJ_BODY,
-    hypot,
-    matTvec,
-    mj_objectAcceleration,
-    mj_step,
-)
+from .native import hypot, mj_step
+from .sensing import W_MEAN, W_WINDOW_S, window_step
 
 #: hand-back reasons of :func:`_coast`
 READY, END, DETECT, CONTACTS, DIVERGED = range(5)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
 #: measurements, the detector's hand-back ``e`` and the velocity a contact met
-(S0, S1, S2, NEXT_T, WINDOW_S, FRESH, QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK,
- PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX, EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(24)
+(QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK, PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX,
+ EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(18)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
- T_END, STILL, T_STOP, H, N_CS) = range(19)
+ T_END, STILL, T_STOP, H, ALPHA, N_CS) = range(20)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
-(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, COUNT, MEASURE, DRIFT, AUTORESET,
- N_IS) = range(16)
+(IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
+ HELD, FILTER, SAMPLES, N_IS) = range(19)
+#: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
+CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
 BAD_STATE = np.array([int(mujoco.mjtWarning.mjWARN_BADQPOS),
                       int(mujoco.mjtWarning.mjWARN_BADQVEL),
@@ -76,30 +74,38 @@ def _bad_states(warnings):
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
-    """Physics steps of the move phase until a hand-back (module docstring); returns
+def _coast(mj, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
+    """Physics steps of the move phase (or a drive: :meth:`Coaster.drive`) until a hand-back
+    (module docstring); returns
     ``(reason, steps)``. ``held`` receives the last sample, ``est``
     (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
     the state arrays are updated in place. The records: ``mj`` the ``MjModel``'s and
     ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
     sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
-    ``drive`` the controller's last command, the target and a
-    scratch pair; ``sensor`` the faulty sensor's drift bias, its held sample and scratch;
+    ``drive`` the controller's last command, the target, a scratch pair, the held goal
+    velocity (``ns[HELD]``: :class:`~.controller.HeldVelocity`) and the task's filtered force
+    (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step); ``sensor`` the
+    faulty sensor's drift bias, its held sample, its window (:func:`~.sensing.window_step`'s
+    ``win``, the sensor's own) and scratch;
     ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants. Simulated time is
     ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
-    last, target, err = drive
-    sbias, held, acc6, ma, xbuf = sensor
+    last, target, err, goal, filt = drive
+    sbias, held, win, scratch = sensor
     f, baseline, dring, dqueue, dparams = det
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce = est[7]
     for step in range(max_steps):
         if fs[TIME] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
-        # --- MobileBase._control, float path: ProfiledController.goal_xy and ramp_xy
-        gx, gy = profiled_goal(qpos[ns[IX]], qpos[ns[IY]], target[0], target[1], cs[KP],
-                               cs[V_MAX], cs[BRAKE], cs[A_MAX])
+        # --- MobileBase._control, float path: ProfiledController.goal_xy (HeldVelocity's:
+        # the held command) and ramp_xy
+        if ns[HELD]:
+            gx, gy = goal[0], goal[1]
+        else:
+            gx, gy = profiled_goal(qpos[ns[IX]], qpos[ns[IY]], target[0], target[1], cs[KP],
+                                   cs[V_MAX], cs[BRAKE], cs[A_MAX])
         lx, ly = ramp_step(gx, gy, last, cs[A_MAX] * cs[C_DT])
         ctrl[ns[A0]], ctrl[ns[A1]], ctrl[ns[A2]] = lx, ly, -cs[K_YAW] * qpos[ns[IYAW]]
         # --- mj_step and the divergence check
@@ -117,31 +123,14 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
             if not math.isfinite(qvel[i]):
                 return DIVERGED, step + 1
         t = fs[TIME]
-        # --- FaultySensor.read: the window's sum, with the extra mass's inertia
+        # --- FaultySensor.read: the window, with the extra mass's inertia
         a = ns[SADR]
-        r0, r1, r2 = sensordata[a], sensordata[a + 1], sensordata[a + 2]
-        if cs[EXTRA_M] == 0.0:
-            fs[S0] += r0
-            fs[S1] += r1
-            fs[S2] += r2
-        else:
-            mj_objectAcceleration(mp, dp, OBJ_BODY, ns[BODY], acc6.ctypes.data, 0)
-            for i in range(3):
-                ma[i] = acc6[3 + i] * cs[EXTRA_M]
-            matTvec(R, ma, xbuf)
-            fs[S0] += r0 + xbuf[0]
-            fs[S1] += r1 + xbuf[1]
-            fs[S2] += r2 + xbuf[2]
-        ns[COUNT] += 1
-        if fs[NEXT_T] == -math.inf:
-            fs[NEXT_T] = t
-        fresh = t >= fs[NEXT_T] - 1e-9
-        fs[FRESH] = 1.0 if fresh else 0.0
+        fresh = window_step(mp, dp, ns[BODY], sensordata[a:a + 3], R, cs[EXTRA_M], scratch, win,
+                            t, cs[DT], cs[PERIOD], False)
         measured = False
         if fresh:
-            cnt = ns[COUNT]
-            fs[WINDOW_S] = cnt * cs[DT]
-            m0, m1, m2 = fs[S0] / cnt, fs[S1] / cnt, fs[S2] / cnt
+            ns[SAMPLES] += 1
+            m0, m1, m2 = win[W_MEAN], win[W_MEAN + 1], win[W_MEAN + 2]
             # FaultySensor._emit (no thermal offset: Coaster.ready)
             if ns[DRIFT]:
                 z0 = rng.standard_normal()
@@ -157,12 +146,8 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
             held[0] = m0 + sbias[0] + n0
             held[1] = m1 + sbias[1] + n1
             held[2] = m2 + sbias[2] + n2
-            fs[S0] = fs[S1] = fs[S2] = 0.0
-            ns[COUNT] = 0
-            while fs[NEXT_T] <= t + 1e-9:
-                fs[NEXT_T] += cs[PERIOD]
             # ForceEstimator.update (cue idle, fresh)
-            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, fs[WINDOW_S], True,
+            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S], True,
                                     fs[QUIET], eparams, est)
             fs[QUIET], fs[AT_REST] = q, 1.0 if rest else 0.0
             measured = True
@@ -189,9 +174,13 @@ def _coast(mj, ncon, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, m
                 h = hypot(eforce[0], eforce[1])
                 if h > fs[PEAK_FORCE]:
                     fs[PEAK_FORCE] = h
-            if ncon[0] > 0:
+            if sensordata[ns[CADR]] > 0.0:  # mjData.ncon, from the contact sensor
                 return CONTACTS, step + 1
             fs[TOUCHING] = 0.0
+        # --- the task's low-pass of the estimate (navigate_control: stage.ForceFilter.update)
+        if ns[FILTER]:
+            f0, f1 = filt[0], filt[1]
+            filt[0], filt[1] = f0 + cs[ALPHA] * (eforce[0] - f0), f1 + cs[ALPHA] * (eforce[1] - f1)
         # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
         # as nothing pushes) or time up
         if t - cs[T0] >= cs[MIN_S]:
@@ -220,12 +209,15 @@ class Coaster:
 
     @staticmethod
     def applies(base) -> bool:
-        """The base's setup is one the kernel mirrors (module docstring; the base checks its
-        own kind: a plain :class:`~.mobile_base.MobileBase`)."""
+        """The base's setup is one the kernel mirrors (module docstring: the realistic chain
+        without thermal drift, the profiled or held-velocity controller, no guidance, the
+        scene's contact sensor; the base checks its own kind: a plain
+        :class:`~.mobile_base.MobileBase`)."""
         s, c = base.sensing, base.controller
         return (enabled() and s.sensor_model is not None
+                and mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR) >= 0
                 and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
-                and type(c) is ProfiledController and base.guidance is None)
+                and type(c) in (ProfiledController, HeldVelocity) and base.guidance is None)
 
     def _quiet_until(self) -> float:
         """The time before which every ``pre_substep`` hook does nothing (each says so with a
@@ -253,43 +245,81 @@ class Coaster:
     def _bind(self) -> None:
         b = self.base
         d = b.data
-        self._ncon = native.ncon_view(d)
         self._warnings = d.warning.number
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
-        self._acc6, self._ma, self._x = np.zeros(6), np.zeros(3), np.zeros(3)
+        self._scratch = np.zeros(15)  # sensing.physical_reading's
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
         self._err = np.zeros(2)
         self._data = d
+        self._key = None  # the constants' (_constants)
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
         kernel and, after a hand-back within a step, the rest of that step in Python; True
         when the phase ended."""
+        reason, _, fs = self._run(step._t0, step._min_s, step._t_end, self.MAX_STEPS)
+        return self._hand_back(reason, step, fs)
+
+    def drive(self, n: int, force_filter=None) -> tuple[int, bool]:
+        """Up to ``n`` physics steps of a drive with no move to end (a control-rate task's
+        steps outside a push phase: the base's :class:`~.controller.HeldVelocity` or profiled
+        law toward its target), ``force_filter`` (an object with ``f``, two floats low-passed
+        by ``alpha``: ``f += alpha (F_hat - f)``, updated in place after every step; None:
+        none). Returns ``(steps, partial)``: the physics steps taken (0 when a ``pre_substep``
+        hook acts now) and whether the last one was handed back within the step (the base's
+        part of it finished here in Python, the caller's per-step work after the base's
+        ``substep`` still to do)."""
+        reason, steps, fs = self._run(0.0, math.inf, math.inf, n, force_filter)
+        if reason == DIVERGED:
+            self._hand_back(reason, None, fs)
+        if reason in (DETECT, CONTACTS):
+            self._finish(reason, fs)
+            return steps, True
+        return steps, False
+
+    def _constants(self, force_filter) -> tuple[np.ndarray, np.ndarray]:
+        """The kernel's constants ``cs`` and integers ``ns`` for the base's controller,
+        sensor, detector and measurement switch (built again when one of them changes)."""
+        b = self.base
+        s, c = b.sensing, b.controller
+        f, det = s.faulty, s.detector
+        key = (c, f, det, b.measure)
+        if self._key != key:
+            spec = f.spec
+            self._cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
+                                 f.period, f._drift_step, spec.noise_n, f._extra_m, 0.0, 0.0,
+                                 0.0, c.still_mps, 0.0, b.model.opt.timestep, 0.0])
+            ix, iy, iyaw = b._float_adr
+            a0, a1, a2 = b._float_act
+            autoreset = not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET
+            self._ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
+                                 s.sensor.adr, f.body, det._hold_n, int(b.measure),
+                                 int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
+                                 b.model.sensor(CONTACT_SENSOR).adr[0],
+                                 int(type(c) is HeldVelocity), 0, 0], dtype=np.int64)
+            self._key = key
+        cs, ns = self._cs, self._ns
+        cs[ALPHA] = 0.0 if force_filter is None else force_filter.alpha
+        ns[FILTER], ns[SAMPLES] = force_filter is not None, 0
+        return cs, ns
+
+    def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None
+             ) -> tuple[int, int, np.ndarray]:
+        """One kernel call from the Python objects' state and back: ``(reason, steps,
+        fs)``; the move's start ``t0``, shortest time ``min_s`` and end ``t_end`` (s)."""
         b = self.base
         if self._data is not b.data:
             self._bind()
         s, c, m = b.sensing, b.controller, b.measurements
         f, est, det = s.faulty, s.estimator, s.detector
-        spec = f.spec
         fs = np.zeros(N_FS)
-        fs[S0:S2 + 1] = f._sum
-        fs[NEXT_T], fs[WINDOW_S], fs[FRESH] = f._next_t, f.window_s, float(f.fresh)
-        fs[QUIET], fs[AT_REST] = est.quiet, float(est.at_rest)
+        fs[QUIET], fs[AT_REST] = est.quiet, est.at_rest
         fs[VAR], fs[ON], fs[OFF] = det.var, det.on_n, det.off_n
         fs[VPX], fs[VPY] = m._v_prev
         fs[T_PREV], fs[PEAK], fs[PEAK_PUSHED] = m._t_prev, m.peak_accel, m.peak_accel_pushed
-        fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, float(m._touching)
-        cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
-                       f.period, f._drift_step,
-                       spec.noise_n, f._extra_m, step._t0, step._min_s, step._t_end,
-                       c.still_mps, self._quiet_until(), b.model.opt.timestep])
-        ix, iy, iyaw = b._float_adr
-        a0, a1, a2 = b._float_act
-        ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
-                       s.sensor.adr, f.body, det._hold_n, f._count, int(b.measure),
-                       int(spec.drift_n_per_sqrt_s > 0),
-                       int(not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET)],
-                      dtype=np.int64)
+        fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, m._touching
+        cs, ns = self._constants(force_filter)
+        cs[T0], cs[MIN_S], cs[T_END], cs[T_STOP] = t0, min_s, t_end, self._quiet_until()
         b._anchor = None
         if not b.external_forces:
             b._wrench().fill(0.0)
@@ -298,22 +328,20 @@ class Coaster:
                   eforce, *est._scratch)
         d = self._data
         fs[TIME] = d.time
-        reason, _ = _coast((b.model._address, d._address), self._ncon,
+        filt = self._err if force_filter is None else force_filter.f
+        goal = c.u if type(c) is HeldVelocity else self._err
+        reason, steps = _coast((b.model._address, d._address),
                            (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R,
                             self._warnings),
-                           (c.last, b.target, self._err),
-                           (f.bias, held, self._acc6, self._ma, self._x), f.rng, est.params,
+                           (c.last, b.target, self._err, goal, filt),
+                           (f.bias, held, f.win, self._scratch), f.rng, est.params,
                            est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
-                           fs, cs, ns, self.MAX_STEPS)
-        # --- the state back into the Python objects
-        f._sum = [float(fs[S0]), float(fs[S1]), float(fs[S2])]
-        f._count, f._next_t = int(ns[COUNT]), float(fs[NEXT_T])
-        f.fresh, f.window_s = bool(fs[FRESH]), float(fs[WINDOW_S])
-        if not np.array_equal(held, f._held, equal_nan=True):
-            f._held = held
-        new_estimate = not np.array_equal(eforce, est.force, equal_nan=True) or \
-            not np.array_equal(eacc, est.acc, equal_nan=True)
+                           fs, cs, ns, max_steps)
+        # --- the state back into the Python objects (a sample gives a new held sample and
+        # estimate, new arrays as the Python path's)
+        new_estimate = ns[SAMPLES] > 0
         if new_estimate:
+            f._held = held
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
         est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
@@ -329,7 +357,7 @@ class Coaster:
         if fs[TIME] != d.time:  # pragma: no cover - mj_step advances time by its timestep
             raise RuntimeError(f"the compiled move's time {fs[TIME]!r} is not MjData's "
                                f"{d.time!r}")
-        return self._hand_back(reason, step, fs)
+        return reason, steps, fs
 
     def _hand_back(self, reason: int, step, fs: np.ndarray) -> bool:
         """Finish the step the kernel handed back within (Python), then the move's end check;
@@ -345,10 +373,15 @@ class Coaster:
         if reason == END:
             step.phase = None
             return True
-        cue = None
+        return step._move_ended(self._finish(reason, fs))
+
+    def _finish(self, reason: int, fs: np.ndarray):
+        """The rest of the step the kernel handed back within (:data:`DETECT`: the onset rule,
+        the cue stream, the measurements and hooks; :data:`CONTACTS`: the contact
+        measurements); the step's cue (None: none)."""
+        b = self.base
         if reason == DETECT:
             cue = b.sensing.detector._decide(float(fs[EX]), float(fs[EY]))
-            cue = b._after_read(cue, None)
-        elif reason == CONTACTS:
-            b.measurements._contacts(b.data, (float(fs[VPX_OLD]), float(fs[VPY_OLD])))
-        return step._move_ended(cue)
+            return b._after_read(cue, None)
+        b.measurements._contacts(b.data, (float(fs[VPX_OLD]), float(fs[VPY_OLD])))
+        return None

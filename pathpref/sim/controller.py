@@ -163,3 +163,25 @@ class ProfiledController(TrackingController):
         """Actuator controls ``(vx, vy, wz)`` within the limits."""
         vx, vy = self.ramp_xy(*self.goal_xy(pos[0], pos[1], target[0], target[1]), self.dt)
         return np.array([vx, vy, -self.k_yaw * yaw])
+
+
+@dataclass(frozen=True)
+class HeldVelocity(ProfiledController):
+    """An agent's velocity as a physical drive follows it (the control-rate tasks): the held
+    command ``u[:2]`` is the goal velocity, reached within ``a_max`` by the profiled ramp
+    (``|dv| <= a_max dt`` per physics step), the yaw regulated to zero; the target plays no
+    part. The compiled steps (:mod:`.coasting`) mirror it: its goal is ``u[:2]`` as is."""
+
+    #: the held command (vx, vy, unused); state, updated in place
+    u: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False)
+    #: the agent's velocity, not a target: the diff-drive base turns toward it everywhere
+    tracks_target: ClassVar[bool] = False
+
+    def hold(self, v: np.ndarray, yaw: float = 0.0) -> None:
+        """Hold ``v = (vx, vy)`` (m/s) until the next call (the yaw is regulated at every
+        physics step by the profiled law)."""
+        self.u[:2] = v
+
+    def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
+        """The held command (the position and target play no part)."""
+        return float(self.u[0]), float(self.u[1])

@@ -13,9 +13,10 @@ A decision step is a sequence of phases, each started by one call and advanced b
 * **move** (:meth:`DecisionStep.move`): the base drives to a cell centre. It ends when the base
   has settled on it (after at least ``min_s``) and is not yielding to a push, when
   ``max(limit_s, min_s)`` has passed, or, with ``base.stop_on_cue`` (pushes at any time), at a
-  cue: the base then holds the cell it is in. A *timed* move (``steps``, guidance: every door
-  runs a guided decision step for exactly that many physics steps, :func:`timed_steps`) holds
-  the cell it ended in, a person's pushes still deforming the hold, until its last step.
+  cue: the base then holds the cell it is in (a guided base: where the push left it). A
+  *timed* move (``steps``, guidance: every door runs a guided decision step for exactly that
+  many physics steps, :func:`timed_steps`) holds where it ended, a person's pushes still
+  deforming the hold, until its last step.
 * **hold** (:meth:`DecisionStep.hold`): the base stands at its cell's centre for ``seconds``
   (forever by default: until the caller starts another phase); with ``base.stop_on_cue`` (or
   ``until_cue``) a cue ends it.
@@ -33,6 +34,7 @@ import math
 import numpy as np
 
 from ..episode.physics import RELEASE_WINDOW_S
+from ..errors import ConfigError
 
 MOVE, PUSH, HOLD = "move", "push", "hold"
 
@@ -98,7 +100,11 @@ class DecisionStep:
             if b.scene.clear(pos, here):
                 self.final, target = target, here
         b.target = target
-        self._pos, self._vel = b._planar_views()  # views into MjData: no copy per step
+        # views into MjData (its buffers stay put; navigate.xml's slide joints are adjacent)
+        q, v = int(b.xy[0]), int(b.vxy[0])
+        if b.xy[1] != q + 1 or b.vxy[1] != v + 1:  # pragma: no cover - navigate.xml's order
+            raise ConfigError("the base's joints slide_x and slide_y must be adjacent")
+        self._pos, self._vel = b.data.qpos[q:q + 2], b.data.qvel[v:v + 2]
         self._t0 = float(b.data.time)
         self._min_s = float(min_s)
         self._t_end = self._t0 + max(float(limit_s), self._min_s)
@@ -162,7 +168,10 @@ class DecisionStep:
         b = self.base
         t = b.data.time
         if cue is not None and b.stop_on_cue:
-            b.target = b.scene.cell_centre(b.cell)  # stop here: the planner replans
+            if b.guidance is None:  # stop here: the planner replans
+                b.target = b.scene.cell_centre(b.cell)
+            # guided: the base keeps where the person took it (the deformed target, which
+            # the admittance's tail still moves), not its cell's centre
             self.final = None
         elif self.final is not None and t < self._t_end and not b.yielding() and \
                 b.controller.settled(self._pos, self._vel, b.target):

@@ -80,9 +80,14 @@ class HumanPush:
         return self.t0 <= t <= self.t0 + self.profile.duration_s
 
     def apply(self, data, body_id: int) -> None:
-        """Write this substep's force on ``body_id`` (and clear the rest of its wrench)."""
-        f = self.force(float(data.time))
-        if not np.isfinite(f).all():
-            raise ConfigError("push force is not finite; check the push parameters")
-        data.xfrc_applied[body_id, :] = 0.0
-        data.xfrc_applied[body_id, :3] = f
+        """Write this substep's force on ``body_id`` (:func:`apply_force`)."""
+        apply_force(data, body_id, self.force(float(data.time)))
+
+
+def apply_force(data, body_id: int, f: np.ndarray) -> None:
+    """Write the force ``f`` (3,) on ``body_id`` (the rest of its wrench cleared); a
+    ConfigError when it is not finite."""
+    if not np.isfinite(f).all():
+        raise ConfigError("push force is not finite; check the push parameters")
+    data.xfrc_applied[body_id, :] = 0.0
+    data.xfrc_applied[body_id, :3] = f

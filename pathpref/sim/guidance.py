@@ -12,7 +12,7 @@ going (the plan's own target does not move during a step). Every ``GUIDANCE_PERI
 under way a *partial* :class:`~pathpref.episode.body.Felt` carries the direction ``theta`` of
 the period's ``D`` (from the cue's first step) and its weight ``|D| /
 DEFORMATION_EVIDENCE_M`` (a push that moves the plan
-one cell, 0.5 m, is one observation; at most ``GUIDANCE_MAX_EVIDENCE`` per cue); the cue's final
+0.1 m is one observation, as a tap is; at most ``GUIDANCE_MAX_EVIDENCE`` per cue); the cue's final
 record carries the rest. The belief takes it with the likelihood ``P(theta | s, g, p) = sum_h
 P(h | s, g, p) VM(theta; mu_h, kappa)`` to that power (:mod:`pathpref.episode.physics`,
 "Guidance"). A push the base cannot follow (into a wall) moves nothing and tells nothing.
@@ -28,8 +28,10 @@ from ..episode.body import Felt
 from ..episode.physics import CELL_SIZE_M, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..geometry.grid import heading_to_action
 
-#: the deformation worth one observation (m): one cell
-DEFORMATION_EVIDENCE_M = CELL_SIZE_M
+#: the deformation worth one observation (m): a correction is one choice of heading by the
+#: person, as a tap is, and once it has moved the plan this far (a fifth of a cell; a tap
+#: moves the yielding base 3 cm) its direction is what the person chose
+DEFORMATION_EVIDENCE_M = 0.2 * CELL_SIZE_M
 
 
 class Guidance:

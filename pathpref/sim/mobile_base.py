@@ -16,8 +16,8 @@ the episode runner's door, connected by the body).
 
 **Pushes at any time** (:meth:`MobileBase.enable_pushes_any_time`): pushes in :attr:`pushes`
 act whenever their time comes (driving, braking or standing), the detector splits two pushes
-into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (admittance:
-velocity command ``F_hat / b``), and a cue ends a move or a hold (:attr:`stop_on_cue`) so that
+into two cues (:mod:`.cue_detector`), the base yields while a cue is under way (the
+admittance of :mod:`.admittance`), and a cue ends a move or a hold (:attr:`stop_on_cue`) so that
 the planner replans from the new belief instead of finishing the move.
 
 **Guidance** (:meth:`MobileBase.enable_guidance`; :mod:`.guidance`): pushes act at any time
@@ -38,24 +38,20 @@ import mujoco
 import numpy as np
 
 from ..episode.body import Felt
-from ..errors import ConfigError, EpisodeError
+from ..errors import EpisodeError
+from .admittance import yield_velocity
 from .coasting import Coaster
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue
 from .decision import DecisionStep
 from .estimator import EstimatorConfig
-from .force_cue import HumanPush, PushProfile
+from .force_cue import HumanPush, PushProfile, apply_force
 from .guidance import Guidance
 from .keep_clear import keep_clear
 from .measurements import Measurements
 from .scene import Scene
 from .sensing import SensorModel
 from .sensing_chain import SensingChain
-
-#: the admittance's spring (N/m): a yielding base gives way 0.1 m to 30 N
-ADMITTANCE_K = 400.0
-#: share of the drive's force limit above which the base braces instead of yielding
-BRACE = 0.6
 
 
 class MobileBase:
@@ -118,8 +114,6 @@ class MobileBase:
         self.admittance_b: float | None = None
         #: end a move or a hold as soon as a cue is felt (the planner replans)
         self.stop_on_cue = False
-        #: pushes at any time are on (:meth:`enable_pushes_any_time`)
-        self.any_time = False
         #: the guidance admittance and its state (:meth:`enable_guidance`; None: off)
         self.guidance: Guidance | None = None
         self._onset: tuple[float, int] | None = None
@@ -149,7 +143,6 @@ class MobileBase:
         self.sensing.split_pushes()
         self.admittance_b = float(admittance_b)
         self.stop_on_cue = True
-        self.any_time = True
 
     def enable_guidance(self, mass: float, damping: float) -> None:
         """Guidance (module docstring): pushes at any time, the splitting detector, the
@@ -158,7 +151,6 @@ class MobileBase:
         move (the planner revises the plan at the step's end, :mod:`.decision`)."""
         self.sensing.split_pushes()
         self.guidance = Guidance(mass, damping)
-        self.any_time = True
         self.stop_on_cue = True
 
     # --- state ---------------------------------------------------------------------------
@@ -177,14 +169,6 @@ class MobileBase:
         self.pushes, self.felt, self._onset = [], [], None
         self.sensing.reset(self.data, self.pushed_body)
         self.measurements.reset(float(self.data.time))
-
-    def _planar_views(self) -> tuple[np.ndarray, np.ndarray]:
-        """Views of the planar position and velocity in ``MjData`` (its buffers stay put; the
-        slide joints are adjacent), read without a copy in the stepping loops."""
-        q, v = self.xy, self.vxy
-        if q[1] != q[0] + 1 or v[1] != v[0] + 1:  # pragma: no cover - navigate.xml's order
-            raise ConfigError("the base's joints slide_x and slide_y must be adjacent")
-        return self.data.qpos[q[0]:q[0] + 2], self.data.qvel[v[0]:v[0] + 2]
 
     @property
     def position(self) -> np.ndarray:
@@ -254,13 +238,9 @@ class MobileBase:
         return self._wrench_view
 
     def _pushed_now(self) -> bool:
-        """:meth:`_pushed` for the push of the physics step under way."""
-        return self._pushed(self._step_push)
-
-    def _pushed(self, push: HumanPush | None) -> bool:
-        """Whether the base's motion now is not its controller's own: it yields, or a push
-        acts (or ended less than 0.1 s ago)."""
-        t = self.data.time
+        """Whether the base's motion in the physics step under way is not its controller's
+        own: it yields, or a push acts (or ended less than 0.1 s ago)."""
+        t, push = self.data.time, self._step_push
         return self.yielding() or any(
             p.t0 <= t <= p.t0 + p.profile.duration_s + 0.1
             for p in [*self.pushes, *([push] if push is not None else [])])
@@ -272,16 +252,13 @@ class MobileBase:
     def _apply_pushes(self, push: HumanPush | None) -> None:
         """The sum of the active pushes (and ``push``) on the pushed body; expired pushes are
         dropped."""
-        d, t = self.data, float(self.data.time)
+        t = float(self.data.time)
         self.pushes = [p for p in self.pushes if t <= p.t0 + p.profile.duration_s]
         total = np.zeros(3)
         for p in [*self.pushes, *([push] if push is not None else [])]:
             if p.active(t):
                 total += p.force(t)
-        if not np.isfinite(total).all():
-            raise ConfigError("push force is not finite; check the push parameters")
-        d.xfrc_applied[self.pushed_body, :] = 0.0
-        d.xfrc_applied[self.pushed_body, :3] = total
+        apply_force(self.data, self.pushed_body, total)
 
     def _track_onset(self, cue: Cue | None) -> None:
         """Note where and when the cue under way was first felt; an ended cue becomes a
@@ -350,9 +327,8 @@ class MobileBase:
 
     def _base_command(self) -> np.ndarray:
         """The base's velocity command ``(vx, vy, wz)``: the controller's, or while yielding
-        the admittance ``v = (F_hat - k (p - p_0)) / b`` (``p_0`` where the yield began, the
-        spring ``k = ADMITTANCE_K`` keeps a push the actuators cannot resist from carrying the
-        base away); a profiled controller ramps to it within its acceleration limit. Where a
+        :meth:`admittance_velocity`, which a profiled controller ramps to within its
+        acceleration limit. Where a
         person moves the base (guidance, or a yield), the command passes the safety filter
         :func:`.keep_clear.keep_clear` (braking at half ``a_max``: a push may oppose the
         drive)."""
@@ -374,17 +350,13 @@ class MobileBase:
         return np.array([v[0], v[1], -self.controller.k_yaw * d.qpos[self.yaw]])
 
     def admittance_velocity(self) -> np.ndarray:
-        """``(F_hat - k (p - p_0)) / b`` (m/s, world x-y; see :meth:`_base_command`). A push
-        above ``BRACE`` of the drive's force limit is not yielded to: the base brakes back
-        toward ``p_0`` with all its force (``-k_p (p - p_0)``), since a base that has
-        yielded and gathered speed cannot stop while a push beyond its actuators acts on it."""
+        """The yield's velocity (m/s, world x-y; :func:`.admittance.yield_velocity`) from where
+        the yield began (noted now when it begins)."""
         pos = self.data.qpos[self.xy]
         if self._anchor is None:
             self._anchor = pos.copy()
-        f = self.sensing.force_estimate
-        if float(np.hypot(f[0], f[1])) > BRACE * self.force_limit:
-            return -self.controller.kp * (pos - self._anchor)
-        return (f - ADMITTANCE_K * (pos - self._anchor)) / self.admittance_b
+        return yield_velocity(self.sensing.force_estimate, pos, self._anchor,
+                              self.admittance_b, self.controller.kp, self.force_limit)
 
     def _reset_control(self) -> None:
         """A standing base: no yield under way, the controller's state cleared."""

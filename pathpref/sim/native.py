@@ -13,14 +13,12 @@ Python loop only if every operation is the same IEEE operation in the same order
   Dekker's products and a differential correction), not the C library's ``hypot``, which
   differs in the last bit on about 1 in 200 inputs.
 
-``MjData``'s scalar ``ncon`` is not an array in the bindings; :func:`ncon_view` finds its
-byte offset in the struct once (the offset whose value follows the bindings' attribute
-through changed states; everything scanned lies before the struct's ``qpos`` pointer) and
-returns a one-element NumPy view of it. (The kernels track ``time`` themselves, as
-``mj_step`` advances it.)
+Scalars of ``MjData`` are not arrays in the bindings, so the kernels read none: the number
+of contacts comes from the scene's ``contact`` sensor (``sensordata``, see
+``mjcf/navigate.xml``) and the kernels track ``time`` themselves, as ``mj_step`` advances it.
 
-:func:`ready` is False (with :data:`WHY`) when a library, a symbol or an offset is missing:
-the callers then keep their Python path.
+:func:`ready` is False (with :data:`WHY`) when a library or a symbol is missing: the callers
+then keep their Python path.
 """
 
 from __future__ import annotations
@@ -155,63 +153,7 @@ def hypot(x, y):
     return h / scale
 
 
-def _struct_head(data: mujoco.MjData) -> bytes:
-    """The bytes of ``data``'s struct before its ``qpos`` pointer (all inside the struct)."""
-    target, base, chunks = data.qpos.ctypes.data, data._address, []
-    for k in range(1 << 16):  # 256 bytes at a time (the struct's pointers that follow qpos's
-        # take more): at most 16 MB, far beyond the scalars
-        chunk = ctypes.string_at(base + 256 * k, 256)
-        hit = np.flatnonzero(np.frombuffer(chunk, dtype=np.uint64) == target)
-        if len(hit):
-            return b"".join(chunks) + chunk[: int(hit[0]) * 8]
-        chunks.append(chunk)
-    raise RuntimeError("MjData's qpos pointer not found in its struct")
-
-
-def _find_offset() -> int:
-    """The byte offset of ``ncon`` (int32) in ``mjData``: the only offset whose value equals
-    the bindings' attribute in every one of several states (four spheres apart, overlapping,
-    apart, far apart)."""
-    bodies = "".join(f'<body pos="{0.05 * i} 0 0"><freejoint/><geom size=".1"/></body>'
-                     for i in range(4))
-    xml = f"<mujoco><worldbody>{bodies}</worldbody></mujoco>"
-    model = mujoco.MjModel.from_xml_string(xml)
-    data = mujoco.MjData(model)
-    c_off = None
-    for spread in (1.0, 0.0, 1.0, 5.0):
-        data.qpos[0::7] = spread * np.arange(4) * 0.05
-        mujoco.mj_forward(model, data)
-        head = _struct_head(data)
-        n = np.frombuffer(head[: len(head) // 4 * 4], np.int32)
-        c = set((np.flatnonzero(n == data.ncon) * 4).tolist())
-        c_off = c if c_off is None else c_off & c
-    if c_off is None or len(c_off) != 1:
-        raise RuntimeError(f"MjData's ncon offset not unique: {c_off}")
-    return c_off.pop()
-
-
-_OFFSET: int | None = None
-
-
 def ready() -> bool:
     """Whether the compiled path can run here: the libraries and symbols found
-    (:data:`AVAILABLE`) and ``MjData``'s ``ncon`` offset found (once per process; else
-    :data:`WHY` says why and the callers keep their Python path)."""
-    global _OFFSET, AVAILABLE, WHY
-    if AVAILABLE and _OFFSET is None:
-        try:
-            _OFFSET = _find_offset()
-        except RuntimeError as exc:  # pragma: no cover - another MuJoCo's struct
-            AVAILABLE, WHY = False, str(exc)
+    (:data:`AVAILABLE`; else :data:`WHY` says why and the callers keep their Python path)."""
     return AVAILABLE
-
-
-def ncon_view(data: mujoco.MjData) -> np.ndarray:
-    """A one-element view of ``data.ncon`` (int32) in the struct (valid while ``data`` lives;
-    checked against the bindings' attribute; call after :func:`ready`)."""
-    if not ready():
-        raise RuntimeError(f"no compiled path here: {WHY}")
-    ncon = np.ctypeslib.as_array((ctypes.c_int32 * 1).from_address(data._address + _OFFSET))
-    if ncon[0] != data.ncon:
-        raise RuntimeError("MjData's ncon view disagrees with the bindings")
-    return ncon

@@ -29,14 +29,75 @@ import math
 from dataclasses import dataclass
 
 import mujoco
+import numba as nb
 import numpy as np
 
 from ..errors import ConfigError
+from .native import OBJ_BODY, matTvec, mj_objectAcceleration
 
 #: the thermal warm-up's time constant (s; :class:`SensorModel` ``thermal_n``)
 THERMAL_S = 120.0
-OBJ_BODY = mujoco.mjtObj.mjOBJ_BODY
 INF = float("inf")
+#: :attr:`FaultySensor.win`'s slots: the window's sum (sensor frame), the physics steps in it,
+#: the next sample's time, the last sample's window (s), whether the last step gave a sample
+#: (1.0) and that sample's mean
+(W_S0, W_S1, W_S2, W_COUNT, W_NEXT_T, W_WINDOW_S, W_FRESH, W_MEAN, N_WIN) = (
+    0, 1, 2, 3, 4, 5, 6, 7, 10)
+
+
+@nb.njit(cache=True)
+def physical_reading(mp, dp, body, reading, R, extra_m, scratch):
+    """This physics step's reading before the electronics (N, sensor frame), into
+    ``scratch[12:15]``: MuJoCo's ``reading`` plus, for an extra (or removed) mass ``extra_m``
+    (kg, 0: none), ``R^T m a`` with ``a`` the world-frame linear acceleration of body ``body``'s
+    centre of mass minus gravity (``mj_objectAcceleration``; the simulator's truth: the sensor
+    model uses it, the robot's estimator does not) and ``R`` the sensor site's rotation.
+    ``mp``, ``dp``: the ``MjModel``'s and ``MjData``'s addresses; ``scratch`` 15 floats
+    (acceleration, ``m a``, ``R^T m a``, the result). The C functions of :mod:`.native`: the
+    products of ``R.T.dot`` in NumPy."""
+    out = scratch[12:15]
+    if extra_m == 0.0:
+        for i in range(3):
+            out[i] = reading[i]
+        return out
+    acc6, ma, x = scratch[0:6], scratch[6:9], scratch[9:12]
+    mj_objectAcceleration(mp, dp, OBJ_BODY, body, acc6.ctypes.data, 0)
+    for i in range(3):
+        ma[i] = acc6[3 + i] * extra_m
+    matTvec(R, ma, x)
+    for i in range(3):
+        out[i] = reading[i] + x[i]
+    return out
+
+
+@nb.njit(cache=True)
+def window_step(mp, dp, body, reading, R, extra_m, scratch, win, t, dt, period, first):
+    """One physics step (time ``t``) into the sensor's averaging window ``win`` (slots
+    ``W_*``): the :func:`physical_reading` added to the sum, one more step counted. A sample is
+    due when ``t >= next_t - 1e-9`` (``next_t`` starts at the first step's time) or ``first``:
+    then its mean (sum / steps) goes to ``win[W_MEAN:W_MEAN + 3]``, its window is ``steps dt``,
+    the sum restarts and ``next_t`` advances by ``period`` until it is past ``t``. Returns
+    whether a sample is due. The one arithmetic of :meth:`FaultySensor.read` and the compiled
+    move (:mod:`.coasting`)."""
+    x = physical_reading(mp, dp, body, reading, R, extra_m, scratch)
+    win[W_S0] += x[0]
+    win[W_S1] += x[1]
+    win[W_S2] += x[2]
+    win[W_COUNT] += 1.0
+    if win[W_NEXT_T] == -math.inf:
+        win[W_NEXT_T] = t
+    fresh = t >= win[W_NEXT_T] - 1e-9 or first
+    win[W_FRESH] = 1.0 if fresh else 0.0
+    if fresh:
+        n = win[W_COUNT]
+        win[W_WINDOW_S] = n * dt
+        for i in range(3):
+            win[W_MEAN + i] = win[W_S0 + i] / n
+            win[W_S0 + i] = 0.0
+        win[W_COUNT] = 0.0
+        while win[W_NEXT_T] <= t + 1e-9:
+            win[W_NEXT_T] += period
+    return fresh
 
 
 class HandleSensor:
@@ -50,7 +111,7 @@ class HandleSensor:
         """The horizontal interaction force (N) in the world frame."""
         f_site = data.sensordata[self.adr:self.adr + 3]
         R = data.site_xmat[self.site].reshape(3, 3)
-        return -(R.dot(f_site))[:2]  # the same gemv as ``@`` (see FaultySensor._inertial)
+        return -(R.dot(f_site))[:2]  # the same gemv as ``@``
 
     def rotation(self, data) -> np.ndarray:
         """The site's rotation (site frame to world frame, 3x3)."""
@@ -151,46 +212,32 @@ class FaultySensor:
         if sensor_model.thermal_n > 0:
             psi = rng.uniform(0.0, 2.0 * np.pi)
             self._thermal = sensor_model.thermal_n * np.array([np.cos(psi), np.sin(psi), 0.0])
-        self._acc = np.zeros(6)
-        self._acc3 = self._acc[3:]  # the linear part (a view)
         #: the mass whose inertia and weight the reading adds to MuJoCo's (kg; 0: none)
         self._extra_m = 0.0 if sensor_model.extra_mass_kg == 0 and sensor_model.inertia else \
             sensor_model.extra_mass_kg - (0.0 if sensor_model.inertia else self.mass)
+        #: :func:`window_step`'s state (slots ``W_*``) and :func:`physical_reading`'s scratch
+        self.win = np.zeros(N_WIN)
+        self._scratch = np.zeros(15)
         self._data = None
         self.restart()
+
+    @property
+    def fresh(self) -> bool:
+        """Whether the last :meth:`read` gave a new sample."""
+        return self.win[W_FRESH] != 0.0
+
+    @property
+    def window_s(self) -> float:
+        """Over how long the last sample averaged (s)."""
+        return float(self.win[W_WINDOW_S])
 
     def _bind(self, data) -> None:
         """Views into ``data``'s buffers (they stay put for the life of an ``MjData``): the
         sensor's reading and the site's rotation, read without a copy at every step."""
-        self._data = data
+        self._data, self._dp = data, data._address
         a = self.sensor.adr
         self._reading = data.sensordata[a:a + 3]
-        self._RT = data.site_xmat[self.sensor.site].reshape(3, 3).T
-        self._ma = np.zeros(3)  # m a (the product's buffer)
-        self._x = np.zeros(3)  # R^T m a (the reading's addition's buffer)
-
-    def _physical(self, data) -> np.ndarray:
-        """This physics step's reading before the electronics (N, sensor frame): MuJoCo's, with
-        the extra mass's inertia and weight, or without the model's inertia. Without either a
-        view of ``data``'s sensor buffer: use it before the next step."""
-        if data is not self._data:
-            self._bind(data)
-        if self._extra_m == 0.0:
-            return self._reading
-        return self._reading + self._inertial(data)
-
-    def _inertial(self, data) -> np.ndarray:
-        """What the extra (or removed) mass adds to the reading: ``R^T m a`` (sensor frame), ``a``
-        the world-frame linear acceleration of the sensed body's centre of mass minus gravity
-        (the simulator's truth: the sensor model uses it, the robot's estimator does not)."""
-        if data is not self._data:
-            self._bind(data)
-        mujoco.mj_objectAcceleration(self.model, data, OBJ_BODY, self.body, self._acc, 0)
-        # ``R^T @ (m * a)`` into buffers (no arrays per step); ``ndarray.dot`` calls the same
-        # BLAS ``gemv`` as ``@`` (equal bits, tests/test_physics_overhead.py) at a third of
-        # the cost
-        np.multiply(self._acc3, self._extra_m, out=self._ma)
-        return self._RT.dot(self._ma, out=self._x)
+        self._R = data.site_xmat[self.sensor.site].reshape(3, 3)
 
     def _emit(self, mean: np.ndarray) -> np.ndarray:
         sm = self.spec
@@ -206,48 +253,29 @@ class FaultySensor:
     def read(self, data) -> np.ndarray:
         """The sensor's output after this physics step (N, sensor frame, 3 axes). Every
         ``1/rate_hz`` seconds a new sample: the mean of the physical readings since the last
-        one (the electronics' anti-aliasing average), plus bias and noise; held in between.
-        :attr:`fresh` says whether this step gave a new sample, :attr:`window_s` over how
-        long it averaged."""
-        t = data.time
-        # the window's sum on floats: element by element the same additions as on arrays
+        one (the electronics' anti-aliasing average, :func:`window_step`), plus bias and
+        noise; held in between. :attr:`fresh` says whether this step gave a new sample,
+        :attr:`window_s` over how long it averaged."""
         if data is not self._data:
             self._bind(data)
-        r0, r1, r2 = self._reading.tolist()  # Python floats: the same IEEE additions
-        s = self._sum
-        if self._extra_m == 0.0:
-            s[0] += r0
-            s[1] += r1
-            s[2] += r2
-        else:
-            x0, x1, x2 = self._inertial(data).tolist()
-            s[0] += r0 + x0
-            s[1] += r1 + x1
-            s[2] += r2 + x2
-        self._count += 1
-        if self._next_t == -INF:
-            self._next_t = t
-        self.fresh = t >= self._next_t - 1e-9 or self._held is None
-        if self.fresh:
-            n = self._count
-            self.window_s = n * self.dt
-            self._held = self._emit(np.array([s[0] / n, s[1] / n, s[2] / n]))
-            s[0] = s[1] = s[2] = 0.0
-            self._count = 0
-            while self._next_t <= t + 1e-9:
-                self._next_t += self.period
+        if window_step(self.model._address, self._dp, self.body, self._reading, self._R,
+                       self._extra_m, self._scratch, self.win, data.time, self.dt,
+                       self.period, self._held is None):
+            self._held = self._emit(self.win[W_MEAN:W_MEAN + 3])
         return self._held  # a new array at every sample, never changed in place
 
     def read_still(self, data) -> np.ndarray:
         """A fresh output sample of the current (still) state that advances the sensor's
         clock by one period without physics: what the robot reads while it waits at rest."""
-        return self._emit(self._physical(data))
+        if data is not self._data:
+            self._bind(data)
+        return self._emit(physical_reading(self.model._address, self._dp, self.body,
+                                           self._reading, self._R, self._extra_m,
+                                           self._scratch))
 
     def restart(self) -> None:
         """Forget the held sample (after a physics reset); the bias stays (same device)."""
         self._held: np.ndarray | None = None
-        self._next_t = -np.inf
-        self._sum: list[float] = [0.0, 0.0, 0.0]  # the window's sum (floats: see read)
-        self._count = 0
-        self.fresh, self.window_s = False, self.dt
+        self.win[:] = 0.0
+        self.win[W_NEXT_T], self.win[W_WINDOW_S] = -INF, self.dt
         self.warm_s = 0.0  # seconds of samples since the restart (the thermal warm-up)

@@ -196,15 +196,18 @@ def cue_calibration(quick: bool = False) -> dict[str, Any]:
     """The detector stays calibrated (``cue_detector.FilteredCueDetector``): recall of 20
     repeated 12-15 N, 0.6 s pushes on a fresh base (seeds 0..k), and the share of 25 N
     pushes after a 6 N resting hand (3 s, every relative direction) felt once, in the right
-    sector."""
+    sector; the same after a 12 N hand leaning 10 s (above the onset threshold)."""
     seeds = range(2 if quick else 5)
     rep = [repeated_push_recall(seed=s) for s in seeds]
     trials = [(s, r) for s in seeds for r in range(8)]
     ok = sum(resting_hand_push(heading=2, hand_heading=(2 + r) % 8, seed=s) == [2]
              for s, r in trials)
+    lean = sum(resting_hand_push(hand_n=12.0, hand_s=10.0, heading=2, hand_heading=(2 + r) % 8,
+                                 seed=s) == [2] for s, r in trials)
     return {"cue_recall_repeated_15n": float(np.mean([r["recall"] for r in rep])),
             "cue_on_threshold_repeated_15n_max": max(r["on_n_max"] for r in rep),
-            "cue_recall_after_resting_hand": ok / len(trials)}
+            "cue_recall_after_resting_hand": ok / len(trials),
+            "cue_recall_after_leaning_hand": lean / len(trials)}
 
 
 def pushes_while_driving(pushes: list[tuple], sensor_model=None, seed: int = 0) -> dict:
