@@ -192,6 +192,11 @@ def test_bench_json_keys():
     arm = res["arm"]
     assert arm["ik_solves_per_s"] > 0 and arm["cue_sector_accuracy"] >= 0.9
     assert arm["tilt_rms_deg"] <= 3.0 and arm["max_penetration_mm"] <= 5.0
+    assert arm["carry_episode_vs_bare"] > 1.0
+    assert ph["guidance_carry_push_displacement_m"] >= 0.3  # the carry base complies
+    tb = res["tidybot"]
+    assert tb["robot_model"] == "tidybot" and tb["whole_body_base_share"] >= 0.2
+    assert tb["tray_deviation_30n_3s_mm"] <= 60.0 and tb["tray_recovery_s"] <= 1.0
     st = res["study"]  # every push reaches the belief; the target is <= 200 ms
     assert st["study_cues_seen"] == st["study_pushes"] and 0 < st["study_latency_ms"] < 1000
 

@@ -314,3 +314,18 @@ def test_a_resting_hand_above_threshold_becomes_the_baseline(push_deg, heading):
     t, cue = cues[0]
     assert 10.0 < t < 10.5 + 0.2 and cue.heading == heading
     assert np.all(detector.lean == 0.0)  # the lean left and gave the baseline back
+
+
+def test_the_carry_robot_complies_to_a_guiding_push_on_its_tray():
+    """25 N on the tray for 2 s under guidance: the arm's impedance takes the push and the
+    base's guidance admittance follows it as far as the admittance's closed form (the
+    defaults M, b of ``Physics().drive``) takes a target; before, it stood still."""
+    from pathpref.apps.benchmarks.physics import guided_push
+    from tests.admittance_helpers import admittance_travel
+
+    drive = Physics().drive
+    ideal = admittance_travel(25.0, 2.0, 1.0, drive.admittance_m, drive.admittance_b,
+                              drive.v_max)
+    carry = guided_push("carry", 25.0, 2.0, after_s=1.0)
+    assert carry >= 0.3
+    assert carry == pytest.approx(ideal, rel=0.1)

@@ -132,3 +132,16 @@ def test_installed_wheel_runs_the_whole_demo(wheel, tmp_path):
     for name in ("map_simple.png", "trajectories.png", "belief.png", "success_vs_pushes.png",
                  "rates.csv", "summary.csv"):
         assert (elsewhere / "out" / name).stat().st_size > 0, name
+
+
+def test_wheel_ships_the_tidybot_and_every_mesh_it_names(wheel):
+    import xml.etree.ElementTree as ET
+
+    names = set(zipfile.ZipFile(wheel).namelist())
+    src = ROOT / "mjcf" / "stanford_tidybot"
+    root = ET.parse(src / "tidybot.xml").getroot()
+    meshdir = root.find("compiler").get("meshdir")
+    files = [m.get("file") for a in root.iter("asset") for m in a.iter("mesh")]
+    assert len(files) == 20  # the base's 5, the Gen3's 8, the 2F-85's 7
+    for f in ["tidybot.xml", "LICENSE", "README.md", *(f"{meshdir}/{f}" for f in files)]:
+        assert f"pathpref/mjcf/stanford_tidybot/{f}" in names, f

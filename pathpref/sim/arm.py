@@ -48,8 +48,10 @@ The static deflection under a push ``F`` is at most ``F / K`` plus the base's ow
 10 mm 0.23 s after release (``pathpref bench``'s ``arm.tray_*`` keys). **Sharing the push**:
 the arm takes it through ``K``; the base holds its cell with its own controller (rigid in
 the decision protocol) and, with pushes at any time, yields by its admittance
-(``MobileBase``) while a cue is under way. The tray's plate collides with walls, obstacles
-and the base (``contype`` 1, ``conaffinity`` 0: not with the arm that holds it).
+(``MobileBase``) while a cue is under way; under guidance the base's guidance admittance
+(:mod:`.guidance`) follows the push the tray's sensor feels, so a person leads the whole robot
+by its tray (25 N for 2 s: 0.62 m, as the plain base). The tray's plate collides with walls,
+obstacles and the base (``contype`` 1, ``conaffinity`` 0: not with the arm that holds it).
 
 **Legacy mode** (no physical parameters). The base velocity actuators receive the IK's base
 velocities; the arm servos receive ``q + v dt`` from the measured ``q``, so the IK itself
@@ -290,6 +292,8 @@ class ArmBase(MobileBase):
         self._k += 1
         d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + self.impedance_torque() / self._kp
         self.tilts.append(tilt_deg(d, self.tray))
+        if self.guidance is not None:  # the base complies to the push on the tray
+            self.guidance.admit(self)
         d.ctrl[self.actuators] = self._base_command()
         self.deepest = max(self.deepest, self.max_penetration())
 

@@ -6,6 +6,7 @@
   the sweep coordinator's ceiling and a sweep on a two-node Ray cluster (:mod:`.cluster`);
 * ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK;
   the dm_control tasks' step rates (``control_steps_per_s``, :mod:`.tasks`);
+* ``tidybot``: the Stanford TidyBot carrying the tray, whole-body IK (:mod:`.tidybot`);
 * ``study``: browser front end, WebSocket push to the cue in the belief (``study_latency_ms``).
 
 They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
@@ -14,7 +15,8 @@ issues are a contract: add keys, never rename them. Layout::
     {"machine": {...},
      "maps": {"simple": {"arrangement_build_s": ..., "cost_tables_s": ...,
                          "belief_update_ms": ..., "goal_belief_update_ms": ..., ...}, ...},
-     "physics": {...}, "arm": {...}, "study": {"study_latency_ms": ...}, "scale": {...}}
+     "physics": {...}, "arm": {...}, "tidybot": {...},
+     "study": {"study_latency_ms": ...}, "scale": {...}}
 """
 
 from __future__ import annotations
@@ -27,10 +29,11 @@ from .physics import bench_arm, bench_physics
 from .scale import bench_ray, bench_robust_40, bench_scale
 from .study import bench_study
 from .tasks import bench_tasks
+from .tidybot import bench_tidybot
 
 __all__ = ["bench_arm", "bench_coordinator", "bench_map", "bench_physics", "bench_pomcp",
            "bench_ray", "bench_ray_cluster", "bench_robust_40", "bench_scale",
-           "bench_study", "bench_tasks", "machine_info", "run_benchmarks"]
+           "bench_study", "bench_tasks", "bench_tidybot", "machine_info", "run_benchmarks"]
 
 
 def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
@@ -41,6 +44,7 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
     if physics:
         out["physics"] = {**bench_physics(quick=quick), **bench_tasks(quick=quick)}
         out["arm"] = bench_arm(quick=quick)
+        out["tidybot"] = bench_tidybot(quick=quick)
         out["study"] = bench_study(quick=quick)
     if not quick:
         out["scale"] = {**bench_ray(), **bench_coordinator(), **bench_ray_cluster(),

@@ -634,9 +634,10 @@ def timed_phases(spent: list[float]):
         DecisionStep.run = run
 
 
-def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
-    """Per episode of ``physics`` (simple, path preference, ΔT 5, ``T_max`` 30): the ratio
-    ``T / (T - T_phys + N b)`` of :func:`physics_overhead`, the Python per physics step
+def episodes_vs_bare(physics, episodes: int, robot: str = "navigate"
+                     ) -> tuple[list, list, list]:
+    """Per episode of ``physics`` (simple, path preference, ΔT 5, ``T_max`` 30, ``robot``): the
+    ratio ``T / (T - T_phys + N b)`` of :func:`physics_overhead`, the Python per physics step
     ``T_phys / N - b`` (us) and ``b`` (us)."""
     from ... import sim  # noqa: F401 - registers the MuJoCo body
     from ...episode.runner import EpisodeRunner
@@ -644,10 +645,10 @@ def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
     ratios, python_us, bare = [], [], []
     physics = physics.to_json()
     run_episode(EpisodeSpec.single("simple", "path_preference", 5, seed=11, sim="mujoco",
-                                   t_max=3, physics=physics))  # compile scene and planner
+                                   t_max=3, physics=physics, robot=robot))  # compile
     for i in range(episodes):
         spec = EpisodeSpec.single("simple", "path_preference", 5, seed=11, instance=i,
-                                  sim="mujoco", t_max=30, physics=physics)
+                                  sim="mujoco", t_max=30, physics=physics, robot=robot)
         runner = EpisodeRunner(spec)
         base = runner.body.base
         b = bare_step_us(base.model, base.data)
@@ -664,6 +665,34 @@ def episodes_vs_bare(physics, episodes: int) -> tuple[list, list, list]:
     return ratios, python_us, bare
 
 
+def guided_push(task: str = "carry", force_n: float = 25.0, seconds: float = 2.0,
+                after_s: float = 1.0) -> float:
+    """A steady push of ``force_n`` east for ``seconds`` on the standing robot of ``task`` under
+    guidance (``Physics.of(timing="guidance")``: the body's own construction and
+    :meth:`~pathpref.sim.body.MujocoBody.enable_guidance`) at ``simple``'s (3, 3): the base's
+    largest displacement (m) until ``after_s`` past the release. For ``carry`` the push is
+    on the tray: the arm's impedance takes it and the base's guidance admittance follows
+    (``guidance_carry_push_displacement_m``)."""
+    from ...episode import Physics
+    from ...sim.body import MujocoBody
+
+    world = cached_world("simple")
+    spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", robot=task,
+                              physics=Physics.of(timing="guidance").to_json())
+    body = MujocoBody(world, spec, np.random.default_rng(0))
+    body.enable_guidance()
+    base = body.base
+    base.reset(world.cell((3, 3)))
+    base.hold(0.3)
+    p0, t0 = base.position.copy(), float(base.data.time)
+    base.pushes = [SteadyPush((force_n, 0.0), t0, seconds)]
+    worst = 0.0
+    while base.data.time < t0 + seconds + after_s:
+        base.substep()
+        worst = max(worst, float(np.linalg.norm(base.position - p0)))
+    return worst
+
+
 def guidance_overhead(episodes: int = 3) -> dict[str, float]:
     """``guidance_episode_vs_bare``: a guided episode (``timing`` guidance, the closed-loop
     person) against bare MuJoCo plus planning, as :func:`physics_overhead` measures the
@@ -673,6 +702,17 @@ def guidance_overhead(episodes: int = 3) -> dict[str, float]:
     ratios, python_us, _ = episodes_vs_bare(Physics.of(timing="guidance"), episodes)
     return {"guidance_episode_vs_bare": median(ratios),
             "guidance_python_us_per_step": median(python_us)}
+
+
+def carry_overhead(episodes: int = 3) -> dict[str, float]:
+    """``carry_episode_vs_bare``: a physical ``carry`` episode (``Physics()``) against bare
+    MuJoCo plus planning on its own scene, as :func:`physics_overhead` measures the default
+    episode (median over ``episodes``); ``carry_python_us_per_step``."""
+    from ...episode import Physics
+
+    ratios, python_us, _ = episodes_vs_bare(Physics(), episodes, robot="carry")
+    return {"carry_episode_vs_bare": median(ratios),
+            "carry_python_us_per_step": median(python_us)}
 
 
 def physics_overhead(episodes: int = 5) -> dict[str, float]:
@@ -780,6 +820,8 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         "render_fps_video": render_fps_video(frames=20 if quick else 60),
         **physics_overhead(2 if quick else 5),
         **guidance_overhead(1 if quick else 3),
+        "guidance_carry_push_displacement_m": guided_push("carry"),
+        "guidance_navigate_push_displacement_m": guided_push("navigate"),
     }
 
 
@@ -826,6 +868,7 @@ def bench_arm(quick: bool = False) -> dict[str, Any]:
         **carry_moves(20 if quick else 60),
         "carry_overshoot_legacy_mm": carry_moves(20 if quick else 60,
                                                  physical=False)["carry_overshoot_mm"],
+        **carry_overhead(1 if quick else 3),
         "max_penetration_mm_move_ends": max(legacy_pens),
         "tip_margin_min": min(tips),
         "ik_solves_per_s": ik_rate,

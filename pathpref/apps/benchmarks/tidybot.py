@@ -1,0 +1,44 @@
+"""The ``tidybot`` section of ``pathpref bench --json``: the Stanford TidyBot from MuJoCo
+Menagerie carrying the tray with whole-body IK (:mod:`pathpref.sim.tidybot`).
+
+* ``robot_model``: the compiled model's name;
+* ``tray_deviation_30n_3s_mm``, ``tray_recovery_s``: a steady 30 N push on the tray for 3 s
+  toward east, north, west and south (:func:`~pathpref.sim.tidybot.tray_push`), the worst;
+* ``whole_body_base_share``: the share of a 0.3 m end-effector target straight ahead reached
+  by base motion after 3 s (:func:`~pathpref.sim.tidybot.base_share`), and
+  ``whole_body_error_m`` the tray's distance from that target then;
+* ``tidybot_guidance_push_displacement_m``: 25 N on the tray for 2 s (and 1 s after) under
+  the project's guidance admittance (:func:`~pathpref.sim.tidybot.guided_push`);
+* the model's figures (:func:`~pathpref.sim.tidybot.physical_figures`) and
+  ``tidybot_load_s`` (compiling the model with its meshes).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+
+def bench_tidybot(quick: bool = False) -> dict[str, Any]:
+    """The TidyBot's keys (module docstring); ``quick`` pushes north and east only."""
+    from ...sim import tidybot
+
+    t = time.perf_counter()
+    model = tidybot.build_tidybot()
+    load_s = time.perf_counter() - t
+    wb = tidybot.WholeBody(model)
+    share = tidybot.base_share(wb, 0.3, 3.0)
+    push = tidybot.tray_push(wb, 30.0, 3.0, headings=(0.0, 90.0) if quick else
+                             (0.0, 90.0, 180.0, 270.0))
+    from ...episode import Physics
+
+    drive = Physics().drive
+    guided = tidybot.guided_push(wb, drive.admittance_m, drive.admittance_b)
+    return {"robot_model": tidybot.robot_model(model),
+            "tidybot_guidance_push_displacement_m": guided,
+            "tray_deviation_30n_3s_mm": push["deviation_mm"],
+            "tray_recovery_s": push["recovery_s"],
+            "whole_body_base_share": share["share"],
+            "whole_body_error_m": share["error_m"],
+            "tidybot_load_s": load_s,
+            **tidybot.physical_figures(model)}
