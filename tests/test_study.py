@@ -233,7 +233,7 @@ def test_replay_runs_the_recorded_forces_again(demo_db, tmp_path, capsys):
                  str(out), "--width", "96", "--height", "72"]) == 0
     time_s = _db(demo_db).execute("SELECT time_s FROM trials WHERE trial = 1").fetchone()[0]
     n = imageio.get_reader(str(out)).count_frames()
-    assert abs(n - time_s * 25) <= 2
+    assert abs(n - (time_s * 25 + 1 + 25)) <= 2  # + the final frame, the 1 s outcome card
     assert main(["replay", str(demo_db), "--participant", "demo", "--trial", "9", "--out",
                  str(tmp_path / "x.mp4")]) == 2
     assert "no trial 9" in capsys.readouterr().err

@@ -85,13 +85,15 @@ def test_a_two_condition_study_records_its_settings(physics_db):
 
 
 def test_replay_verifies_both_conditions(physics_db, tmp_path):
+    from pathpref.apps.rollout import CARD_S, VIDEO_FPS
     from pathpref.study.replay import replay_trial
 
+    held = int(round(CARD_S * VIDEO_FPS))  # the final frame, then the outcome card
     for k in (1, 2):
         frames = replay_trial(physics_db, "p1", k, tmp_path / f"t{k}.mp4", 32, 24)
         time_s = sqlite3.connect(physics_db).execute(
             "SELECT time_s FROM trials WHERE trial = ?", (k,)).fetchone()[0]
-        assert abs(frames - time_s * 25) <= 2
+        assert abs(frames - (time_s * VIDEO_FPS + 1 + held)) <= 2
 
 
 def test_report_separates_conditions_by_physics_and_robot(physics_db, capsys):
