@@ -8,11 +8,10 @@ controller, the pushes acting, ``mj_step``, sensing, cue detection, measurements
 ``on_substep`` hooks (renderers, loggers; ``pre_substep`` hooks run before it: the simulated
 human of :mod:`.pushing_human` starts its pushes there).
 
-**One cue stream.** Every cue the detector gives, in any phase, becomes one
-:class:`~pathpref.episode.body.Felt` record (the cell and simulated time at which it was first
-felt, when it was read, its heading, peak force, impulse and duration), appended to
-:attr:`MobileBase.felt` and handed to the base's one listener (:attr:`MobileBase.listener`:
-the episode runner's door, connected by the body).
+**One cue stream** (:mod:`.cue_stream`): every cue the detector gives, in any phase, becomes
+one :class:`~pathpref.episode.body.Felt` record, appended to :attr:`MobileBase.felt` and handed
+to the base's one listener (:attr:`MobileBase.listener`: the episode runner's door, connected
+by the body).
 
 **Pushes at any time** (:meth:`MobileBase.enable_pushes_any_time`): pushes in :attr:`pushes`
 act whenever their time comes (driving, braking or standing), the detector splits two pushes
@@ -43,6 +42,7 @@ from .admittance import yield_velocity
 from .coasting import Coaster
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue
+from .cue_stream import track_cue
 from .decision import DecisionStep
 from .estimator import EstimatorConfig
 from .force_cue import HumanPush, PushProfile, apply_force
@@ -220,7 +220,7 @@ class MobileBase:
         d, sensing = self.data, self.sensing
         if cue is not None or self._onset is not None or self.guidance is not None or \
                 sensing.under_way:
-            self._track_onset(cue)
+            track_cue(self, cue)
         if self.measure:
             self._step_push = push
             self.measurements.update(d, self._vxy_adr, self._pushed_now,
@@ -259,35 +259,6 @@ class MobileBase:
             if p.active(t):
                 total += p.force(t)
         apply_force(self.data, self.pushed_body, total)
-
-    def _track_onset(self, cue: Cue | None) -> None:
-        """Note where and when the cue under way was first felt; an ended cue becomes a
-        :class:`~pathpref.episode.body.Felt` record of the stream (module docstring)."""
-        under_way, g = self.sensing.under_way, self.guidance
-        if g is not None and (under_way or cue is not None):
-            if g.feel(self.sensing.force_estimate, self.dt) and cue is None:
-                t = float(self.data.time)
-                t0 = self._onset[0] if self._onset is not None else t
-                partial = g.partial(self.cell, t0, t)  # to the listener; not in felt
-                if self.listener is not None:
-                    self.listener(partial)
-        if cue is not None:
-            t = float(self.data.time)
-            t0, cell = self._onset if self._onset is not None else (t, self.cell)
-            felt = Felt(cell, cue.heading, t0, t, float(cue.peak_n),
-                        (float(cue.impulse[0]), float(cue.impulse[1])), float(cue.duration_s),
-                        evidence=None if g is None else g.take())
-            if g is not None:
-                g.given = 0.0  # the next cue has its own evidence
-            self.felt.append(felt)
-            self._onset = (t, self.cell) if under_way else None
-            if self.listener is not None:
-                self.listener(felt)
-        elif under_way:
-            if self._onset is None:
-                self._onset = (float(self.data.time), self.cell)
-        elif self._onset is not None:
-            self._onset = None
 
     def yielding(self) -> bool:
         """Whether the base yields to a push now (admittance on and a cue under way)."""
