@@ -28,6 +28,9 @@ from ..episode.body import Felt
 from ..episode.physics import CELL_SIZE_M, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..geometry.grid import heading_to_action
 
+#: below this admittance speed, with no cue under way, the admittance is at rest (m/s): the
+#: target's remaining travel ``|v| M / b`` is then under 0.3 mm
+V_REST = 1e-3
 #: the deformation worth one observation (m): a correction is one choice of heading by the
 #: person, as a tap is, and once it has moved the plan this far (a fifth of a cell; a tap
 #: moves the yielding base 3 cm) its direction is what the person chose
@@ -44,25 +47,43 @@ class Guidance:
         self.evidence = np.zeros(2)  # the impulse since the last evidence record (N s)
         self.evidence_s = 0.0  # its duration (s)
         self.deformation = np.zeros(2)  # the target's displacement since the last record (m)
+        #: the admittance moves the target (False: at rest, ``v = 0``)
+        self.moving = False
         self.given = 0.0  # the evidence the cue under way has given (observations)
 
     def reset(self) -> None:
         """A standing base: no admittance velocity, no evidence."""
         self.v[:] = 0.0
+        self.moving = False
         self.evidence[:], self.evidence_s, self.given = 0.0, 0.0, 0.0
         self.deformation[:] = 0.0
 
-    def admit(self, base) -> None:
+    def admit(self, base) -> bool:
         """One step of ``v += dt (F_hat - b v) / M`` (explicit Euler; stable for
         ``dt < 2 M / b``: 0.5 s for the defaults against the 2 ms step) and of the target it
-        deforms, ``p_target += dt v``. Safety: ``|v|`` is capped at the controller's
-        ``v_max``; where the base would not fit (:meth:`.scene.Scene.fits`) within its
-        stopping distance ahead, ``|v|^2 / a_max`` (braking at half ``a_max``: a push may
-        oppose the drive), the admittance brakes at ``a_max``; the target never moves where
-        the base does not fit, so a push cannot drive the base into an obstacle or a wall."""
+        deforms, ``p_target += dt v``; whether the admittance moves (:attr:`moving`).
+        ``F_hat`` is the force estimate while the detector has a cue under way, else 0 (as
+        Bajcsy et al.'s controller zeroes the torques below its threshold: sensor noise does
+        not walk the base away); once no cue is under way and ``|v| < V_REST`` the
+        admittance is at rest (``v = 0``) and the base tracks its target alone.
+        Safety: ``|v|`` is capped at the controller's ``v_max``; where the base would not fit
+        (:meth:`.scene.Scene.fits`) within its stopping distance ahead, ``|v|^2 / a_max``
+        (braking at half ``a_max``: a push may oppose the drive), the admittance brakes at
+        ``a_max``; the target never moves where the base does not fit, so a push cannot drive
+        the base into an obstacle or a wall."""
         c, dt, fits = base.controller, base.dt, base.scene.fits
         v, a_max = self.v, c.a_max
-        v += dt * (base.sensing.force_estimate - self.damping * v) / self.mass
+        if base.sensing.under_way:
+            v += dt * (base.sensing.force_estimate - self.damping * v) / self.mass
+        elif self.moving:
+            v += dt * (-self.damping * v) / self.mass
+            if math.hypot(v[0], v[1]) < V_REST:
+                v[:] = 0.0
+                self.moving = False
+                return False
+        else:
+            return False
+        self.moving = True
         speed = math.hypot(v[0], v[1])
         if speed > c.v_max:
             v *= c.v_max / speed
@@ -77,6 +98,7 @@ class Guidance:
             self.deformation += dt * v
         else:
             v[:] = 0.0
+        return True
 
     def feel(self, force: np.ndarray, dt: float) -> bool:
         """Add one step's force to the evidence; whether a period is full. A cue's first

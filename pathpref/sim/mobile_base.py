@@ -272,9 +272,10 @@ class MobileBase:
         c = self.controller
         if self._float_for is not c:
             self._float_control = self._can_float()
-        if self.guidance is not None:
-            self.guidance.admit(self)
-        elif self._float_control and (self.admittance_b is None or not self.yielding()):
+        if self.guidance is not None and self.guidance.admit(self):
+            self._ctrl_view[self._act] = self._base_command()  # a person moves the base
+            return
+        if self._float_control and (self.admittance_b is None or not self.yielding()):
             self._anchor = None
             q, (ix, iy, iyaw), (a0, a1, a2) = self._qpos, self._float_adr, self._float_act
             tx, ty = self.target.tolist()
@@ -309,7 +310,8 @@ class MobileBase:
         if not self.yielding():
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)
-            if self.guidance is not None:  # the push's velocity as feedforward, within v_max
+            if self.guidance is not None and self.guidance.moving:  # the push's velocity
+                # as feedforward, within v_max
                 command[:2] += self.guidance.v
                 speed = math.hypot(command[0], command[1])
                 if speed > self.controller.v_max:
