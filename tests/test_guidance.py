@@ -149,16 +149,11 @@ def test_the_deformation_is_the_evidence():
     assert sum(f.evidence[1] for f in seen) == pytest.approx(GUIDANCE_MAX_EVIDENCE, abs=1e-12)
 
 
-def test_guidance_records_update_the_belief_as_enumeration_does(simple):
-    """The deformation records of a guided episode, taken by the preference belief, give the
-    posterior enumeration over every preference gives (the likelihood of
-    :mod:`pathpref.sim.guidance`)."""
-    from pathpref.episode.physics import DIRECTION_KAPPA
-    from pathpref.inference.belief import PreferenceBelief
-    from tests.test_belief import brute_direction_posterior
-
-    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=3, sim="mujoco",
-                              queries=50, t_max=6, physics=Physics.of(timing="guidance"))
+def _guided_episode(seed: int, t_max: int):
+    """A guided episode (simple, ΔT 2) run to its end: its runner and every record its base
+    gave the runner's door."""
+    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=seed, sim="mujoco",
+                              queries=50, t_max=t_max, physics=Physics.of(timing="guidance"))
     runner = EpisodeRunner(spec)
     seen = []
     door = runner.body.base.listener
@@ -170,6 +165,18 @@ def test_guidance_records_update_the_belief_as_enumeration_does(simple):
     runner.body.base.listener = listen
     while not runner.done:
         runner.step()
+    return runner, seen
+
+
+def test_guidance_records_update_the_belief_as_enumeration_does(simple):
+    """The deformation records of a guided episode, taken by the preference belief, give the
+    posterior enumeration over every preference gives (the likelihood of
+    :mod:`pathpref.sim.guidance`)."""
+    from pathpref.episode.physics import DIRECTION_KAPPA
+    from pathpref.inference.belief import PreferenceBelief
+    from tests.test_belief import brute_direction_posterior
+
+    runner, seen = _guided_episode(3, 6)
     obs = [(f.cell, f.evidence[0], f.evidence[1]) for f in seen if f.evidence[1] > 0]
     assert len(obs) >= 3
     belief = PreferenceBelief(runner.model)
@@ -177,6 +184,24 @@ def test_guidance_records_update_the_belief_as_enumeration_does(simple):
         belief.update_direction(s, angle, DIRECTION_KAPPA, w)
     post, _ = brute_direction_posterior(runner.model, obs, DIRECTION_KAPPA)
     assert np.allclose(belief.goal_marginal(), post.sum(axis=1), atol=1e-9)
+
+
+def test_guidance_reads_a_sustained_push_while_it_lasts():
+    """A guidance episode: partial records reach the runner while a push lasts, carry at
+    most GUIDANCE_MAX_EVIDENCE per cue, and are not cues (the cue count is the body's)."""
+    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
+    from pathpref.errors import ConfigError
+
+    runner, seen = _guided_episode(1, 8)
+    cues = [f for f in seen if not f.partial]
+    partial = [f for f in seen if f.partial]
+    assert len(cues) >= 1 and len(partial) >= 5 * len(cues)
+    assert all(f.evidence is not None and f.evidence[1] >= 0 for f in seen)
+    total = sum(f.evidence[1] for f in seen)
+    assert total <= GUIDANCE_MAX_EVIDENCE * len(cues) + 1e-9
+    assert runner.result.metrics["cues_felt"] == len(cues)
+    with pytest.raises(ConfigError, match="timing guidance needs base holonomic"):
+        Physics.of(timing="guidance", base="diffdrive")
 
 
 def test_a_guided_step_is_the_same_in_the_cli_and_the_task():

@@ -497,36 +497,6 @@ def test_guidance_deforms_the_motion_and_keeps_it():
     assert abs(tapped) < 0.05
 
 
-def test_guidance_reads_a_sustained_push_while_it_lasts():
-    """A guidance episode: partial records reach the runner while a push lasts, carry at
-    most GUIDANCE_MAX_EVIDENCE per cue, and are not cues (the cue count is the body's)."""
-    from pathpref.episode.physics import GUIDANCE_MAX_EVIDENCE
-    from pathpref.episode.runner import EpisodeRunner
-
-    spec = EpisodeSpec.single("simple", "path_preference", 2, seed=1, sim="mujoco", queries=50,
-                              t_max=8, physics=Physics.of(timing="guidance"))
-    runner = EpisodeRunner(spec)
-    seen = []
-    door = runner.body.base.listener
-
-    def listen(felt):
-        seen.append(felt)
-        door(felt)
-
-    runner.body.base.listener = listen
-    while not runner.done:
-        runner.step()
-    cues = [f for f in seen if not f.partial]
-    partial = [f for f in seen if f.partial]
-    assert len(cues) >= 1 and len(partial) >= 5 * len(cues)
-    assert all(f.evidence is not None and f.evidence[1] >= 0 for f in seen)
-    total = sum(f.evidence[1] for f in seen)
-    assert total <= GUIDANCE_MAX_EVIDENCE * len(cues) + 1e-9
-    assert runner.result.metrics["cues_felt"] == len(cues)
-    with pytest.raises(ConfigError, match="timing guidance needs base holonomic"):
-        Physics.of(timing="guidance", base="diffdrive")
-
-
 def test_a_guided_base_is_not_pushed_into_a_wall():
     """Guidance moves the base's target only where the base fits: 40 N toward the east wall
     for 3 s from the cell beside it leaves the physical base (Physics() drive, stiff servos)
