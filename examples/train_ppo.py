@@ -215,8 +215,9 @@ def main(argv: list[str] | None = None) -> dict:
         else None}
     w, h = (int(v) for v in args.video_size.lower().split("x"))
     if w > 0 and h > 0:
-        from pathpref.apps.film import film_policy
         from pathpref_tasks.policies import checkpoint_policy
+
+        from pathpref.apps.film import film_policy
 
         metrics, frames = film_policy("navigate", checkpoint_policy(out / "agent.zip"),
                                       out / "agent.mp4", w, h,

@@ -70,8 +70,14 @@ import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
-from pathpref.episode import (EpisodeRunner, EpisodeSpec, cached_map, cached_world,
-                              sample_instance, simulator_rng)
+from pathpref.episode import (
+    EpisodeRunner,
+    EpisodeSpec,
+    cached_map,
+    cached_world,
+    sample_instance,
+    simulator_rng,
+)
 from pathpref.episode.physics import CELL_SIZE_M
 from pathpref.episode.physics import Physics as PhysicalParameters
 from pathpref.episode.safety import contact_safe
