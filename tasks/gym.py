@@ -41,6 +41,7 @@ from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
 from pathpref.geometry.maps import load_map
 
+from .environment import load
 from .navigate_control import CONTROL_TIMESTEP
 from .registry import BUILTIN_TASKS, gym_id, gym_ids
 
@@ -169,8 +170,6 @@ class PathprefEnv(gym.Env):
     def __init__(self, task: str = "navigate", render_mode: str | None = None,
                  width: int = 480, height: int = 360, environment_kwargs: dict | None = None,
                  time_limit: float | None = None, **task_kwargs: Any):
-        from . import load
-
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
         #: the task's arguments; the reward is the loop-free one unless asked otherwise
