@@ -1,175 +1,229 @@
-"""Train PPO (stable-baselines3) on ``pathpref/NavigateControl-v0``: the agent drives the base's
-velocity at 10 Hz while the simulated human pushes; it is rewarded by the paper's rule at every
-cell change (SPEC 6: the goal, the move cost, the human's preferred route). Writes the
-learning curve, the trained agent and a video of it::
+"""Train PPO (stable-baselines3) on ``pathpref/Navigate-v0``: one action is one decision (a
+move to a grid neighbour, or stay) while the simulated human pushes the handle at every
+decision; the reward is the Gymnasium ids' loop-free one (the move cost, the person's
+preferred route as a potential, +50 at the goal: ``docs/tasks.md``). The agent observes the
+detected push (``heading``), the belief over the candidate goals, the goals seen from the base
+(``goal_vectors``, ``goal_direction``) and the current polytope (``polytope_onehot``). Writes
+the learning curve, the trained agent, its evaluation and a video::
 
     pip install torch --index-url https://download.pytorch.org/whl/cpu   # CPU-only torch
     pip install "pathpref[rl]"                                         # stable-baselines3
-    MUJOCO_GL=egl nice -n 10 python examples/train_ppo.py --out ppo_out --steps 40000
+    MUJOCO_GL=egl nice -n 10 python examples/train_ppo.py --out ppo_out --steps 30000
 
-``ppo_out/``: ``curve.png`` (episode return and success against environment steps),
-``agent.zip`` (the PPO model), ``agent.mp4`` (one episode of the trained agent, the task drawn:
-goals by belief, the preferred route, pushes and cues), ``summary.json``. The saved agent can
-be filmed again on any seed with ``pathpref render``::
+``ppo_out/``: ``curve.png`` (success and return of the training episodes against environment
+steps), ``agent.zip`` (the PPO model), ``summary.json`` (training CPU seconds, the success of
+the deterministic agent on ``--eval`` held-out episodes with its Wilson interval),
+``episodes.json`` and ``agent.mp4`` (one held-out episode, the task drawn). Training stops at
+``--steps`` or at ``--cpu-minutes`` of this process's CPU time, whichever comes first. The
+saved agent is filmed again on any seed with ``pathpref render``::
 
-    PYTHONPATH=examples PATHPREF_AGENT=ppo_out/agent.zip pathpref render \\
-        --task navigate_control --map simple --method goal_only --delta-t 3 --queries 20 \\
-        --policy train_ppo:agent_policy --out agent.mp4
-
-(``pathpref render`` runs the task at its default 50 Hz; the agent was trained at 10 Hz.)
+    pathpref render --task navigate --map simple --method path_preference --delta-t 1 \\
+        --policy ppo_out/agent.zip --out agent.mp4
 
 **torch and MuJoCo's EGL.** With the CUDA build of torch, importing torch (or triton) after a
 MuJoCo EGL context exists has crashed the process (Mesa's EGL and triton); this script imports
 torch first, before any environment, which is the order that works. The CPU-only wheel (no
-triton) imports in any order on this project's machines (checked: an environment created and
-rendered with EGL, then ``import torch``, exits 0). Without rendering, ``MUJOCO_GL=disable``
-avoids GL altogether for training runs.
+triton) imports in any order on this project's machines. Without rendering,
+``MUJOCO_GL=disable`` avoids GL altogether for training runs.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
-import time
+import resource
 from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import torch  # noqa: E402,F401  # before any MuJoCo EGL context (module docstring)
 from stable_baselines3 import PPO  # noqa: E402
-from stable_baselines3.common.monitor import Monitor  # noqa: E402
+from stable_baselines3.common.callbacks import BaseCallback  # noqa: E402
 
 # isort: split
 import gymnasium as gym  # noqa: E402
 import numpy as np  # noqa: E402
 import pathpref_tasks  # noqa: E402,F401  # registers the Gymnasium ids
-from pathpref_tasks.gym import gym_observation  # noqa: E402
+from pathpref_tasks.policies import AGENT_KEYS, agent_observation  # noqa: E402
 
-ENV_ID = "pathpref/NavigateControl-v0"
-#: the task: the paper's simple map, a cue every 3 decisions' worth of time, 10 Hz control
-TASK = {"map": "simple", "method": "goal_only", "delta_t": 3, "queries": 20}
-ENVIRONMENT = {"control_timestep": 0.1}
-#: simulated seconds of one training episode (400 control steps)
-TIME_LIMIT_S = 40.0
+ENV_ID = "pathpref/Navigate-v0"
+#: the task: the paper's simple map, the person pushes at every decision, the paper's method
+#: for the belief the agent observes
+TASK = {"map": "simple", "method": "path_preference", "delta_t": 1}
 #: the episode metrics the learning curve and the summary keep
-KEEP = ("success", "goal_reached", "violations", "pushes")
+KEEP = ("success", "goal_reached", "violations", "pushes", "return", "steps")
+#: the first seed of the held-out evaluation episodes (training uses seeds 0, 1, ...)
+EVAL_SEED = 100_000
 
 
-class EpisodeLog(gym.Wrapper):
-    """Keeps each finished episode's metrics (the last ``info``: ``return``, ``success``, ...)
-    and the environment steps taken when it ended."""
+def cpu_seconds() -> float:
+    """User and system CPU seconds of this process."""
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """The Wilson score interval of ``k`` successes in ``n`` trials (95% for ``z = 1.96``)."""
+    if n == 0:
+        return 0.0, 1.0
+    p = k / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return centre - half, centre + half
+
+
+class AgentView(gym.ObservationWrapper):
+    """The observations the agent reads (:data:`pathpref_tasks.policies.AGENT_KEYS`)."""
 
     def __init__(self, env: gym.Env):
         super().__init__(env)
+        self.observation_space = gym.spaces.Dict(
+            {k: env.observation_space[k] for k in AGENT_KEYS})
+
+    def observation(self, observation):
+        """The agent's keys of ``observation``."""
+        return agent_observation(observation)
+
+
+class EpisodeLog(gym.Wrapper):
+    """Keeps each finished episode's metrics (the last ``info``) and the environment steps
+    taken when it ended; every ``reset`` without a seed starts the next training seed."""
+
+    def __init__(self, env: gym.Env, seed: int):
+        super().__init__(env)
         self.episodes: list[dict] = []
         self.steps = 0
+        self.next_seed = seed
+
+    def reset(self, *, seed=None, options=None):
+        """The next training episode (its own seed, so the run is reproducible)."""
+        if seed is None:
+            seed, self.next_seed = self.next_seed, self.next_seed + 1
+        return self.env.reset(seed=seed, options=options)
 
     def step(self, action):
         """The wrapped step; a finished episode's last ``info`` is kept."""
         obs, r, term, trunc, info = self.env.step(action)
         self.steps += 1
         if term or trunc:
-            self.episodes.append({**{k: info[k] for k in (*KEEP, "return")},
-                                  "at_step": self.steps})
+            self.episodes.append({**{k: info[k] for k in KEEP}, "at_step": self.steps})
         return obs, r, term, trunc, info
 
 
+class CpuBudget(BaseCallback):
+    """Stops training once this process has used ``seconds`` of CPU time."""
+
+    def __init__(self, seconds: float):
+        super().__init__()
+        self.seconds = seconds
+
+    def _on_step(self) -> bool:
+        return cpu_seconds() < self.seconds
+
+
 def make_env(seed: int = 0) -> EpisodeLog:
-    """The training environment: its episodes kept (:class:`EpisodeLog`) and recorded by
-    SB3's ``Monitor`` (its ``ep_rew_mean`` log)."""
-    env = gym.make(ENV_ID, environment_kwargs=ENVIRONMENT, time_limit=TIME_LIMIT_S,
-                   seed=seed, **TASK)
-    return EpisodeLog(Monitor(env))
+    """The training environment (:class:`AgentView`, :class:`EpisodeLog`)."""
+    return EpisodeLog(AgentView(gym.make(ENV_ID, **TASK)), seed)
 
 
-def plot_curve(log: EpisodeLog, path: Path, window: int = 10) -> None:
-    """Episode return (and its running mean over ``window`` episodes) against the
-    environment steps at each episode's end."""
+def evaluate(model: PPO, n: int, seed: int = EVAL_SEED) -> list[dict]:
+    """``n`` held-out episodes (seeds ``seed``, ``seed + 1``, ...) of the deterministic
+    agent: their metrics."""
+    env = AgentView(gym.make(ENV_ID, **TASK))
+    out = []
+    for i in range(n):
+        obs, _ = env.reset(seed=seed + i)
+        for _ in range(10_000):  # the TimeLimit (60 decisions) ends it first
+            obs, _, term, trunc, info = env.step(model.predict(obs, deterministic=True)[0])
+            if term or trunc:
+                break
+        out.append({k: info[k] for k in KEEP})
+    env.close()
+    return out
+
+
+def plot_curve(episodes: list[dict], path: Path, window: int = 50) -> None:
+    """Success and return of the training episodes (running means over ``window``) against
+    the environment steps at each episode's end."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    returns = np.array([e["return"] for e in log.episodes], float)
-    steps = np.array([e["at_step"] for e in log.episodes])
-    fig, ax = plt.subplots(figsize=(6, 3.5), dpi=120)
-    ax.plot(steps, returns, ".", alpha=0.4, label="episode return")
-    if len(returns) >= window:
-        mean = np.convolve(returns, np.ones(window) / window, mode="valid")
-        ax.plot(steps[window - 1:], mean, "-", label=f"mean of {window}")
-    ax.set_xlabel("environment steps")
-    ax.set_ylabel("return (paper's reward)")
-    ax.set_title(f"PPO on {ENV_ID}")
-    ax.legend(loc="lower right")
+    steps = np.array([e["at_step"] for e in episodes])
+    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(6, 5), dpi=120, sharex=True)
+    for ax, key, label in ((ax1, "success", "success"), (ax2, "return", "return")):
+        y = np.array([float(e[key]) for e in episodes])
+        ax.plot(steps, y, ".", alpha=0.15)
+        if len(y) >= window:
+            ax.plot(steps[window - 1:], np.convolve(y, np.ones(window) / window, "valid"),
+                    "-", label=f"mean of {window} episodes")
+            ax.legend(loc="lower right")
+        ax.set_ylabel(label)
+    ax2.set_xlabel("environment steps (decisions)")
+    ax1.set_title(f"PPO on {ENV_ID} (simple, a push every decision)")
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
-def policy_of(model: PPO, space) -> callable:
-    """The trained agent as a policy of a dm_env time step (``pathpref render --policy``)."""
-    def act(time_step):
-        obs = gym_observation(space, time_step.observation)
-        return model.predict(obs, deterministic=True)[0]
-
-    return act
-
-
-_AGENT: dict = {}
-
-
-def agent_policy(time_step):
-    """The agent saved at ``$PATHPREF_AGENT``, for ``pathpref render --policy
-    train_ppo:agent_policy`` (loaded at the first call)."""
-    if "act" not in _AGENT:
-        env = make_env()
-        _AGENT["act"] = policy_of(PPO.load(os.environ["PATHPREF_AGENT"], device="cpu"),
-                                  env.observation_space)
-        env.close()
-    return _AGENT["act"](time_step)
-
-
 def main(argv: list[str] | None = None) -> dict:
-    """Train, plot, save and film (module docstring); the summary."""
+    """Train, plot, evaluate, save and film (module docstring); the summary."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="ppo_out", help="output folder")
-    ap.add_argument("--steps", type=int, default=40_000, help="environment steps to train")
+    ap.add_argument("--steps", type=int, default=30_000, help="environment steps to train")
+    ap.add_argument("--cpu-minutes", type=float, default=20.0,
+                    help="stop training after this much CPU time of the process")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--video-size", default="480x360", help="WxH of the agent's video")
+    ap.add_argument("--eval", type=int, default=100, help="held-out evaluation episodes")
+    ap.add_argument("--video-size", default="480x360", help="WxH of the agent's video (0x0: "
+                    "no video)")
     args = ap.parse_args(argv)
-    if not 256 <= args.steps <= 10_000_000:
-        raise SystemExit(f"--steps must be in 256..10000000, got {args.steps}")
+    if not 64 <= args.steps <= 10_000_000:
+        raise SystemExit(f"--steps must be in 64..10000000, got {args.steps}")
+    if not 0 <= args.eval <= 100_000:
+        raise SystemExit(f"--eval must be in 0..100000, got {args.eval}")
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the machine's cores are shared; the MLP is small
     env = make_env(args.seed)
-    model = PPO("MultiInputPolicy", env, n_steps=min(1024, args.steps), batch_size=128,
-                learning_rate=3e-4, gamma=0.99, seed=args.seed, device="cpu", verbose=0)
-    started = time.perf_counter()
-    model.learn(total_timesteps=args.steps)
-    train_s = time.perf_counter() - started
+    model = PPO("MultiInputPolicy", env, n_steps=512 if args.steps >= 512 else 64, batch_size=64,
+                n_epochs=10, learning_rate=3e-4, gamma=0.99, ent_coef=0.01, seed=args.seed,
+                device="cpu", verbose=0)
+    cpu0 = cpu_seconds()
+    model.learn(total_timesteps=args.steps,
+                callback=CpuBudget(cpu0 + 60.0 * args.cpu_minutes))
+    train_cpu_s = cpu_seconds() - cpu0
     model.save(out / "agent.zip")
-    plot_curve(env, out / "curve.png")
-    from pathpref.apps.film import film_policy
-
-    w, h = (int(v) for v in args.video_size.lower().split("x"))
-    metrics, frames = film_policy("navigate_control", policy_of(model, env.observation_space),
-                                  out / "agent.mp4", w, h, {**TASK, "seed": args.seed + 1000},
-                                  environment_kwargs=ENVIRONMENT, time_limit=TIME_LIMIT_S)
     eps = env.episodes
-    fifth = max(1, len(eps) // 5)
-    first, last = eps[:fifth], eps[-fifth:]
+    plot_curve(eps, out / "curve.png")
+    loaded = PPO.load(out / "agent.zip", device="cpu")  # what is evaluated is what was saved
+    held_out = evaluate(loaded, args.eval)
+    k = sum(bool(e["success"]) for e in held_out)
+    lo, hi = wilson(k, len(held_out))
     summary = {
-        "steps": args.steps, "train_s": round(train_s, 1), "episodes": len(eps),
-        "mean_return_first_fifth": float(np.mean([e["return"] for e in first])) if eps
-        else None,
-        "mean_return_last_fifth": float(np.mean([e["return"] for e in last])) if eps
-        else None,
-        "success_rate_last_fifth": float(np.mean([e["success"] for e in last])) if eps
-        else None,
-        "filmed_episode": {k: metrics[k] for k in (*KEEP, "return", "steps")},
-        "video_frames": frames}
+        "env": ENV_ID, "task": TASK, "seed": args.seed, "steps": env.steps,
+        "train_cpu_s": round(train_cpu_s, 1), "episodes": len(eps),
+        "success_rate_last_200_training": float(np.mean([e["success"] for e in eps[-200:]]))
+        if eps else None,
+        "eval_n": len(held_out), "eval_successes": k,
+        "eval_success": k / len(held_out) if held_out else None,
+        "eval_success_wilson95": [round(lo, 3), round(hi, 3)],
+        "eval_mean_return": float(np.mean([e["return"] for e in held_out])) if held_out
+        else None}
+    w, h = (int(v) for v in args.video_size.lower().split("x"))
+    if w > 0 and h > 0:
+        from pathpref_tasks.policies import checkpoint_policy
+
+        from pathpref.apps.film import film_policy
+
+        metrics, frames = film_policy("navigate", checkpoint_policy(out / "agent.zip"),
+                                      out / "agent.mp4", w, h,
+                                      {**TASK, "seed": EVAL_SEED, "reward": "potential"})
+        summary["filmed_episode"] = {k: metrics[k] for k in KEEP}
+        summary["video_frames"] = frames
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     (out / "episodes.json").write_text(json.dumps(eps))
     print(json.dumps(summary))

@@ -41,6 +41,7 @@ from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
 from pathpref.geometry.maps import load_map
 
+from .environment import load
 from .navigate_control import CONTROL_TIMESTEP
 from .registry import BUILTIN_TASKS, gym_id, gym_ids
 
@@ -52,6 +53,13 @@ IDS = {gym_id(name): name for name in BUILTIN_TASKS}
 
 #: the entry point every id is registered with (a string, so ``gym.spec(id).to_json()`` works)
 ENTRY_POINT = "pathpref_tasks.gym:PathprefEnv"
+#: the reward rule of the Gymnasium ids (``reward="paper"`` selects SPEC 6's): the potential of
+#: :mod:`.reward`, under which circling never pays
+GYM_REWARD = "potential"
+#: the shortest start-to-candidate grid distance (cells) of the Gymnasium ids' episodes
+#: (``min_goal_distance`` of the task; the dm_control tasks keep the paper's draw, 0): no
+#: episode ends after a step or two because a goal was drawn beside the start
+GYM_MIN_GOAL_DISTANCE = 4.0
 #: the built-in maps whose horizons ``max_episode_steps`` must cover
 HORIZON_MAPS = ("simple", "office", "classroom")
 #: the longest decision step of the default physics (s), for the control-rate horizon
@@ -73,24 +81,84 @@ def max_episode_steps(task: str) -> int:
     return int(t_max)
 
 
+#: bounds the Gymnasium spaces give the observations the dm_env specs leave unbounded (values
+#: beyond them are clipped): the filtered force and the strongest cue's peak (N) within
+#: ``FORCE_BOUND_N``, far above any push of the human models (30 N legacy, at most 60 N);
+#: ``push_felt``'s cos and sin within 1, its duration (s) within ``CUE_BOUND_S``; velocity
+#: (m/s) within ``SPEED_BOUND``; the tray's position (m) within ``TRAY_BOUND_M`` of the origin
+FORCE_BOUND_N = 200.0
+CUE_BOUND_S = 10.0
+SPEED_BOUND = 5.0
+TRAY_BOUND_M = 100.0
+GYM_BOUNDS = {
+    "force": (-FORCE_BOUND_N, FORCE_BOUND_N),
+    "push_felt": ([0.0, -1.0, -1.0, 0.0], [FORCE_BOUND_N, 1.0, 1.0, CUE_BOUND_S]),
+    "velocity": (-SPEED_BOUND, SPEED_BOUND),
+    "tray_position": (-TRAY_BOUND_M, TRAY_BOUND_M),
+}
+
+
 def box(spec) -> spaces.Box:
-    """The Box of a dm_env spec: its bounds for a ``BoundedArray``, else unbounded."""
+    """The Box of a dm_env spec: its bounds for a ``BoundedArray``, else those of
+    :data:`GYM_BOUNDS` (every observation of the built-in tasks is bounded; another
+    package's unbounded one stays unbounded)."""
     lo, hi = (spec.minimum, spec.maximum) if isinstance(spec, specs.BoundedArray) else \
-        (-np.inf, np.inf)
+        GYM_BOUNDS.get(spec.name, (-np.inf, np.inf))
     return spaces.Box(np.broadcast_to(np.asarray(lo, np.float64), spec.shape).copy(),
                       np.broadcast_to(np.asarray(hi, np.float64), spec.shape).copy(),
                       shape=spec.shape, dtype=np.float64)
 
 
+def learner_spaces(observation_space: spaces.Dict) -> dict[str, spaces.Box]:
+    """The observations added for learners (:func:`learner_features`), from the task's
+    spaces: ``G`` goals (``goal_cells``), a map of side ``L`` cells (``goal_cells``' upper
+    bound) and ``P`` polytopes (``polytope``'s upper bound + 1)."""
+    G = observation_space["goal_cells"].shape[0]
+    P = int(round(float(observation_space["polytope"].high[0]))) + 1
+    return {"goal_vectors": spaces.Box(-1.0, 1.0, (G, 2), np.float64),
+            "goal_direction": spaces.Box(-1.0, 1.0, (2,), np.float64),
+            "polytope_onehot": spaces.Box(0.0, 1.0, (P,), np.float64)}
+
+
+def learner_features(space: spaces.Dict, observation) -> dict[str, np.ndarray]:
+    """Scaled observations a learner can use, computed from the task's own (so from a dm_env
+    time step as well):
+
+    - ``goal_vectors`` ``(G, 2)``: each candidate goal's centre seen from the base,
+      ``(c_g - 1/2 - p / s) / L`` with ``c_g`` its cell (1-based), ``p`` the base's position
+      (m), ``s`` the cell size (m) and ``L`` the map's side in cells: in [-1, 1]; robot-centred
+      in the world frame, which is the base's own (its yaw is held at zero);
+    - ``goal_direction`` ``(2,)``: the belief's expected goal vector
+      ``sum_g b(g) goal_vectors[g]`` (in [-1, 1]);
+    - ``polytope_onehot`` ``(P,)``: the current polytope, one-hot."""
+    from .navigate import CELL_SIZE
+
+    side = float(space["goal_cells"].high.max())
+    cells = np.asarray(observation["goal_cells"], np.float64).reshape(-1, 2)
+    here = np.asarray(observation["position"], np.float64).reshape(2) / CELL_SIZE
+    vectors = np.clip((cells - 0.5 - here) / side, -1.0, 1.0)
+    belief = np.asarray(observation["goal_belief"], np.float64).reshape(-1)
+    P = int(round(float(space["polytope"].high[0]))) + 1
+    onehot = np.zeros(P)
+    v = int(round(float(np.asarray(observation["polytope"]).reshape(-1)[0])))
+    onehot[min(max(v, 0), P - 1)] = 1.0
+    return {"goal_vectors": vectors,
+            "goal_direction": np.clip(belief @ vectors, -1.0, 1.0),
+            "polytope_onehot": onehot}
+
+
 def gym_observation(space: spaces.Dict, observation) -> dict[str, np.ndarray]:
     """A dm_env observation as the Gymnasium one of ``space``: float64 arrays of the spaces'
-    shapes, within their bounds (an agent trained through Gymnasium reads a dm_env time step
-    through this, e.g. to be filmed by ``pathpref render --policy``)."""
+    shapes, within their bounds, with the learner's features (:func:`learner_features`) when
+    ``space`` has them (an agent trained through Gymnasium reads a dm_env time step through
+    this, e.g. to be filmed by ``pathpref render --policy``)."""
     out = {}
     for k, v in observation.items():
         box_k = space[k]
         out[k] = np.clip(np.asarray(v, dtype=np.float64).reshape(box_k.shape), box_k.low,
                          box_k.high)
+    if "goal_direction" in space.spaces and "goal_cells" in out:
+        out.update(learner_features(space, out))
     return out
 
 
@@ -102,11 +170,12 @@ class PathprefEnv(gym.Env):
     def __init__(self, task: str = "navigate", render_mode: str | None = None,
                  width: int = 480, height: int = 360, environment_kwargs: dict | None = None,
                  time_limit: float | None = None, **task_kwargs: Any):
-        from . import load
-
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.task_name, self.task_kwargs = task, dict(task_kwargs)
+        #: the task's arguments; the reward is the loop-free one unless asked otherwise
+        self.task_kwargs = {"reward": GYM_REWARD, "min_goal_distance": GYM_MIN_GOAL_DISTANCE,
+                            **task_kwargs}
+        self.task_name = task
         self.render_mode = render_mode
         self.width = check_number("width", width, 1, MAX_RENDER, integer=True)
         self.height = check_number("height", height, 1, MAX_RENDER, integer=True)
@@ -120,8 +189,10 @@ class PathprefEnv(gym.Env):
             if isinstance(a, specs.DiscreteArray) else \
             spaces.Box(np.float32(a.minimum), np.float32(a.maximum), shape=a.shape,
                        dtype=np.float32)
-        self.observation_space = spaces.Dict({
-            k: box(v) for k, v in self._env.observation_spec().items()})
+        task_spaces = {k: box(v) for k, v in self._env.observation_spec().items()}
+        if "goal_cells" in task_spaces and "polytope" in task_spaces:
+            task_spaces.update(learner_spaces(spaces.Dict(task_spaces)))
+        self.observation_space = spaces.Dict(task_spaces)
         self.metadata = {**self.metadata,
                          "render_fps": max(1, round(1.0 / self._env.control_timestep()))}
         vis = self._env.physics.model.vis.global_

@@ -59,17 +59,25 @@ arguments and actions are one-line :class:`~pathpref.errors.ConfigError` s.
 from __future__ import annotations
 
 import collections
+import json
 import math
 import numbers
 import os
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 import numpy as np
 from dm_control.suite import base
 from dm_env import specs
 
-from pathpref.episode import EpisodeRunner, EpisodeSpec, cached_map, cached_world, simulator_rng
+from pathpref.episode import (
+    EpisodeRunner,
+    EpisodeSpec,
+    cached_map,
+    cached_world,
+    sample_instance,
+    simulator_rng,
+)
 from pathpref.episode.physics import CELL_SIZE_M
 from pathpref.episode.physics import Physics as PhysicalParameters
 from pathpref.episode.safety import contact_safe
@@ -164,7 +172,7 @@ class Navigate(base.Task):
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int | None = None,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate", force: bool = False, decision_s: float | None = None,
-                 physics: Any = None, reward: str = "paper"):
+                 physics: Any = None, reward: str = "paper", min_goal_distance: float = 0.0):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -200,6 +208,10 @@ class Navigate(base.Task):
         #: the reward rule: ``paper`` (SPEC 6) or ``potential`` (:mod:`.reward`, no loops)
         self.reward = reward
         self._phi: np.ndarray | None = None
+        #: the shortest grid distance (cells) from the start to any goal candidate (0: the
+        #: paper's draw, :func:`~pathpref.episode.instances.sample_instance`)
+        self.min_goal_distance = check_number("min_goal_distance", min_goal_distance, 0.0,
+                                              1000.0, integer=False)
         self.episode = -1
         self.runner: EpisodeRunner | None = None
         self.base: MobileBase | None = None
@@ -239,6 +251,8 @@ class Navigate(base.Task):
         spec = EpisodeSpec.single(self.template.map, self.template.method,
                                   self.template.delta_t, seed=self.seed, instance=self.episode,
                                   **fields)
+        if self.min_goal_distance > 0:
+            spec = self.distant_instance(spec)
         rng = simulator_rng(spec)
         self.base = self.make_base(physics.data.ptr, rng)
         self.body = StagedBody(self.world, spec, rng, self.base, self._start_push)
@@ -258,6 +272,18 @@ class Navigate(base.Task):
             self.runner.begin()
             while self.base.decision.phase == PUSH:  # the first push, before the first move
                 self.substep()
+
+    def distant_instance(self, spec: EpisodeSpec) -> EpisodeSpec:
+        """``spec`` with its instance drawn from its own seed with every candidate at least
+        ``min_goal_distance`` from the start, pinned (``EpisodeSpec.fixed``)."""
+        w = self.world
+        inst = sample_instance(w, spec.instance_seed, spec.n_goals,
+                               consistent=spec.human == "consistent", t_max=spec.t_max,
+                               min_distance=self.min_goal_distance)
+        cell = lambda c: [int(v) for v in w.cells[c]]  # noqa: E731
+        fixed = {"start": cell(inst.start), "goals": [cell(g) for g in inst.goals],
+                 "true_goal": inst.true_goal}
+        return replace(spec, fixed=json.dumps(fixed, sort_keys=True))
 
     def _start_push(self, push: HumanPush) -> None:
         """The human pushes now: the push phase of the base's decision step, the cell held."""

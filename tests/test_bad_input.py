@@ -788,6 +788,21 @@ def test_render_with_a_path_as_policy_is_one_line(tmp_path, capsys):
     assert err.count("\n") == 1 and "is not a module name" in err and not out.exists()
 
 
+def test_render_with_a_missing_or_bad_agent_is_one_line(tmp_path, capsys):
+    """``--policy X.zip`` is a stable-baselines3 agent: a missing file, or a file that is no
+    agent, is one line (or the rl extra's absence is)."""
+    bad = tmp_path / "bad.zip"
+    bad.write_bytes(b"not a zip")
+    for agent, msg in ((tmp_path / "none.zip", "no agent checkpoint"),
+                       (bad, "is not a stable-baselines3 agent")):
+        out = tmp_path / "v.mp4"
+        assert main(["render", "--map", "simple", "--task", "navigate", "--out", str(out),
+                     "--policy", str(agent), "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and not out.exists()
+        assert msg in err or "needs stable-baselines3" in err
+
+
 @pytest.mark.parametrize("width, height", [(1, 500), (500, 1), (4, 4)])
 def test_map_draw_clamps_the_figure(tmp_path, width, height):
     """Issue 47: a 1 x 500 map drew a 1170 x 585,000 px PNG (4.5 GB); now every side is at

@@ -291,9 +291,11 @@ def test_action_spec_is_discrete():
 
 @pytest.mark.parametrize("env_id", sorted(gym_id(name) for name in TASKS))
 def test_gymnasium_env_passes_check_env(env_id):
-    """Registered ids, Discrete(9) or Box(2) actions, bounded boxes where the dm_env spec is
-    bounded, the env checker (seeding determinism included), rendering, a clear error when
-    stepping after the end."""
+    """Registered ids, Discrete(9) or Box(2) actions, every observation a bounded box, the env
+    checker silent (its warnings raised as errors; seeding determinism included), rendering,
+    a clear error when stepping after the end."""
+    import warnings
+
     gym = pytest.importorskip("gymnasium")
     from gymnasium.utils.env_checker import check_env
 
@@ -309,7 +311,10 @@ def test_gymnasium_env_passes_check_env(env_id):
     space = env.observation_space
     assert space["goal_belief"].is_bounded() and space["position"].is_bounded()
     assert space["position"].high[0] == 5.0  # the 10 x 10 map at 0.5 m per cell
-    check_env(env.unwrapped, skip_render_check=False)
+    assert all(box.is_bounded() for box in space.values())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        check_env(env.unwrapped, skip_render_check=False)
     a, _ = env.reset(seed=3)
     b, _ = env.reset(seed=3)
     assert all(np.array_equal(a[k], b[k]) for k in a)

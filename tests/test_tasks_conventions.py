@@ -38,3 +38,37 @@ def test_info_has_the_shared_keys_every_step():
         if terminated or truncated:
             break
     env.close()
+
+
+@pytest.mark.parametrize("map_name", ["simple", "office", "classroom"])
+def test_candidates_keep_the_minimum_distance_over_many_seeds(map_name):
+    """300 draws per map: every candidate at least GYM_MIN_GOAL_DISTANCE grid cells from the
+    start; min_distance 0 draws exactly the paper's instances."""
+    import numpy as np
+    from pathpref_tasks.gym import GYM_MIN_GOAL_DISTANCE
+
+    from pathpref.episode.instances import sample_instance
+    from pathpref.geometry.world import load_world
+
+    world = load_world(map_name)
+    for seed in range(300):
+        inst = sample_instance(world, seed, 10, min_distance=GYM_MIN_GOAL_DISTANCE)
+        d = world.motion.distances_from(np.array([inst.start]))[0]
+        assert min(d[g] for g in inst.goals) >= GYM_MIN_GOAL_DISTANCE
+        if seed < 30:
+            assert sample_instance(world, seed, 10, min_distance=0.0) == \
+                sample_instance(world, seed, 10)
+
+
+def test_seed_3_starts_far_from_every_candidate():
+    """Navigate-v0 on seed 3 drew a goal beside the start (the episode ended after one step);
+    now every candidate is at least 4 grid cells from the start."""
+    import numpy as np
+
+    env = gym.make("pathpref/Navigate-v0")
+    env.reset(seed=3)
+    task = env.unwrapped._env.task
+    inst = task.runner.instance
+    d = task.world.motion.distances_from(np.array([inst.start]))[0]
+    assert min(d[g] for g in inst.goals) >= 4.0
+    env.close()

@@ -166,3 +166,48 @@ def test_filming_stops_at_max_steps(tmp_path):
     task = load("navigate", **{**KW, "t_max": 10}).task
     assert task.dt == 0.002
     assert frames == 1 + 3 * task.n_sub_steps // 40
+
+
+def test_viewer_draws_the_task_into_the_public_user_scene(monkeypatch):
+    """``viewer.launch`` runs in MuJoCo's passive viewer (``launch_passive``, faked here: no
+    display) and draws the task into its public ``user_scn`` after each step: the goals and
+    the preferred route at least, 3 steps of the task's own policy."""
+    import mujoco
+    import mujoco.viewer
+
+    seen = {}
+
+    class Handle:
+        def __init__(self, model, data):
+            self.user_scn = mujoco.MjvScene(model, maxgeom=2000)
+            self.steps = 0
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def is_running(self):
+            return True
+
+        def lock(self):
+            import contextlib
+            return contextlib.nullcontext()
+
+        def sync(self):
+            self.steps += 1
+            seen["ngeom"], seen["steps"] = self.user_scn.ngeom, self.steps
+
+    envs = []
+
+    def loader():
+        envs.append(load("navigate", **{**KW, "t_max": 5}))
+        return envs[-1]
+
+    monkeypatch.setattr(mujoco.viewer, "launch_passive", Handle)
+    monkeypatch.setattr("time.sleep", lambda s: None)
+    task_viewer.launch(loader, max_steps=3)
+    r = envs[0].task.runner
+    assert seen["steps"] == 3
+    assert seen["ngeom"] >= len(r.instance.goals) + int((r.pref >= 0).sum())

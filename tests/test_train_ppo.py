@@ -1,6 +1,8 @@
-"""examples/train_ppo.py (stable-baselines3's PPO on pathpref/NavigateControl-v0) runs end to
-end for 2048 steps: curve, agent, video, summary. Skipped without the ``rl`` extra. It runs in
-a subprocess: torch is imported there before any MuJoCo context (the script's docstring)."""
+"""examples/train_ppo.py (stable-baselines3's PPO on pathpref/Navigate-v0) runs end to end for
+256 steps: curve, agent, summary with the held-out evaluation; the saved agent loads as a
+checkpoint policy and acts on a dm_env time step. Skipped without the ``rl`` extra. Training
+runs in a subprocess: torch is imported there before any MuJoCo context (the script's
+docstring)."""
 
 from __future__ import annotations
 
@@ -21,31 +23,29 @@ pytestmark = pytest.mark.skipif(
     reason="the rl extra (stable-baselines3, torch) is not installed")
 
 
-def test_train_ppo_runs_and_writes_curve_agent_video(tmp_path):
-    """2048 steps of 0.1 s with episodes of at most 40 s (400 steps): at least 5 episodes
-    end, each within 400 steps of the previous; the curve is a PNG, the agent loads and
-    acts, the video has a frame per 0.08 s of the filmed episode (25 fps at speed 2)."""
+def test_train_ppo_runs_saves_and_loads(tmp_path):
     env = dict(os.environ, MUJOCO_GL=os.environ.get("MUJOCO_GL", "egl"))
     p = subprocess.run([sys.executable, str(ROOT / "examples" / "train_ppo.py"), "--out",
-                        str(tmp_path), "--steps", "2048", "--video-size", "160x120"],
+                        str(tmp_path), "--steps", "256", "--eval", "2", "--video-size", "0x0"],
                        capture_output=True, text=True, env=env, timeout=600, cwd=tmp_path)
     assert p.returncode == 0, p.stderr[-2000:]
     summary = json.loads((tmp_path / "summary.json").read_text())
     eps = json.loads((tmp_path / "episodes.json").read_text())
-    assert summary["episodes"] == len(eps) >= 5
-    ends = [0] + [e["at_step"] for e in eps]
-    assert all(0 < b - a <= 400 for a, b in zip(ends, ends[1:]))
-    assert ends[-1] <= 2048
+    assert summary["steps"] == 256 and summary["episodes"] == len(eps)
+    # an episode lasts at most 60 decisions (simple's T_max): at least 4 end in 256 steps
+    assert len(eps) >= 4 and all(e["steps"] <= 60 for e in eps)
+    assert summary["eval_n"] == 2 and 0 <= summary["eval_successes"] <= 2
+    lo, hi = summary["eval_success_wilson95"]
+    assert 0.0 <= lo <= summary["eval_success"] <= hi <= 1.0
     assert (tmp_path / "curve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert (tmp_path / "agent.mp4").stat().st_size > 1000
-    film = summary["filmed_episode"]
-    assert film["steps"] >= 0 and isinstance(film["success"], bool)
-    # the video: the first frame and one per 0.08 s of at most 40 s simulated
-    assert 2 <= summary["video_frames"] <= 1 + 40.0 / 0.08
     check = subprocess.run(
-        [sys.executable, "-c", "import sys, numpy as np; from stable_baselines3 import PPO; "
-         "m = PPO.load(sys.argv[1], device='cpu'); "
-         "print(m.action_space.shape, float(np.abs(m.action_space.high).max()))",
-         str(tmp_path / "agent.zip")], capture_output=True, text=True, timeout=300)
+        [sys.executable, "-c",
+         "import sys, pathpref_tasks; from pathpref_tasks.policies import checkpoint_policy;"
+         "kw = dict(map='simple', method='path_preference', delta_t=1, reward='potential',"
+         " min_goal_distance=4.0);"
+         "act = checkpoint_policy(sys.argv[1], 'navigate', kw);"
+         "env = pathpref_tasks.load('navigate', task_kwargs=kw); ts = env.reset();"
+         "a = int(act(ts)); ts = env.step(a); print(a)",
+         str(tmp_path / "agent.zip")], capture_output=True, text=True, timeout=300, env=env)
     assert check.returncode == 0, check.stderr[-2000:]
-    assert check.stdout.split(")")[0] == "(2,"
+    assert 0 <= int(check.stdout.split()[-1]) <= 8

@@ -290,9 +290,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="which robot: navigate (base) or carry (arm on the base, mink IK); "
                     "with --policy any task of pathpref_tasks (navigate_control, "
                     "carry_control, ...); --task is its older name")
-    rd.add_argument("--policy", default=None, metavar="MODULE:FUNCTION",
+    rd.add_argument("--policy", default=None, metavar="MODULE:FUNCTION|AGENT.zip",
                     help="film this policy instead of the method's own moves: a callable of "
-                    "a dm_env TimeStep returning the task's action (the method still keeps "
+                    "a dm_env TimeStep returning the task's action, or a stable-baselines3 "
+                    "agent saved as .zip (examples/train_ppo.py; the method still keeps "
                     "the robot's belief drawn in the video; default: the method's own moves)")
     rd.add_argument("--out", default=None,
                     help="video file (.mp4; default: none, give --out and/or --rerun)")

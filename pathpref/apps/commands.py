@@ -465,7 +465,8 @@ def _film_policy(args: argparse.Namespace, out, rerun, width: int, height: int,
 
     if out is None or rerun is not None:
         raise ConfigError("--policy films a video: give --out video.mp4 (no --rerun)")
-    policy = load_policy(args.policy)
+    checkpoint = str(args.policy).endswith(".zip")  # a stable-baselines3 agent
+    policy = None if checkpoint else load_policy(args.policy)
     from pathpref_tasks import task_names
 
     if args.task not in task_names():
@@ -475,6 +476,12 @@ def _film_policy(args: argparse.Namespace, out, rerun, width: int, height: int,
               "seed": args.seed, "preset": common["preset"], "queries": common["queries"],
               "t_max": common["t_max"], "coupling": common["coupling"], "force": args.force,
               "physics": physics_json(args, "mujoco")}
+    if checkpoint:  # the trained agent on its Gymnasium task's defaults
+        from pathpref_tasks.gym import GYM_MIN_GOAL_DISTANCE, GYM_REWARD
+        from pathpref_tasks.policies import checkpoint_policy
+
+        kwargs.update(reward=GYM_REWARD, min_goal_distance=GYM_MIN_GOAL_DISTANCE)
+        policy = checkpoint_policy(args.policy, args.task, kwargs)
     with staged_outputs([out, None]) as (tmp_video, _):
         metrics, frames = film_policy(args.task, policy, tmp_video, width, height, kwargs)
     print(f"{args.policy} on {args.task} {args.map}: success {metrics['success']}, goal "

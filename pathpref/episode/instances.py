@@ -68,11 +68,14 @@ def seed_for(*parts: int) -> int:
                >> np.uint64(1))
 
 
-def goal_pool(world: World, start: int) -> np.ndarray:
-    """Cells that may be goal candidates for this start (see module docstring)."""
-    reach = np.isfinite(world.motion.distances_from(np.array([start]))[0])
-    pool = reach.copy()
+def goal_pool(world: World, start: int, min_distance: float = 0.0) -> np.ndarray:
+    """Cells that may be goal candidates for this start (see module docstring); with
+    ``min_distance`` > 0 only those at least that grid distance ``d(start, g)`` (cells) away."""
+    dist = world.motion.distances_from(np.array([start]))[0]
+    pool = np.isfinite(dist)
     pool[start] = False
+    if min_distance > 0:
+        pool &= dist >= min_distance
     band = world.spec.goal_band
     if band:
         x, y = world.cells[:, 0], world.cells[:, 1]
@@ -83,15 +86,18 @@ def goal_pool(world: World, start: int) -> np.ndarray:
 
 
 def sample_instance(world: World, seed: int, n_goals: int = 10,
-                    consistent: bool = False, t_max: float = np.inf) -> Instance:
-    """Draw an instance from ``seed`` (see module docstring)."""
+                    consistent: bool = False, t_max: float = np.inf,
+                    min_distance: float = 0.0) -> Instance:
+    """Draw an instance from ``seed`` (see module docstring). ``min_distance`` > 0 keeps every
+    candidate at least that grid distance from the start (a start that leaves too few such
+    cells is drawn again); 0, the paper's draw, leaves the draws as they were."""
     if n_goals < 1:
         raise ConfigError(f"--goals must be at least 1, got {n_goals}")
     rng = np.random.default_rng(seed)
     # a start must leave enough candidates; redraw (deterministically) when it does not
     for _ in range(1000):
         start = int(rng.integers(world.n_cells))
-        pool = goal_pool(world, start)
+        pool = goal_pool(world, start, min_distance)
         if len(pool) >= n_goals:
             goals = tuple(int(g) for g in rng.choice(pool, size=n_goals, replace=False))
             if not consistent:
