@@ -272,8 +272,9 @@ class MobileBase:
         c = self.controller
         if self._float_for is not c:
             self._float_control = self._can_float()
-        if self.guidance is not None and self.guidance.admit(self):
-            self._ctrl_view[self._act] = self._base_command()  # a person moves the base
+        if self.guidance is not None:  # a person may move the base: the safety filter
+            self.guidance.admit(self)
+            self._ctrl_view[self._act] = self._base_command()
             return
         if self._float_control and (self.admittance_b is None or not self.yielding()):
             self._anchor = None
@@ -310,13 +311,13 @@ class MobileBase:
         if not self.yielding():
             self._anchor = None
             command = self.controller.command(pos, d.qpos[self.yaw], self.target)
-            if self.guidance is not None and self.guidance.moving:  # the push's velocity
-                # as feedforward, within v_max
-                command[:2] += self.guidance.v
-                speed = math.hypot(command[0], command[1])
-                if speed > self.controller.v_max:
-                    command[:2] *= self.controller.v_max / speed
-                keep_clear(self.scene, pos, command, a_brake)
+            if self.guidance is not None:
+                if self.guidance.moving:  # the push's velocity as feedforward, within v_max
+                    command[:2] += self.guidance.v
+                    speed = math.hypot(command[0], command[1])
+                    if speed > self.controller.v_max:
+                        command[:2] *= self.controller.v_max / speed
+                keep_clear(self.scene, pos, command, a_brake)  # a push may act unadmitted
             return command
         v = self.controller.ramp(keep_clear(self.scene, pos, self.admittance_velocity(),
                                             a_brake))
