@@ -31,6 +31,24 @@ def demo_db(tmp_path_factory):
 def rows(db, q, *params):
     return sqlite3.connect(db).execute(q, params).fetchall()
 
+def decoded(mcap, factory, topics: list[str]) -> list[tuple]:
+    """Every message of ``topics`` in the MCAP file ``mcap``, decoded by the decoder factory
+    ``factory`` (the format's own reader): ``(schema, channel, message, decoded)``."""
+    from mcap.reader import make_reader
+
+    with open(mcap, "rb") as f:
+        reader = make_reader(f, decoder_factories=[factory()])
+        return list(reader.iter_decoded_messages(topics=topics))
+
+
+def export_demo(demo_db, tmp_path) -> Path:
+    """``pathpref study export`` of the demo participant; the folder of its files."""
+    out = tmp_path / "out"
+    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
+                 str(out)]) == 0
+    return out / "demo"
+
+
 
 def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path, capsys):
     """Every trial_forces row is one /force/applied and one /force/sensed wrench, in order,
@@ -79,19 +97,14 @@ def test_mcap_ros2_messages_decode_typed(demo_db, tmp_path):
     """The /ros/ channels decode with mcap-ros2-support's decoder as geometry_msgs messages:
     one WrenchStamped per trial_forces row with the stored force, stamped at the row's time;
     one PoseStamped per decision step at the cell centre (0.5 m cells)."""
-    from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
-    out = tmp_path / "out"
-    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
-                 str(out)]) == 0
-    with open(out / "demo" / "trial-01.mcap", "rb") as f:
-        reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        got: dict[str, list] = {}
-        for schema, channel, message, msg in reader.iter_decoded_messages(
-                topics=["/ros/force/applied", "/ros/force/sensed", "/ros/pose"]):
-            assert channel.message_encoding == "cdr" and schema.encoding == "ros2msg"
-            got.setdefault(channel.topic, []).append((schema.name, message.log_time, msg))
+    got: dict[str, list] = {}
+    for schema, channel, message, msg in decoded(
+            export_demo(demo_db, tmp_path) / "trial-01.mcap", DecoderFactory,
+            ["/ros/force/applied", "/ros/force/sensed", "/ros/pose"]):
+        assert channel.message_encoding == "cdr" and schema.encoding == "ros2msg"
+        got.setdefault(channel.topic, []).append((schema.name, message.log_time, msg))
     forces = rows(demo_db, "SELECT fx, fy, sensed_fx, sensed_fy FROM trial_forces "
                   "WHERE trial = 1 ORDER BY k")
     for topic, cols in (("/ros/force/applied", (0, 1)), ("/ros/force/sensed", (2, 3))):
@@ -115,18 +128,12 @@ def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
     the walls of the 10x10 map (0..5 m) and its table (cells 5-6: 2..3 m), the route through
     the stored cells, one coloured sphere per goal candidate per belief update with opacity
     0.15 + 0.85 p, and one world -> base transform per decision step."""
-    from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
-    out = tmp_path / "out"
-    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
-                 str(out)]) == 0
-    with open(out / "demo" / "trial-01.mcap", "rb") as f:
-        reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        got: dict[str, list] = {}
-        for schema, _, message, msg in reader.iter_decoded_messages(
-                topics=["/scene", "/scene/belief", "/tf"]):
-            got.setdefault(message.channel_id, []).append((schema.name, msg))
+    got: dict[str, list] = {}
+    for schema, _, message, msg in decoded(export_demo(demo_db, tmp_path) / "trial-01.mcap",
+                                           DecoderFactory, ["/scene", "/scene/belief", "/tf"]):
+        got.setdefault(message.channel_id, []).append((schema.name, msg))
     by_name: dict[str, list] = {}
     for msgs in got.values():
         by_name.setdefault(msgs[0][0], []).append([m for _, m in msgs])
@@ -165,20 +172,16 @@ def test_pushes_and_cues_are_typed_foxglove_events_and_arrows(demo_db, tmp_path)
     import math
     from datetime import datetime
 
-    from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
 
-    out = tmp_path / "out"
-    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
-                 str(out)]) == 0
+    out = export_demo(demo_db, tmp_path)
     seen = 0
     for k in (1, 2):
         got: dict[str, list] = {}
-        with open(out / "demo" / f"trial-{k:02d}.mcap", "rb") as f:
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
-            for schema, channel, _, msg in reader.iter_decoded_messages(topics=[
-                    "/events/pushes", "/events/cues", "/scene/pushes", "/scene/cues"]):
-                got.setdefault(channel.topic, []).append((schema.name, msg))
+        for schema, channel, _, msg in decoded(
+                out / f"trial-{k:02d}.mcap", DecoderFactory,
+                ["/events/pushes", "/events/cues", "/scene/pushes", "/scene/cues"]):
+            got.setdefault(channel.topic, []).append((schema.name, msg))
         started = rows(demo_db, "SELECT started_utc FROM trials WHERE trial = ?", k)[0][0]
         t0 = int(datetime.fromisoformat(started).timestamp())
         for kind, table, cols in (
@@ -227,7 +230,6 @@ def test_pushes_and_cues_are_typed_foxglove_events_and_arrows(demo_db, tmp_path)
 def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
     """trial_path holds the base every 5th 2 ms physics step (10 ms apart), starting at the
     start cell's centre; path.csv and /ros/path (PoseStamped) carry every row unchanged."""
-    from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
 
     path = rows(demo_db, "SELECT time_s, x, y, ee_x FROM trial_path WHERE trial = 1 "
@@ -239,17 +241,13 @@ def test_continuous_path_is_recorded_at_100_hz_and_exported(demo_db, tmp_path):
     x, y = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 AND t = 0")[0]
     assert path[0][1:3] == pytest.approx(((x - 0.5) * 0.5, (y - 0.5) * 0.5), abs=1e-3)
     assert {p[3] for p in path} == {None}  # the plain base carries nothing
-    out = tmp_path / "out"
-    assert main(["study", "export", str(demo_db), "--participant", "demo", "--out",
-                 str(out)]) == 0
-    with open(out / "demo" / "path.csv", newline="") as f:
+    out = export_demo(demo_db, tmp_path)
+    with open(out / "path.csv", newline="") as f:
         table = [r for r in csv.DictReader(f) if r["trial"] == "1"]
     assert [(float(r["time_s"]), float(r["x"]), float(r["y"])) for r in table] == [
         p[:3] for p in path]
-    with open(out / "demo" / "trial-01.mcap", "rb") as f:
-        reader = make_reader(f, decoder_factories=[DecoderFactory()])
-        poses = [(m.pose.position.x, m.pose.position.y) for _, _, _, m in
-                 reader.iter_decoded_messages(topics=["/ros/path", "/ros/end_effector"])]
+    poses = [(m.pose.position.x, m.pose.position.y) for _, _, _, m in decoded(
+        out / "trial-01.mcap", DecoderFactory, ["/ros/path", "/ros/end_effector"])]
     assert poses == [p[1:3] for p in path]
 
 

@@ -254,11 +254,12 @@ class HumanModel:
                               f"({self.peak_max_n:g} N), got {self.peak_min_n:g}")
 
     def to_json(self) -> str:
-        """Canonical JSON (sorted keys; ``guide`` only under ``guidance`` timing or when not
-        its default)."""
+        """Canonical JSON (sorted keys; every field, but those of :data:`NAMED_UNDER` only
+        under their timing or when not at their default)."""
         d = asdict(self)
-        if d["guide"] == QUIET_DEFAULTS["guide"] and d["timing"] != "guidance":
-            del d["guide"]
+        for k, timing in NAMED_UNDER.items():
+            if d[k] == QUIET_DEFAULTS[k] and d["timing"] != timing:
+                del d[k]
         return json.dumps(d, sort_keys=True, separators=(",", ":"))
 
     def stored(self) -> str:

@@ -136,6 +136,7 @@ class EpisodeRunner:
         self.last_crossing: tuple[int, int] | None = None
         #: crossings a person led (bodies judged along their path, :meth:`_cross`)
         self.path_metrics = {"person_crossings": 0.0, "person_violations": 0.0}
+        self._path_judged = False
         self.t = 0
         self.pending_heading: int | None = None
         self.started = False
@@ -264,7 +265,7 @@ class EpisodeRunner:
         self.result.wall_s = time.perf_counter() - self.t0
         if self.done:
             self.result.metrics = self.body.metrics()
-            if self.body.path_crossings() is not None:
+            if self._path_judged:
                 self.result.metrics.update(self.path_metrics)
         return self.result.log[-1]
 
@@ -284,6 +285,7 @@ class EpisodeRunner:
         self.cell = cell
         self.last_move = (before, int(action), cell)
         path = self.body.path_crossings()
+        self._path_judged = path is not None
         if path is None:
             self._score(before, cell)
         else:  # judged along the path: the person's crossings beside the robot's own
