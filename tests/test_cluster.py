@@ -76,6 +76,12 @@ def test_cluster_sweep_with_a_driver_only_map_survives_a_killed_node(tmp_path):
         cluster.remove_node(worker, allow_graceful=False)
         t.join(timeout=180)
         assert not t.is_alive()
+        # the sweep may finish on the head before the health check marks the node dead:
+        # wait (bounded) for Ray to notice rather than race it
+        deadline = time.monotonic() + 60
+        while (len([n for n in ray.nodes() if n["Alive"]]) != 1
+               and time.monotonic() < deadline):
+            time.sleep(0.2)
         assert len([n for n in ray.nodes() if n["Alive"]]) == 1
         first = out["first"]
         assert first["ran"] == len(specs) and first["skipped"] == 0
