@@ -261,6 +261,8 @@ class Navigate(base.Task):
         #: the sum of the episode's rewards (the Environment adds each step's)
         self.episode_return = 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
+        self._goal_cells = self.world.cells[list(self.runner.instance.goals)].astype(np.float64)
+        self._belief_key = self._belief_obs = None  # (_belief_observation)
         self._phi = None if self.reward == "paper" else preference_potential(
             self.world, self.runner.instance.goal_cell, self.runner.pref)
         #: what the robot felt since the last observation (the observations of the step)
@@ -406,12 +408,26 @@ class Navigate(base.Task):
         obs["heading"] = heading
         obs["force"] = self.filter.f.copy()
         obs["detector_active"] = np.array([float(self.base.sensing.detector.active)])
-        obs["goal_belief"] = r.policy.belief.goal_marginal().astype(np.float64)
-        obs["goal_cells"] = self.world.cells[list(r.instance.goals)].astype(np.float64)
+        marginal, h = self._belief_observation(v)
+        obs["goal_belief"] = marginal.copy()
+        obs["goal_cells"] = self._goal_cells.copy()
         obs["polytope"] = np.array([v], dtype=np.float64)
-        obs["entropy"] = np.array([r.policy.belief.joint_entropy(v)])
+        obs["entropy"] = np.array([h])
         obs.update(self.interaction.observation())
         return obs
+
+    def _belief_observation(self, v: int) -> tuple[np.ndarray, float]:
+        """The goal marginal and ``H(g, p_v)`` at polytope ``v``: computed again only when
+        the policy has fed its belief an event since
+        (:attr:`pathpref.planning.policies.Policy.evidence`) or ``v`` changed; most
+        control-rate steps change neither."""
+        p = self.runner.policy
+        key = (p, p.evidence, v)
+        if self._belief_key != key:
+            self._belief_obs = (p.belief.goal_marginal().astype(np.float64),
+                                p.belief.joint_entropy(v))
+            self._belief_key = key
+        return self._belief_obs
 
     def episode_metrics(self, body: bool = True) -> dict[str, float | bool]:
         """The episode so far (final once the episode is over): ``success`` (goal reached

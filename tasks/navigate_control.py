@@ -175,11 +175,15 @@ class NavigateControl(Navigate):
         library writes it: a Gymnasium ``Box`` holds it in float32 (``float32(0.8)`` is
         ``0.800000011920929``) and PPO clips its actions to that, so a value within the
         float32 rounding of ``v_max`` is in range (and clipped to it)."""
+        v = self.v_max
+        bound = max(v, float(np.float32(v)))  # float32's rounding of it
         if type(action) is np.ndarray and action.dtype == np.float64 and action.shape == (2,):
-            a = action  # real, the right shape: only the range is left to check
+            x, y = action.tolist()  # real, the right shape: only the range is left to check
+            if abs(x) <= bound and abs(y) <= bound:  # (False for NaN)
+                return np.array([min(max(x, -v), v), min(max(y, -v), v)])
+            a = action
         else:
             a = self._parse_action(action)
-        bound = max(self.v_max, float(np.float32(self.v_max)))  # float32's rounding of it
         if not (np.isfinite(a).all() and (np.abs(a) <= bound).all()):
             raise ConfigError(f"action must be (vx, vy) with each in [-{self.v_max:g}, "
                               f"{self.v_max:g}] m/s, got {np.array2string(a, precision=3)}")

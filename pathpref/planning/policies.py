@@ -76,10 +76,15 @@ class Policy(ABC):
     def __init__(self, ctx: PolicyContext, belief: Belief):
         self.ctx = ctx
         self.belief = belief
+        #: how many events (inputs, directions, ruled-out goals, polytope changes) this policy
+        #: has fed its belief: the belief's state changes only when it does, so readers of the
+        #: belief may keep what they computed from it until this count moves
+        self.evidence = 0
 
     def observe(self, cell: int, heading: int, weight: float = 1.0) -> None:
         """The human gave ``heading`` at ``cell``: condition the belief on it (``weight``:
         how confident the observation is, :meth:`Belief.update`)."""
+        self.evidence += 1
         if weight == 1.0:
             self.belief.update(cell, heading)
         else:
@@ -88,14 +93,17 @@ class Policy(ABC):
     def observe_direction(self, cell: int, angle: float, kappa: float, weight: float) -> None:
         """A force direction ``angle`` felt at ``cell`` (a sample of a sustained push):
         :meth:`Belief.update_direction`."""
+        self.evidence += 1
         self.belief.update_direction(cell, angle, kappa, weight)
 
     def rule_out(self, goal_index: int) -> None:
         """The robot stood on candidate ``goal_index`` and it was not the goal."""
+        self.evidence += 1
         self.belief.rule_out(goal_index)
 
     def enter(self, v_from: int, v_to: int) -> None:
         """The robot crossed from polytope ``v_from`` into ``v_to``."""
+        self.evidence += 1
         self.belief.enter(v_from, v_to)
 
     @abstractmethod

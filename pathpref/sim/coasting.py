@@ -35,6 +35,7 @@ import os
 import mujoco
 import numba as nb
 import numpy as np
+from numba.core.dispatcher import Dispatcher
 
 from . import native
 from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
@@ -192,6 +193,21 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_ste
     return READY, max_steps
 
 
+def compiled_entry(args: tuple):
+    """The compiled overload of :func:`_coast` for ``args``' numba types (compiled, or loaded
+    from numba's cache, if it is not yet), called directly. Numba's dispatcher resolves the
+    overload from the types of all ~40 arrays on every call, half the Python of a 10-step
+    call; a :class:`Coaster` resolves it once per setup (the constants' key: the arrays it
+    passes are the same kinds, shapes and layouts for as long as that key holds)."""
+    kernel = _coast
+    if not isinstance(kernel, Dispatcher):  # replaced, e.g. by a test's counting wrapper
+        return kernel
+    sig = tuple(kernel.typeof_pyval(a) for a in args)
+    if sig not in kernel.overloads:
+        kernel.compile(sig)
+    return kernel.overloads[sig].entry_point
+
+
 def enabled() -> bool:
     """Compiled steps are on (``PATHPREF_COMPILED_STEPS`` is not ``0``) and available."""
     return os.environ.get("PATHPREF_COMPILED_STEPS", "1") != "0" and native.ready()
@@ -252,6 +268,8 @@ class Coaster:
         self._err = np.zeros(2)
         self._data = d
         self._key = None  # the constants' (_constants)
+        #: the kernel's compiled overload per constants' key (:func:`compiled_entry`)
+        self._entries: dict = {}
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
@@ -283,7 +301,7 @@ class Coaster:
         b = self.base
         s, c = b.sensing, b.controller
         f, det = s.faulty, s.detector
-        key = (c, f, det, b.measure)
+        key = (c, f, det, b.measure, force_filter is None)
         if self._key != key:
             spec = f.spec
             self._cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
@@ -330,13 +348,16 @@ class Coaster:
         fs[TIME] = d.time
         filt = self._err if force_filter is None else force_filter.f
         goal = c.u if type(c) is HeldVelocity else self._err
-        reason, steps = _coast((b.model._address, d._address),
-                           (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R,
-                            self._warnings),
-                           (c.last, b.target, self._err, goal, filt),
-                           (f.bias, held, f.win, self._scratch), f.rng, est.params,
-                           est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
-                           fs, cs, ns, max_steps)
+        args = ((b.model._address, d._address),
+                (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings),
+                (c.last, b.target, self._err, goal, filt),
+                (f.bias, held, f.win, self._scratch), f.rng, est.params,
+                est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
+                fs, cs, ns, max_steps)
+        entry = self._entries.get(self._key)
+        if entry is None:
+            entry = self._entries[self._key] = compiled_entry(args)
+        reason, steps = entry(*args)
         # --- the state back into the Python objects (a sample gives a new held sample and
         # estimate, new arrays as the Python path's)
         new_estimate = ns[SAMPLES] > 0
