@@ -259,7 +259,7 @@ class FilteredCueDetector(CueDetector):
     :meth:`update` takes ``at_rest`` (from the estimator) besides the force sample.
     """
 
-    def __init__(self, dt: float, tau_s: float = 0.015, on_n: float = DETECTOR["on_n"],
+    def __init__(self, dt: float, *, tau_s: float = 0.015, on_n: float = DETECTOR["on_n"],
                  on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
                  off_s: float = DETECTOR["off_s"], on_k: float = 6.0, off_k: float = 3.0,
                  floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0,
