@@ -115,6 +115,12 @@ class Clearance:
             np.zeros(0, dtype=np.int64)
         if not vs:
             self._row_starts = np.zeros(0, dtype=np.int64)
+        #: the map as the compiled point checks take it (:func:`near_into`'s ``clr``)
+        self.arrays = (float(self.width), float(self.height), self._A, self._b,
+                       self._row_starts.astype(np.int64), self._e0, self._e1,
+                       self._edge_starts.astype(np.int64))
+        #: :func:`near_into`'s rows, one per wall and obstacle
+        self.near_rows = np.empty((4 + len(self._edge_starts), 3))
 
     def distance(self, P: np.ndarray, Q: np.ndarray, within: float = np.inf) -> np.ndarray:
         """``(N,)`` least distance from segment ``[P_i, Q_i]`` to any obstacle (``inf``
@@ -169,9 +175,8 @@ class Clearance:
         distance 0 from it, with the direction of its nearest edge's outward normal (compiled,
         :func:`_near`)."""
         p = np.asarray(xy, float)
-        n, out = _near(float(p[0]), float(p[1]), float(within), float(self.width),
-                       float(self.height), self._A, self._b, self._row_starts, self._e0,
-                       self._e1, self._edge_starts)
+        out = self.near_rows
+        n = near_into(float(p[0]), float(p[1]), float(within), self.arrays, out)
         return [(float(out[i, 0]), out[i, 1:3].copy()) for i in range(n)]
 
 
@@ -213,12 +218,14 @@ def _clear_at(x, y, width, height, reach, A, b, row_starts, e0, e1):
 
 
 @nb.njit(cache=True)
-def _near(x, y, within, width, height, A, b, row_starts, e0, e1, edge_starts):
-    """:meth:`Clearance.near` on plain arrays: ``(n, rows)``, row ``i < n`` = ``(d, nx,
-    ny)``; walls first (x = 0, y = 0, x = width, y = height), then per obstacle with an edge
-    within ``within`` its nearest edge (the first of equals)."""
+def near_into(x, y, within, clr, out):
+    """:meth:`Clearance.near` on plain arrays (``clr``: :attr:`Clearance.arrays`, ``(width,
+    height, A, b, row_starts, e0, e1, edge_starts)``), written into ``out`` (at least ``4 +``
+    obstacles rows; allocates nothing): the count ``n``, row ``i < n`` = ``(d, nx, ny)``;
+    walls first (x = 0, y = 0, x = width, y = height), then per obstacle with an edge within
+    ``within`` its nearest edge (the first of equals)."""
+    width, height, A, b, row_starts, e0, e1, edge_starts = clr
     k_n = len(edge_starts)
-    out = np.empty((4 + k_n, 3))
     n = 0
     walls = ((x, 1.0, 0.0), (y, 0.0, 1.0), (width - x, -1.0, 0.0), (height - y, 0.0, -1.0))
     for d, nx, ny in walls:
@@ -243,4 +250,4 @@ def _near(x, y, within, width, height, A, b, row_starts, e0, e1, edge_starts):
         elif best > 0:
             out[n, 0], out[n, 1], out[n, 2] = best, (x - bx) / best, (y - by) / best
             n += 1
-    return n, out
+    return n

@@ -24,8 +24,10 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
+from ..geometry.footprint import near_into
 from .scene import Scene
 
 #: how close the base's edge may come to an obstacle under a push (m): inside the footprint's
@@ -40,16 +42,36 @@ LOOK_M = 0.05
 
 def keep_clear(scene: Scene, pos: np.ndarray, v: np.ndarray, a_brake: float) -> np.ndarray:
     """``v`` (m/s, planar, modified in place and returned) with its approach to every nearby
-    obstacle and wall capped (module docstring); ``pos`` the base's centre (m)."""
-    cell, radius = scene.cell_size, scene.world.footprint.radius * scene.cell_size
-    reach = (v[0] * v[0] + v[1] * v[1]) / (2.0 * a_brake) + MARGIN_M + LOOK_M
-    near = scene.clearance.near(np.asarray(pos, float) / cell, (radius + reach) / cell)
-    for _ in range(2):
-        for d, n in near:
-            gap = d * cell - radius
-            cap = math.sqrt(2.0 * a_brake * (gap - MARGIN_M)) if gap >= MARGIN_M else \
-                -BACK_PER_S * (MARGIN_M - gap)
-            approach = -(v[0] * n[0] + v[1] * n[1])
-            if approach > cap:
-                v[:2] += (approach - cap) * n
+    obstacle and wall capped (module docstring); ``pos`` the base's centre (m). The
+    arithmetic is :func:`keep_clear_xy`'s, which the compiled steps call too."""
+    cell = scene.cell_size
+    clearance = scene.clearance
+    v[0], v[1] = keep_clear_xy(float(pos[0]), float(pos[1]), float(v[0]), float(v[1]), cell,
+                               scene.world.footprint.radius * cell, a_brake, clearance.arrays,
+                               clearance.near_rows)
     return v
+
+
+@nb.njit(cache=True)
+def keep_clear_xy(px, py, vx, vy, cell, radius, a_brake, clr, rows):
+    """The filtered ``(vx, vy)`` (module docstring) for a base at ``(px, py)`` (m) with
+    footprint ``radius`` (m) on a map of ``cell`` m per cell (``clr``:
+    :attr:`~pathpref.geometry.footprint.Clearance.arrays`, ``rows`` its scratch,
+    :func:`~pathpref.geometry.footprint.near_into`): only obstacles within the stopping
+    distance ``|v|^2 / (2 a_brake)`` plus ``MARGIN_M + LOOK_M`` of the base's edge are taken,
+    each pass removing the approach above its cap along ``n``; allocates nothing."""
+    reach = (vx * vx + vy * vy) / (2.0 * a_brake) + MARGIN_M + LOOK_M
+    n = near_into(px / cell, py / cell, (radius + reach) / cell, clr, rows)
+    for _ in range(2):
+        for i in range(n):
+            gap = rows[i, 0] * cell - radius
+            if gap >= MARGIN_M:
+                cap = math.sqrt(2.0 * a_brake * (gap - MARGIN_M))
+            else:
+                cap = -BACK_PER_S * (MARGIN_M - gap)
+            nx, ny = rows[i, 1], rows[i, 2]
+            approach = -(vx * nx + vy * ny)
+            if approach > cap:
+                vx += (approach - cap) * nx
+                vy += (approach - cap) * ny
+    return vx, vy
