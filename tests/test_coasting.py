@@ -93,6 +93,36 @@ def test_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons, map_nam
     assert reasons["steps"] > 1000  # the kernel ran most of the moves
 
 
+@pytest.mark.cross_cpu
+def test_guided_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons):
+    """Guided episodes (the closed-loop person, ``timing`` guidance): between pushes the
+    kernel drives the guided base (the safety filter on its command, the admittance's tail
+    after a release, the path's polytope changes handed back to the crossing hook). The same
+    final state, admittance, target, crossings, cues with their evidence and decisions."""
+    def run():
+        out = []
+        for map_name, instance in (("simple", 0), ("office", 1), ("office", 2)):
+            spec = EpisodeSpec.single(map_name, "path_preference", 5, seed=11,
+                                      instance=instance, sim="mujoco", t_max=12,
+                                      physics=Physics.of(timing="guidance").to_json())
+            runner = EpisodeRunner(spec)
+            while not runner.done:
+                runner.step()
+            b, res = runner.body.base, runner.result
+            g = b.guidance
+            out.append((_state(b), g.v.tobytes(), g.deformation.tobytes(), g.moving,
+                        b.target.tobytes(), [f.evidence for f in b.felt],
+                        [(s.t, s.x, s.y, s.action, s.heading) for s in res.log],
+                        sorted(res.metrics.items()), res.violations))
+        return out
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+    assert reasons["steps"] > 10_000  # the kernel drove most of the guided steps
+    assert reasons.get(coasting.CROSS, 0) > 0  # and handed the crossings back
+    assert sum(dict(o[7])["person_crossings"] for o in on) > 0
+
+
 def _base(detector=None):
     world = load_world("simple")
     base = MobileBase(scene_for(world), sensor_model=SensorModel.realistic(),
@@ -210,11 +240,12 @@ def test_the_contact_sensor_counts_mjdatas_contacts(monkeypatch):
     ("navigate", None, False),  # legacy: ideal sensor, plain detector
     ("navigate", Physics.of(base="diffdrive"), False),
     ("carry", Physics(), False),
-    ("navigate", Physics.of(timing="guidance"), False),
+    ("navigate", Physics.of(timing="guidance"), True),
+    ("carry", Physics.of(timing="guidance"), False),
 ])
 def test_only_the_setups_it_mirrors_coast(task, physics, coasts):
-    """The kernel runs for the plain base with the realistic chain only; the differential
-    drive, the arm, the legacy sensing and guidance keep the Python path."""
+    """The kernel runs for the plain base with the realistic chain only (guided too); the
+    differential drive, the arm and the legacy sensing keep the Python path."""
     from pathpref.sim.body import base_params, build_base
 
     world = load_world("simple")

@@ -41,22 +41,26 @@ from . import native
 from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
 from .cue_detector import FilteredCueDetector, filter_step
 from .estimator import estimate_step
+from .guidance import admit_step
+from .keep_clear import keep_clear_xy
 from .measurements import planar_accel
 from .native import hypot, mj_step
+from .path_crossings import PathCrossings
 from .sensing import W_MEAN, W_WINDOW_S, window_step
 
-#: hand-back reasons of :func:`_coast`
-READY, END, DETECT, CONTACTS, DIVERGED = range(5)
+#: hand-back reasons of :func:`_coast` (``CROSS``: the base entered another polytope, or a
+#: cell the grid's lookup does not hold, with a :class:`~.path_crossings.PathCrossings` hook)
+READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
 #: measurements, the detector's hand-back ``e`` and the velocity a contact met
 (QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK, PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX,
- EY, VPX_OLD, VPY_OLD, TIME, N_FS) = range(18)
+ EY, VPX_OLD, VPY_OLD, TIME, MOVING, N_FS) = range(19)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
- T_END, STILL, T_STOP, H, ALPHA, N_CS) = range(20)
+ T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
- HELD, FILTER, SAMPLES, N_IS) = range(19)
+ HELD, FILTER, SAMPLES, GUIDED, POLY, GW, GH, N_IS) = range(23)
 #: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
 CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
@@ -75,7 +79,7 @@ def _bad_states(warnings):
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mj, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_steps):
+def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, max_steps):
     """Physics steps of the move phase (or a drive: :meth:`Coaster.drive`) until a hand-back
     (module docstring); returns
     ``(reason, steps)``. ``held`` receives the last sample, ``est``
@@ -88,26 +92,43 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_ste
     (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step); ``sensor`` the
     faulty sensor's drift bias, its held sample, its window (:func:`~.sensing.window_step`'s
     ``win``, the sensor's own) and scratch;
-    ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants. Simulated time is
-    ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
+    ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants; ``guide`` the map for
+    a guided base at rest (``ns[GUIDED]``: the command through
+    :func:`~.keep_clear.keep_clear_xy`, the map's ``Clearance.arrays`` and rows) and for its
+    path's crossings (``ns[POLY] >= 0``: the polytope the base is in; the grid's
+    ``cell_index`` and ``cell_polytope``). Simulated time is ``fs[TIME]``, advanced by
+    ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
     last, target, err, goal, filt = drive
     sbias, held, win, scratch = sensor
     f, baseline, dring, dqueue, dparams = det
+    clr, rows, cell_index, cell_polytope, gv, gdef, gparams = guide
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce = est[7]
     for step in range(max_steps):
         if fs[TIME] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
-        # --- MobileBase._control, float path: ProfiledController.goal_xy (HeldVelocity's:
-        # the held command) and ramp_xy
+        # --- MobileBase._control: a guided base's admittance tail (Guidance.admit, no cue
+        # under way: Coaster.ready), then the float path: ProfiledController.goal_xy
+        # (HeldVelocity's: the held command) and ramp_xy
+        if fs[MOVING] != 0.0:
+            fs[MOVING] = 1.0 if admit_step(gv, target, gdef, gv, False, gparams, clr) else 0.0
         if ns[HELD]:
             gx, gy = goal[0], goal[1]
         else:
             gx, gy = profiled_goal(qpos[ns[IX]], qpos[ns[IY]], target[0], target[1], cs[KP],
                                    cs[V_MAX], cs[BRAKE], cs[A_MAX])
         lx, ly = ramp_step(gx, gy, last, cs[A_MAX] * cs[C_DT])
+        if ns[GUIDED]:  # MobileBase._base_command under guidance: the admittance's velocity
+            if fs[MOVING] != 0.0:  # as feedforward within v_max, then the safety filter
+                lx, ly = lx + gv[0], ly + gv[1]
+                speed = hypot(lx, ly)
+                if speed > cs[V_MAX]:
+                    q = cs[V_MAX] / speed
+                    lx, ly = lx * q, ly * q
+            lx, ly = keep_clear_xy(qpos[ns[IX]], qpos[ns[IY]], lx, ly, cs[CELL], cs[RADIUS],
+                                   cs[A_BRAKE], clr, rows)
         ctrl[ns[A0]], ctrl[ns[A1]], ctrl[ns[A2]] = lx, ly, -cs[K_YAW] * qpos[ns[IYAW]]
         # --- mj_step and the divergence check
         bad = _bad_states(warnings)
@@ -178,6 +199,17 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, fs, cs, ns, max_ste
             if sensordata[ns[CADR]] > 0.0:  # mjData.ncon, from the contact sensor
                 return CONTACTS, step + 1
             fs[TOUCHING] = 0.0
+        # --- PathCrossings (the on_substep hook; nothing pushes): the polytope under the base
+        # (Scene.cell_at's grid lookup); another one, or a cell off the lookup, in Python
+        if ns[POLY] >= 0:
+            gx, gy = qpos[ns[IX]] / cs[CELL], qpos[ns[IY]] / cs[CELL]
+            if not (math.isfinite(gx) and math.isfinite(gy)):
+                return CROSS, step + 1
+            ix = min(max(int(math.floor(gx)) + 1, 1), ns[GW])
+            iy = min(max(int(math.floor(gy)) + 1, 1), ns[GH])
+            idx = cell_index[ix - 1, iy - 1]
+            if idx < 0 or cell_polytope[idx] != ns[POLY]:
+                return CROSS, step + 1
         # --- the task's low-pass of the estimate (navigate_control: stage.ForceFilter.update)
         if ns[FILTER]:
             f0, f1 = filt[0], filt[1]
@@ -226,14 +258,13 @@ class Coaster:
     @staticmethod
     def applies(base) -> bool:
         """The base's setup is one the kernel mirrors (module docstring: the realistic chain
-        without thermal drift, the profiled or held-velocity controller, no guidance, the
-        scene's contact sensor; the base checks its own kind: a plain
-        :class:`~.mobile_base.MobileBase`)."""
+        without thermal drift, the profiled or held-velocity controller, the scene's contact
+        sensor; the base checks its own kind: a plain :class:`~.mobile_base.MobileBase`)."""
         s, c = base.sensing, base.controller
         return (enabled() and s.sensor_model is not None
                 and mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR) >= 0
                 and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
-                and type(c) in (ProfiledController, HeldVelocity) and base.guidance is None)
+                and type(c) in (ProfiledController, HeldVelocity))
 
     def _quiet_until(self) -> float:
         """The time before which every ``pre_substep`` hook does nothing (each says so with a
@@ -245,13 +276,19 @@ class Coaster:
         return t
 
     def ready(self) -> bool:
-        """The next step is one the kernel mirrors: nothing pushes, no ``on_substep`` hook,
-        every ``pre_substep`` hook quiet now, no cue under way, no waypoint on the way
+        """The next step is one the kernel mirrors: nothing pushes, no ``on_substep`` hook
+        but one :class:`~.path_crossings.PathCrossings`, every ``pre_substep`` hook quiet now,
+        no cue under way (a guidance admittance may still move: its tail), no waypoint on
+        the way
         (:meth:`.decision.DecisionStep.move`)."""
         b = self.base
         s = b.sensing
         f = s.faulty
-        return (b.decision.final is None and not b.pushes and not b.on_substep
+        hooks = b.on_substep
+        return (b.decision.final is None and not b.pushes
+                and (not hooks or (len(hooks) == 1 and type(hooks[0]) is PathCrossings
+                                   and hooks[0].v >= 0))
+
                 and (not b.pre_substep or b.data.time < self._quiet_until())
                 and not b.external_forces and b._onset is None and not s.under_way
                 and f is not None and f._held is not None and s.estimator._qvel_mark is not None
@@ -268,14 +305,32 @@ class Coaster:
         self._err = np.zeros(2)
         self._data = d
         self._key = None  # the constants' (_constants)
+        sc = b.scene
+        self._guide = (sc.clearance.arrays, sc.clearance.near_rows,
+                       np.ascontiguousarray(sc.world.arrangement.cell_index, dtype=np.int64),
+                       np.ascontiguousarray(sc.world.cell_polytope, dtype=np.int64))
         #: the kernel's compiled overload per constants' key (:func:`compiled_entry`)
         self._entries: dict = {}
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
         kernel and, after a hand-back within a step, the rest of that step in Python; True
-        when the phase ended."""
-        reason, _, fs = self._run(step._t0, step._min_s, step._t_end, self.MAX_STEPS)
+        when the phase ended. A timed move (``step._steps``) runs at most its steps left, its
+        drive with the move's end check, the hold after it without one."""
+        if step._steps is None:
+            reason, _, fs = self._run(step._t0, step._min_s, step._t_end, self.MAX_STEPS)
+            return self._hand_back(reason, step, fs)
+        left = step._steps - step._n
+        if step._driving:
+            reason, k, fs = self._run(step._t0, step._min_s, step._t_end, left)
+        else:
+            reason, k, fs = self._run(0.0, math.inf, math.inf, left)
+        if reason in (READY, END):  # every step taken here (else the last is _move_ended's)
+            step._n += k
+            if reason == END:
+                step.hold_after_drive(None)
+            return step.timed_out()
+        step._n += k - 1
         return self._hand_back(reason, step, fs)
 
     def drive(self, n: int, force_filter=None) -> tuple[int, bool]:
@@ -290,7 +345,7 @@ class Coaster:
         reason, steps, fs = self._run(0.0, math.inf, math.inf, n, force_filter)
         if reason == DIVERGED:
             self._hand_back(reason, None, fs)
-        if reason in (DETECT, CONTACTS):
+        if reason in (DETECT, CONTACTS, CROSS):
             self._finish(reason, fs)
             return steps, True
         return steps, False
@@ -301,12 +356,15 @@ class Coaster:
         b = self.base
         s, c = b.sensing, b.controller
         f, det = s.faulty, s.detector
-        key = (c, f, det, b.measure, force_filter is None)
+        key = (c, f, det, b.measure, force_filter is None, b.guidance)
         if self._key != key:
             spec = f.spec
             self._cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
                                  f.period, f._drift_step, spec.noise_n, f._extra_m, 0.0, 0.0,
-                                 0.0, c.still_mps, 0.0, b.model.opt.timestep, 0.0])
+                                 0.0, c.still_mps, 0.0, b.model.opt.timestep, 0.0,
+                                 b.scene.cell_size,
+                                 b.scene.world.footprint.radius * b.scene.cell_size,
+                                 0.5 * c.a_max])
             ix, iy, iyaw = b._float_adr
             a0, a1, a2 = b._float_act
             autoreset = not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET
@@ -314,12 +372,25 @@ class Coaster:
                                  s.sensor.adr, f.body, det._hold_n, int(b.measure),
                                  int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
                                  b.model.sensor(CONTACT_SENSOR).adr[0],
-                                 int(type(c) is HeldVelocity), 0, 0], dtype=np.int64)
+                                 int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
+                                 -1, b.scene.world.spec.width, b.scene.world.spec.height],
+                                dtype=np.int64)
             self._key = key
         cs, ns = self._cs, self._ns
         cs[ALPHA] = 0.0 if force_filter is None else force_filter.alpha
         ns[FILTER], ns[SAMPLES] = force_filter is not None, 0
+        ns[POLY] = b.on_substep[0].v if b.on_substep else -1
         return cs, ns
+
+    def _guidance(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The guidance admittance's velocity, deformation and :func:`~.guidance.admit_step`
+        parameters (zeros, unused, without guidance)."""
+        b, g = self.base, self.base.guidance
+        if g is None:
+            return self._err, self._err, np.zeros(7)
+        sc, c = b.scene, b.controller
+        return g.v, g.deformation, np.array([b.dt, g.mass, g.damping, c.v_max, c.a_max,
+                                             sc.cell_size, sc.world.footprint.reach])
 
     def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None
              ) -> tuple[int, int, np.ndarray]:
@@ -336,6 +407,8 @@ class Coaster:
         fs[VPX], fs[VPY] = m._v_prev
         fs[T_PREV], fs[PEAK], fs[PEAK_PUSHED] = m._t_prev, m.peak_accel, m.peak_accel_pushed
         fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, m._touching
+        g = b.guidance
+        fs[MOVING] = g is not None and g.moving
         cs, ns = self._constants(force_filter)
         cs[T0], cs[MIN_S], cs[T_END], cs[T_STOP] = t0, min_s, t_end, self._quiet_until()
         b._anchor = None
@@ -353,7 +426,7 @@ class Coaster:
                 (c.last, b.target, self._err, goal, filt),
                 (f.bias, held, f.win, self._scratch), f.rng, est.params,
                 est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
-                fs, cs, ns, max_steps)
+                (*self._guide, *self._guidance()), fs, cs, ns, max_steps)
         entry = self._entries.get(self._key)
         if entry is None:
             entry = self._entries[self._key] = compiled_entry(args)
@@ -366,6 +439,8 @@ class Coaster:
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
         est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
+        if g is not None:
+            g.moving = bool(fs[MOVING])
         det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
         if b.measure:
             m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
@@ -399,10 +474,12 @@ class Coaster:
     def _finish(self, reason: int, fs: np.ndarray):
         """The rest of the step the kernel handed back within (:data:`DETECT`: the onset rule,
         the cue stream, the measurements and hooks; :data:`CONTACTS`: the contact
-        measurements); the step's cue (None: none)."""
+        measurements and the hooks; :data:`CROSS`: the hooks); the step's cue (None: none)."""
         b = self.base
         if reason == DETECT:
             cue = b.sensing.detector._decide(float(fs[EX]), float(fs[EY]))
             return b._after_read(cue, None)
-        b.measurements._contacts(b.data, (float(fs[VPX_OLD]), float(fs[VPY_OLD])))
+        if reason == CONTACTS:
+            b.measurements._contacts(b.data, (float(fs[VPX_OLD]), float(fs[VPY_OLD])))
+        b.run_hooks(None)
         return None

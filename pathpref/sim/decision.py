@@ -153,10 +153,19 @@ class DecisionStep:
             return self._drive_ended(cue)
         self._n += 1
         if self._driving and self._drive_ended(cue):
-            self._driving, self.phase = False, MOVE
+            self.hold_after_drive(cue)
+        return self.timed_out()
+
+    def hold_after_drive(self, cue) -> None:
+        """A timed move's drive ended (with ``cue``, None: settled or out of time): the rest
+        of its steps hold the cell the base is in (a cue already set the target)."""
+        self._driving, self.phase = False, MOVE
+        if cue is None:
             b = self.base
-            if cue is None:  # settled or out of time: hold here (a cue already set it)
-                b.target = b.scene.cell_centre(b.cell)
+            b.target = b.scene.cell_centre(b.cell)
+
+    def timed_out(self) -> bool:
+        """Whether a timed move has taken all its steps (then no phase is under way)."""
         if self._n < self._steps:
             return False
         self.phase, self._steps = None, None
@@ -191,8 +200,7 @@ class DecisionStep:
         applies (the same numbers), the others through :meth:`advance`."""
         coaster = self.base.coaster
         while True:
-            if coaster is not None and self.phase == MOVE and self._steps is None and \
-                    coaster.ready():
+            if coaster is not None and self.phase == MOVE and coaster.ready():
                 if coaster.move(self):
                     return self
             elif self.advance():

@@ -22,11 +22,14 @@ from __future__ import annotations
 
 import math
 
+import numba as nb
 import numpy as np
 
 from ..episode.body import Felt
 from ..episode.physics import CELL_SIZE_M, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
+from ..geometry.footprint import _clear_at
 from ..geometry.grid import heading_to_action
+from .native import hypot
 
 #: below this admittance speed, with no cue under way, the admittance is at rest (m/s): the
 #: target's remaining travel ``|v| M / b`` is then under 0.3 mm
@@ -50,6 +53,7 @@ class Guidance:
         #: the admittance moves the target (False: at rest, ``v = 0``)
         self.moving = False
         self.given = 0.0  # the evidence the cue under way has given (observations)
+        self._rest = np.zeros(2)  # the force while no cue is under way
 
     def reset(self) -> None:
         """A standing base: no admittance velocity, no evidence."""
@@ -71,34 +75,17 @@ class Guidance:
         (braking at half ``a_max``: a push may oppose the drive), the admittance brakes at
         ``a_max``; the target never moves where the base does not fit, so a push cannot drive
         the base into an obstacle or a wall."""
-        c, dt, fits = base.controller, base.dt, base.scene.fits
-        v, a_max = self.v, c.a_max
-        if base.sensing.under_way:
-            v += dt * (base.sensing.force_estimate - self.damping * v) / self.mass
-        elif self.moving:
-            v += dt * (-self.damping * v) / self.mass
-            if math.hypot(v[0], v[1]) < V_REST:
-                v[:] = 0.0
-                self.moving = False
-                return False
-        else:
+        s = base.sensing
+        pushing = s.under_way
+        if not (pushing or self.moving):
             return False
-        self.moving = True
-        speed = math.hypot(v[0], v[1])
-        if speed > c.v_max:
-            v *= c.v_max / speed
-            speed = c.v_max
-        if speed > 1e-9:
-            ahead = base.target + v / a_max  # |v|^2 / a_max ahead, along v
-            if not fits(ahead):
-                v *= max(0.0, 1.0 - a_max * dt / speed)
-        moved = base.target + dt * v
-        if fits(moved):
-            base.target = moved
-            self.deformation += dt * v
-        else:
-            v[:] = 0.0
-        return True
+        sc, c = base.scene, base.controller
+        params = np.array([base.dt, self.mass, self.damping, c.v_max, c.a_max, sc.cell_size,
+                           sc.world.footprint.reach])
+        self.moving = admit_step(self.v, base.target, self.deformation,
+                                 s.force_estimate if pushing else self._rest, pushing, params,
+                                 sc.clearance.arrays)
+        return self.moving
 
     def feel(self, force: np.ndarray, dt: float) -> bool:
         """Add one step's force to the evidence; whether a period is full. A cue's first
@@ -129,3 +116,47 @@ class Guidance:
         angle, weight = self.take()
         return Felt(cell, heading_to_action(angle), t0, t, None, e, t - t0,
                     evidence=(angle, weight), partial=True)
+
+
+@nb.njit(cache=True)
+def admit_step(v, target, deformation, force, pushing, params, clr):
+    """One step of :meth:`Guidance.admit` on plain arrays (``v``, ``target`` and
+    ``deformation`` updated in place; ``params`` = ``(dt, M, b, v_max, a_max, cell size (m),
+    the footprint's reach (cells))``, ``clr`` the map's
+    :attr:`~pathpref.geometry.footprint.Clearance.arrays`); whether the admittance moves.
+    ``pushing``: ``v += dt (F - b v) / M``; else (moving) ``v += dt (-b v) / M``, at rest below
+    ``V_REST``. Called by the Python step and by the compiled steps
+    (:mod:`.coasting`, the admittance's tail after a push); allocates nothing."""
+    dt, mass, damping, v_max, a_max, cell, reach = (params[0], params[1], params[2],
+                                                     params[3], params[4], params[5],
+                                                     params[6])
+    width, height, A, b, row_starts, e0, e1, _ = clr
+    if pushing:
+        v[0] += dt * (force[0] - damping * v[0]) / mass
+        v[1] += dt * (force[1] - damping * v[1]) / mass
+    else:
+        v[0] += dt * (-damping * v[0]) / mass
+        v[1] += dt * (-damping * v[1]) / mass
+        if hypot(v[0], v[1]) < V_REST:
+            v[0] = v[1] = 0.0
+            return False
+    speed = hypot(v[0], v[1])
+    if speed > v_max:
+        q = v_max / speed
+        v[0] *= q
+        v[1] *= q
+        speed = v_max
+    if speed > 1e-9:  # |v|^2 / a_max ahead, along v
+        ax, ay = target[0] + v[0] / a_max, target[1] + v[1] / a_max
+        if not _clear_at(ax / cell, ay / cell, width, height, reach, A, b, row_starts, e0, e1):
+            q = max(0.0, 1.0 - a_max * dt / speed)
+            v[0] *= q
+            v[1] *= q
+    mx, my = target[0] + dt * v[0], target[1] + dt * v[1]
+    if _clear_at(mx / cell, my / cell, width, height, reach, A, b, row_starts, e0, e1):
+        target[0], target[1] = mx, my
+        deformation[0] += dt * v[0]
+        deformation[1] += dt * v[1]
+    else:
+        v[0] = v[1] = 0.0
+    return True

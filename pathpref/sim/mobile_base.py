@@ -225,10 +225,13 @@ class MobileBase:
             self._step_push = push
             self.measurements.update(d, self._vxy_adr, self._pushed_now,
                                      sensing.force_estimate)
-        if self.on_substep:
-            for hook in self.on_substep:
-                hook(self, push)
+        self.run_hooks(push)
         return cue
+
+    def run_hooks(self, push: HumanPush | None) -> None:
+        """The ``on_substep`` hooks after a physics step (``push``: the push it applied)."""
+        for hook in self.on_substep:
+            hook(self, push)
 
     def _wrench(self) -> np.ndarray:
         """A view of the pushed body's row of ``xfrc_applied`` (bound once per pushed body)."""
