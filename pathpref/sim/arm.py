@@ -206,6 +206,14 @@ def tray_impedance(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin,
     return tau
 
 
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """``idx`` as a slice when its indices are consecutive (NumPy then takes a view, not a
+    gathered copy: the servo targets are written at every physics step), else ``idx``."""
+    lo = int(idx[0])
+    run = np.arange(lo, lo + len(idx))
+    return slice(lo, lo + len(idx)) if np.array_equal(idx, run) else idx
+
+
 class ArmBase(MobileBase):
     """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
 
@@ -226,6 +234,7 @@ class ArmBase(MobileBase):
         self.pushed_body = self.tray  # people push the tray
         self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
         self.arm_ctrl = np.array([m.actuator(f"servo_{j.split('/')[1]}").id for j in ARM_JOINTS])
+        self._q_span, self._ctrl_span = _as_slice(self.arm_qpos), _as_slice(self.arm_ctrl)
         if ik_period is None:
             ik_period = PHYSICAL_IK_PERIOD_S if physical else IK_PERIOD_S
         self.ik_every = max(1, int(round(ik_period / self.dt)))
@@ -372,7 +381,7 @@ class ArmBase(MobileBase):
             self.q_kin = self.cfg.q[self.arm_qpos].copy()
             self._relative_target()
         self._k += 1
-        d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + self.impedance_torque() / self._kp
+        d.ctrl[self._ctrl_span] = d.qpos[self._q_span] + self.impedance_torque() / self._kp
         self.tilts.append(tilt_deg(d, self.tray))
         super()._control()  # the base's command (under guidance it complies to the push)
         self.deepest = max(self.deepest, self.max_penetration())
