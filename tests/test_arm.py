@@ -211,3 +211,71 @@ def test_arm_stiffness_is_a_physical_parameter():
     spec = carry_spec(0, physics=Physics(arm_stiffness=2500.0, sensor="ideal").to_json())
     body = MujocoBody(cached_world("simple"), spec, np.random.default_rng(0))
     assert body.base.stiffness == 2500.0
+
+
+def test_tray_impedance_is_the_formula(worlds):
+    """The compiled impedance (:func:`~pathpref.sim.arm.tray_impedance`) against the module
+    docstring's formula written with matrices and ``np.cross``, on a deflected, moving arm
+    whose kinematic target is rotated and offset (every term nonzero): within 1e-9 relative."""
+    import mujoco
+
+    from pathpref.sim import arm as arm_module
+
+    arm = ArmBase(build_arm_scene_cached(), physical=True, stiffness=1300.0)
+    m, d = arm.model, arm.data
+    arm.reset(worlds["simple"].cell((3, 3)))
+    rng = np.random.default_rng(3)
+    d.qpos[arm.arm_qpos] += rng.uniform(-0.2, 0.2, 6)
+    d.qpos[arm.base_qpos[2]] = 0.4  # a turned base: R_b is not the identity
+    d.qvel[:] = rng.uniform(-0.5, 0.5, m.nv)
+    mujoco.mj_forward(m, d)
+    arm.q_kin = arm.q_kin + rng.uniform(-0.1, 0.1, 6)
+    rel_R = mink.SO3.exp(np.array([0.05, -0.08, 0.1])).as_matrix()
+    rel_p = np.array([0.07, -0.02, 0.71])
+    arm._rel[:, :3], arm._rel[:, 3] = rel_R, rel_p
+
+    base, tray = m.body("base").id, arm.tray
+    Rb, R = d.xmat[base].reshape(3, 3), d.xmat[tray].reshape(3, 3)
+    p_d, R_d = d.xpos[base] + Rb @ rel_p, Rb @ rel_R
+    jacp, jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+    mujoco.mj_jacBody(m, d, jacp, jacr, tray)
+    Jp, Jr = jacp[:, arm.arm_dofs], jacr[:, arm.arm_dofs]
+    qd = d.qvel[arm.arm_dofs]
+    e_r = 0.5 * sum(np.cross(R[:, i], R_d[:, i]) for i in range(3))
+    a = arm_module
+    f = 1300.0 * (p_d - d.xpos[tray]) - a.TRAY_DAMPING * (Jp @ qd)
+    moment = a.TRAY_ROT_STIFFNESS * e_r - a.TRAY_ROT_DAMPING * (Jr @ qd)
+    want = Jp.T @ f + Jr.T @ moment + a.POSTURE_STIFFNESS * (arm.q_kin - d.qpos[arm.arm_qpos])
+    assert np.abs(want).min() > 1e-3
+    np.testing.assert_allclose(arm.impedance_torque(), want, rtol=1e-9, atol=1e-12)
+
+
+def test_penetration_is_the_deepest_arm_obstacle_contact(worlds):
+    """``max_penetration`` against a loop over MuJoCo's contacts: the base driven into a
+    wall until the tray's plate presses into it; the deepest contact between an arm (or the
+    base's) geom and an obstacle geom, 0 while there is none."""
+    import mujoco
+
+    arm = ArmBase(build_arm_scene_cached(), physical=True)
+    m, d = arm.model, arm.data
+    arm.reset(worlds["simple"].cell((3, 3)))
+    x0 = float(d.qpos[arm.base_qpos[0]])
+    assert arm.max_penetration() == 0.0
+    arm_g, obs = set(arm.arm_geoms), set(arm.obstacle_geoms)
+
+    def loop():
+        worst = 0.0
+        for c in d.contact[: d.ncon]:
+            pair = {int(c.geom1), int(c.geom2)}
+            if pair & arm_g and pair & obs:
+                worst = max(worst, -float(c.dist))
+        return worst
+
+    seen = 0
+    for x in np.linspace(x0, -0.3, 60):  # teleported west, through the outer wall
+        d.qpos[arm.base_qpos[0]] = x
+        mujoco.mj_forward(m, d)
+        want = loop()
+        seen += want > 0.0
+        assert arm.max_penetration() == want
+    assert seen > 0

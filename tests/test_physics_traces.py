@@ -1,9 +1,11 @@
 """The physics step's Python changes no result: a few physical episodes (navigate with the
 realistic, ideal and legacy sensing, pushes at any time, the differential drive, carry) and
 control-rate task runs replay ``tests/data/physics_traces.json`` (written by
-``scripts/physics_traces.py`` with the per-step code of 23bd330, before the step was cut):
-decision steps, cue headings and cells, counts exactly; times, forces, impulses and the base's
-final ``qpos`` to ``tests/close.py``'s ``REL_PHYSICS``."""
+``scripts/physics_traces.py`` with the per-step code of 23bd330, before the step was cut;
+the carry row re-pinned when the physical arm's IK went from 100 to 20 Hz: the same steps,
+cues, cells and counts, ``ik_solves`` 922 -> 185, the tilt within 4e-4 and every other float
+within 5e-7 relative): decision steps, cue headings and cells, counts exactly; times, forces,
+impulses and the base's final ``qpos`` to ``tests/close.py``'s ``REL_PHYSICS``."""
 
 from __future__ import annotations
 

@@ -6,8 +6,9 @@ site on the base + the tray attached to the arm's last link. The arm's bodies ar
 compensated and its six joints have position servos (stiff enough to hold the tray, soft
 enough to yield to a push and recover after it).
 
-IK (mink, solver named explicitly: ``daqp``), every ``ik_period`` seconds, over all nine
-joints (base x, y, yaw + arm)::
+IK (mink, solver named explicitly: ``daqp``), every ``ik_period`` seconds (by default 10 ms
+in legacy mode, 50 ms in physical mode: "IK rate" below), over all nine joints (base x, y,
+yaw + arm)::
 
     tray task     FrameTask(tool/tray): a level pose at a fixed offset from the base, in the
                   base's commanded heading (position cost 1, orientation cost 5)
@@ -53,6 +54,17 @@ the decision protocol) and, with pushes at any time, yields by its admittance
 by its tray (25 N for 2 s: 0.62 m, as the plain base). The tray's plate collides with walls,
 obstacles and the base (``contype`` 1, ``conaffinity`` 0: not with the arm that holds it).
 
+**IK rate** (physical mode: ``PHYSICAL_IK_PERIOD_S``, 50 ms, 20 Hz). Here the IK never meets a
+push (the impedance does, at every physics step): it only keeps the kinematic tray at its
+constant offset from the base and the arm clear of obstacles, so its solution is nearly still
+(over two moves on ``simple``, joint speeds of median 2e-8 rad/s; 0.009 rad/s at the first
+solve, which settles the home posture). Between two solves the base moves at most
+``v_max`` x 50 ms = 50 mm (1 m/s), under half the 0.12 m band in which the collision limit acts
+(detection 0.15 m, kept 0.03 m). The tray's push figures, tilts, overshoot and penetration of
+``pathpref bench``'s ``arm`` section are the same at 10 ms and 50 ms to four digits; each solve
+costs about 20 physics steps of bare MuJoCo, so at 10 ms it was most of the carry episode's
+cost.
+
 **Legacy mode** (no physical parameters). The base velocity actuators receive the IK's base
 velocities; the arm servos receive ``q + v dt`` from the measured ``q``, so the IK itself
 corrects the tray's orientation when a push deflects the soft shoulder (solved at 100 Hz;
@@ -63,10 +75,12 @@ and the arm (``tool/tool_force``), through the same detector as the handle.
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import mink
 import mujoco
+import numba as nb
 import numpy as np
 
 from ..episode.physics import CELL_SIZE_M, QUIET_DEFAULTS
@@ -94,6 +108,10 @@ TRAY_STIFFNESS = QUIET_DEFAULTS["arm_stiffness"]  # the Physics field arm_stiffn
 TRAY_ROT_STIFFNESS = 60.0
 TRAY_DAMPING = 40.0
 TRAY_ROT_DAMPING = 2.0
+#: the IK's period (s): legacy mode, where the IK itself levels a pushed tray, and physical
+#: mode, where it only holds the tray's offset from the base (module docstring, "IK rate")
+IK_PERIOD_S = 0.01
+PHYSICAL_IK_PERIOD_S = 0.05
 #: the weak joint spring toward the kinematic configuration (N m/rad) that keeps the arm's
 #: posture where the tray's six constraints leave it free (near a singularity)
 POSTURE_STIFFNESS = 2.0
@@ -135,15 +153,71 @@ def build_arm_scene(world: World, cell_size: float = CELL_SIZE_M, base: BasePara
 
 
 def tilt_deg(data: mujoco.MjData, body: int) -> float:
-    """Angle between the tray's normal and the vertical (degrees)."""
-    z = data.xmat[body].reshape(3, 3)[:, 2]
-    return float(np.degrees(np.arccos(np.clip(z[2], -1.0, 1.0))))
+    """Angle between the tray's normal and the vertical (degrees): ``acos(R_zz)``, ``R`` the
+    body's orientation (``xmat`` row-major, so ``R_zz`` is its last entry)."""
+    return math.degrees(math.acos(min(1.0, max(-1.0, float(data.xmat[body, 8])))))
+
+
+@nb.njit(cache=True)
+def tray_impedance(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin,
+                   gains):  # pragma: no cover - compiled
+    """The arm joints' torques of the tray impedance (module docstring, "Compliant arm"), N m,
+    on MuJoCo's arrays: ``bodies`` = (base, tray) body ids; ``rel`` the 3x4 ``[R_rel | p_rel]``
+    (the tray's pose relative to the base in the kinematic configuration); ``jac`` the tray's
+    6 x nv Jacobian (translational rows over rotational, ``mj_jacBody``); ``dofs``, ``qadr``
+    the arm joints' velocity and position addresses; ``gains`` = (K, D, K_r, D_r, k_0)::
+
+        p_d = p_b + R_b p_rel,  R_d = R_b R_rel
+        F   = K (p_d - p) - D J_p q_dot,   M = K_r e_r - D_r J_r q_dot
+        e_r = 1/2 sum_i r_i x r_d,i   (r_i, r_d,i the columns of R, R_d)
+        tau = J_p^T F + J_r^T M + k_0 (q_kin - q)
+    """
+    base, tray = bodies[0], bodies[1]
+    k, dmp, kr, dr, k0 = gains[0], gains[1], gains[2], gains[3], gains[4]
+    Rb = xmat[base].reshape(3, 3)
+    R = xmat[tray].reshape(3, 3)
+    Rd = np.empty((3, 3))
+    for a in range(3):
+        for c in range(3):
+            Rd[a, c] = Rb[a, 0] * rel[0, c] + Rb[a, 1] * rel[1, c] + Rb[a, 2] * rel[2, c]
+    n = dofs.shape[0]
+    f = np.empty(3)
+    m = np.empty(3)
+    for a in range(3):
+        v = 0.0
+        w = 0.0
+        for j in range(n):
+            qd = qvel[dofs[j]]
+            v += jac[a, dofs[j]] * qd
+            w += jac[3 + a, dofs[j]] * qd
+        p_d = xpos[base, a] + Rb[a, 0] * rel[0, 3] + Rb[a, 1] * rel[1, 3] + Rb[a, 2] * rel[2, 3]
+        b, c = (a + 1) % 3, (a + 2) % 3
+        e = 0.0
+        for i in range(3):  # (r_i x r_d,i)_a
+            e += R[b, i] * Rd[c, i] - R[c, i] * Rd[b, i]
+        f[a] = k * (p_d - xpos[tray, a]) - dmp * v
+        m[a] = kr * (0.5 * e) - dr * w
+    tau = np.empty(n)
+    for j in range(n):
+        t = k0 * (q_kin[j] - qpos[qadr[j]])
+        for a in range(3):
+            t += jac[a, dofs[j]] * f[a] + jac[3 + a, dofs[j]] * m[a]
+        tau[j] = t
+    return tau
+
+
+def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
+    """``idx`` as a slice when its indices are consecutive (NumPy then takes a view, not a
+    gathered copy: the servo targets are written at every physics step), else ``idx``."""
+    lo = int(idx[0])
+    run = np.arange(lo, lo + len(idx))
+    return slice(lo, lo + len(idx)) if np.array_equal(idx, run) else idx
 
 
 class ArmBase(MobileBase):
     """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
 
-    def __init__(self, scene: Scene, ik_period: float = 0.01, physical: bool = False,
+    def __init__(self, scene: Scene, ik_period: float | None = None, physical: bool = False,
                  stiffness: float = TRAY_STIFFNESS, **kwargs):
         super().__init__(scene, **kwargs)
         m = self.model
@@ -152,13 +226,17 @@ class ArmBase(MobileBase):
             from ..errors import ConfigError
 
             raise ConfigError(f"arm stiffness must be a positive number of N/m, got {stiffness}")
-        #: the tray's translational stiffness (N/m; physical mode, module docstring)
-        self.stiffness = float(stiffness)
+        #: the impedance's gains (K, D, K_r, D_r, k_0; :func:`tray_impedance`)
+        self._gains = np.array([float(stiffness), TRAY_DAMPING, TRAY_ROT_STIFFNESS,
+                                TRAY_ROT_DAMPING, POSTURE_STIFFNESS])
         self.sensing.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
         self.tray = int(m.body("tool/tray").id)
         self.pushed_body = self.tray  # people push the tray
         self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
         self.arm_ctrl = np.array([m.actuator(f"servo_{j.split('/')[1]}").id for j in ARM_JOINTS])
+        self._q_span, self._ctrl_span = _as_slice(self.arm_qpos), _as_slice(self.arm_ctrl)
+        if ik_period is None:
+            ik_period = PHYSICAL_IK_PERIOD_S if physical else IK_PERIOD_S
         self.ik_every = max(1, int(round(ik_period / self.dt)))
         self.ik_dt = self.ik_every * self.dt
         self.cfg = mink.Configuration(m)
@@ -183,9 +261,10 @@ class ArmBase(MobileBase):
             cost[base_dofs] = 100.0
             self.base_damping = mink.DampingTask(m, cost)
         self.posture = mink.PostureTask(m, cost=posture_cost)
-        self._jacp, self._jacr = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        self._jac = np.zeros((6, m.nv))  # the tray's Jacobian: translation over rotation
         self._base_body = int(m.body("base").id)
-        self._rel_p, self._rel_R = TRAY_OFFSET.copy(), np.eye(3)
+        self._bodies = np.array([self._base_body, self.tray])
+        self._rel = np.hstack([np.eye(3), TRAY_OFFSET[:, None]])  # [R_rel | p_rel]
         self.q_kin = ARM_HOME.copy()
         home = np.zeros(m.nq)
         home[self.arm_qpos] = ARM_HOME
@@ -198,6 +277,9 @@ class ArmBase(MobileBase):
         self.obstacle_geoms = [i for i in range(m.ngeom) if m.geom(i).name.startswith(
             ("obstacle_", "wall_"))]
         self.arm_geoms = arm_geoms
+        #: per geom: whether it is the arm's (or the base's) and whether an obstacle's
+        self._is_arm = np.isin(np.arange(m.ngeom), arm_geoms)
+        self._is_obstacle = np.isin(np.arange(m.ngeom), self.obstacle_geoms)
         vel = {"slide_x": [0.8], "slide_y": [0.8], "yaw": [1.0]}
         vel.update({j: [2.0 if k < 3 else 6.0] for k, j in enumerate(ARM_JOINTS)})
         self.limits = [
@@ -212,6 +294,15 @@ class ArmBase(MobileBase):
         self.tilts: list[float] = []
         self.ik_solves = 0
         self.deepest = 0.0  # deepest arm/obstacle penetration at the end of a move (m)
+
+    @property
+    def stiffness(self) -> float:
+        """The tray's translational stiffness (N/m; physical mode, module docstring)."""
+        return float(self._gains[0])
+
+    @stiffness.setter
+    def stiffness(self, value: float) -> None:
+        self._gains[0] = float(value)
 
     def reset(self, cell: int) -> None:
         """Reset the physics with the base at ``cell``, the arm at home and the tray level."""
@@ -233,8 +324,8 @@ class ArmBase(MobileBase):
     def _relative_target(self) -> None:
         """The tray's pose relative to the base in the kinematic configuration (``T_rel``)."""
         T = self.cfg.get_transform("tool/tray", "body", "base", "body")
-        self._rel_p = np.asarray(T.translation(), float).copy()
-        self._rel_R = np.asarray(T.rotation().as_matrix(), float).copy()
+        self._rel[:, 3] = T.translation()
+        self._rel[:, :3] = T.rotation().as_matrix()
 
     def tray_target(self) -> mink.SE3:
         """Level, at ``TRAY_OFFSET`` from the base's measured position, in the base's
@@ -290,29 +381,18 @@ class ArmBase(MobileBase):
             self.q_kin = self.cfg.q[self.arm_qpos].copy()
             self._relative_target()
         self._k += 1
-        d.ctrl[self.arm_ctrl] = d.qpos[self.arm_qpos] + self.impedance_torque() / self._kp
+        d.ctrl[self._ctrl_span] = d.qpos[self._q_span] + self.impedance_torque() / self._kp
         self.tilts.append(tilt_deg(d, self.tray))
-        if self.guidance is not None:  # the base complies to the push on the tray
-            self.guidance.admit(self)
-        d.ctrl[self.actuators] = self._base_command()
+        super()._control()  # the base's command (under guidance it complies to the push)
         self.deepest = max(self.deepest, self.max_penetration())
 
     def impedance_torque(self) -> np.ndarray:
-        """The arm joints' torques of the tray impedance (module docstring), N m."""
-        m, d = self.model, self.data
-        Rb = d.xmat[self._base_body].reshape(3, 3)
-        p_d = d.xpos[self._base_body] + Rb @ self._rel_p
-        R_d = Rb @ self._rel_R
-        R = d.xmat[self.tray].reshape(3, 3)
-        mujoco.mj_jacBody(m, d, self._jacp, self._jacr, self.tray)
-        Jp, Jr = self._jacp[:, self.arm_dofs], self._jacr[:, self.arm_dofs]
-        qd = d.qvel[self.arm_dofs]
-        e_r = 0.5 * (np.cross(R[:, 0], R_d[:, 0]) + np.cross(R[:, 1], R_d[:, 1])
-                     + np.cross(R[:, 2], R_d[:, 2]))
-        f = self.stiffness * (p_d - d.xpos[self.tray]) - TRAY_DAMPING * (Jp @ qd)
-        moment = TRAY_ROT_STIFFNESS * e_r - TRAY_ROT_DAMPING * (Jr @ qd)
-        return Jp.T @ f + Jr.T @ moment + POSTURE_STIFFNESS * (
-            self.q_kin - d.qpos[self.arm_qpos])
+        """The arm joints' torques of the tray impedance (module docstring), N m: the tray's
+        Jacobian from MuJoCo, the arithmetic compiled (:func:`tray_impedance`)."""
+        d, jac = self.data, self._jac
+        mujoco.mj_jacBody(self.model, d, jac[:3], jac[3:], self.tray)
+        return tray_impedance(d.xpos, d.xmat, self._bodies, self._rel, jac, self.arm_dofs,
+                              d.qvel, d.qpos, self.arm_qpos, self.q_kin, self._gains)
 
     def move_to(self, cell: int, min_s: float = 0.0) -> int:
         """Drive to ``cell`` for at least ``min_s`` (:meth:`MobileBase.move_to`), then record
@@ -355,11 +435,12 @@ class ArmBase(MobileBase):
         return float(np.sqrt(np.mean(np.square(self.tilts)))) if self.tilts else 0.0
 
     def max_penetration(self) -> float:
-        """Deepest current contact between arm/tray geoms and obstacles (m, >= 0)."""
-        d, arm, obs = self.data, set(self.arm_geoms), set(self.obstacle_geoms)
-        worst = 0.0
-        for c in d.contact[: d.ncon]:
-            pair = {int(c.geom1), int(c.geom2)}
-            if pair & arm and pair & obs:
-                worst = max(worst, -float(c.dist))
-        return worst
+        """Deepest current contact between arm/tray geoms and obstacles (m, >= 0): the largest
+        ``-dist`` of the contacts with an arm geom and an obstacle geom among their two."""
+        d = self.data
+        if d.ncon == 0:
+            return 0.0
+        g = d.contact.geom
+        a, o = self._is_arm[g], self._is_obstacle[g]
+        hit = (a[:, 0] | a[:, 1]) & (o[:, 0] | o[:, 1])
+        return max(0.0, float(-d.contact.dist[hit].min())) if hit.any() else 0.0
