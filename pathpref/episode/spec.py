@@ -38,6 +38,8 @@ LIMITS: dict[str, tuple[float, float, bool]] = {
     "episode_timeout": (1, 1e6, False),  # or 0: none (the API takes any 0..1e6)
     "record_path": (50, 1e4, False),  # or 0: no path recorded
 }
+#: the limits whose option also takes 0 (none)
+ZERO_OK = ("episode_timeout", "record_path")
 #: fields that say how an episode is run, not what it is: left out of its key and its stored
 #: columns (they do not change its result)
 RUN_OPTIONS = ("timeout_s", "record_path_hz")
@@ -80,9 +82,10 @@ def check_number(option: str, value: Any, lo: float, hi: float, integer: bool = 
 
 
 def check_limit(option: str, value: Any, name: str) -> int | float:
-    """:func:`check_number` against ``LIMITS[name]`` (``episode_timeout`` also takes 0)."""
+    """:func:`check_number` against ``LIMITS[name]`` (those of :data:`ZERO_OK` also take
+    0)."""
     lo, hi, integer = LIMITS[name]
-    return check_number(option, value, lo, hi, integer, zero_ok=name == "episode_timeout")
+    return check_number(option, value, lo, hi, integer, zero_ok=name in ZERO_OK)
 
 
 @dataclass(frozen=True)
@@ -262,8 +265,7 @@ class EpisodeSpec:
             check_limit(option, value, name)
         check_number("--episode-timeout", self.timeout_s, 0, LIMITS["episode_timeout"][1],
                      integer=False)
-        lo, hi, _ = LIMITS["record_path"]
-        check_number("--record-path", self.record_path_hz, lo, hi, integer=False, zero_ok=True)
+        check_limit("--record-path", self.record_path_hz, "record_path")
         for option, value in (("instance", self.instance), ("run", self.run)):
             check_number(option, value, 0, 2**63 - 1)
         if self.time_budget_ms != 0:

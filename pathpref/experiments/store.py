@@ -780,7 +780,7 @@ class ResultStore:
         """The per-step rows of episode ``key``, in step order."""
         return self._rows("SELECT * FROM steps WHERE key = ? ORDER BY t", (key,))
 
-    def path(self, key: str) -> list[dict[str, Any]]:
+    def recorded_path(self, key: str) -> list[dict[str, Any]]:
         """The recorded path of episode ``key`` (``episode_path`` rows, in order; empty when
         it was not recorded or the file predates the table)."""
         if missing_base_tables(self.conn):
