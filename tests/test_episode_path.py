@@ -151,13 +151,13 @@ def test_upgrade_check_salvage_and_merge_keep_the_path(sweeps, tmp_path, capsys)
         _rows(plain, "SELECT * FROM episodes ORDER BY key")
     n = _rows(recorded, "SELECT count(*) AS n FROM episode_path")[0]["n"]
     report = check_database(recorded)
-    assert report["intact"] and report["path"] == n and report["path_orphans"] == 0
+    assert report["intact"] and report["path_rows"] == n and report["path_orphans"] == 0
     saved = tmp_path / "saved.sqlite"
-    assert salvage_database(recorded, saved)["path"] == n
+    assert salvage_database(recorded, saved)["path_rows"] == n
     assert _rows(saved, "SELECT * FROM episode_path ORDER BY key, k") == \
         _rows(recorded, "SELECT * FROM episode_path ORDER BY key, k")
     merged = tmp_path / "merged.sqlite"
-    assert merge_databases(merged, [recorded])["path"] == n
+    assert merge_databases(merged, [recorded])["path_rows"] == n
     assert _rows(merged, "SELECT * FROM episode_path ORDER BY key, k") == \
         _rows(recorded, "SELECT * FROM episode_path ORDER BY key, k")
     with sqlite3.connect(saved) as c:

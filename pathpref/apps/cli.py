@@ -241,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="--sim mujoco: store each episode's continuous path (base pose, end "
                     "effector, applied force) at HZ samples per simulated second, at least 50 "
                     "(100: every 5th 2 ms physics step), in the table episode_path; 0: none. "
-                    "It does not change any result or key (docs/experiments.md)")
+                    "It does not change any result or key (docs/study_export.md)")
     episode_options(ev)
     physics_options(ev)
     ev.set_defaults(func=c.cmd_evaluate)

@@ -468,7 +468,8 @@ def check_database(path: str | Path) -> dict[str, Any]:
             steps, out["steps_lost"], exact_s = _read_table(ro, "steps")
             paths, out["path_lost"], exact_p = _read_path(ro)
             out["lost_exact"] = exact_e and exact_s and exact_p
-            out["episodes"], out["steps"], out["path"] = len(episodes), len(steps), len(paths)
+            out["episodes"], out["steps"] = len(episodes), len(steps)
+            out["path_rows"] = len(paths)
             _, out["incomplete"], out["orphans"], out["path_orphans"] = _whole_episodes(
                 episodes, steps, paths)
             out["trials"] = _trial_counts(ro)
@@ -510,8 +511,8 @@ def check_text(r: dict[str, Any]) -> str:
                   f"  episodes with missing step rows: {len(incomplete)}",
                   *(f"    {k}" for k in incomplete[:10]), *(["    ..."] * (len(incomplete) > 10)),
                   f"  orphan step rows (of no episode): {r['orphans']}"]
-        if r["path"] or r["path_lost"] or r["path_orphans"]:
-            lines += [f"  recorded path rows: {r['path']} readable, {about}{r['path_lost']} "
+        if r["path_rows"] or r["path_lost"] or r["path_orphans"]:
+            lines += [f"  recorded path rows: {r['path_rows']} readable, {about}{r['path_lost']} "
                       f"unreadable, {r['path_orphans']} of no episode"]
         if r.get("trials"):
             done, running = r["trials"]
@@ -576,7 +577,7 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
             "study": study is not None,
             "episodes_lost": episodes_lost + len(broken),
             "steps_lost": steps_lost + len(steps) - len(kept), "incomplete": len(broken),
-            "path": len(kept_path), "path_orphans": path_orphans,
+            "path_rows": len(kept_path), "path_orphans": path_orphans,
             "path_lost": path_lost + len(paths) - len(kept_path),
             "unreadable": episodes_lost, "orphans": orphans,
             "lost_exact": exact_e and exact_s and exact_p}
@@ -608,7 +609,8 @@ def merge_databases(out: str | Path, inputs: list[str | Path]) -> dict[str, int]
         ids.add(os.stat(src).st_ino)
     if len(ids) < len(inputs):
         raise ConfigError("an input database is given twice")
-    counts = dict.fromkeys(("copied", "replaced", "duplicates", "conflicts", "steps", "path"), 0)
+    counts = dict.fromkeys(("copied", "replaced", "duplicates", "conflicts", "steps",
+                            "path_rows"), 0)
     with ResultStore(out, check_rows=True) as store:
         for src in inputs:
             _merge_one(store, Path(src), counts)
@@ -675,5 +677,5 @@ def _merge_row(conn: sqlite3.Connection, ro: sqlite3.Connection, row: dict[str, 
                           (key,)).fetchall()
         conn.executemany(f"INSERT INTO episode_path VALUES "
                          f"({', '.join('?' * len(PATH_COLUMNS))})", path)
-        counts["path"] += len(path)
+        counts["path_rows"] += len(path)
     counts["copied"] += have is None
