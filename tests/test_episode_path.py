@@ -207,3 +207,24 @@ def test_paths_export_without_recorded_paths_is_one_line(sweeps, tmp_path, capsy
     assert main(["dataset", str(plain), "--out", str(tmp_path / "ds"), "--source",
                  "paths"]) == 2
     assert "no --sim mujoco episodes with a recorded path" in capsys.readouterr().err
+
+
+def test_path_rows_are_written_in_their_episode_transaction(tmp_path):
+    """An episode and its path rows are stored together or not at all (a sweep killed
+    mid-write resumes exactly), and a rerun of the episode replaces its rows."""
+    res = run_episode(EpisodeSpec.single("simple", "compliant", 3, t_max=3))
+    good = (0.0, 1.25, 1.75, 0.0, None, None, None, 0.0, 0.0)
+    res.path = [good, (0.01, 1.25)]  # the second sample cannot be written
+    db = tmp_path / "r.sqlite"
+    with ResultStore(db) as store:
+        with pytest.raises(ConfigError):
+            store.add(res)
+        assert store.done_keys() == set()
+        assert store.recorded_path(res.spec.key()) == []
+        res.path = [good, good]
+        store.add(res)
+        assert [r["k"] for r in store.recorded_path(res.spec.key())] == [0, 1]
+        res.path = []
+        store.add(res)
+        assert store.recorded_path(res.spec.key()) == []
+        assert store.done_keys() == {res.spec.key()}
