@@ -100,8 +100,10 @@ def test_path_spans_the_episode_at_the_stated_rate(sweeps):
             assert max(pushed) > 1.0 and min(pushed) == 0.0  # the human's pushes are in it
 
 
-def test_carry_records_the_end_effector():
-    """The arm's tray is sampled with the base; 60 Hz takes every 8th 2 ms step (62.5 Hz)."""
+def test_carry_records_the_end_effector(tmp_path, capsys):
+    """The arm's tray is sampled with the base; 60 Hz takes every 8th 2 ms step (62.5 Hz),
+    which a dataset refuses (not a whole number of frames per second); at 100 Hz the dataset
+    has the end effector as a feature."""
     import pathpref.sim  # noqa: F401 - registers the mujoco body
 
     spec = EpisodeSpec.single("simple", "compliant", 3, sim="mujoco", robot="carry",
@@ -114,6 +116,22 @@ def test_carry_records_the_end_effector():
     assert np.isfinite(ee).all()
     assert 0.3 < ee[:, 2].min() and ee[:, 2].max() < 1.5  # a tray above the floor
     assert np.hypot(*(ee[:, :2] - base).T).max() < 1.0  # ... carried by the base
+    db = tmp_path / "carry.sqlite"
+    with ResultStore(db) as store:
+        store.add(res)
+    assert main(["dataset", str(db), "--out", str(tmp_path / "no"), "--source", "paths"]) == 2
+    assert "whole frames per second for a dataset (found 62.5 Hz)" in capsys.readouterr().err
+    res = run_episode(dataclasses.replace(spec, record_path_hz=100))
+    with ResultStore(db) as store:
+        store.add(res)  # the same key: the 60 Hz rows are replaced
+    assert main(["dataset", str(db), "--out", str(tmp_path / "ds"), "--source", "paths"]) == 0
+    info = json.loads((tmp_path / "ds" / "meta" / "info.json").read_text())
+    assert info["features"]["observation.end_effector"]["names"] == ["x", "y", "z"]
+    pq = pytest.importorskip("pyarrow.parquet")
+    frames = pq.read_table(tmp_path / "ds" / "data" / "chunk-000" / "file-000.parquet")
+    on_grid = [p for k, p in enumerate(res.path) if abs(p[0] - k / 100) < 1e-6]
+    np.testing.assert_allclose(frames.column("observation.end_effector").to_pylist(),
+                               [p[4:7] for p in on_grid], atol=1e-6)
 
 
 def test_a_grid_episode_refuses_to_record():
