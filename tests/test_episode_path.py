@@ -246,3 +246,17 @@ def test_path_rows_are_written_in_their_episode_transaction(tmp_path):
         store.add(res)
         assert store.recorded_path(res.spec.key()) == []
         assert store.done_keys() == {res.spec.key()}
+
+
+def test_a_path_table_pathpref_did_not_define_is_refused(sweeps, tmp_path):
+    """The store's check knows the table: another definition of it makes the file foreign."""
+    plain, _ = sweeps
+    other = tmp_path / "other.sqlite"
+    other.write_bytes(plain.read_bytes())
+    with sqlite3.connect(other) as c:
+        c.execute("DROP TABLE episode_path")
+        c.execute("CREATE TABLE episode_path (key TEXT, k INTEGER, note TEXT, "
+                  "PRIMARY KEY (key, k))")
+    c.close()
+    with pytest.raises(ConfigError, match="table episode_path is not defined as pathpref"):
+        ResultStore(other)
