@@ -102,7 +102,7 @@ def test_the_stored_row_of_an_episode_is_exact():
             "queries": 50, "t_max": 12, "n_goals": 10, "normalize": True, "coupling": False,
             "sim": "grid", "fixed": "", "task": "navigate", "ucb_c": 1.0,
             "time_budget_ms": 0.0, "human": "map", "physics": "", "prior": "routes",
-            "push_rule": "", "timeout_s": 0.0,
+            "push_rule": "", "timeout_s": 0.0, "record_path_hz": 0.0,
             "homotopy_success": int(res.goal_reached and res.homotopic),
             "key": spec.key(), "map_hash": spec.map_hash,
             "start": json.dumps(res.instance_cells["start"]),

@@ -22,7 +22,7 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
-from ..episode.spec import LIMITS, MAX_EPISODES, check_number, range_error
+from ..episode.spec import LIMITS, MAX_EPISODES, ZERO_OK, check_number, range_error
 from ..errors import ConfigError, did_you_mean
 
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
@@ -44,7 +44,7 @@ class RangeAction(argparse.Action):
     def __call__(self, parser, namespace, values, option_string=None):
         """Convert and range-check each value, or fail the parse with one line."""
         lo, hi, integer = LIMITS[self.limits]
-        zero_ok = self.limits == "episode_timeout"
+        zero_ok = self.limits in ZERO_OK
         items = values if isinstance(values, list) else [values]
         out = []
         for text in items:

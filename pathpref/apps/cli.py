@@ -236,6 +236,12 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--no-steps", action="store_true",
                     help="store no per-step rows (most of a database's size; replay and "
                     "step-based reports need them)")
+    ev.add_argument("--record-path", action=RangeAction, limits="record_path", default=0.0,
+                    metavar="HZ",
+                    help="--sim mujoco: store each episode's continuous path (base pose, end "
+                    "effector, applied force) at HZ samples per simulated second, at least 50 "
+                    "(100: every 5th 2 ms physics step), in the table episode_path; 0: none. "
+                    "It does not change any result or key (docs/study_export.md)")
     episode_options(ev)
     physics_options(ev)
     ev.set_defaults(func=c.cmd_evaluate)
@@ -360,9 +366,10 @@ def build_parser() -> argparse.ArgumentParser:
                          "dataset (docs/study_export.md)")
     ds_.add_argument("db", help="results database (study trials or a --sim mujoco sweep)")
     ds_.add_argument("--out", required=True, help="a new folder: the dataset's root")
-    ds_.add_argument("--source", choices=["study", "episodes"], default="study",
+    ds_.add_argument("--source", choices=["study", "episodes", "paths"], default="study",
                      help="study: every finished trial at 100 frames/s (default); episodes: "
-                     "the --sim mujoco episodes, a frame per decision step")
+                     "the --sim mujoco episodes, a frame per decision step; paths: their "
+                     "paths recorded with evaluate --record-path, a frame per sample")
     ds_.set_defaults(func=c.cmd_dataset)
 
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")

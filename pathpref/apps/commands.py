@@ -247,7 +247,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     check_model_size(load_world_checked(args.map, args.force), args.goals)
     specs = sweep_specs(args.map, args.methods, args.delta_t, args.instances, args.runs,
                         seed=args.seed, n_goals=args.goals, sim=args.sim, robot=args.task,
-                        physics=physics_json(args, args.sim),
+                        physics=physics_json(args, args.sim), record_path_hz=args.record_path,
                         **_common_episode_args(args, args.map))
     if args.shard:
         specs = shard_specs(specs, *parse_shard(args.shard))

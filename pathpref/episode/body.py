@@ -53,6 +53,13 @@ class Felt:
         return None if self.impulse is None else math.atan2(self.impulse[1], self.impulse[0])
 
 
+#: one sample of a recorded path (:meth:`Body.recorded_path`): simulated time (s since the
+#: episode's reset), the base's pose (x, y in m in the scene's world frame; yaw in rad), the
+#: end effector's position (m; None for a body without one) and the force the human applies
+#: to the robot at that moment (world x-y, N; 0 while nobody pushes)
+PATH_FIELDS = ("time_s", "x", "y", "yaw", "ee_x", "ee_y", "ee_z", "fx", "fy")
+
+
 class Body(ABC):
     """An embodiment of the robot. Built per episode with ``(world, spec, rng)``, where
     ``rng`` is the episode's simulator stream (:func:`simulator_rng`).
@@ -100,6 +107,19 @@ class Body(ABC):
     def inputs_given(self) -> int:
         """How many inputs the human has given (bodies that took the human over)."""
         return 0
+
+    def record_path(self, hz: float) -> None:
+        """Record the robot's continuous path from the next :meth:`reset` on, at least ``hz``
+        samples per simulated second (:meth:`recorded_path`). A body without a continuous
+        path (the grid) refuses (ConfigError)."""
+        raise ConfigError(f"the {type(self).__name__} has no continuous path to record; "
+                          "--record-path needs a physical body (--sim mujoco)")
+
+    def recorded_path(self) -> list[tuple]:
+        """The path recorded since the last :meth:`reset` (:meth:`record_path`), one
+        :data:`PATH_FIELDS` tuple per sample in time order, the first at the start, the last at
+        the moment of the call; empty when nothing is recorded."""
+        return []
 
     def path_crossings(self) -> list[tuple[int, int, bool]] | None:
         """The polytope crossings ``(v, w, person_led)`` along the robot's continuous path

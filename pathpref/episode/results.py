@@ -39,7 +39,9 @@ class EpisodeResult:
     :func:`~pathpref.geometry.homotopy.same_class`); set when the goal is reached.
     ``slack``: the time to spare, ``T_max`` minus the moves of the human's route from the start
     to the true goal (:func:`route_slack`); None where it was not measured (a failed episode's
-    placeholder, rows written before the column)."""
+    placeholder, rows written before the column).
+    ``path``: the body's continuous path when the spec asks for it (``record_path_hz``), one
+    tuple of :data:`~.body.PATH_FIELDS` per sample; stored beside the episode, not in its row."""
 
     spec: EpisodeSpec
     instance: Instance
@@ -56,6 +58,7 @@ class EpisodeResult:
     metrics: dict[str, float] = field(default_factory=dict)
     homotopic: bool = False
     slack: int | None = None
+    path: list[tuple] = field(default_factory=list)
 
     @property
     def pref_followed(self) -> bool:

@@ -140,6 +140,8 @@ class EpisodeRunner:
         self.t = 0
         self.pending_heading: int | None = None
         self.started = False
+        if spec.record_path_hz:
+            self.body.record_path(spec.record_path_hz)
         self.body.reset(self.cell)
         self._log(STAY, -1)
 
@@ -265,6 +267,7 @@ class EpisodeRunner:
         self.result.wall_s = time.perf_counter() - self.t0
         if self.done:
             self.result.metrics = self.body.metrics()
+            self.result.path = self.body.recorded_path()
             if self._path_judged:
                 self.result.metrics.update(self.path_metrics)
         return self.result.log[-1]

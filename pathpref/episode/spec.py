@@ -36,7 +36,13 @@ LIMITS: dict[str, tuple[float, float, bool]] = {
     "ucb_c": (1e-6, 1e6, False),
     "time_budget_ms": (1e-3, 1e7, False),
     "episode_timeout": (1, 1e6, False),  # or 0: none (the API takes any 0..1e6)
+    "record_path": (50, 1e4, False),  # or 0: no path recorded
 }
+#: the limits whose option also takes 0 (none)
+ZERO_OK = ("episode_timeout", "record_path")
+#: fields that say how an episode is run, not what it is: left out of its key and its stored
+#: columns (they do not change its result)
+RUN_OPTIONS = ("timeout_s", "record_path_hz")
 #: fields stored (key, database columns) under an older name: field -> stored name
 STORED_NAMES = {"robot": "task"}
 #: most episodes one sweep may hold (the product of its sizes, checked before building specs)
@@ -76,9 +82,10 @@ def check_number(option: str, value: Any, lo: float, hi: float, integer: bool = 
 
 
 def check_limit(option: str, value: Any, name: str) -> int | float:
-    """:func:`check_number` against ``LIMITS[name]`` (``episode_timeout`` also takes 0)."""
+    """:func:`check_number` against ``LIMITS[name]`` (those of :data:`ZERO_OK` also take
+    0)."""
     lo, hi, integer = LIMITS[name]
-    return check_number(option, value, lo, hi, integer, zero_ok=name == "episode_timeout")
+    return check_number(option, value, lo, hi, integer, zero_ok=name in ZERO_OK)
 
 
 @dataclass(frozen=True)
@@ -144,6 +151,10 @@ class EpisodeSpec:
     push_rule: str = ""
     #: wall-clock limit in seconds (0: none); not part of the key, it does not change results
     timeout_s: float = field(default=0.0, compare=False)
+    #: record the body's continuous path at this rate (samples per simulated second, >= 50;
+    #: 0: none), for a body that can (:meth:`~.body.Body.record_path`); stored beside the
+    #: episode (``EpisodeResult.path``), not part of the key: it does not change the result
+    record_path_hz: float = field(default=0.0, compare=False)
 
     def __post_init__(self) -> None:
         if self.t_max is None and isinstance(self.map, str):  # the map's mission time
@@ -204,9 +215,10 @@ class EpisodeSpec:
 
     @classmethod
     def field_names(cls) -> dict[str, str]:
-        """Every field's stored name -> its name (the timeout is not stored)."""
+        """Every field's stored name -> its name (the run options are not stored,
+        :data:`RUN_OPTIONS`)."""
         return {STORED_NAMES.get(f.name, f.name): f.name for f in fields(cls)
-                if f.name != "timeout_s"}
+                if f.name not in RUN_OPTIONS}
 
     def planner(self) -> Preset:
         """The preset with this episode's overrides: every setting a policy reads."""
@@ -220,11 +232,12 @@ class EpisodeSpec:
         return cached_map(self.map).content_hash
 
     def key(self) -> str:
-        """The episode's identity: every field but the map's path and the timeout, plus the
-        map's content hash (so an edited map runs new episodes and the same map under another
-        path reuses them)."""
+        """The episode's identity: every field but the map's path and the run options
+        (:data:`RUN_OPTIONS`), plus the map's content hash (so an edited map runs new episodes
+        and the same map under another path reuses them)."""
         d = self.stored()
-        d.pop("timeout_s")
+        for name in RUN_OPTIONS:
+            d.pop(name)
         if d["physics"] == "":
             d.pop("physics")
         d.pop("map")
@@ -252,6 +265,7 @@ class EpisodeSpec:
             check_limit(option, value, name)
         check_number("--episode-timeout", self.timeout_s, 0, LIMITS["episode_timeout"][1],
                      integer=False)
+        check_limit("--record-path", self.record_path_hz, "record_path")
         for option, value in (("instance", self.instance), ("run", self.run)):
             check_number(option, value, 0, 2**63 - 1)
         if self.time_budget_ms != 0:

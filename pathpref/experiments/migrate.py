@@ -14,8 +14,9 @@ only adds columns, in place: ``physics``, ``prior`` and ``push_rule`` (empty in 
 legacy physics, the independent prior and the periodic human they ran with), the
 ``homotopy_success`` and ``slack`` of each episode and the ``is_intervention`` of each step
 (NULL in old rows: not measured; a schema 5 file without ``slack`` gets it in place too),
-and to a schema 3 file the (empty) study tables of :mod:`.trials`; every row and key stays as
-it was. A schema 2 file's rows get these columns empty too.
+and to a schema 3 file the (empty) study tables of :mod:`.trials`; to any file, schema 5
+included, the (empty) ``episode_path`` table of recorded paths; every row and key stays as it
+was. A schema 2 file's rows get these columns empty too.
 
 **homotopy** (:func:`recompute_homotopy`, run by ``pathpref db upgrade`` after the schema is
 current) fills the NULL ``homotopy_success`` of old rows where it follows from what is stored,
@@ -36,29 +37,31 @@ map moved, stay NULL (reports: *not measured*).
 **check** (:func:`check_database`) reads a database without changing it and reports SQLite's
 integrity check, whether it is pathpref's (:func:`~pathpref.experiments.store.schema_version`),
 how many episode and step rows read back, and which episodes lack step rows (an episode that ran
-has one per time step ``0..steps``, a failed one none) or which step rows belong to no episode.
+has one per time step ``0..steps``, a failed one none) or which step rows belong to no episode;
+likewise the recorded paths (``episode_path``: rows ``k = 0..n-1`` of an episode that ran,
+none of a failed one, none of no episode).
 
 **salvage** (:func:`salvage_database`) copies every episode that reads back whole, with its step
-rows, into a new database; rows on damaged pages are read around (one rowid range at a time,
-then row by row), and an episode with a missing step row is left out, so a rerun of the sweep
-redoes exactly what was lost. The study tables (schema 4) are salvaged the same way: a trial is
-kept, with every row of its tables, when its ``trials`` row reads back and its rows are whole
-(:func:`_whole_trials`); a trial missing rows is left out whole and counted lost (``study run
---resume`` on the new database runs that trial again, the participant's other trials stay),
-with its NASA-TLX answers; the participant's gamepad calibrations are kept as they read back.
-The study rows are read into memory as the episodes are (a salvage is a one-off repair).
+rows and its recorded path, into a new database; rows on damaged pages are read around (one
+rowid range at a time, then row by row), and an episode with a missing step row is left out, so
+a rerun of the sweep redoes exactly what was lost. The study tables (schema 4) are salvaged the
+same way: a trial is kept, with every row of its tables, when its ``trials`` row reads back and
+its rows are whole (:func:`_whole_trials`); a trial missing rows is left out whole and counted
+lost (``study run --resume`` on the new database runs that trial again, the participant's other
+trials stay), with its NASA-TLX answers; the participant's gamepad calibrations are kept as they
+read back. The study rows are read into memory as the episodes are (a salvage is a one-off
+repair).
 
-**merge** (:func:`merge_databases`) joins sweep databases (the shards of a sweep, one per
-node) into one, keyed as every results database is by the episode's key, so each episode is
-stored once: an episode new to the output is copied with its step rows; one the output holds
-already is kept as it is, except that a finished (``ok``) row replaces a failed one. Two
-``ok`` rows of one key whose outcomes differ (status, success, goal, steps, inputs,
+**merge** (:func:`merge_databases`) joins sweep databases (the shards of a sweep, one per node)
+into one, keyed as every results database is by the episode's key, so each episode is stored
+once: an episode new to the output is copied with its step rows (and recorded path); one the
+output holds already is kept as it is, except that a finished (``ok``) row replaces a failed
+one. Two ``ok`` rows of one key whose outcomes differ (status, success, goal, steps, inputs,
 violations) are counted as ``conflicts`` (the output's row kept): the episodes are
-deterministic, so a conflict means the shards ran different code. Claims (``running`` rows)
-are not copied. Inputs are read only (each checked as a sweep checks its database) and copied
-a batch of episodes per transaction; a database holding study trials is refused (merge joins
-sweeps).
-"""
+deterministic, so a conflict means the shards ran different code. Claims (``running`` rows) are
+not copied. Inputs are read only (each checked as a sweep checks its database) and copied a
+batch of episodes per transaction; a database holding study trials is refused (merge joins
+sweeps). """
 
 from __future__ import annotations
 
@@ -85,12 +88,14 @@ from ..geometry.world import World
 from .store import (
     ADDITIVE,
     EPISODE_COLUMNS,
+    PATH_COLUMNS,
     SCHEMA_VERSION,
     STEP_COLUMNS,
     UPGRADABLE,
     ResultStore,
     damaged,
     inspect_results_file,
+    missing_base_tables,
     open_readonly,
     require_sqlite_file,
     row_spec,
@@ -267,11 +272,12 @@ def _fill_nulls(path: str | Path, column: str, which: str, value) -> dict[str, i
 
 @contextlib.contextmanager
 def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[tuple],
-                  study: dict[str, list[tuple]] | None = None) -> Iterator[str]:
-    """A new pathpref database holding ``episodes`` and ``steps`` (and the study tables'
-    ``study[table]`` rows), written to a temporary file in the folder of ``beside`` (rollback
-    journal, no side file) for the caller to move into place; whatever is left of it afterwards
-    is removed."""
+                  study: dict[str, list[tuple]] | None = None,
+                  paths: list[tuple] = ()) -> Iterator[str]:
+    """A new pathpref database holding ``episodes`` and ``steps`` (the study tables'
+    ``study[table]`` rows and the ``episode_path`` rows ``paths``), written to a temporary
+    file in the folder of ``beside`` (rollback journal, no side file) for the caller to move
+    into place; whatever is left of it afterwards is removed."""
     fd, tmp = tempfile.mkstemp(dir=beside.parent, prefix=f".{beside.stem}.", suffix=".new")
     os.close(fd)
     os.unlink(tmp)  # ResultStore creates the file itself
@@ -286,6 +292,9 @@ def _new_database(beside: Path, episodes: Iterable[dict[str, Any]], steps: list[
             store.conn.executemany(
                 f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
                 [(*s, *(None,) * (width - len(s))) for s in steps])
+            store.conn.executemany(
+                f"INSERT INTO episode_path VALUES ({', '.join('?' * len(PATH_COLUMNS))})",
+                paths)
             for table, rows in (study or {}).items():
                 if rows:  # a file without the late trials columns: NULL, as it reads
                     n = len(next(c for t, c, _ in STUDY_TABLES if t == table))
@@ -349,14 +358,27 @@ def _read_table(conn: sqlite3.Connection, table: str, chunk: int = 512
     return [dict(zip(names, r, strict=True)) for r in rows], lost, total is not None
 
 
-def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]]
-                    ) -> tuple[dict[str, dict[str, Any]], list[str], int]:
+def _read_path(conn: sqlite3.Connection) -> tuple[list[dict[str, Any]], int, bool]:
+    """:func:`_read_table` of ``episode_path`` (no rows, none lost, when the file predates
+    it)."""
+    if missing_base_tables(conn):
+        return [], 0, True
+    return _read_table(conn, "episode_path")
+
+
+def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]],
+                    paths: list[dict[str, Any]] = ()
+                    ) -> tuple[dict[str, dict[str, Any]], list[str], int, int]:
     """The episodes whose step rows are all there (one per time step ``0..steps`` for an
-    episode that ran, none for a failed one), keyed by key; the keys of the others; and the
-    number of step rows of no episode."""
+    episode that ran, none for a failed one) and whose recorded path, if any, has no gap
+    (``episode_path`` rows ``k = 0..n-1``; none for a failed one), keyed by key; the keys of
+    the others; the number of step rows and of path rows of no episode."""
     ts: dict[str, list[int]] = defaultdict(list)
     for s in steps:
         ts[s["key"]].append(s["t"])
+    ks: dict[str, list[int]] = defaultdict(list)
+    for r in paths:
+        ks[r["key"]].append(r["k"])
     whole: dict[str, dict[str, Any]] = {}
     broken: list[str] = []
     for e in episodes:
@@ -366,13 +388,17 @@ def _whole_episodes(episodes: list[dict[str, Any]], steps: list[dict[str, Any]]
         else:
             ok = (isinstance(n, int) and all(isinstance(t, int) for t in got)
                   and sorted(got) == list(range(n + 1)))
+        path = ks.get(e["key"], [])
+        ok = ok and (sorted(path) == list(range(len(path))) if e["status"] == "ok" else
+                     not path)
         if ok and e["key"] not in whole:
             whole[e["key"]] = e
         else:
             broken.append(e["key"])
     keys = {e["key"] for e in episodes}
     orphans = sum(len(t) for k, t in ts.items() if k not in keys)
-    return whole, broken, orphans
+    path_orphans = sum(len(v) for k, v in ks.items() if k not in keys)
+    return whole, broken, orphans, path_orphans
 
 
 #: the tables of a trial's rows that must run without gaps
@@ -440,15 +466,18 @@ def check_database(path: str | Path) -> dict[str, Any]:
         if out["pathpref"] is None:
             episodes, out["episodes_lost"], exact_e = _read_table(ro, "episodes")
             steps, out["steps_lost"], exact_s = _read_table(ro, "steps")
-            out["lost_exact"] = exact_e and exact_s
+            paths, out["path_lost"], exact_p = _read_path(ro)
+            out["lost_exact"] = exact_e and exact_s and exact_p
             out["episodes"], out["steps"] = len(episodes), len(steps)
-            _, out["incomplete"], out["orphans"] = _whole_episodes(episodes, steps)
+            out["path_rows"] = len(paths)
+            _, out["incomplete"], out["orphans"], out["path_orphans"] = _whole_episodes(
+                episodes, steps, paths)
             out["trials"] = _trial_counts(ro)
     finally:
         ro.close()
     out["intact"] = (out["integrity"] == ["ok"] and out["pathpref"] is None
                      and not (out["episodes_lost"] or out["steps_lost"] or out["incomplete"]
-                              or out["orphans"]))
+                              or out["orphans"] or out["path_lost"] or out["path_orphans"]))
     return out
 
 
@@ -482,6 +511,9 @@ def check_text(r: dict[str, Any]) -> str:
                   f"  episodes with missing step rows: {len(incomplete)}",
                   *(f"    {k}" for k in incomplete[:10]), *(["    ..."] * (len(incomplete) > 10)),
                   f"  orphan step rows (of no episode): {r['orphans']}"]
+        if r["path_rows"] or r["path_lost"] or r["path_orphans"]:
+            lines += [f"  recorded path rows: {r['path_rows']} readable, {about}{r['path_lost']} "
+                      f"unreadable, {r['path_orphans']} of no episode"]
         if r.get("trials"):
             done, running = r["trials"]
             lines.append(f"  study trials: {done} finished, {running} unfinished" + (
@@ -513,6 +545,7 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
                                   "databases")
             episodes, episodes_lost, exact_e = _read_table(ro, "episodes")
             steps, steps_lost, exact_s = _read_table(ro, "steps")
+            paths, path_lost, exact_p = _read_path(ro)
             absent = missing_study_tables(ro) if has_study_tables(ro) else []
             study = ({t: _read_table(ro, t) for t in STUDY_TABLE_NAMES if t not in absent}
                      if has_study_tables(ro) else None)
@@ -521,8 +554,9 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
     except sqlite3.DatabaseError as e:
         raise ConfigError(f"{path} cannot be salvaged: its table list is unreadable ({e})"
                           ) from None
-    whole, broken, orphans = _whole_episodes(episodes, steps)
+    whole, broken, orphans, path_orphans = _whole_episodes(episodes, steps, paths)
     kept = [tuple(s.values()) for s in steps if s["key"] in whole]
+    kept_path = [tuple(r.values()) for r in paths if r["key"] in whole]
     trials = trial_rows = trials_lost = 0
     study_rows: dict[str, list[tuple]] = {}
     if study is not None:
@@ -536,15 +570,17 @@ def salvage_database(path: str | Path, out: str | Path) -> dict[str, Any]:
         # a trial whose `trials` row did not read back is lost too (its other rows go with it)
         trials_lost = broken_trials + study["trials"][1]
         exact_e = exact_e and study["trials"][2]
-    with _new_database(out, whole.values(), kept, study_rows) as tmp:
+    with _new_database(out, whole.values(), kept, study_rows, kept_path) as tmp:
         os.replace(tmp, out)
     return {"episodes": len(whole), "steps": len(kept), "trials": trials,
             "trial_rows": trial_rows, "trials_lost": trials_lost,
             "study": study is not None,
             "episodes_lost": episodes_lost + len(broken),
             "steps_lost": steps_lost + len(steps) - len(kept), "incomplete": len(broken),
+            "path_rows": len(kept_path), "path_orphans": path_orphans,
+            "path_lost": path_lost + len(paths) - len(kept_path),
             "unreadable": episodes_lost, "orphans": orphans,
-            "lost_exact": exact_e and exact_s}
+            "lost_exact": exact_e and exact_s and exact_p}
 
 
 def _plain(v: Any) -> Any:
@@ -573,7 +609,8 @@ def merge_databases(out: str | Path, inputs: list[str | Path]) -> dict[str, int]
         ids.add(os.stat(src).st_ino)
     if len(ids) < len(inputs):
         raise ConfigError("an input database is given twice")
-    counts = dict.fromkeys(("copied", "replaced", "duplicates", "conflicts", "steps"), 0)
+    counts = dict.fromkeys(("copied", "replaced", "duplicates", "conflicts", "steps",
+                            "path_rows"), 0)
     with ResultStore(out, check_rows=True) as store:
         for src in inputs:
             _merge_one(store, Path(src), counts)
@@ -626,6 +663,7 @@ def _merge_row(conn: sqlite3.Connection, ro: sqlite3.Connection, row: dict[str, 
             return
         counts["replaced"] += 1
         conn.execute("DELETE FROM steps WHERE key = ?", (key,))
+        conn.execute("DELETE FROM episode_path WHERE key = ?", (key,))
     conn.execute(f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
                  f"VALUES ({', '.join('?' * len(cols))})", [row.get(c) for c in cols])
     steps = ro.execute(f"SELECT {', '.join(step_cols)} FROM steps WHERE key = ? ORDER BY t",
@@ -634,4 +672,10 @@ def _merge_row(conn: sqlite3.Connection, ro: sqlite3.Connection, row: dict[str, 
     conn.executemany(f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
                      [(*r, *(None,) * (width - len(r))) for r in steps])
     counts["steps"] += len(steps)
+    if not missing_base_tables(ro):  # the recorded path, when the input has the table
+        path = ro.execute("SELECT * FROM episode_path WHERE key = ? ORDER BY k",
+                          (key,)).fetchall()
+        conn.executemany(f"INSERT INTO episode_path VALUES "
+                         f"({', '.join('?' * len(PATH_COLUMNS))})", path)
+        counts["path_rows"] += len(path)
     counts["copied"] += have is None

@@ -104,6 +104,22 @@ STEP_COLUMNS = {
     "is_intervention": "INTEGER",
 }
 
+#: the columns of ``episode_path``, an episode's continuous path when it was recorded
+#: (``--record-path``: :attr:`~pathpref.episode.EpisodeSpec.record_path_hz`): sample ``k =
+#: 0, 1, ...`` at ``time_s`` (simulated s since the episode's start), the base's pose (``x``,
+#: ``y`` m in the scene's world frame, ``yaw`` rad), the end effector (m; NULL for the plain
+#: base) and the force the human applied then (``fx``, ``fy`` N, world x-y); the fields of
+#: :data:`~pathpref.episode.body.PATH_FIELDS` after ``key`` and ``k``
+PATH_COLUMNS = {
+    "key": "TEXT", "k": "INTEGER", "time_s": "REAL", "x": "REAL", "y": "REAL", "yaw": "REAL",
+    "ee_x": "REAL", "ee_y": "REAL", "ee_z": "REAL", "fx": "REAL", "fy": "REAL",
+}
+PATH_SQL = (f"CREATE TABLE episode_path ({', '.join(f'{c} {t}' for c, t in PATH_COLUMNS.items())}"
+            ", PRIMARY KEY (key, k))")
+#: tables added to schema 5 after its release: a file may lack them (read as empty; created
+#: in place when opened for writing, and by 'pathpref db upgrade')
+LATE_BASE_TABLES = ("episode_path",)
+
 #: The CREATE statements of pathpref's tables (``episodes`` takes its column list).
 META_SQL = "CREATE TABLE meta (key TEXT PRIMARY KEY, value TEXT)"
 
@@ -195,9 +211,11 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
                            "left untouched: give another --db path")
 
     study = any(("table", t) in objects for t in STUDY_TABLE_NAMES)
-    # a study file written before the late study tables may lack them (read as empty)
+    # a study file written before the late study tables may lack them (read as empty), and
+    # any file the late base tables
     tables = tuple(t for t in TABLES if t not in LATE_STUDY_TABLES or ("table", t) in objects
                    ) if study else BASE_TABLES
+    tables += tuple(t for t in LATE_BASE_TABLES if ("table", t) in objects)
     expected = {("table", t) for t in tables} | {
         ("index", f"sqlite_autoindex_{t}_1") for t in tables}
     extra = sorted(set(objects) - expected)
@@ -219,6 +237,7 @@ def schema_version(conn: sqlite3.Connection, path: str | Path) -> int | None:
         raise foreign(f"steps has columns {sorted(set(step_columns) - set(STEP_COLUMNS))}")
     sqls = [("meta", META_SQL), ("steps", steps_sql(step_columns)),
             ("episodes", episodes_sql(columns))]
+    sqls += [("episode_path", PATH_SQL)] if "episode_path" in tables else []
     trial_columns = [r[1] for r in conn.execute("PRAGMA table_xinfo(trials)")] if study else []
     if study and not trial_columns_ok(trial_columns):
         raise foreign(f"trials has columns {trial_columns}")
@@ -251,6 +270,18 @@ def episode_columns_ok(columns: Iterable[str]) -> bool:
     every = list(EPISODE_COLUMNS)
     return len(columns) >= len(every) - len(LATE_EPISODE_COLUMNS) and \
         columns == every[:len(columns)]
+
+
+def missing_base_tables(conn: sqlite3.Connection) -> list[str]:
+    """The late base tables (:data:`LATE_BASE_TABLES`) the file lacks."""
+    have = {r[0] for r in conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+    return [t for t in LATE_BASE_TABLES if t not in have]
+
+
+def complete_base_tables(conn: sqlite3.Connection) -> None:
+    """Create the late base tables the file lacks (inside the caller's transaction)."""
+    if "episode_path" in missing_base_tables(conn):
+        conn.execute(PATH_SQL)
 
 
 def missing_episode_columns(conn: sqlite3.Connection) -> list[str]:
@@ -567,6 +598,7 @@ class ResultStore:
             c.execute("INSERT INTO meta VALUES ('schema_version', ?)", (str(SCHEMA_VERSION),))
             c.execute(episodes_sql())
             c.execute(STEPS_SQL)
+            c.execute(PATH_SQL)
             create_study_tables(c)
 
     def _complete_schema(self) -> None:
@@ -575,19 +607,22 @@ class ResultStore:
         3 file, the study tables; to a schema 5 file the late episode columns it lacks
         (:data:`LATE_EPISODE_COLUMNS`); to a schema 4 or 5 file the late ``trials`` columns and
         study tables it lacks (:data:`~.trials.LATE_TRIAL_COLUMNS`,
-        :data:`~.trials.LATE_STUDY_TABLES`)."""
+        :data:`~.trials.LATE_STUDY_TABLES`); to any the late base tables it lacks
+        (:data:`LATE_BASE_TABLES`)."""
         c = self.conn
         row = c.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()
         version = int(row[0])
         if version not in ADDITIVE:
             if version == SCHEMA_VERSION and (missing_trial_columns(c)
                                               or missing_study_tables(c)
-                                              or missing_episode_columns(c)):
+                                              or missing_episode_columns(c)
+                                              or missing_base_tables(c)):
                 c.execute("BEGIN IMMEDIATE")  # another process may be adding them now
                 with c:
                     for name in missing_episode_columns(c):
                         c.execute(f"ALTER TABLE episodes ADD COLUMN {name} "
                                   f"{EPISODE_COLUMNS[name]}")
+                    complete_base_tables(c)
                     complete_trial_columns(c)
                     complete_study_tables(c)
             return
@@ -597,6 +632,7 @@ class ResultStore:
                 for name, kind in wanted.items():
                     if name not in have:
                         c.execute(f"ALTER TABLE {table} ADD COLUMN {name} {kind}")
+            complete_base_tables(c)
             if version < STUDY_SCHEMA:
                 create_study_tables(c)
             else:
@@ -709,6 +745,11 @@ class ResultStore:
         vals = [int(v) if isinstance(v, bool) else v for v in vals]
         key = row["key"]
         self.conn.execute("DELETE FROM steps WHERE key = ?", (key,))
+        self.conn.execute("DELETE FROM episode_path WHERE key = ?", (key,))
+        if res.path:  # the path rows go in the episode's transaction (a resume stays exact)
+            self.conn.executemany(
+                f"INSERT INTO episode_path VALUES ({', '.join('?' * len(PATH_COLUMNS))})",
+                [(key, k, *sample) for k, sample in enumerate(res.path)])
         self.conn.execute(
             f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
             f"VALUES ({', '.join('?' for _ in cols)})",
@@ -738,6 +779,13 @@ class ResultStore:
     def steps(self, key: str) -> list[dict[str, Any]]:
         """The per-step rows of episode ``key``, in step order."""
         return self._rows("SELECT * FROM steps WHERE key = ? ORDER BY t", (key,))
+
+    def recorded_path(self, key: str) -> list[dict[str, Any]]:
+        """The recorded path of episode ``key`` (``episode_path`` rows, in order; empty when
+        it was not recorded or the file predates the table)."""
+        if missing_base_tables(self.conn):
+            return []
+        return self._rows("SELECT * FROM episode_path WHERE key = ? ORDER BY k", (key,))
 
     def _rows(self, query: str, params: Iterable[Any]) -> list[dict[str, Any]]:
         with self._errors("read"):

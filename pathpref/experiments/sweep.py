@@ -34,7 +34,7 @@ from dataclasses import replace
 
 from tqdm import tqdm
 
-from ..episode import EpisodeSpec, body_class, cached_world
+from ..episode import Body, EpisodeSpec, body_class, cached_world
 from ..episode.instances import episode_instance
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
@@ -87,10 +87,14 @@ def shard_specs(specs: list[EpisodeSpec], index: int, count: int) -> list[Episod
 
 
 def check_specs(specs: list[EpisodeSpec]) -> None:
-    """Fail fast (before any work) on a bad body, map, preference or instance in the sweep."""
+    """Fail fast (before any work) on a bad body, map, preference or instance in the sweep,
+    or a path to record (``record_path_hz``) that the body cannot."""
     seen: set[tuple] = set()
     for s in specs:
-        body_class(s.sim, s.robot)
+        body = body_class(s.sim, s.robot)
+        if s.record_path_hz and body.record_path is Body.record_path:
+            raise ConfigError(f"--record-path: the '{s.sim}' body has no continuous path to "
+                              "record (use --sim mujoco)")
         sig = (s.map, s.instance_seed, s.n_goals, s.fixed)
         if sig in seen:
             continue

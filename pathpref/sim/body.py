@@ -39,6 +39,7 @@ from .force_cue import HumanPush, PushProfile
 from .guiding_human import GuidingHuman
 from .mobile_base import MobileBase
 from .path_crossings import PathCrossings
+from .path_record import PathRecorder
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, Scene, build_scene
 
@@ -83,6 +84,8 @@ class MujocoBody(Body):
         self.path: PathCrossings | None = None
         #: decision-timing pushes: (intended heading, detected heading or -1, latency s)
         self.readings: list[tuple[int, int, float]] = []
+        #: the continuous path's sampler (:meth:`record_path`; None: not recorded)
+        self.path_recorder: PathRecorder | None = None
 
     def reset(self, cell: int) -> None:
         """Reset the physics with the base at the centre of ``cell``."""
@@ -90,6 +93,19 @@ class MujocoBody(Body):
         self.cell = cell
         if self.path is not None:
             self.path.reset(cell)
+        if self.path_recorder is not None:
+            self.path_recorder.reset()
+
+    def record_path(self, hz: float) -> None:
+        """Sample the base's pose, the end effector and the applied force at least ``hz``
+        times per simulated second from the next reset on (:mod:`.path_record`)."""
+        if self.path_recorder is None:
+            self.path_recorder = PathRecorder(self.base, hz)
+            self.path_recorder.attach()
+
+    def recorded_path(self) -> list[tuple]:
+        """The samples since the last reset, the last one now (:mod:`.path_record`)."""
+        return [] if self.path_recorder is None else self.path_recorder.take()
 
     def path_crossings(self) -> list[tuple[int, int, bool]] | None:
         """Guidance: the polytope crossings along the path since the last call, labelled

@@ -37,6 +37,19 @@ length in seconds depends on the episode's physics):
 * ``action`` int64: the robot's next action, taken after that push (row ``t + 1``'s; -1 on
   the last frame).
 
+**Recorded paths** (``--source paths``: the ``--sim mujoco`` episodes of a sweep run with
+``--record-path HZ``, their ``episode_path`` rows; one frame per sample at the recorded rate,
+which must be a whole number of frames per second and the same for every episode, e.g. 100; the
+last sample of an episode, taken at its end between two sampling instants, is left out):
+
+* ``observation.state`` float32 ``[x, y, yaw]``: the base's pose (m, rad, world frame);
+* ``observation.end_effector`` float32 ``[x, y, z]``: the end effector (m), only when every
+  exported episode has one (the ``carry`` robot);
+* ``action`` float32 ``[vx, vy]``: the base's velocity over the frame, as for study trials;
+* ``intervention`` float32 ``[fx, fy]``: the simulated human's push, the force applied at the
+  sample's physics step (N);
+* ``is_intervention`` bool: ``|intervention| > PUSH_ON_N``, as for study trials.
+
 Each episode's task is its text (:func:`task_text`: ``"reach goal (5, 9) of map simple
 along the route (5, 2) (2, 2) (2, 9) (5, 9)"`` for a trial); ``meta/episodes`` also names
 where it came from (``source_key``: participant/trial, or the sweep's episode key) and its
@@ -57,7 +70,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from ..errors import ConfigError
-from ..experiments.store import ResultStore
+from ..experiments.store import ResultStore, missing_base_tables
 from ..experiments.trial_rows import checked
 from ..experiments.trials import has_study_tables
 from .record import PUSH_ON_N
@@ -69,7 +82,7 @@ CHUNK_FILES = 1000
 CHUNK_FILE = "chunk-{chunk_index:03d}/file-{file_index:03d}"
 DATA_PATH = "data/" + CHUNK_FILE + ".parquet"
 GROUP_ROWS = 65_536
-SOURCES = ("study", "episodes")
+SOURCES = ("study", "episodes", "paths")
 
 #: LeRobot's own columns of every frame
 DEFAULT_FEATURES = {
@@ -86,6 +99,15 @@ STUDY_FEATURES = {
     "intervention": {"dtype": "float32", "shape": [2], "names": ["fx", "fy"]},
     "is_intervention": {"dtype": "bool", "shape": [1], "names": None},
 }
+PATH_FEATURES = {
+    "observation.state": {"dtype": "float32", "shape": [3], "names": ["x", "y", "yaw"]},
+    "action": {"dtype": "float32", "shape": [2], "names": ["vx", "vy"]},
+    "intervention": {"dtype": "float32", "shape": [2], "names": ["fx", "fy"]},
+    "is_intervention": {"dtype": "bool", "shape": [1], "names": None},
+}
+#: with an end effector on every exported episode (the carry robot)
+END_EFFECTOR_FEATURE = {"observation.end_effector": {"dtype": "float32", "shape": [3],
+                                                     "names": ["x", "y", "z"]}}
 EPISODE_FEATURES = {
     "observation.state": {"dtype": "float32", "shape": [2], "names": ["x", "y"]},
     "action": {"dtype": "int64", "shape": [1], "names": None},
@@ -326,9 +348,72 @@ def _write_episodes(conn, db, root: Path) -> dict:
     return w.finish()
 
 
+def _path_fps(conn, db, keys: list[str]) -> int:
+    """The one recorded rate of the paths of ``keys``, in whole frames per second: ``1 / (t_1
+    - t_0)`` of each path; ConfigError when they differ or are not whole."""
+    rates = set()
+    for key in keys:
+        t = [r[0] for r in conn.execute("SELECT time_s FROM episode_path WHERE key = ? AND "
+                                        "k < 2 ORDER BY k", (key,))]
+        if len(t) == 2 and t[1] > t[0]:
+            rates.add(round(1.0 / (t[1] - t[0]), 6))
+    if len(rates) != 1 or not float(next(iter(rates))).is_integer():
+        shown = ", ".join(f"{r:g}" for r in sorted(rates)) or "none"
+        raise ConfigError(f"{db}: the recorded paths must share one rate of whole frames per "
+                          f"second for a dataset (found {shown} Hz); record them with "
+                          "--record-path 100, say")
+    return int(next(iter(rates)))
+
+
+def _path_frames(rows: Iterator[dict], fps: int, end_effector: bool) -> Iterator[dict]:
+    """The frames of one recorded path (module docstring): the samples on the ``k / fps``
+    grid (within 1 us), with a row of look-ahead for the velocity."""
+    prev = None
+    for r in rows:
+        if abs(r["time_s"] - r["k"] / fps) > 1e-6:
+            continue  # the episode's last sample, between two instants
+        fx, fy = r["fx"], r["fy"]
+        cur = {"observation.state": [r["x"], r["y"], r["yaw"]],
+               "intervention": [fx, fy], "is_intervention": math.hypot(fx, fy) > PUSH_ON_N}
+        if end_effector:
+            cur["observation.end_effector"] = [r["ee_x"], r["ee_y"], r["ee_z"]]
+        if prev is not None:
+            yield prev | {"action": [(r["x"] - prev["observation.state"][0]) * fps,
+                                     (r["y"] - prev["observation.state"][1]) * fps]}
+        prev = cur
+    if prev is not None:
+        yield prev | {"action": [0.0, 0.0]}
+
+
+def _write_paths(conn, db, root: Path) -> dict:
+    if missing_base_tables(conn):
+        raise ConfigError(f"{db} holds no recorded paths (run the sweep with --record-path)")
+    eps = list(_iter(conn, "SELECT key, map, goals, true_goal, success FROM episodes WHERE "
+                     "sim = 'mujoco' AND status = 'ok' AND key IN (SELECT DISTINCT key FROM "
+                     "episode_path) ORDER BY key", ()))
+    if not eps:
+        raise ConfigError(f"{db} holds no --sim mujoco episodes with a recorded path (run the "
+                          "sweep with --record-path 100)")
+    fps = _path_fps(conn, db, [e["key"] for e in eps])
+    ee = conn.execute("SELECT count(*) FROM episode_path WHERE ee_x IS NULL").fetchone()[0] == 0
+    w = LeRobotWriter(root, fps, PATH_FEATURES | (END_EFFECTOR_FEATURE if ee else {}),
+                      "pathpref_mobile_manipulator" if ee else "pathpref_mobile_base")
+    for e in eps:
+        goal = json.loads(e["goals"])[e["true_goal"]]
+        frames = _path_frames(_iter(conn, "SELECT * FROM episode_path WHERE key = ? ORDER BY k",
+                                    (e["key"],)), fps, ee)
+        w.add_episode(task_text(goal, e["map"]), frames,
+                      {"source_key": e["key"], "success": int(e["success"] or 0)})
+    return w.finish()
+
+
+WRITERS = {"study": _write_study, "episodes": _write_episodes, "paths": _write_paths}
+
+
 def export_dataset(db: str | Path, out: str | Path, source: str) -> dict:
-    """Write ``db``'s study trials (``source="study"``) or physical episodes (``"episodes"``)
-    as a LeRobot v3 dataset at ``out`` (a new folder); its ``meta/info.json``."""
+    """Write ``db``'s study trials (``source="study"``), physical episodes (``"episodes"``)
+    or their recorded paths (``"paths"``) as a LeRobot v3 dataset at ``out`` (a new folder);
+    its ``meta/info.json``."""
     if source not in SOURCES:
         raise ConfigError(f"--source must be one of {', '.join(SOURCES)}, got {source[:20]!r}")
     try:
@@ -346,8 +431,7 @@ def export_dataset(db: str | Path, out: str | Path, source: str) -> dict:
     with ResultStore(db, create=False) as store:
         tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}."))
         try:
-            info = (_write_study if source == "study" else _write_episodes)(
-                store.conn, db, tmp)
+            info = WRITERS[source](store.conn, db, tmp)
             os.rename(tmp, out)
         finally:
             if tmp.exists():
