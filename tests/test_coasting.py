@@ -123,6 +123,31 @@ def test_guided_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons):
     assert sum(dict(o[7])["person_crossings"] for o in on) > 0
 
 
+@pytest.mark.cross_cpu
+def test_recorded_paths_are_the_same_with_compiled_steps(monkeypatch, reasons):
+    """A path recorder (``--record-path``) lets the kernel run the steps between its samples
+    and takes each sample in Python: the same samples, state and decisions either way."""
+    def run():
+        out = []
+        for timing in ("decision", "guidance"):
+            physics = Physics() if timing == "decision" else Physics.of(timing=timing)
+            spec = EpisodeSpec.single("office", "path_preference", 5, seed=11, instance=1,
+                                      sim="mujoco", t_max=8, physics=physics.to_json(),
+                                      record_path_hz=60)
+            runner = EpisodeRunner(spec)
+            while not runner.done:
+                runner.step()
+            res = runner.result
+            out.append((_state(runner.body.base), res.path,
+                        [(s.t, s.x, s.y, s.action) for s in res.log]))
+        return out
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+    assert all(len(o[1]) > 100 for o in on)
+    assert reasons["steps"] > 1000 and reasons.get(coasting.CROSS, 0) > 100
+
+
 def _base(detector=None):
     world = load_world("simple")
     base = MobileBase(scene_for(world), sensor_model=SensorModel.realistic(),

@@ -48,8 +48,9 @@ from .native import hypot, mj_step
 from .path_crossings import PathCrossings
 from .sensing import W_MEAN, W_WINDOW_S, window_step
 
-#: hand-back reasons of :func:`_coast` (``CROSS``: the base entered another polytope, or a
-#: cell the grid's lookup does not hold, with a :class:`~.path_crossings.PathCrossings` hook)
+#: hand-back reasons of :func:`_coast` (``CROSS``: an ``on_substep`` hook acts at this step:
+#: the base entered another polytope, or a cell the grid's lookup does not hold, with a
+#: :class:`~.path_crossings.PathCrossings` hook, or a quiet hook's step count ran out)
 READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
 #: measurements, the detector's hand-back ``e`` and the velocity a contact met
@@ -60,7 +61,7 @@ READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
  T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
- HELD, FILTER, SAMPLES, GUIDED, POLY, GW, GH, N_IS) = range(23)
+ HELD, FILTER, SAMPLES, GUIDED, POLY, GW, GH, HOOK_IN, N_IS) = range(24)
 #: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
 CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
@@ -210,6 +211,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, 
             idx = cell_index[ix - 1, iy - 1]
             if idx < 0 or cell_polytope[idx] != ns[POLY]:
                 return CROSS, step + 1
+        if step + 1 >= ns[HOOK_IN]:  # a quiet on_substep hook is due (PathRecorder's sample)
+            return CROSS, step + 1
         # --- the task's low-pass of the estimate (navigate_control: stage.ForceFilter.update)
         if ns[FILTER]:
             f0, f1 = filt[0], filt[1]
@@ -284,16 +287,46 @@ class Coaster:
         b = self.base
         s = b.sensing
         f = s.faulty
-        hooks = b.on_substep
-        return (b.decision.final is None and not b.pushes
-                and (not hooks or (len(hooks) == 1 and type(hooks[0]) is PathCrossings
-                                   and hooks[0].v >= 0))
+        return (b.decision.final is None and not b.pushes and self._hooks_mirrored()
 
                 and (not b.pre_substep or b.data.time < self._quiet_until())
                 and not b.external_forces and b._onset is None and not s.under_way
                 and f is not None and f._held is not None and s.estimator._qvel_mark is not None
                 and b._float_for is b.controller and b._float_control
                 and (not b.measure or b.measurements._f_measured is s.force_estimate))
+
+    def _hooks_mirrored(self) -> bool:
+        """Every ``on_substep`` hook is one the kernel runs without: at most one
+        :class:`~.path_crossings.PathCrossings` (reset: its polytope known), whose polytope
+        check the kernel makes, and hooks that say how many steps they stay quiet
+        (``quiet_steps()``, ``skip(n)``: :class:`~.path_record.PathRecorder`)."""
+        crossings = 0
+        for hook in self.base.on_substep:
+            if type(hook) is PathCrossings:
+                crossings += 1
+                if hook.v < 0:
+                    return False
+            elif getattr(hook, "quiet_steps", None) is None:
+                return False
+        return crossings <= 1
+
+    def _hook_state(self) -> tuple[int, int]:
+        """The polytope of the base's :class:`~.path_crossings.PathCrossings` (-1: none) and
+        the step (1-based) of this run at which a quiet hook is due."""
+        poly, due = -1, self.MAX_STEPS + 1
+        for hook in self.base.on_substep:
+            if type(hook) is PathCrossings:
+                poly = hook.v
+            else:
+                due = min(due, hook.quiet_steps() + 1)
+        return poly, due
+
+    def _skip_hooks(self, n: int) -> None:
+        """``n`` steps ran in the kernel without the quiet hooks."""
+        if n > 0:
+            for hook in self.base.on_substep:
+                if type(hook) is not PathCrossings:
+                    hook.skip(n)
 
     def _bind(self) -> None:
         b = self.base
@@ -373,13 +406,13 @@ class Coaster:
                                  int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
                                  b.model.sensor(CONTACT_SENSOR).adr[0],
                                  int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
-                                 -1, b.scene.world.spec.width, b.scene.world.spec.height],
+                                 -1, b.scene.world.spec.width, b.scene.world.spec.height, 0],
                                 dtype=np.int64)
             self._key = key
         cs, ns = self._cs, self._ns
         cs[ALPHA] = 0.0 if force_filter is None else force_filter.alpha
         ns[FILTER], ns[SAMPLES] = force_filter is not None, 0
-        ns[POLY] = b.on_substep[0].v if b.on_substep else -1
+        ns[POLY], ns[HOOK_IN] = self._hook_state()
         return cs, ns
 
     def _guidance(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -431,6 +464,9 @@ class Coaster:
         if entry is None:
             entry = self._entries[self._key] = compiled_entry(args)
         reason, steps = entry(*args)
+        # the quiet hooks learn of the steps they were not called for (the last step's hooks
+        # run in Python after a hand-back within it)
+        self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))
         # --- the state back into the Python objects (a sample gives a new held sample and
         # estimate, new arrays as the Python path's)
         new_estimate = ns[SAMPLES] > 0

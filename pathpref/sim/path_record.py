@@ -2,8 +2,9 @@
 
 A :class:`PathRecorder` is an ``on_substep`` hook of a base (:mod:`.mobile_base`): it only
 reads the state after each physics step, so the episode runs exactly as without it (the same
-steps, cues and results; a base with a hook takes the Python steps, which
-:mod:`.coasting` matches bit for bit, so a recorded episode is slower, not different).
+steps, cues and results). The compiled steps (:mod:`.coasting`) run the steps between two
+samples without it (:meth:`PathRecorder.quiet_steps`, :meth:`PathRecorder.skip`) and hand the
+sampled step back to Python.
 
 Samples: one at the reset (time 0, the base at the start cell's centre), then every ``every``
 physics steps, ``every = max(1, floor(1 / (hz dt)))`` (``dt`` the physics step), so the
@@ -58,6 +59,15 @@ class PathRecorder:
         self._steps += 1
         if self._steps % self.every == 0:
             self._sample()
+
+    def quiet_steps(self) -> int:
+        """How many of the next physics steps take no sample (the compiled steps of
+        :mod:`.coasting` run them without calling the hook, then :meth:`skip` them)."""
+        return self.every - 1 - self._steps % self.every
+
+    def skip(self, n: int) -> None:
+        """``n`` physics steps passed without a call, none of them due a sample."""
+        self._steps += n
 
     def _sample(self) -> None:
         b = self.base
