@@ -408,6 +408,7 @@ class Coaster:
                                  int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
                                  -1, b.scene.world.spec.width, b.scene.world.spec.height, 0],
                                 dtype=np.int64)
+            self._guide_args = (*self._guide, *self._guidance())
             self._key = key
         cs, ns = self._cs, self._ns
         cs[ALPHA] = 0.0 if force_filter is None else force_filter.alpha
@@ -459,7 +460,7 @@ class Coaster:
                 (c.last, b.target, self._err, goal, filt),
                 (f.bias, held, f.win, self._scratch), f.rng, est.params,
                 est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
-                (*self._guide, *self._guidance()), fs, cs, ns, max_steps)
+                self._guide_args, fs, cs, ns, max_steps)
         entry = self._entries.get(self._key)
         if entry is None:
             entry = self._entries[self._key] = compiled_entry(args)
