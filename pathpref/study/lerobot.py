@@ -270,21 +270,32 @@ def _study_frames(conn, db, participant: str, trial: int, fps: int) -> Iterator[
                                          "participant = ? AND trial = ? ORDER BY t", where), db)
     force = next(forces, None)
     step, after = None, next(steps, None)
+
+    def frames() -> Iterator[dict]:
+        nonlocal force, step, after
+        for r in path:
+            t = r["time_s"]
+            while force is not None and force["time_s"] < t - 1e-9:
+                force = next(forces, None)
+            while after is not None and after["time_s"] <= t + 1e-9:
+                step, after = after, next(steps, None)
+            fx, fy = (0.0, 0.0) if force is None or abs(force["time_s"] - t) > 1e-6 else (
+                force["fx"], force["fy"])
+            yield {"observation.state": [r["x"], r["y"]],
+                   "observation.robot_action": -1 if step is None else step["action"],
+                   "intervention": [fx, fy], "is_intervention": math.hypot(fx, fy) > PUSH_ON_N}
+
+    return _with_action(frames(), fps)
+
+
+def _with_action(frames: Iterator[dict], fps: int) -> Iterator[dict]:
+    """Each frame with its ``action``: the velocity to the next frame's position (``fps``
+    times the step, m/s), 0 at the last frame (a row of look-ahead)."""
     prev = None
-    for r in path:
-        t = r["time_s"]
-        while force is not None and force["time_s"] < t - 1e-9:
-            force = next(forces, None)
-        while after is not None and after["time_s"] <= t + 1e-9:
-            step, after = after, next(steps, None)
-        fx, fy = (0.0, 0.0) if force is None or abs(force["time_s"] - t) > 1e-6 else (
-            force["fx"], force["fy"])
-        cur = {"observation.state": [r["x"], r["y"]],
-               "observation.robot_action": -1 if step is None else step["action"],
-               "intervention": [fx, fy], "is_intervention": math.hypot(fx, fy) > PUSH_ON_N}
+    for cur in frames:
         if prev is not None:
-            yield prev | {"action": [(r["x"] - prev["observation.state"][0]) * fps,
-                                     (r["y"] - prev["observation.state"][1]) * fps]}
+            (x0, y0), (x1, y1) = prev["observation.state"][:2], cur["observation.state"][:2]
+            yield prev | {"action": [(x1 - x0) * fps, (y1 - y0) * fps]}
         prev = cur
     if prev is not None:
         yield prev | {"action": [0.0, 0.0]}
@@ -367,22 +378,19 @@ def _path_fps(conn, db, keys: list[str]) -> int:
 
 def _path_frames(rows: Iterator[dict], fps: int, end_effector: bool) -> Iterator[dict]:
     """The frames of one recorded path (module docstring): the samples on the ``k / fps``
-    grid (within 1 us), with a row of look-ahead for the velocity."""
-    prev = None
-    for r in rows:
-        if abs(r["time_s"] - r["k"] / fps) > 1e-6:
-            continue  # the episode's last sample, between two instants
-        fx, fy = r["fx"], r["fy"]
-        cur = {"observation.state": [r["x"], r["y"], r["yaw"]],
-               "intervention": [fx, fy], "is_intervention": math.hypot(fx, fy) > PUSH_ON_N}
-        if end_effector:
-            cur["observation.end_effector"] = [r["ee_x"], r["ee_y"], r["ee_z"]]
-        if prev is not None:
-            yield prev | {"action": [(r["x"] - prev["observation.state"][0]) * fps,
-                                     (r["y"] - prev["observation.state"][1]) * fps]}
-        prev = cur
-    if prev is not None:
-        yield prev | {"action": [0.0, 0.0]}
+    grid (within 1 us), with their velocity (:func:`_with_action`)."""
+    def frames() -> Iterator[dict]:
+        for r in rows:
+            if abs(r["time_s"] - r["k"] / fps) > 1e-6:
+                continue  # the episode's last sample, between two instants
+            fx, fy = r["fx"], r["fy"]
+            cur = {"observation.state": [r["x"], r["y"], r["yaw"]],
+                   "intervention": [fx, fy], "is_intervention": math.hypot(fx, fy) > PUSH_ON_N}
+            if end_effector:
+                cur["observation.end_effector"] = [r["ee_x"], r["ee_y"], r["ee_z"]]
+            yield cur
+
+    return _with_action(frames(), fps)
 
 
 def _write_paths(conn, db, root: Path) -> dict:
