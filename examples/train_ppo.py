@@ -1,20 +1,25 @@
 """Train PPO (stable-baselines3) on ``pathpref/Navigate-v0``: one action is one decision (a
 move to a grid neighbour, or stay) while the simulated human pushes the handle at every
-decision; the reward is the Gymnasium ids' loop-free one (the move cost, the person's
-preferred route as a potential, +50 at the goal: ``docs/tasks.md``). The agent observes the
+decision; the reward is the Gymnasium ids' loop-free one (the move cost, a stay costing as
+much as a straight move, the person's preferred route as a potential, +50 at the goal:
+``docs/tasks.md``). The agent observes the
 detected push (``heading``), the belief over the candidate goals, the goals seen from the base
 (``goal_vectors``, ``goal_direction``) and the current polytope (``polytope_onehot``). Writes
 the learning curve, the trained agent, its evaluation and a video::
 
     pip install torch --index-url https://download.pytorch.org/whl/cpu   # CPU-only torch
     pip install "pathpref[rl]"                                         # stable-baselines3
-    MUJOCO_GL=egl nice -n 10 python examples/train_ppo.py --out ppo_out --steps 30000
+    MUJOCO_GL=egl nice -n 10 python examples/train_ppo.py --out ppo_out --seed 0
 
 ``ppo_out/``: ``curve.png`` (success and return of the training episodes against environment
 steps), ``agent.zip`` (the PPO model), ``summary.json`` (training CPU seconds, the success of
 the deterministic agent on ``--eval`` held-out episodes with its Wilson interval),
 ``episodes.json`` and ``agent.mp4`` (one held-out episode, the task drawn). Training stops at
 ``--steps`` or at ``--cpu-minutes`` of this process's CPU time, whichever comes first. The
+default hyperparameters (256 steps per rollout, batch 64, 10 epochs, lr 1e-3, gamma 0.95,
+entropy 0.005, two hidden layers of 64) are those of the documented run (``docs/tasks.md``),
+which reaches held-out success >= 0.6 within 20 CPU-minutes; one JSON progress line is
+printed per rollout. The
 saved agent is filmed again on any seed with ``pathpref render``::
 
     pathpref render --task navigate --map simple --method path_preference --delta-t 1 \\
@@ -185,15 +190,15 @@ def main(argv: list[str] | None = None) -> dict:
     """Train, plot, evaluate, save and film (module docstring); the summary."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="ppo_out", help="output folder")
-    ap.add_argument("--steps", type=int, default=30_000, help="environment steps to train")
+    ap.add_argument("--steps", type=int, default=100_000, help="environment steps to train")
     ap.add_argument("--cpu-minutes", type=float, default=20.0,
                     help="stop training after this much CPU time of the process")
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--n-steps", type=int, default=512, help="PPO rollout length")
+    ap.add_argument("--n-steps", type=int, default=256, help="PPO rollout length")
     ap.add_argument("--batch-size", type=int, default=64)
-    ap.add_argument("--gamma", type=float, default=0.99, help="discount")
-    ap.add_argument("--ent-coef", type=float, default=0.01, help="entropy bonus")
-    ap.add_argument("--learning-rate", type=float, default=3e-4)
+    ap.add_argument("--gamma", type=float, default=0.95, help="discount")
+    ap.add_argument("--ent-coef", type=float, default=0.005, help="entropy bonus")
+    ap.add_argument("--learning-rate", type=float, default=1e-3)
     ap.add_argument("--net", default="64,64", help="hidden layer sizes of policy and value")
     ap.add_argument("--eval", type=int, default=100, help="held-out evaluation episodes")
     ap.add_argument("--video-size", default="480x360", help="WxH of the agent's video (0x0: "
