@@ -1,20 +1,25 @@
 """Train PPO (stable-baselines3) on ``pathpref/Navigate-v0``: one action is one decision (a
 move to a grid neighbour, or stay) while the simulated human pushes the handle at every
-decision; the reward is the Gymnasium ids' loop-free one (the move cost, the person's
-preferred route as a potential, +50 at the goal: ``docs/tasks.md``). The agent observes the
+decision; the reward is the Gymnasium ids' loop-free one (the move cost, a stay costing as
+much as a straight move, the person's preferred route as a potential, +50 at the goal:
+``docs/tasks.md``). The agent observes the
 detected push (``heading``), the belief over the candidate goals, the goals seen from the base
 (``goal_vectors``, ``goal_direction``) and the current polytope (``polytope_onehot``). Writes
 the learning curve, the trained agent, its evaluation and a video::
 
     pip install torch --index-url https://download.pytorch.org/whl/cpu   # CPU-only torch
     pip install "pathpref[rl]"                                         # stable-baselines3
-    MUJOCO_GL=egl nice -n 10 python examples/train_ppo.py --out ppo_out --steps 30000
+    MUJOCO_GL=egl nice -n 10 python examples/train_ppo.py --out ppo_out --seed 0
 
 ``ppo_out/``: ``curve.png`` (success and return of the training episodes against environment
 steps), ``agent.zip`` (the PPO model), ``summary.json`` (training CPU seconds, the success of
 the deterministic agent on ``--eval`` held-out episodes with its Wilson interval),
 ``episodes.json`` and ``agent.mp4`` (one held-out episode, the task drawn). Training stops at
 ``--steps`` or at ``--cpu-minutes`` of this process's CPU time, whichever comes first. The
+default hyperparameters (256 steps per rollout, batch 64, 10 epochs, lr 1e-3, gamma 0.95,
+entropy 0.005, two hidden layers of 64) are those of the documented run (``docs/tasks.md``),
+which reaches held-out success >= 0.6 within 20 CPU-minutes; one JSON progress line is
+printed per rollout. The
 saved agent is filmed again on any seed with ``pathpref render``::
 
     pathpref render --task navigate --map simple --method path_preference --delta-t 1 \\
@@ -113,14 +118,26 @@ class EpisodeLog(gym.Wrapper):
 
 
 class CpuBudget(BaseCallback):
-    """Stops training once this process has used ``seconds`` of CPU time."""
+    """Stops training once this process has used ``seconds`` of CPU time; after each rollout
+    prints one JSON line of progress (steps, CPU seconds, the success and mean return of the
+    last 100 training episodes of ``log``)."""
 
-    def __init__(self, seconds: float):
+    def __init__(self, seconds: float, log: EpisodeLog):
         super().__init__()
         self.seconds = seconds
+        self.log = log
 
     def _on_step(self) -> bool:
         return cpu_seconds() < self.seconds
+
+    def _on_rollout_end(self) -> None:
+        last = self.log.episodes[-100:]
+        print(json.dumps({"steps": self.log.steps, "cpu_s": round(cpu_seconds(), 1),
+                          "episodes": len(self.log.episodes),
+                          "success_last_100": float(np.mean([e["success"] for e in last]))
+                          if last else None,
+                          "return_last_100": round(float(np.mean([e["return"] for e in last])),
+                                                   2) if last else None}), flush=True)
 
 
 def make_env(seed: int = 0) -> EpisodeLog:
@@ -173,10 +190,16 @@ def main(argv: list[str] | None = None) -> dict:
     """Train, plot, evaluate, save and film (module docstring); the summary."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", default="ppo_out", help="output folder")
-    ap.add_argument("--steps", type=int, default=30_000, help="environment steps to train")
+    ap.add_argument("--steps", type=int, default=100_000, help="environment steps to train")
     ap.add_argument("--cpu-minutes", type=float, default=20.0,
                     help="stop training after this much CPU time of the process")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--n-steps", type=int, default=256, help="PPO rollout length")
+    ap.add_argument("--batch-size", type=int, default=64)
+    ap.add_argument("--gamma", type=float, default=0.95, help="discount")
+    ap.add_argument("--ent-coef", type=float, default=0.005, help="entropy bonus")
+    ap.add_argument("--learning-rate", type=float, default=1e-3)
+    ap.add_argument("--net", default="64,64", help="hidden layer sizes of policy and value")
     ap.add_argument("--eval", type=int, default=100, help="held-out evaluation episodes")
     ap.add_argument("--video-size", default="480x360", help="WxH of the agent's video (0x0: "
                     "no video)")
@@ -189,12 +212,14 @@ def main(argv: list[str] | None = None) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     torch.set_num_threads(1)  # the machine's cores are shared; the MLP is small
     env = make_env(args.seed)
-    model = PPO("MultiInputPolicy", env, n_steps=512 if args.steps >= 512 else 64, batch_size=64,
-                n_epochs=10, learning_rate=3e-4, gamma=0.99, ent_coef=0.01, seed=args.seed,
-                device="cpu", verbose=0)
+    net = [int(v) for v in args.net.split(",")]
+    model = PPO("MultiInputPolicy", env, n_steps=min(args.n_steps, args.steps),
+                batch_size=args.batch_size, n_epochs=10, learning_rate=args.learning_rate,
+                gamma=args.gamma, ent_coef=args.ent_coef, seed=args.seed,
+                policy_kwargs={"net_arch": net}, device="cpu", verbose=0)
     cpu0 = cpu_seconds()
     model.learn(total_timesteps=args.steps,
-                callback=CpuBudget(cpu0 + 60.0 * args.cpu_minutes))
+                callback=CpuBudget(cpu0 + 60.0 * args.cpu_minutes, env))
     train_cpu_s = cpu_seconds() - cpu0
     model.save(out / "agent.zip")
     eps = env.episodes

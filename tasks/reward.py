@@ -7,8 +7,17 @@ the person's preference as a potential (Ng, Harada and Russell 1999, with ``gamm
 ``D`` is the constrained cost-to-go of :mod:`pathpref.inference.costs` (paper Eq. 5) to the true
 goal ``g``, leaving ``v(s)`` through the person's preferred exit ``p_v(s)`` (the unconstrained grid
 distance ``d(s, g)`` where the polytope has no preference); ``c`` is the grid move cost (1 or
-sqrt(2), 1 for a blocked move, 0 for staying), and for a cell change at control rate between
-cells that are not grid neighbours the straight distance between their centres, in cells.
+sqrt(2), 1 for a blocked move), :data:`STAY_COST` (1 cell, a straight move's cost) for a
+decision to stay, and for a cell change at control rate between cells that are not grid
+neighbours the straight distance between their centres, in cells. Scale: one cell is 1, the
+goal ``R_g = 50`` (the paper's goal reward), and ``|Phi|`` at most the longest constrained
+route (a few tens of cells on the built-in maps).
+
+Staying costs as much as a straight move, a time cost: every decision is paid for, so waiting
+for the person is never free and an agent cannot earn more by standing still (return
+``-T_max - D(s_0)`` over ``T_max`` decisions) than by driving toward the goal. At control rate
+the reward comes at cell changes only (:mod:`.navigate_control`), so the stay cost never
+applies there.
 
 Because the shaping term is a difference of potentials, it sums to ``Phi(s_T) - Phi(s_0)`` over
 any path and to 0 over any closed one: a loop earns exactly minus its move cost. An episode that
@@ -27,6 +36,8 @@ from pathpref.inference.costs import build_cost_tables
 
 #: the reward rules a task accepts: the paper's (SPEC 6) and the potential above
 REWARDS = ("paper", "potential")
+#: ``c`` of a decision to stay (cells): the time cost of one decision, a straight move's cost
+STAY_COST = 1.0
 
 
 def preference_potential(world: World, goal_cell: int, pref: np.ndarray) -> np.ndarray:
@@ -47,9 +58,13 @@ def preference_potential(world: World, goal_cell: int, pref: np.ndarray) -> np.n
 
 
 def move_cost(world: World, s: int, s2: int, a: int) -> float:
-    """``c(s, a, s')`` of the module docstring."""
+    """``c(s, a, s')`` of the module docstring: the grid move's cost, :data:`STAY_COST` for
+    staying in the cell (``a`` is STAY and ``s' = s``), the straight distance (cells) for a
+    cell change between cells that are no grid neighbours (``a`` is STAY, ``s' != s``)."""
     if a != STAY:
         return float(world.motion.cost[s, a])
+    if s2 == s:
+        return STAY_COST
     return float(np.hypot(*(world.cells[s2] - world.cells[s]).astype(float)))
 
 
