@@ -16,15 +16,20 @@ and compares every state, cue and metric exactly.
 The kernel hands back to Python, before or within a step, whenever something it does not
 mirror may happen: the detector's force is not clearly below its onset threshold (the onset
 rule and the cue stream run in Python from there on, :data:`DETECT`), the base touches
-something (the contact measurements, :data:`CONTACTS`), or the move ends (:data:`END`:
-settled, or its time is up). It runs only where it applies (:meth:`Coaster.applies`,
-:meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase` on the profiled
-controller's float path, the faulty sensor without thermal drift and its estimator, the
-filtered detector idle, no pushes, guidance or external forces, no hook but a quiet one (the
-simulated human of pushes at any time runs the kernel up to its next push), a scene with the
-contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
-(:meth:`Coaster.drive`: the agent's velocity held, :class:`~.controller.HeldVelocity`, no move
-to end). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it off.
+something (the contact measurements, :data:`CONTACTS`), an ``on_substep`` hook acts (a
+polytope change for the path's crossing hook, a path recorder's sample: :data:`CROSS`), or
+the move ends (:data:`END`: settled, or its time is up). It runs only where it applies
+(:meth:`Coaster.applies`, :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase`
+on the profiled controller's float path, the faulty sensor without thermal drift and its
+estimator, the filtered detector idle, no pushes or external forces, a guided base's
+admittance at most in its tail (no cue under way; the command through the safety filter), no
+``pre_substep`` hook but a quiet one (the simulated human of pushes at any time runs the
+kernel up to its next push), no ``on_substep`` hook but the path's crossing hook and quiet
+ones, a scene with the contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate
+task's drive runs on it too (:meth:`Coaster.drive`: the agent's velocity held,
+:class:`~.controller.HeldVelocity`, no move to end), and a timed move (guidance: its drive,
+then the hold). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns
+it off.
 """
 
 from __future__ import annotations
