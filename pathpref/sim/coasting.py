@@ -51,6 +51,7 @@ from .keep_clear import keep_clear_xy
 from .measurements import planar_accel
 from .native import hypot, mj_step
 from .path_crossings import PathCrossings
+from .path_record import PathRecorder
 from .sensing import W_MEAN, W_WINDOW_S, window_step
 
 #: hand-back reasons of :func:`_coast` (``CROSS``: an ``on_substep`` hook acts at this step:
@@ -303,15 +304,15 @@ class Coaster:
     def _hooks_mirrored(self) -> bool:
         """Every ``on_substep`` hook is one the kernel runs without: at most one
         :class:`~.path_crossings.PathCrossings` (reset: its polytope known), whose polytope
-        check the kernel makes, and hooks that say how many steps they stay quiet
-        (``quiet_steps()``, ``skip(n)``: :class:`~.path_record.PathRecorder`)."""
+        check the kernel makes, and path recorders (:class:`~.path_record.PathRecorder`),
+        which say how many steps they stay quiet (``quiet_steps()``, ``skip(n)``)."""
         crossings = 0
         for hook in self.base.on_substep:
             if type(hook) is PathCrossings:
                 crossings += 1
                 if hook.v < 0:
                     return False
-            elif getattr(hook, "quiet_steps", None) is None:
+            elif type(hook) is not PathRecorder:
                 return False
         return crossings <= 1
 

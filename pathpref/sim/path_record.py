@@ -19,9 +19,12 @@ None for the plain base) and the force applied to the pushed body at that step
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from ..errors import ConfigError
-from .mobile_base import MobileBase
+
+if TYPE_CHECKING:  # (the base's compiled steps import this module)
+    from .mobile_base import MobileBase
 
 
 def sample_every(hz: float, dt: float) -> int:
