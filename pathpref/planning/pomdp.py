@@ -173,9 +173,7 @@ def get_preset(name: str, **overrides) -> Preset:
         raise ConfigError(f"unknown preset '{name}'; choose one of {sorted(PRESETS)}")
     if overrides.get("prior") is not None:
         check_prior(overrides["prior"])
-    preset = PRESETS[name]
-    overrides = {k: v for k, v in overrides.items() if v is not None}
-    return replace(preset, **overrides) if overrides else preset
+    return replace(PRESETS[name], **{k: v for k, v in overrides.items() if v is not None})
 
 
 def transition_reward(world, s: int, s2: int, a: int, goal_cell: int, pref_neighbor: int,
