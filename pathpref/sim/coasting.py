@@ -52,6 +52,7 @@ from .measurements import planar_accel
 from .native import hypot, mj_step
 from .path_crossings import PathCrossings
 from .path_record import PathRecorder
+from .scene import grid_cell
 from .sensing import W_MEAN, W_WINDOW_S, window_step
 
 #: hand-back reasons of :func:`_coast` (``CROSS``: an ``on_substep`` hook acts at this step:
@@ -67,7 +68,7 @@ READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
  T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
- HELD, FILTER, SAMPLES, GUIDED, POLY, GW, GH, HOOK_IN, N_IS) = range(24)
+ HELD, FILTER, SAMPLES, GUIDED, POLY, HOOK_IN, N_IS) = range(22)
 #: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
 CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
@@ -209,12 +210,7 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, 
         # --- PathCrossings (the on_substep hook; nothing pushes): the polytope under the base
         # (Scene.cell_at's grid lookup); another one, or a cell off the lookup, in Python
         if ns[POLY] >= 0:
-            gx, gy = qpos[ns[IX]] / cs[CELL], qpos[ns[IY]] / cs[CELL]
-            if not (math.isfinite(gx) and math.isfinite(gy)):
-                return CROSS, step + 1
-            ix = min(max(int(math.floor(gx)) + 1, 1), ns[GW])
-            iy = min(max(int(math.floor(gy)) + 1, 1), ns[GH])
-            idx = cell_index[ix - 1, iy - 1]
+            idx = grid_cell(qpos[ns[IX]], qpos[ns[IY]], cs[CELL], cell_index)
             if idx < 0 or cell_polytope[idx] != ns[POLY]:
                 return CROSS, step + 1
         if step + 1 >= ns[HOOK_IN]:  # a quiet on_substep hook is due (PathRecorder's sample)
@@ -346,7 +342,7 @@ class Coaster:
         self._key = None  # the constants' (_constants)
         sc = b.scene
         self._guide = (sc.clearance.arrays, sc.clearance.near_rows,
-                       np.ascontiguousarray(sc.world.arrangement.cell_index, dtype=np.int64),
+                       sc.cell_index,
                        np.ascontiguousarray(sc.world.cell_polytope, dtype=np.int64))
         #: the kernel's compiled overload per constants' key (:func:`compiled_entry`)
         self._entries: dict = {}
@@ -412,7 +408,7 @@ class Coaster:
                                  int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
                                  b.model.sensor(CONTACT_SENSOR).adr[0],
                                  int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
-                                 -1, b.scene.world.spec.width, b.scene.world.spec.height, 0],
+                                 -1, 0],
                                 dtype=np.int64)
             self._guide_args = (*self._guide, *self._guidance())
             self._key = key
@@ -428,9 +424,7 @@ class Coaster:
         b, g = self.base, self.base.guidance
         if g is None:
             return self._err, self._err, np.zeros(7)
-        sc, c = b.scene, b.controller
-        return g.v, g.deformation, np.array([b.dt, g.mass, g.damping, c.v_max, c.a_max,
-                                             sc.cell_size, sc.world.footprint.reach])
+        return g.v, g.deformation, g.step_params(b)
 
     def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None
              ) -> tuple[int, int, np.ndarray]:

@@ -54,6 +54,7 @@ class Guidance:
         self.moving = False
         self.given = 0.0  # the evidence the cue under way has given (observations)
         self._rest = np.zeros(2)  # the force while no cue is under way
+        self._params_for = None  # the controller step_params were made for
 
     def reset(self) -> None:
         """A standing base: no admittance velocity, no evidence."""
@@ -79,13 +80,21 @@ class Guidance:
         pushing = s.under_way
         if not (pushing or self.moving):
             return False
-        sc, c = base.scene, base.controller
-        params = np.array([base.dt, self.mass, self.damping, c.v_max, c.a_max, sc.cell_size,
-                           sc.world.footprint.reach])
         self.moving = admit_step(self.v, base.target, self.deformation,
-                                 s.force_estimate if pushing else self._rest, pushing, params,
-                                 sc.clearance.arrays)
+                                 s.force_estimate if pushing else self._rest, pushing,
+                                 self.step_params(base), base.scene.clearance.arrays)
         return self.moving
+
+    def step_params(self, base) -> np.ndarray:
+        """:func:`admit_step`'s ``params`` for ``base``: ``(dt, M, b, v_max, a_max, cell size,
+        the footprint's reach)``, kept until the base's controller changes."""
+        c = base.controller
+        if self._params_for is not c:
+            sc = base.scene
+            self._params = np.array([base.dt, self.mass, self.damping, c.v_max, c.a_max,
+                                     sc.cell_size, sc.world.footprint.reach])
+            self._params_for = c
+        return self._params
 
     def feel(self, force: np.ndarray, dt: float) -> bool:
         """Add one step's force to the evidence; whether a period is full. A cue's first

@@ -16,6 +16,7 @@ from importlib import resources
 from pathlib import Path
 
 import mujoco
+import numba as nb
 import numpy as np
 
 from ..episode.physics import CELL_SIZE_M
@@ -69,18 +70,35 @@ class Scene:
         """Metric position ``(x, y)`` of a free cell's centre."""
         return (self.world.cells[cell] - 0.5) * self.cell_size
 
+    @cached_property
+    def cell_index(self) -> np.ndarray:
+        """The grid's ``(W, H)`` free-cell ids (-1: in an obstacle), as :func:`grid_cell`
+        takes them."""
+        return np.ascontiguousarray(self.world.arrangement.cell_index, dtype=np.int64)
+
     def cell_at(self, xy: np.ndarray) -> int:
         """Free cell holding a metric position (the nearest free cell if it is in an obstacle)."""
-        gx, gy = float(xy[0]) / self.cell_size, float(xy[1]) / self.cell_size
-        W, H = self.world.spec.width, self.world.spec.height
-        if math.isfinite(gx) and math.isfinite(gy):  # floor + 1 clipped to the grid, on floats
-            x, y = min(max(math.floor(gx) + 1, 1), W), min(max(math.floor(gy) + 1, 1), H)
-            idx = int(self.world.arrangement.cell_index[x - 1, y - 1])
-            if idx >= 0:
-                return idx
+        idx = grid_cell(float(xy[0]), float(xy[1]), self.cell_size, self.cell_index)
+        if idx >= 0:
+            return idx
         g = np.asarray(xy, float)[:2] / self.cell_size
         d = np.linalg.norm(self.world.cells - 0.5 - g, axis=1)
         return int(np.argmin(d))
+
+
+@nb.njit(cache=True)
+def grid_cell(x, y, cell, cell_index):
+    """The free cell whose grid square holds ``(x, y)`` (m; ``cell`` m per cell): ``floor(x /
+    cell) + 1`` clipped to the grid, on floats, then ``cell_index`` (-1: in an obstacle, or a
+    coordinate that is not finite). :meth:`Scene.cell_at` and the compiled steps
+    (:mod:`.coasting`) both call it."""
+    gx, gy = x / cell, y / cell
+    if not (math.isfinite(gx) and math.isfinite(gy)):
+        return -1
+    w, h = cell_index.shape
+    i = min(max(int(math.floor(gx)) + 1, 1), w)
+    j = min(max(int(math.floor(gy)) + 1, 1), h)
+    return cell_index[i - 1, j - 1]
 
 
 def _is_axis_box(vertices: np.ndarray) -> bool:
