@@ -15,6 +15,9 @@ Conditions (every condition runs the same specs: map, method, Delta_T, instance 
 * ``anytime``: the same with pushes at any time (an interval of Delta_T seconds +-50 %, while
   the base drives, brakes or stands; the move stops on a cue and the robot replans);
 * ``diffdrive``: ``realistic`` on the differential-drive base;
+* ``tidybot``, ``tidybot-anytime``, ``tidybot-guidance``: ``realistic``, ``anytime`` and
+  ``guidance`` on the Stanford TidyBot (``robot_model`` tidybot: Menagerie's 69 kg robot at
+  1 m per cell, 0.5 m/s and 0.5 m/s^2);
 * ``guidance``: Bajcsy-style sustained corrections on the ``anytime`` clock: the human holds
   the handle (log-normal, median 2 s) while the base drives, the base complies (admittance
   20 kg, 80 N s/m added to its tracking) and the belief is updated online from the force's
@@ -102,6 +105,12 @@ CONDITIONS = {
     # (strength_confidence 1), the robot ignoring or using the strength
     "strength-ignored": ("mujoco", Physics.of(strength_confidence=1.0).to_json()),
     "strength-used": ("mujoco", Physics.of(strength_confidence=1.0, use_strength=True).to_json()),
+    # the Stanford TidyBot (Menagerie's model, 1 m per cell, its own drive limits): realistic
+    # sensing at input steps, pushes at any time, guidance
+    "tidybot": ("mujoco", Physics.of(robot_model="tidybot").to_json()),
+    "tidybot-anytime": ("mujoco", Physics.of(robot_model="tidybot", timing="interval").to_json()),
+    "tidybot-guidance": ("mujoco", Physics.of(robot_model="tidybot",
+                                              timing="guidance").to_json()),
 }
 STUDY = ["grid", "grid+noise", "mujoco-ideal", "realistic", "anytime", "diffdrive"]
 

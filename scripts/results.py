@@ -79,6 +79,8 @@ JSON_SOURCES: list[tuple[str, str, str, str]] = [
      "physics", ""),
     ("docs/results/guidance_office.json", "Guidance against taps on office", "physics", ""),
     ("docs/results/thermal_simple.json", "Sensor thermal warm-up", "physics", ""),
+    ("docs/results/physics_study_tidybot.json",
+     "The Stanford TidyBot against the disk base (physics study)", "physics", ""),
     ("docs/pushes.json", "Success against pushes per episode", "pushes",
      "python scripts/pushes_figure.py --out docs/pushes.png --db-dir /tmp/pushes "
      "--instances 4 --queries 200"),

@@ -2,10 +2,12 @@
 ``pathpref render`` and lay six frames out 3 x 2 (two early frames, four moments spread over the
 rest, the last one the outcome card).
 
-The episode is the tour's (:func:`pathpref.apps.demo.tour_seed`): path preference on ``simple``
-with the demo's corrective human, at the first ``--seed`` whose preferred route the demo's film
-rule accepts (at least 8 steps, 2 polytope crossings and 10 spare steps; the route only, never an
-outcome). The script prints the seed, the command and the episode's outcome.
+The episode is the tour's (:func:`pathpref.apps.demo.tour_seed`), filmed on the Stanford
+TidyBot (``--robot-model tidybot``; ``--robot-model disk`` films the cylinder): path
+preference on ``simple`` with the demo's corrective human, at the first ``--seed`` whose
+preferred route the demo's film rule accepts (at least 8 steps, 2 polytope crossings and 10
+spare steps; the route only, never an outcome). The script prints the seed, the command and
+the episode's outcome.
 
     MUJOCO_GL=egl python scripts/video_grid.py --out docs/video_grid.png
 """
@@ -38,12 +40,15 @@ def main() -> None:
     """Render, pick six frames, write the grid."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="docs/video_grid.png", help="grid image (.png)")
+    ap.add_argument("--robot-model", default="tidybot", choices=("tidybot", "disk"),
+                    help="the body filmed (default: the Stanford TidyBot)")
     args = ap.parse_args()
     seed = tour_seed()
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / "v.mp4"
         cmd = ["render", "--map", DEMO_MAP, "--method", FILM_METHOD, "--delta-t",
-               str(DEMO_DELTA_T), "--push-rule", DEMO_PUSH_RULE, "--seed", str(seed)]
+               str(DEMO_DELTA_T), "--push-rule", DEMO_PUSH_RULE, "--seed", str(seed),
+               "--robot-model", args.robot_model]
         print("pathpref " + " ".join(f"'{a}'" if " " in a else a for a in cmd))
         subprocess.run([sys.executable, "-m", "pathpref", *cmd, "--out", str(video),
                         "--no-progress"], check=True)

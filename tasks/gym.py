@@ -131,11 +131,10 @@ def learner_features(space: spaces.Dict, observation) -> dict[str, np.ndarray]:
     - ``goal_direction`` ``(2,)``: the belief's expected goal vector
       ``sum_g b(g) goal_vectors[g]`` (in [-1, 1]);
     - ``polytope_onehot`` ``(P,)``: the current polytope, one-hot."""
-    from .navigate import CELL_SIZE
-
     side = float(space["goal_cells"].high.max())
+    cell = float(space["position"].high.max()) / side  # the position's bound is side * s
     cells = np.asarray(observation["goal_cells"], np.float64).reshape(-1, 2)
-    here = np.asarray(observation["position"], np.float64).reshape(2) / CELL_SIZE
+    here = np.asarray(observation["position"], np.float64).reshape(2) / cell
     vectors = np.clip((cells - 0.5 - here) / side, -1.0, 1.0)
     belief = np.asarray(observation["goal_belief"], np.float64).reshape(-1)
     P = int(round(float(space["polytope"].high[0]))) + 1

@@ -102,7 +102,8 @@ from .stage import ForceFilter, Physics, StagedBody, StepInteraction
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
 STAY_ACTION = 8
-#: metres per grid unit of the scenes (the one home: ``pathpref.episode.physics.CELL_SIZE_M``)
+#: metres per grid unit of the disk's scenes (the one home: ``pathpref.episode.physics.
+#: CELL_SIZE_M``; a task's is :attr:`Navigate.cell_size`, its body's)
 CELL_SIZE = CELL_SIZE_M
 #: physics seconds of one decision step (the default ``decision_s`` of the legacy physics)
 DECISION_S = 2.5
@@ -186,8 +187,11 @@ class Navigate(base.Task):
         self.template.validate()
         #: the physical parameters (None: the legacy physics, asked for by name)
         self.physics = ph = self.template.physical
-        self.scene: Scene = scene_for(self.world, CELL_SIZE, task,
-                                      None if ph is None else base_params(ph))
+        #: metres per grid unit: the body's (:attr:`~pathpref.episode.physics.Physics.cell_size_m`)
+        self.cell_size = CELL_SIZE if ph is None else ph.cell_size_m
+        self.scene: Scene = scene_for(self.world, self.cell_size, task,
+                                      None if ph is None else base_params(ph),
+                                      "disk" if ph is None else ph.drive.robot_model)
         self.dt = float(self.scene.model.opt.timestep)
         #: the longest a push phase lasts (s): the longest push and the detector's release
         self.push_window_s = (PushProfile().duration_s if ph is None else
@@ -228,13 +232,13 @@ class Navigate(base.Task):
         """The longest move of a decision step (s): the controller's limit, within what the
         step leaves after the push window."""
         limit = MOVE_LIMIT_S if self.physics is None else \
-            self.physics.move_limit_s(CELL_SIZE)
+            self.physics.move_limit_s(self.cell_size)
         return move_limit(limit, self.decision_s, self.push_window_s, self.dt)
 
     def physical_decision_s(self) -> float:
         """The default step with physics: the one rule every door uses,
         :meth:`~pathpref.episode.physics.Physics.step_s` (a move and the push window)."""
-        return self.physics.step_s(CELL_SIZE)
+        return self.physics.step_s(self.cell_size)
 
     def make_base(self, data, rng: np.random.Generator) -> MobileBase:
         """The robot's base on the Environment's ``MjData``, built as the ``--sim mujoco``
@@ -371,7 +375,7 @@ class Navigate(base.Task):
         side = float(max(w.width, w.height))
         h_max = math.log(G) + math.log(max(2, self.world.n_polytopes))
         return collections.OrderedDict([
-            ("position", bounded((2,), 0.0, side * CELL_SIZE, "position")),
+            ("position", bounded((2,), 0.0, side * self.cell_size, "position")),
             ("cell", bounded((2,), 1.0, side, "cell")),
             ("heading", bounded((8,), 0.0, 1.0, "heading")),
             ("force", specs.Array((2,), np.float64, name="force")),

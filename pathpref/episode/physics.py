@@ -80,6 +80,32 @@ SENSORS = ("ideal", "ft300s", "realistic")
 TIMINGS = ("decision", "interval", "rate", "corrective", "guidance")
 SHAPES = ("half_sine", "bell")
 BASES = ("holonomic", "diffdrive")
+
+
+@dataclass(frozen=True)
+class RobotModel:
+    """A body a physical episode can run (the drive's ``robot_model``): the metres per grid
+    unit its scenes are built at and the drive settings that differ from :class:`Drive`'s
+    defaults (each with its source in ``docs/physics.md``).
+
+    The scale is the body's: a map's moves are made for a footprint of 0.3 cells (the maps'
+    default), so a body of plan radius ``r`` needs at least ``r / 0.3`` m per cell."""
+
+    cell_size_m: float
+    drive: dict = field(default_factory=dict)
+
+
+#: the bodies (the flat field ``robot_model``; ``disk`` is the original 12 kg cylinder whose
+#: drive the physical defaults make a Clearpath Ridgeback; ``tidybot`` the Stanford TidyBot of
+#: MuJoCo Menagerie, 0.284 m from its centre to its bumper's corner, so 1 m per cell): its
+#: mass is Menagerie's (the base's 60 kg, the Gen3 arm, the gripper and the push handle:
+#: :func:`pathpref.sim.tidybot.navigation_mass_kg`), its limits those TidyBot++'s simulated
+#: base controller plans with (0.5 m/s and 0.5 m/s^2, ``mujoco_env.py``'s Ruckig limits)
+ROBOT_MODELS: dict[str, RobotModel] = {
+    "disk": RobotModel(cell_size_m=0.5),
+    "tidybot": RobotModel(cell_size_m=1.0, drive={"mass_kg": 69.29, "v_max": 0.5,
+                                                 "a_max": 0.5}),
+}
 #: the simulated person under ``guidance`` timing: ``closed``, who pushes toward their route
 #: and lets go when the robot heads the right way (the simulator's ``guiding_human``), or
 #: ``open``, who holds one drawn heading for the whole push
@@ -105,7 +131,8 @@ RANGES: dict[str, tuple[float, float]] = {
 #: the overrides that may be left at "the preset's" (stored as -1)
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
 CHOICES: dict[str, tuple[str, ...]] = {"sensor": SENSORS, "timing": TIMINGS, "shape": SHAPES,
-                                       "base": BASES, "guide": GUIDES}
+                                       "base": BASES, "guide": GUIDES,
+                                       "robot_model": tuple(ROBOT_MODELS)}
 
 
 #: the error of a physics value nested too deeply to read (its fields are flat)
@@ -128,7 +155,8 @@ DRIVE_V_MAX = 1.5
 #: fields added after rows were stored: left out of the canonical JSON at their default, so
 #: the keys of stored episodes are unchanged
 QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0,
-                  "arm_stiffness": 1000.0, "sensor_thermal_n": 0.0, "guide": "closed"}
+                  "arm_stiffness": 1000.0, "sensor_thermal_n": 0.0, "guide": "closed",
+                  "robot_model": "disk"}
 #: quiet fields written whatever their value under a timing (a guided episode names its
 #: person, so rows of the earlier open-loop person never share a key with it)
 NAMED_UNDER = {"guide": "guidance"}
@@ -136,9 +164,11 @@ NAMED_UNDER = {"guide": "guidance"}
 
 def _canonical(flat: dict) -> str:
     """Canonical JSON of flat fields: sorted keys, the fields of ``QUIET_DEFAULTS`` only when
-    not at their default (or under their :data:`NAMED_UNDER` timing)."""
+    not at their default (or under their :data:`NAMED_UNDER` timing); every field for a body
+    other than the disk (its drive defaults are its own, so none is left implicit)."""
     timing = flat.get("timing")
-    d = {k: v for k, v in flat.items() if k not in QUIET_DEFAULTS or
+    every = flat.get("robot_model", QUIET_DEFAULTS["robot_model"]) != QUIET_DEFAULTS["robot_model"]
+    d = {k: v for k, v in flat.items() if every or k not in QUIET_DEFAULTS or
          v != QUIET_DEFAULTS[k] or NAMED_UNDER.get(k) == timing}
     return json.dumps(d, sort_keys=True, separators=(",", ":"))
 #: the robot's model of how far a push's direction strays from the heading the human chose:
@@ -150,9 +180,9 @@ GUIDANCE_MAX_EVIDENCE = 2.0
 #: how often a sustained push's direction updates the belief while it lasts (s)
 GUIDANCE_PERIOD_S = 0.1
 
-#: metres per grid unit of every physical scene (the MuJoCo bodies, the tasks, the studies, the
-#: rerun recordings): one home for the scale
-CELL_SIZE_M = 0.5
+#: metres per grid unit of the disk's scenes (the MuJoCo bodies, the tasks, the studies, the
+#: rerun recordings); another body's is its :data:`ROBOT_MODELS` entry's
+CELL_SIZE_M = ROBOT_MODELS["disk"].cell_size_m
 #: the push detector's thresholds, one home for every detector and for :class:`Physics`: a cue
 #: begins when the force stays above ``on_n`` (N) for ``on_s`` (s) and ends when it stays below
 #: ``off_n`` for ``off_s``
@@ -285,6 +315,8 @@ class Drive:
     admittance_m: float = QUIET_DEFAULTS["admittance_m"]
     #: the carry arm's end-effector (tray) stiffness (N/m: 30 N deflects it about 25 mm)
     arm_stiffness: float = QUIET_DEFAULTS["arm_stiffness"]
+    #: the body (:data:`ROBOT_MODELS`; built from flat fields, its drive defaults apply)
+    robot_model: str = QUIET_DEFAULTS["robot_model"]
 
     def __post_init__(self) -> None:
         _check(self)
@@ -332,6 +364,9 @@ class Physics:
                                   f"{', '.join(sorted(FIELDS))}")
             group, attr = FIELDS[k]
             parts[group][attr] = v
+        robot = parts["drive"].get("robot_model")
+        if given["drive"] is None and robot in ROBOT_MODELS:  # the body's own drive defaults
+            parts["drive"] = {**ROBOT_MODELS[robot].drive, **parts["drive"]}
         for name, cls in GROUPS.items():
             value = given[name]
             if value is None:
@@ -420,10 +455,17 @@ class Physics:
         raise ConfigError(f"physics must be a Physics, a dict of its fields, JSON or None, "
                           f"got {type(value).__name__}")
 
-    def move_s(self, cell_size: float = CELL_SIZE_M) -> float:
-        """The drive's rest-to-rest time across one cell diagonally, ``d = sqrt(2) cell``, at
-        its trapezoid profile: ``d / v + v / a`` when ``d >= v^2 / a`` (it reaches ``v_max``),
-        else ``2 sqrt(d / a)``."""
+    @property
+    def cell_size_m(self) -> float:
+        """The metres per grid unit of this body's scenes (:data:`ROBOT_MODELS`)."""
+        return ROBOT_MODELS[self.drive.robot_model].cell_size_m
+
+    def move_s(self, cell_size: float | None = None) -> float:
+        """The drive's rest-to-rest time across one cell diagonally, ``d = sqrt(2) cell``
+        (``cell`` default: the body's, :attr:`cell_size_m`), at its trapezoid profile:
+        ``d / v + v / a`` when ``d >= v^2 / a`` (it reaches ``v_max``), else ``2 sqrt(d /
+        a)``."""
+        cell_size = self.cell_size_m if cell_size is None else cell_size
         d, v, a = math.sqrt(2.0) * cell_size, self.drive.v_max, self.drive.a_max
         return d / v + v / a if d >= v * v / a else 2.0 * math.sqrt(d / a)
 
@@ -431,7 +473,7 @@ class Physics:
         """The longest a push phase lasts: the longest push and its release window."""
         return self.human.duration_max_s + RELEASE_WINDOW_S
 
-    def step_s(self, cell_size: float = CELL_SIZE_M) -> float:
+    def step_s(self, cell_size: float | None = None) -> float:
         """**The one rule for how long a decision step lasts** (simulated seconds): a move
         (:meth:`move_s` plus ``SETTLE_S``) after the longest push phase
         (:meth:`push_window_s`), rounded up to 0.1 s. Every door uses it: the dm_control
@@ -442,7 +484,7 @@ class Physics:
         raw = self.move_s(cell_size) + SETTLE_S + self.push_window_s()
         return math.ceil(10.0 * raw - 1e-9) / 10.0
 
-    def move_limit_s(self, cell_size: float = CELL_SIZE_M) -> float:
+    def move_limit_s(self, cell_size: float | None = None) -> float:
         """The longest a move may take: the step less its push phase (:meth:`step_s`)."""
         return self.step_s(cell_size) - self.push_window_s()
 

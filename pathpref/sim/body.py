@@ -41,20 +41,32 @@ from .mobile_base import MobileBase
 from .path_crossings import PathCrossings
 from .path_record import PathRecorder
 from .pushing_human import PushingHuman, sample_profile
-from .scene import BaseParams, Scene, build_scene
+from .scene import BaseParams, RobotBody, Scene, build_scene
+from .tidybot_base import TIDYBOT
+
+#: the bodies of :data:`~pathpref.episode.physics.ROBOT_MODELS` (None: ``navigate.xml``'s own
+#: cylinder)
+ROBOT_BODIES: dict[str, RobotBody | None] = {"disk": None, "tidybot": TIDYBOT}
 
 
 @lru_cache(maxsize=8)
 def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigate",
-              base: BaseParams | None = None) -> Scene:
-    """One compiled scene per world (worlds hash by identity), cell size, task and base."""
+              base: BaseParams | None = None, robot: str = "disk") -> Scene:
+    """One compiled scene per world (worlds hash by identity), cell size, task, base and
+    body (``robot``, :data:`ROBOT_BODIES`)."""
+    if robot not in ROBOT_BODIES:
+        raise ConfigError(f"unknown robot model '{robot}'; choose {', '.join(ROBOT_BODIES)}")
     if task == "carry":
+        if robot != "disk":
+            raise ConfigError(f"carry runs on the disk base with the Jaco arm; the {robot} "
+                              "carries in pathpref.sim.tidybot (whole-body IK), not in episodes "
+                              "yet: use --robot navigate with --robot-model tidybot")
         from .arm import build_arm_scene
 
         return build_arm_scene(world, cell_size, base)
     if task != "navigate":
         raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
-    return build_scene(world, cell_size, base)
+    return build_scene(world, cell_size, base, ROBOT_BODIES[robot])
 
 
 class MujocoBody(Body):
@@ -66,7 +78,7 @@ class MujocoBody(Body):
     tasks = ("navigate", "carry")
 
     def __init__(self, world: World, spec, rng: np.random.Generator,
-                 profile: PushProfile | None = None, cell_size: float = CELL_SIZE_M,
+                 profile: PushProfile | None = None, cell_size: float | None = None,
                  scene: Scene | None = None, data=None, base: MobileBase | None = None):
         self.world = world
         self.rng = rng
@@ -74,7 +86,10 @@ class MujocoBody(Body):
         self.delta_t = int(spec.delta_t)
         if base is None:
             params = None if physics is None else base_params(physics)
-            scene = scene or scene_for(world, cell_size, spec.robot, params)
+            if cell_size is None:  # the body's own scale
+                cell_size = CELL_SIZE_M if physics is None else physics.cell_size_m
+            robot = "disk" if physics is None else physics.drive.robot_model
+            scene = scene or scene_for(world, cell_size, spec.robot, params, robot)
             base = build_base(scene, spec.robot, physics, rng, profile=profile, data=data)
         self.scene = base.scene
         self.base: MobileBase = base

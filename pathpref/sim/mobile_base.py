@@ -84,6 +84,7 @@ class MobileBase:
         #: the planar drive's force limit (N; the first actuator's range)
         self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
         self._zero_q, self._zero_v = np.zeros(m.nq), np.zeros(m.nv)
+        self._rest = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "rest")
         # MjData's arrays, bound once (its buffers stay put; an attribute read makes a new one)
         self._qpos, self._qvel, self._ctrl_view = self.data.qpos, self.data.qvel, self.data.ctrl
         a = self.actuators  # a slice when the actuators are adjacent (no index array per step)
@@ -155,8 +156,12 @@ class MobileBase:
 
     # --- state ---------------------------------------------------------------------------
     def reset(self, cell: int) -> None:
-        """Reset the physics with the base at the centre of ``cell``."""
-        mujoco.mj_resetData(self.model, self.data)
+        """Reset the physics with the base at the centre of ``cell`` (from the model's ``rest``
+        keyframe when it has one: a robot's standing posture, e.g. the TidyBot's arm)."""
+        if self._rest >= 0:
+            mujoco.mj_resetDataKeyframe(self.model, self.data, self._rest)
+        else:
+            mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self.xy] = self.scene.cell_centre(cell)
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)

@@ -14,11 +14,11 @@ applies to the pushed body (``xfrc_applied``: the renderer shows the truth, the 
 reads it), so a push is drawn whether it came with the decision step's push phase or at any
 time (pushes while driving, several at once, the viewer's perturbation).
 
-**Arm close-up.** In a scene with the carry arm (a body ``tool/tray``) the perspective view
-carries an inset (:data:`CLOSEUP_SHARE` of its height, bottom right) from a camera that
-follows the tray (:data:`CLOSEUP_DISTANCE_M` away, aimed :data:`CLOSEUP_DROP_M` below it,
-looking down 20 degrees), with the
-overlays, so the tray's yield under a push is visible.
+**Close-up.** In a scene with the carry arm (a body ``tool/tray``) or the TidyBot (a body
+``tidybot/base_link``) the perspective view carries an inset (:data:`CLOSEUP_SHARE` of its
+height, bottom right) from a camera that follows that body (:data:`CLOSEUP`: how far away, and
+how far below the body it aims, and how steeply it looks down), with the overlays, so the tray's
+yield under a push, or the robot a person pushes, is visible.
 """
 
 from __future__ import annotations
@@ -43,11 +43,12 @@ CUE_ARROW_M = 0.8  # length of the detected cue's arrow
 UNLIT = 1.0 / 1.65
 #: a push is drawn while the applied horizontal force exceeds this (N)
 PUSH_SHOWN_N = 0.5
-#: the arm close-up: share of the perspective view's height, camera distance (m)
+#: the close-up: share of the perspective view's height
 CLOSEUP_SHARE = 0.6
-CLOSEUP_DISTANCE_M = 1.4
-#: the close-up looks this far below the tray (m), so the arm under it is in the picture
-CLOSEUP_DROP_M = 0.25
+#: the bodies a close-up follows, the first the model has: camera distance (m), how far below
+#: the body it aims (m; the tray's arm under it in the picture, the TidyBot's arm above its
+#: base) and its elevation (degrees; steep enough for the TidyBot's that the horizon stays out)
+CLOSEUP = {"tool/tray": (1.4, 0.25, -20.0), "tidybot/base_link": (2.6, -0.45, -35.0)}
 
 
 def applied_push(data: mujoco.MjData, body: int) -> np.ndarray:
@@ -180,17 +181,21 @@ class RolloutRenderer:
                       if self.column >= 16 else None)
         self.opt = mujoco.MjvOption()
         m = scene.model
-        self.tray = int(m.body("tool/tray").id) if "tool/tray" in {
-            m.body(i).name for i in range(m.nbody)} else -1
+        names = {m.body(i).name for i in range(m.nbody)}
+        #: the body the close-up follows (-1: none) and how far below it it aims
+        self.followed, self.closeup_drop = -1, 0.0
         self.closeup = None
-        if self.tray >= 0 and self.persp is not None:
-            ch = max(16, int(round(self.persp_h * CLOSEUP_SHARE)))
-            cw = max(16, min(self.column, int(round(ch * 4 / 3))))
-            self.closeup = make_renderer(m, ch, cw)
-            self.closeup_cam = mujoco.MjvCamera()
-            self.closeup_cam.type = mujoco.mjtCamera.mjCAMERA_FREE
-            self.closeup_cam.distance = CLOSEUP_DISTANCE_M
-            self.closeup_cam.azimuth, self.closeup_cam.elevation = -60.0, -20.0
+        for name, (distance, drop, elevation) in CLOSEUP.items():
+            if name in names and self.persp is not None:
+                self.followed, self.closeup_drop = int(m.body(name).id), drop
+                ch = max(16, int(round(self.persp_h * CLOSEUP_SHARE)))
+                cw = max(16, min(self.column, int(round(ch * 4 / 3))))
+                self.closeup = make_renderer(m, ch, cw)
+                self.closeup_cam = mujoco.MjvCamera()
+                self.closeup_cam.type = mujoco.mjtCamera.mjCAMERA_FREE
+                self.closeup_cam.distance = distance
+                self.closeup_cam.azimuth, self.closeup_cam.elevation = -60.0, elevation
+                break
 
     def overlays(self, scn: mujoco.MjvScene, o: Overlay) -> None:
         """Add the overlay geoms of ``o`` to ``scn`` (module docstring)."""
@@ -269,9 +274,9 @@ class RolloutRenderer:
         return out[0], out[1]
 
     def closeup_view(self, data: mujoco.MjData, overlay: Overlay) -> np.ndarray:
-        """The arm close-up (module docstring): a free camera looking at the tray."""
+        """The close-up (module docstring): a free camera looking at the followed body."""
         cam = self.closeup_cam
-        cam.lookat[:] = data.xpos[self.tray] - np.array([0.0, 0.0, CLOSEUP_DROP_M])
+        cam.lookat[:] = data.xpos[self.followed] - np.array([0.0, 0.0, self.closeup_drop])
         r = self.closeup
         r.update_scene(data, camera=cam, scene_option=self.opt)
         r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = False

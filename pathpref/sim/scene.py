@@ -10,6 +10,7 @@ from its H-representation's vertices. Four walls bound the map.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cached_property
 from importlib import resources
@@ -168,15 +169,35 @@ def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
     wz.forcerange = [-spin * 20.0, spin * 20.0]
 
 
+@dataclass(frozen=True)
+class RobotBody:
+    """The robot a scene carries in place of ``navigate.xml``'s cylinder: ``spec(base)`` is
+    ``navigate.xml``'s spec with the robot's base under ``navigate.xml``'s names (joints
+    ``slide_x``, ``slide_y``, ``yaw``; actuators ``vx``, ``vy``, ``wz``; body ``handle`` with
+    ``handle_site`` and the sensor ``handle_force``), ``radius_m(model)`` its plan radius in
+    the compiled scene, and ``finish(spec, model)`` (optional) adds what needs the compiled
+    addresses (a ``rest`` keyframe, which a base's reset starts from)."""
+
+    name: str
+    spec: Callable[[BaseParams | None], mujoco.MjSpec]
+    radius_m: Callable[[mujoco.MjModel], float]
+    finish: Callable[[mujoco.MjSpec, mujoco.MjModel], None] | None = None
+
+
 def build_spec(world: World, cell_size: float = CELL_SIZE_M,
-               base: BaseParams | None = None) -> mujoco.MjSpec:
-    """The scene as an MjSpec (see module docstring); ``base`` a physical base."""
+               base: BaseParams | None = None, robot: RobotBody | None = None
+               ) -> mujoco.MjSpec:
+    """The scene as an MjSpec (see module docstring); ``base`` a physical base; ``robot``
+    another body than ``navigate.xml``'s cylinder (:class:`RobotBody`)."""
     if not (np.isfinite(cell_size) and cell_size > 0):
         raise ConfigError(f"cell size must be a positive number of metres, got {cell_size}")
-    try:
-        spec = mujoco.MjSpec.from_file(str(mjcf_path("navigate.xml")))
-    except ValueError as e:
-        raise ConfigError(f"mjcf/navigate.xml does not load: {e}") from None
+    if robot is not None:
+        spec = robot.spec(base)
+    else:
+        try:
+            spec = mujoco.MjSpec.from_file(str(mjcf_path("navigate.xml")))
+        except ValueError as e:
+            raise ConfigError(f"mjcf/navigate.xml does not load: {e}") from None
     wb = spec.worldbody
     W, H = world.spec.width * cell_size, world.spec.height * cell_size
     h = OBSTACLE_HEIGHT
@@ -203,7 +224,7 @@ def build_spec(world: World, cell_size: float = CELL_SIZE_M,
         g = wb.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX, size=size, pos=pos)
         g.classname = spec.find_default("static")
         g.material = "wall"
-    if base is not None:
+    if base is not None and robot is None:
         apply_base(spec, base)
     # cameras over the map's centre
     side = max(W, H)
@@ -212,15 +233,22 @@ def build_spec(world: World, cell_size: float = CELL_SIZE_M,
     return spec
 
 
-def build_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams | None = None
-                ) -> Scene:
-    """Compile the scene of ``world``; a ConfigError names the cause when it cannot be built."""
-    spec = build_spec(world, cell_size, base)
+def build_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams | None = None,
+                robot: RobotBody | None = None) -> Scene:
+    """Compile the scene of ``world`` (``robot``: another body, :class:`RobotBody`); a
+    ConfigError names the cause when it cannot be built."""
+    spec = build_spec(world, cell_size, base, robot)
     try:
         model = spec.compile()
+        if robot is not None and robot.finish is not None:
+            robot.finish(spec, model)
+            model = spec.compile()
     except ValueError as e:
         raise ConfigError(f"map '{world.name}' cannot be built into a MuJoCo scene: {e}") from None
-    check_footprint(world, cell_size, float(model.geom("base_geom").size[0]), "the base")
+    if robot is None:
+        check_footprint(world, cell_size, float(model.geom("base_geom").size[0]), "the base")
+    else:
+        check_footprint(world, cell_size, robot.radius_m(model), f"the {robot.name}")
     return Scene(world=world, model=model, cell_size=cell_size)
 
 

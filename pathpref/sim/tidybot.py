@@ -97,9 +97,9 @@ def build_tidybot() -> mujoco.MjModel:
                     prefix="tool/", site=spec.site("pinch_site"))
         arm, hand = spec.body("gen3/base_link"), spec.body("bracelet_link")
         for b in spec.bodies:
-            if _below(b, arm):
+            if below(b, arm):
                 b.gravcomp = 1.0
-            if _below(b, hand) and not b.name.startswith("tool/"):
+            if below(b, hand) and not b.name.startswith("tool/"):
                 # the gripper holds the plate: no contact between them, so the whole push
                 # passes the tray's force sensor
                 spec.add_exclude(bodyname1=b.name, bodyname2="tool/tray")
@@ -109,7 +109,7 @@ def build_tidybot() -> mujoco.MjModel:
         raise ConfigError(f"TidyBot model {path} failed to load: {msg}") from None
 
 
-def _below(body, top) -> bool:
+def below(body, top) -> bool:
     """Whether ``body`` is ``top`` or in its subtree (bounded by the tree's depth)."""
     b = body
     for _ in range(64):

@@ -1,0 +1,187 @@
+"""The Stanford TidyBot as the ``navigate`` body (``--robot-model tidybot``): Menagerie's robot
+(``mjcf/stanford_tidybot/``, :mod:`.tidybot`) in place of ``navigate.xml``'s 12 kg cylinder, so
+the same base, controller, sensing chain and compiled steps drive it.
+
+**The model** (:func:`navigation_spec`): ``navigate.xml`` (floor, light, cameras, materials,
+the ``contact_count`` sensor) with its cylinder removed and the TidyBot attached under the
+prefix ``tidybot/``. What the base's code addresses by name is renamed to ``navigate.xml``'s
+names: the planar joints ``joint_x``, ``joint_y``, ``joint_th`` become ``slide_x``,
+``slide_y``, ``yaw``; Menagerie's stiff base position servos (``kp`` 1e6) are replaced by the
+velocity servos ``vx``, ``vy``, ``wz`` the project's controller commands (the base must yield
+to a push; a position servo of 1e6 N/m would not). Added: a push handle (a 0.2 kg post,
+``handle``, at the base's rear, its top at 0.935 m, a cart handle's height) with the force
+sensor ``handle_force`` at ``handle_site`` where the hand is, as on the cylinder.
+
+* **mass**: Menagerie's (the 60 kg base, the Gen3 arm and gripper, the handle; 69.29 kg,
+  :func:`navigation_mass_kg`); the drive's ``mass_kg`` sets the base link's mass so the whole
+  robot weighs it (its default is Menagerie's, :data:`~pathpref.episode.physics.ROBOT_MODELS`);
+* **drive**: ``vx``, ``vy`` velocity servos of gain ``mass / DRIVE_TAU_S`` (the same 45 ms
+  time constant as the Ridgeback's drive, ``BaseParams.kv``), force limited to the drive's
+  ``force_limit_n``; ``wz`` a 20 ms yaw servo for the yaw inertia of a solid cylinder of the
+  robot's mass and footprint radius (an estimate: Menagerie's base inertia, 0.001 kg m^2, is a
+  placeholder);
+* **arm**: held at Menagerie's ``retract`` posture by its own position servos (the posture
+  TidyBot++'s simulator resets the arm to), gravity compensated as the Gen3's controller does;
+  the model's keyframe ``rest`` holds it, and a base's reset starts there
+  (:meth:`~.mobile_base.MobileBase.reset`);
+* **footprint**: the largest horizontal distance from the base's centre to a vertex of any of
+  the robot's collision meshes at ``rest`` (:func:`navigation_radius_m`, 0.284 m: the
+  bumper's corner), which fits the maps' 0.3-cell footprint at 1 m per cell;
+* the options of Menagerie's file (elliptic friction cones, ``impratio`` 10).
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import mujoco
+import numpy as np
+
+from ..errors import ConfigError
+from .scene import BaseParams, RobotBody, mjcf_path
+from .tidybot import ARM_JOINTS, BASE_JOINTS, below, tidybot_xml
+
+PREFIX = "tidybot/"
+#: the planar joints' names in ``navigate.xml`` (what :class:`~.mobile_base.MobileBase` reads)
+NAV_JOINTS = ("slide_x", "slide_y", "yaw")
+#: the arm's posture while the base navigates: Menagerie's ``retract`` keyframe (joints 1-7)
+RETRACT = (0.0, -0.34906585, 3.14159265, -2.54818071, 0.0, -0.87266463, 1.57079633)
+#: the drive servos' time constant (s): the Ridgeback drive's (``BaseParams.kv`` 3000 N s/m on
+#: 135 kg)
+DRIVE_TAU_S = 0.045
+#: the push handle: a post at the base's rear (m, in the base's frame) and its length
+HANDLE_POS = (-0.2, 0.0, 0.335)
+HANDLE_LENGTH = 0.6
+HANDLE_MASS = 0.2
+
+
+def _robot_spec() -> mujoco.MjSpec:
+    """Menagerie's TidyBot as the navigate body: joints renamed, base servos removed, the handle
+    added, the arm gravity compensated (module docstring)."""
+    tb = mujoco.MjSpec.from_file(str(tidybot_xml()))
+    for old, new in zip(BASE_JOINTS, NAV_JOINTS, strict=True):
+        tb.delete(tb.actuator(old))
+        tb.joint(old).name = new
+    for key in list(tb.keys):  # its keyframes name the removed servos' controls
+        tb.delete(key)
+    base = tb.body("base_link")
+    handle = base.add_body(name="handle", pos=list(HANDLE_POS))
+    handle.add_geom(name="handle_geom", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                    fromto=[0.0, 0.0, 0.0, 0.0, 0.0, HANDLE_LENGTH], size=[0.02, 0.0, 0.0],
+                    mass=HANDLE_MASS, contype=0, conaffinity=0, rgba=[0.95, 0.6, 0.1, 1.0])
+    handle.add_site(name="handle_site", pos=[0.0, 0.0, HANDLE_LENGTH], size=[0.02, 0.0, 0.0],
+                    rgba=[1.0, 0.3, 0.1, 1.0])
+    arm = tb.body("gen3/base_link")
+    for b in tb.bodies:
+        if below(b, arm):
+            b.gravcomp = 1.0
+    return tb
+
+
+@lru_cache(maxsize=1)
+def _others_mass_kg() -> float:
+    """The robot's mass beyond its base link (arm, gripper, handle; kg), read from the model."""
+    m = _robot_spec().compile()
+    base = m.body("base_link").id
+    return float(m.body_subtreemass[base] - m.body_mass[base])
+
+
+def navigation_mass_kg() -> float:
+    """The whole robot's mass in Menagerie's model (kg): its base link's and
+    :func:`_others_mass_kg`."""
+    m = _robot_spec().compile()
+    return float(m.body_subtreemass[m.body("base_link").id])
+
+
+def navigation_spec(base: BaseParams | None) -> mujoco.MjSpec:
+    """``navigate.xml`` with the TidyBot for its base (module docstring); ``base`` sets the
+    mass, the drive's force limit and the floor's friction (None: Menagerie's mass, 120 N)."""
+    if base is not None and base.kind != "holonomic":
+        raise ConfigError(f"the TidyBot's base is holonomic; got --base {base.kind} (use "
+                          "--base holonomic)")
+    try:
+        spec = mujoco.MjSpec.from_file(str(mjcf_path("navigate.xml")))
+    except ValueError as e:
+        raise ConfigError(f"mjcf/navigate.xml does not load: {e}") from None
+    for a in list(spec.actuators):
+        spec.delete(a)
+    spec.delete(spec.sensor("handle_force"))
+    spec.delete(spec.body("base_xy"))
+    tb = _robot_spec()
+    spec.option.cone, spec.option.impratio = tb.option.cone, tb.option.impratio
+    spec.attach(tb, prefix=PREFIX, frame=spec.worldbody.add_frame())
+    for name in NAV_JOINTS:
+        spec.joint(PREFIX + name).name = name
+    spec.body(PREFIX + "handle").name = "handle"
+    spec.site(PREFIX + "handle_site").name = "handle_site"
+    spec.add_sensor(name="handle_force", type=mujoco.mjtSensor.mjSENS_FORCE,
+                    objtype=mujoco.mjtObj.mjOBJ_SITE, objname="handle_site")
+    mass = navigation_mass_kg() if base is None else base.mass_kg
+    own = mass - _others_mass_kg()
+    if own <= 0.0:
+        raise ConfigError(f"the TidyBot's mass_kg must exceed its arm's and handle's "
+                          f"{_others_mass_kg():.2f} kg, got {mass:g}")
+    spec.body(PREFIX + "base_link").mass = own
+    limit = 120.0 if base is None else base.force_limit_n
+    if base is not None and base.friction_n > 0:
+        for j in NAV_JOINTS[:2]:
+            spec.joint(j).frictionloss = base.friction_n
+    for name, joint in zip(("vx", "vy"), NAV_JOINTS[:2], strict=True):
+        a = spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_velocity(kv=mass / DRIVE_TAU_S)
+        a.forcerange = [-limit, limit]
+        a.ctrlrange = [-1.5, 1.5]
+    r = TIDYBOT_RADIUS_M
+    spin = 0.5 * mass * r * r
+    wz = spec.add_actuator(name="wz", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    wz.set_to_velocity(kv=spin / 0.02)
+    wz.forcerange = [-spin * 20.0, spin * 20.0]
+    wz.ctrlrange = [-2.0, 2.0]
+    return spec
+
+
+def add_rest(spec: mujoco.MjSpec, model: mujoco.MjModel) -> None:
+    """The keyframe ``rest``: the base at the origin, the arm at :data:`RETRACT` with its
+    servos' controls there (``model`` the spec compiled once, for the addresses)."""
+    qpos = model.qpos0.copy()
+    ctrl = np.zeros(model.nu)
+    for j, q in zip(ARM_JOINTS, RETRACT, strict=True):
+        qpos[model.joint(PREFIX + j).qposadr[0]] = q
+        ctrl[model.actuator(PREFIX + j).id] = q
+    spec.add_key(name="rest", qpos=qpos.tolist(), ctrl=ctrl.tolist())
+
+
+def navigation_radius_m(model: mujoco.MjModel) -> float:
+    """The plan radius (m): the largest horizontal distance from the base's centre to a vertex
+    of the robot's collision meshes (and the handle's capsule), at the ``rest`` keyframe."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("rest").id)
+    mujoco.mj_forward(model, data)
+    root = model.body(PREFIX + "base_link").id
+    centre = data.xpos[root, :2]
+    far = 0.0
+    for g in range(model.ngeom):
+        b = int(model.geom_bodyid[g])
+        if model.body_rootid[b] != root:
+            continue
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_MESH:
+            if not (model.geom_contype[g] or model.geom_conaffinity[g]):
+                continue
+            mid = model.geom_dataid[g]
+            v = model.mesh_vert[model.mesh_vertadr[mid]:model.mesh_vertadr[mid]
+                                + model.mesh_vertnum[mid]]
+            w = v @ data.geom_xmat[g].reshape(3, 3).T + data.geom_xpos[g]
+            far = max(far, float(np.hypot(*(w[:, :2] - centre).T).max()))
+        elif b == model.body("handle").id:
+            far = max(far, float(np.hypot(*(data.geom_xpos[g, :2] - centre)))
+                      + float(model.geom_size[g, 0]))
+    return far
+
+
+#: the plan radius the yaw servo is sized with (m; :func:`navigation_radius_m` of the model,
+#: checked by the tests)
+TIDYBOT_RADIUS_M = 0.284
+
+#: the TidyBot as a scene's robot (:func:`~.scene.build_scene`)
+TIDYBOT = RobotBody(name="tidybot", spec=navigation_spec, radius_m=navigation_radius_m,
+                    finish=add_rest)
