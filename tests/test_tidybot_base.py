@@ -117,14 +117,59 @@ def test_the_mass_flag_sets_the_robots_mass(world):
 
 
 def test_what_the_tidybot_cannot_be_is_one_line(world):
-    """The differential drive and the carry episode are refused, naming the fix."""
+    """The differential drive is refused, naming the fix; an unknown body names the known."""
     with pytest.raises(ConfigError, match="holonomic"):
         scene_for(world, 1.0, "navigate", base_params(Physics.of(base="diffdrive", **TIDY)),
                   "tidybot")
-    with pytest.raises(ConfigError, match="carry"):
-        scene_for(world, 1.0, "carry", None, "tidybot")
-    with pytest.raises(ConfigError, match="robot model"):
+    with pytest.raises(ConfigError, match="disk, tidybot"):
         scene_for(world, 1.0, "navigate", None, "pr2")
+
+
+def _carry_body(timing: str = "decision", instance: int = 0, map_name: str = "simple"):
+    spec = EpisodeSpec.single(map_name, "path_preference", 5, seed=3, instance=instance,
+                              sim="mujoco", t_max=20, robot="carry",
+                              physics=Physics.of(timing=timing, **TIDY).to_json())
+    return EpisodeRunner(spec)
+
+
+def test_the_carrying_posture_holds_the_tray_level_where_it_says():
+    """``carry`` on the TidyBot: after a reset the Gen3 stands at ``CARRY_HOME``, the tray
+    level (within 0.01 degrees) at ``CARRY_TRAY_OFFSET`` from the base link (within 1 mm),
+    above the maps' 0.6 m obstacles, every arm joint 0.4 rad or more inside its limits, and
+    nothing touching; the servos are Menagerie's (``kp`` 2000 / 500)."""
+    runner = _carry_body()
+    runner.body.reset(runner.instance.start)
+    b = runner.body.base
+    m, d = b.model, b.data
+    assert b.arm is tidybot_base.TIDYBOT_ARM
+    assert d.qpos[b.arm_qpos] == pytest.approx(tidybot_base.CARRY_HOME)
+    rel = d.xpos[b.tray] - d.xpos[m.body("tidybot/base_link").id]
+    assert rel == pytest.approx(tidybot_base.CARRY_TRAY_OFFSET, abs=1e-3)
+    assert np.degrees(np.arccos(min(1.0, d.xmat[b.tray][8]))) < 0.01
+    assert d.xpos[b.tray][2] > 0.6
+    for j in b.arm.joints:
+        jid = m.joint(j).id
+        if m.jnt_limited[jid]:
+            q = d.qpos[m.jnt_qposadr[jid]]
+            assert min(q - m.jnt_range[jid, 0], m.jnt_range[jid, 1] - q) > 0.4
+    assert list(b._kp) == [2000.0] * 4 + [500.0] * 3
+    mujoco.mj_forward(m, d)
+    assert d.ncon == 0
+
+
+@pytest.mark.parametrize("timing", ["interval", "guidance"])
+def test_tidybot_carry_episodes_keep_the_tray(timing):
+    """Carry episodes on the TidyBot with pushes on the tray at any time and under guidance:
+    pushes felt through the tray's sensor, the tray within 5 degrees of level, no arm or tray
+    in an obstacle, no collision, the IK at 20 Hz."""
+    runner = _carry_body(timing, instance=1, map_name="office")
+    while not runner.done:
+        runner.step()
+    met = runner.result.metrics
+    assert met["pushes"] >= 1 and met["pushes_missed"] == 0
+    assert met["tilt_max_deg"] < 5.0
+    assert met["max_penetration_mm"] == 0.0 and met["collisions"] == 0
+    assert met["ik_solves"] == pytest.approx(met["sim_time_s"] * 20, rel=0.02)
 
 
 @pytest.mark.parametrize("timing", ["decision", "interval", "guidance"])

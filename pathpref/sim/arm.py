@@ -76,6 +76,7 @@ and the arm (``tool/tool_force``), through the same detector as the handle.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import mink
@@ -115,6 +116,34 @@ PHYSICAL_IK_PERIOD_S = 0.05
 #: the weak joint spring toward the kinematic configuration (N m/rad) that keeps the arm's
 #: posture where the tray's six constraints leave it free (near a singularity)
 POSTURE_STIFFNESS = 2.0
+
+
+@dataclass(frozen=True)
+class ArmModel:
+    """The arm an :class:`ArmBase` drives, by the names in its scene: its joints and position
+    servos (the servos' ``kp`` are read from the model), the home posture (the IK solution
+    holding the tray level at ``tray_offset`` from ``base_body``), the IK's joint speed limits
+    (rad/s), the prefixes of the bodies whose geoms are the robot's in the collision limit
+    (with ``base_geoms``), and ``support_m`` the radius of the base's support against tipping
+    (None: the ``base_geom`` cylinder's)."""
+
+    joints: tuple[str, ...]
+    servos: tuple[str, ...]
+    home: tuple[float, ...]
+    tray_offset: tuple[float, float, float]
+    speeds: tuple[float, ...]
+    base_body: str
+    prefixes: tuple[str, ...]
+    base_geoms: tuple[str, ...] = ()
+    support_m: float | None = None
+
+
+#: the Jaco on the disk base (module docstring)
+JACO = ArmModel(joints=tuple(ARM_JOINTS),
+                servos=tuple(f"servo_{j.split('/')[1]}" for j in ARM_JOINTS),
+                home=tuple(ARM_HOME), tray_offset=tuple(TRAY_OFFSET),
+                speeds=(2.0, 2.0, 2.0, 6.0, 6.0, 6.0), base_body="base",
+                prefixes=("jaco/", "tool/"), base_geoms=("base_geom",))
 
 
 def jaco_xml() -> Path:
@@ -218,10 +247,14 @@ class ArmBase(MobileBase):
     """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
 
     def __init__(self, scene: Scene, ik_period: float | None = None, physical: bool = False,
-                 stiffness: float = TRAY_STIFFNESS, **kwargs):
+                 stiffness: float = TRAY_STIFFNESS, arm: ArmModel = JACO, **kwargs):
         super().__init__(scene, **kwargs)
         m = self.model
         self.physical = physical
+        #: the arm (:class:`ArmModel`: the Jaco on the disk, or the TidyBot's Gen3)
+        self.arm = arm
+        self.home = np.array(arm.home)
+        self.tray_offset = np.array(arm.tray_offset)
         if not (np.isfinite(stiffness) and stiffness > 0):
             from ..errors import ConfigError
 
@@ -232,8 +265,8 @@ class ArmBase(MobileBase):
         self.sensing.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
         self.tray = int(m.body("tool/tray").id)
         self.pushed_body = self.tray  # people push the tray
-        self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in ARM_JOINTS])
-        self.arm_ctrl = np.array([m.actuator(f"servo_{j.split('/')[1]}").id for j in ARM_JOINTS])
+        self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in arm.joints])
+        self.arm_ctrl = np.array([m.actuator(a).id for a in arm.servos])
         self._q_span, self._ctrl_span = _as_slice(self.arm_qpos), _as_slice(self.arm_ctrl)
         if ik_period is None:
             ik_period = PHYSICAL_IK_PERIOD_S if physical else IK_PERIOD_S
@@ -241,16 +274,16 @@ class ArmBase(MobileBase):
         self.ik_dt = self.ik_every * self.dt
         self.cfg = mink.Configuration(m)
         if physical:
-            self.tray_task = mink.RelativeFrameTask("tool/tray", "body", "base", "body",
+            self.tray_task = mink.RelativeFrameTask("tool/tray", "body", arm.base_body, "body",
                                                     position_cost=1.0, orientation_cost=5.0)
             self.tray_task.set_target(mink.SE3.from_rotation_and_translation(
-                mink.SO3.identity(), TRAY_OFFSET))
+                mink.SO3.identity(), self.tray_offset))
         else:
             self.tray_task = mink.FrameTask("tool/tray", "body", position_cost=1.0,
                                             orientation_cost=5.0)
-        self.base_task = mink.FrameTask("base", "body", position_cost=[1.0, 1.0, 0.0],
+        self.base_task = mink.FrameTask(arm.base_body, "body", position_cost=[1.0, 1.0, 0.0],
                                         orientation_cost=[0.0, 0.0, 10.0])
-        self.arm_dofs = np.array([m.joint(j).dofadr[0] for j in ARM_JOINTS])
+        self.arm_dofs = np.array([m.joint(j).dofadr[0] for j in arm.joints])
         base_dofs = np.array([m.joint(j).dofadr[0] for j in ("slide_x", "slide_y", "yaw")])
         self.base_qpos = np.array([m.joint(j).qposadr[0] for j in ("slide_x", "slide_y",
                                                                    "yaw")])
@@ -262,18 +295,19 @@ class ArmBase(MobileBase):
             self.base_damping = mink.DampingTask(m, cost)
         self.posture = mink.PostureTask(m, cost=posture_cost)
         self._jac = np.zeros((6, m.nv))  # the tray's Jacobian: translation over rotation
-        self._base_body = int(m.body("base").id)
+        self._base_body = int(m.body(arm.base_body).id)
         self._bodies = np.array([self._base_body, self.tray])
-        self._rel = np.hstack([np.eye(3), TRAY_OFFSET[:, None]])  # [R_rel | p_rel]
-        self.q_kin = ARM_HOME.copy()
+        self._rel = np.hstack([np.eye(3), self.tray_offset[:, None]])  # [R_rel | p_rel]
+        self.q_kin = self.home.copy()
         home = np.zeros(m.nq)
-        home[self.arm_qpos] = ARM_HOME
+        home[self.arm_qpos] = self.home
         self.posture.set_target(home)
         arm_geoms = [i for i in range(m.ngeom)
-                     if m.geom(i).name.startswith(("jaco/", "tool/"))
-                     or m.body(m.geom_bodyid[i]).name.startswith(("jaco/", "tool/"))]
+                     if m.geom(i).name.startswith(arm.prefixes)
+                     or m.body(m.geom_bodyid[i]).name.startswith(arm.prefixes)]
         arm_geoms = [g for g in arm_geoms if m.geom_contype[g] or m.geom_conaffinity[g]]
-        arm_geoms.append(int(m.geom("base_geom").id))  # the base too: arm/base vs obstacles
+        # the base too: arm/base vs obstacles
+        arm_geoms += [int(m.geom(g).id) for g in arm.base_geoms]
         self.obstacle_geoms = [i for i in range(m.ngeom) if m.geom(i).name.startswith(
             ("obstacle_", "wall_"))]
         self.arm_geoms = arm_geoms
@@ -281,7 +315,7 @@ class ArmBase(MobileBase):
         self._is_arm = np.isin(np.arange(m.ngeom), arm_geoms)
         self._is_obstacle = np.isin(np.arange(m.ngeom), self.obstacle_geoms)
         vel = {"slide_x": [0.8], "slide_y": [0.8], "yaw": [1.0]}
-        vel.update({j: [2.0 if k < 3 else 6.0] for k, j in enumerate(ARM_JOINTS)})
+        vel.update({j: [v] for j, v in zip(arm.joints, arm.speeds, strict=True)})
         self.limits = [
             mink.ConfigurationLimit(m),
             mink.VelocityLimit(m, vel),
@@ -289,7 +323,7 @@ class ArmBase(MobileBase):
                                          minimum_distance_from_collisions=0.03,
                                          collision_detection_distance=0.15),
         ]
-        self._kp = np.array([kp for kp, _ in ARM_GAINS])
+        self._kp = m.actuator_gainprm[self.arm_ctrl, 0].copy()  # the servos' kp
         self._k = 0
         self.tilts: list[float] = []
         self.ik_solves = 0
@@ -308,8 +342,8 @@ class ArmBase(MobileBase):
         """Reset the physics with the base at ``cell``, the arm at home and the tray level."""
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[self.xy] = self.scene.cell_centre(cell)
-        self.data.qpos[self.arm_qpos] = ARM_HOME
-        self.data.ctrl[self.arm_ctrl] = ARM_HOME
+        self.data.qpos[self.arm_qpos] = self.home
+        self.data.ctrl[self.arm_ctrl] = self.home
         self.target = self.scene.cell_centre(cell)
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
@@ -323,16 +357,17 @@ class ArmBase(MobileBase):
 
     def _relative_target(self) -> None:
         """The tray's pose relative to the base in the kinematic configuration (``T_rel``)."""
-        T = self.cfg.get_transform("tool/tray", "body", "base", "body")
+        T = self.cfg.get_transform("tool/tray", "body", self.arm.base_body, "body")
         self._rel[:, 3] = T.translation()
         self._rel[:, :3] = T.rotation().as_matrix()
 
     def tray_target(self) -> mink.SE3:
-        """Level, at ``TRAY_OFFSET`` from the base's measured position, in the base's
+        """Level, at the arm's tray offset from the base's measured position, in the base's
         *commanded* heading (yaw 0). Using the measured yaw closes a loop: where the collision
         limit keeps the tray from its target, the IK turns the base, which turns the target."""
-        base = self.data.xpos[self.model.body("base").id]
-        return mink.SE3.from_rotation_and_translation(mink.SO3.identity(), base + TRAY_OFFSET)
+        base = self.data.xpos[self._base_body]
+        return mink.SE3.from_rotation_and_translation(mink.SO3.identity(),
+                                                      base + self.tray_offset)
 
     def solve_ik(self) -> np.ndarray:
         """One whole-body IK solve from the measured state; returns joint velocities."""
@@ -422,11 +457,12 @@ class ArmBase(MobileBase):
         """The horizontal push on the tray that would tip the robot over the edge of its base
         (N): the moments about the base's rim, ``F h = M g r`` with ``M`` the robot's mass,
         ``r`` the base's radius (its support polygon, the centre of mass over the base's
-        centre) and ``h`` the tray's height above the floor. The model's slide joints cannot
-        tip, so this is the check."""
+        centre; the arm's ``support_m``) and ``h`` the tray's height above the floor. The
+        model's slide joints cannot tip, so this is the check."""
         m = self.model
-        mass = float(m.body_subtreemass[m.body("base_xy").id])
-        r = float(m.geom("base_geom").size[0])
+        mass = float(m.body_subtreemass[m.body_rootid[self._base_body]])
+        r = float(m.geom("base_geom").size[0]) if self.arm.support_m is None else \
+            self.arm.support_m
         h = float(self.data.xpos[self.tray][2])
         return mass * 9.81 * r / h
 

@@ -42,11 +42,13 @@ from .path_crossings import PathCrossings
 from .path_record import PathRecorder
 from .pushing_human import PushingHuman, sample_profile
 from .scene import BaseParams, RobotBody, Scene, build_scene
-from .tidybot_base import TIDYBOT
+from .tidybot_base import TIDYBOT, TIDYBOT_ARM, TIDYBOT_CARRY
 
-#: the bodies of :data:`~pathpref.episode.physics.ROBOT_MODELS` (None: ``navigate.xml``'s own
-#: cylinder)
-ROBOT_BODIES: dict[str, RobotBody | None] = {"disk": None, "tidybot": TIDYBOT}
+#: the bodies of :data:`~pathpref.episode.physics.ROBOT_MODELS` per task (None:
+#: ``navigate.xml``'s own cylinder, with the Jaco for ``carry``)
+ROBOT_BODIES: dict[str, dict[str, RobotBody | None]] = {
+    "disk": {"navigate": None, "carry": None},
+    "tidybot": {"navigate": TIDYBOT, "carry": TIDYBOT_CARRY}}
 
 
 @lru_cache(maxsize=8)
@@ -56,17 +58,13 @@ def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigat
     body (``robot``, :data:`ROBOT_BODIES`)."""
     if robot not in ROBOT_BODIES:
         raise ConfigError(f"unknown robot model '{robot}'; choose {', '.join(ROBOT_BODIES)}")
-    if task == "carry":
-        if robot != "disk":
-            raise ConfigError(f"carry runs on the disk base with the Jaco arm; the {robot} "
-                              "carries in pathpref.sim.tidybot (whole-body IK), not in episodes "
-                              "yet: use --robot navigate with --robot-model tidybot")
+    if task not in ("navigate", "carry"):
+        raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
+    if task == "carry" and robot == "disk":
         from .arm import build_arm_scene
 
         return build_arm_scene(world, cell_size, base)
-    if task != "navigate":
-        raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
-    return build_scene(world, cell_size, base, ROBOT_BODIES[robot])
+    return build_scene(world, cell_size, base, ROBOT_BODIES[robot][task])
 
 
 class MujocoBody(Body):
@@ -302,6 +300,8 @@ def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.
         if physics is not None:
             kwargs["physical"] = True
             kwargs["stiffness"] = physics.drive.arm_stiffness
+            if physics.drive.robot_model == "tidybot":
+                kwargs["arm"] = TIDYBOT_ARM
         base: MobileBase = ArmBase(scene, profile=profile, data=data, **kwargs)
     elif physics is not None and physics.drive.kind == "diffdrive":
         base = DiffDriveBase(scene, profile=profile, data=data, **kwargs)

@@ -38,8 +38,9 @@ import mujoco
 import numpy as np
 
 from ..errors import ConfigError
+from .arm import ArmModel
 from .scene import BaseParams, RobotBody, mjcf_path
-from .tidybot import ARM_JOINTS, BASE_JOINTS, below, tidybot_xml
+from .tidybot import ARM_JOINTS, ARM_SPEED, BASE_JOINTS, below, tidybot_xml
 
 PREFIX = "tidybot/"
 #: the planar joints' names in ``navigate.xml`` (what :class:`~.mobile_base.MobileBase` reads)
@@ -185,3 +186,45 @@ TIDYBOT_RADIUS_M = 0.284
 #: the TidyBot as a scene's robot (:func:`~.scene.build_scene`)
 TIDYBOT = RobotBody(name="tidybot", spec=navigation_spec, radius_m=navigation_radius_m,
                     finish=add_rest)
+
+
+def carry_spec(base: BaseParams | None) -> mujoco.MjSpec:
+    """:func:`navigation_spec` with the project's tray (``mjcf/carry_tool.xml``, prefix
+    ``tool/``) at the gripper's ``pinch_site``, gravity compensated, its plate's contacts with
+    the gripper excluded (as :func:`.tidybot.build_tidybot`: else the fingers through the plate
+    carry part of a push past the tray's sensor)."""
+    spec = navigation_spec(base)
+    spec.attach(mujoco.MjSpec.from_file(str(mjcf_path("carry_tool.xml"))), prefix="tool/",
+                site=spec.site(PREFIX + "pinch_site"))
+    hand = spec.body(PREFIX + "bracelet_link")
+    for b in spec.bodies:
+        if b.name.startswith("tool/"):
+            b.gravcomp = 1.0
+        elif below(b, hand):
+            spec.add_exclude(bodyname1=b.name, bodyname2="tool/tray")
+    return spec
+
+
+#: the tray's place in ``carry`` (m, relative to the base link): 0.2 m ahead of the base's
+#: centre, 0.8 m above the floor (above the maps' 0.6 m obstacles and walls)
+CARRY_TRAY_OFFSET = (0.2, 0.0, 0.8)
+#: the Gen3's carrying posture (joints 1-7, rad): from ``retract``, the IK solution (the base
+#: held) holding the tray level at :data:`CARRY_TRAY_OFFSET`; 0.50 rad from every joint limit,
+#: no contact (``retract`` itself folds the gripper onto the shoulder, where the tray's plate
+#: would touch the arm); checked against the model by the tests
+CARRY_HOME = (0.4782, -0.2878, 2.8365, -1.8291, -0.0854, -1.5876, 0.1835)
+#: the base's support radius against tipping (m): the body's half-width, 0.23 m, an upper
+#: bound on where its casters stand (the casters' positions are not in the model)
+SUPPORT_M = 0.23
+
+#: the TidyBot's Gen3 as :class:`~.arm.ArmBase` drives it in ``carry``: Menagerie's servos
+#: (``kp`` 2000 / 500 N m/rad), the Gen3's joint speed limits in the IK
+TIDYBOT_ARM = ArmModel(joints=tuple(PREFIX + j for j in ARM_JOINTS),
+                       servos=tuple(PREFIX + j for j in ARM_JOINTS), home=CARRY_HOME,
+                       tray_offset=CARRY_TRAY_OFFSET, speeds=ARM_SPEED,
+                       base_body=PREFIX + "base_link", prefixes=(PREFIX, "tool/"),
+                       support_m=SUPPORT_M)
+
+#: the TidyBot carrying the tray, as a scene's robot (:func:`~.scene.build_scene`)
+TIDYBOT_CARRY = RobotBody(name="tidybot", spec=carry_spec, radius_m=navigation_radius_m,
+                          finish=add_rest)
