@@ -161,7 +161,7 @@ def test_the_carrying_posture_holds_the_tray_level_where_it_says():
 def test_tidybot_carry_episodes_keep_the_tray(timing):
     """Carry episodes on the TidyBot with pushes on the tray at any time and under guidance:
     pushes felt through the tray's sensor, the tray within 5 degrees of level, no arm or tray
-    in an obstacle, no collision, the IK at 20 Hz."""
+    in an obstacle, no collision, the IK at 10 Hz."""
     runner = _carry_body(timing, instance=1, map_name="office")
     while not runner.done:
         runner.step()
@@ -169,7 +169,7 @@ def test_tidybot_carry_episodes_keep_the_tray(timing):
     assert met["pushes"] >= 1 and met["pushes_missed"] == 0
     assert met["tilt_max_deg"] < 5.0
     assert met["max_penetration_mm"] == 0.0 and met["collisions"] == 0
-    assert met["ik_solves"] == pytest.approx(met["sim_time_s"] * 20, rel=0.02)
+    assert met["ik_solves"] == pytest.approx(met["sim_time_s"] * 10, rel=0.02)
 
 
 @pytest.mark.parametrize("timing", ["decision", "interval", "guidance"])

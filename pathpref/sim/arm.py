@@ -124,8 +124,10 @@ class ArmModel:
     servos (the servos' ``kp`` are read from the model), the home posture (the IK solution
     holding the tray level at ``tray_offset`` from ``base_body``), the IK's joint speed limits
     (rad/s), the prefixes of the bodies whose geoms are the robot's in the collision limit
-    (with ``base_geoms``), and ``support_m`` the radius of the base's support against tipping
-    (None: the ``base_geom`` cylinder's)."""
+    (with ``base_geoms``), ``support_m`` the radius of the base's support against tipping
+    (None: the ``base_geom`` cylinder's), and ``ik_period_s`` the physical mode's IK period
+    (module docstring, "IK rate": the base moves at most 50 mm between two solves at its
+    drive's speed)."""
 
     joints: tuple[str, ...]
     servos: tuple[str, ...]
@@ -136,6 +138,7 @@ class ArmModel:
     prefixes: tuple[str, ...]
     base_geoms: tuple[str, ...] = ()
     support_m: float | None = None
+    ik_period_s: float = PHYSICAL_IK_PERIOD_S
 
 
 #: the Jaco on the disk base (module docstring)
@@ -269,7 +272,7 @@ class ArmBase(MobileBase):
         self.arm_ctrl = np.array([m.actuator(a).id for a in arm.servos])
         self._q_span, self._ctrl_span = _as_slice(self.arm_qpos), _as_slice(self.arm_ctrl)
         if ik_period is None:
-            ik_period = PHYSICAL_IK_PERIOD_S if physical else IK_PERIOD_S
+            ik_period = arm.ik_period_s if physical else IK_PERIOD_S
         self.ik_every = max(1, int(round(ik_period / self.dt)))
         self.ik_dt = self.ik_every * self.dt
         self.cfg = mink.Configuration(m)
