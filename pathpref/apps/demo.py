@@ -47,7 +47,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from ..episode import EpisodeResult, EpisodeSpec, cached_world, run_episode
+from ..episode import EpisodeResult, EpisodeSpec, Physics, cached_world, run_episode
 from ..experiments.report import wilson
 from ..experiments.sweep import sweep_specs
 from ..planning.policies import METHODS, REFERENCE_METHODS
@@ -58,6 +58,8 @@ DEMO_MAP = "simple"
 #: grid and in the videos alike
 DEMO_PUSH_RULE = "corrective delay=1 miss=0.2"
 DEMO_DELTA_T = 1
+#: the body the demo films (``robot_model``): the Stanford TidyBot
+FILM_ROBOT = "tidybot"
 #: grid-world runs per method behind the demo's rates, over DEMO_INSTANCES instances
 DEMO_RUNS = 30
 DEMO_INSTANCES = 5
@@ -140,11 +142,11 @@ FILM_RULE = (f"the first instance whose preferred route (the oracle's path) take
 
 def film_spec(spec: EpisodeSpec, sim: str) -> EpisodeSpec:
     """The rendered version of a demo episode: in MuJoCo the same instance, run, preset and
-    corrective human (its pushes at decision steps, the default physics); in the grid the
-    episode itself."""
+    corrective human (its pushes at decision steps, the default physics) on MuJoCo
+    Menagerie's Stanford TidyBot (:data:`FILM_ROBOT`); in the grid the episode itself."""
     if sim == "grid":
         return spec
-    return replace(spec, sim="mujoco", physics=None)
+    return replace(spec, sim="mujoco", physics=Physics.of(robot_model=FILM_ROBOT).to_json())
 
 
 def load_sweep(path: Path = SWEEP_JSON) -> dict[str, Any] | None:
@@ -297,8 +299,8 @@ def doc_block(rates: GridRates, film: list[EpisodeResult]) -> list[str]:
                                r["other_route"], r["not_reached"], r["pushes_per_episode"]))
     lines += ["", filmed_rate_line(rates) + ".", "",
               f"The filmed instance: instance {rates.specs['oracle'][k].instance}, run 0 "
-              f"({FILM_RULE}). Its MuJoCo episodes (the same corrective human pushing the base; "
-              "default physics):", "",
+              f"({FILM_RULE}). Its MuJoCo episodes (the same corrective human pushing the "
+              "Stanford TidyBot; default physics):", "",
               "| method | success | goal reached | preference followed | pushes | steps |",
               "|---|---|---|---|---|---|"]
     for r in film:
@@ -388,7 +390,8 @@ def run_demo(out: Path, seed: int = 0, sim: str = "mujoco", runs: int = DEMO_RUN
         print(rate_line(r["method"], round(r["success"] * runs), runs, r["other_route"],
                         r["not_reached"], r["pushes_per_episode"]))
     print(f"\n{filmed_rate_line(rates)}; the film below is one episode of it.")
-    body = "MuJoCo, the same corrective human pushing the base" if sim == "mujoco" else "grid"
+    body = ("MuJoCo, the same corrective human pushing the Stanford TidyBot" if sim == "mujoco"
+            else "grid")
     print(f"\nRendered episodes ({body}; instance {rates.specs['oracle'][k].instance}, run 0 of "
           f"every method, preset {preset}: {FILM_RULE}):\n")
     print("| method | success | goal reached | preference followed | homotopy-level success "

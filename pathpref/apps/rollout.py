@@ -11,6 +11,7 @@ outcome card (:func:`pathpref.viz.video.outcome_card`) held for ``CARD_S`` secon
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -40,6 +41,8 @@ VIDEO_FPS = 25
 DEFAULT_SIZE = (960, 540)
 HOLD_S = 2.0  # s of simulated time a push or cue stays drawn (>= 1 s of video at speed 2)
 TRAIL_EVERY_S = 0.1
+#: a trail point is kept only this far (m) from the last one: a standing robot adds none
+TRAIL_MIN_STEP_M = 0.01
 #: the rerun file's camera: every CAMERA_EVERY-th frame (5 per second of video), at the video's
 #: size or, without a video, CAMERA_SIZE
 CAMERA_EVERY = 5
@@ -99,8 +102,11 @@ class FrameMaker:
         """Follow every physics step: trail, push onset, detected cue."""
         t = float(b.data.time)
         if t - self.last_trail_t >= TRAIL_EVERY_S:
-            self.trail.append(b.position.copy())
             self.last_trail_t = t
+            p = b.position
+            if not self.trail or math.hypot(p[0] - self.trail[-1][0],
+                                            p[1] - self.trail[-1][1]) >= TRAIL_MIN_STEP_M:
+                self.trail.append(p.copy())
         self.pushes.update(t, applied_push(b.data, b.pushed_body))
         cue = self.body.last_cue
         if cue is not None and cue is not self.cue_seen:

@@ -129,6 +129,9 @@ def make_renderer(model: mujoco.MjModel, height: int, width: int) -> mujoco.Rend
         raise ConfigError(GL_HELP.format(gl=os.environ.get("MUJOCO_GL", "")) + f" ({e})") from None
 
 
+_EYE = np.eye(3).ravel()  # an overlay geom's orientation (read by MuJoCo, never written)
+
+
 def _add_geom(scn: mujoco.MjvScene, gtype, size, pos, rgba, mat=None,
               emission: float = 0.0) -> int:
     """Append a geom to ``scn`` (``emission`` 1: its own colour, unshaded); -1 when full."""
@@ -136,7 +139,7 @@ def _add_geom(scn: mujoco.MjvScene, gtype, size, pos, rgba, mat=None,
         return -1
     g = scn.geoms[scn.ngeom]
     mujoco.mjv_initGeom(g, gtype, np.asarray(size, float), np.asarray(pos, float),
-                        np.eye(3).ravel() if mat is None else np.asarray(mat, float).ravel(),
+                        _EYE if mat is None else np.asarray(mat, float).ravel(),
                         np.asarray(rgba, np.float32))
     g.emission = emission
     scn.ngeom += 1
