@@ -10,7 +10,12 @@ Menagerie carrying the tray with whole-body IK (:mod:`pathpref.sim.tidybot`).
 * ``tidybot_guidance_push_displacement_m``: 25 N on the tray for 2 s (and 1 s after) under
   the project's guidance admittance (:func:`~pathpref.sim.tidybot.guided_push`);
 * the model's figures (:func:`~pathpref.sim.tidybot.physical_figures`) and
-  ``tidybot_load_s`` (compiling the model with its meshes).
+  ``tidybot_load_s`` (compiling the model with its meshes);
+* ``tidybot_navigate_episode_vs_bare``, ``tidybot_carry_episode_vs_bare``: the TidyBot as an
+  episode body (``robot_model`` tidybot, :mod:`pathpref.sim.tidybot_base`): a ``navigate`` and
+  a ``carry`` episode against bare MuJoCo plus planning on their own scenes, as
+  ``carry_episode_vs_bare`` measures the Jaco's (:func:`~.physics.episodes_vs_bare`, median
+  over 3 episodes, 1 when ``quick``), with their Python per physics step (us).
 """
 
 from __future__ import annotations
@@ -34,7 +39,18 @@ def bench_tidybot(quick: bool = False) -> dict[str, Any]:
 
     drive = Physics().drive
     guided = tidybot.guided_push(wb, drive.admittance_m, drive.admittance_b)
+    from statistics import median
+
+    from .physics import episodes_vs_bare
+
+    episodes = {}
+    for task in ("navigate", "carry"):
+        ratios, python_us, _ = episodes_vs_bare(Physics.of(robot_model="tidybot"),
+                                                1 if quick else 3, robot=task)
+        episodes[f"tidybot_{task}_episode_vs_bare"] = median(ratios)
+        episodes[f"tidybot_{task}_python_us_per_step"] = median(python_us)
     return {"robot_model": tidybot.robot_model(model),
+            **episodes,
             "tidybot_guidance_push_displacement_m": guided,
             "tray_deviation_30n_3s_mm": push["deviation_mm"],
             "tray_recovery_s": push["recovery_s"],
