@@ -208,6 +208,9 @@ def test_a_study_database_from_before_the_columns_opens_replays_and_grows(
      r"trials\[0\]\.physics sensor \(--sensor\) must be one of ideal, ft300s, realistic"),
     ({"physics": {"colour": 1}}, r"trials\[0\]\.physics has unknown field 'colour'"),
     ({"physics": "fast"}, r"trials\[0\]\.physics must be an object of physics fields"),
+    ({"physics": {"robot_model": "tidybot"}},
+     r"trials\[0\]\.physics\.robot_model must be disk: a study's exports place its cells at "
+     r"the disk's 0\.5 m; got 'tidybot'"),
     ({"robot": "fly"}, r"trials\[0\]\.robot must be navigate or carry, got 'fly'"),
     ({"robot": "carry", "physics": {"base": "diffdrive"}},
      r"trials\[0\]: physics base diffdrive runs the navigate task only"),

@@ -33,7 +33,8 @@ Per trial (a field missing from a trial is taken from ``defaults``):
   human is the participant; ``timing`` may be ``guidance``: the base complies to the
   participant's push (Bajcsy-style guidance, every door's guided decision step) and the trial
   is judged along the base's path, the crossings made while the participant pushes reported
-  beside the robot's own;
+  beside the robot's own; ``robot_model`` must stay ``disk`` (a study's exports place cells
+  at its 0.5 m);
 * ``robot``: ``navigate`` (the base) or ``carry`` (the Jaco arm on the base; the participant
   pushes its tray); default ``navigate``.
 
@@ -305,6 +306,11 @@ def _physics(value: Any, where: str) -> str:
     if human:
         raise ConfigError(f"{where}.physics.{human[0]} is the simulated human's; a trial's "
                           "human is the participant: leave it out")
+    if value.get("robot_model", "disk") != "disk":
+        raise ConfigError(f"{where}.physics.robot_model must be disk: a study's exports place "
+                          f"its cells at the disk's 0.5 m; got "
+                          f"{str(value.get('robot_model'))[:40]!r} (the TidyBot runs in --sim "
+                          "mujoco episodes, the tasks and the videos)")
     try:
         return Physics.coerce(value)
     except PathprefError as e:
