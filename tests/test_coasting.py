@@ -124,6 +124,42 @@ def test_guided_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons):
 
 
 @pytest.mark.cross_cpu
+@pytest.mark.parametrize("robot_model,timing", [("disk", "decision"), ("disk", "interval"),
+                                                ("tidybot", "decision"),
+                                                ("tidybot", "guidance")])
+def test_carry_episodes_are_the_same_with_compiled_steps(monkeypatch, reasons, robot_model,
+                                                         timing):
+    """The physical carry arm between IK solves runs in the kernel too (its impedance's servo
+    targets, :func:`~pathpref.sim.arm_step.arm_step`; the tilt's record), the Jaco on the disk
+    and the TidyBot's Gen3: the same final state, servo targets, tilts, IK count, metrics and
+    decisions, the kernel taking most steps and handing each IK solve back."""
+    def run():
+        spec = EpisodeSpec.single("office", "path_preference", 5, seed=11, instance=2,
+                                  sim="mujoco", t_max=10, robot="carry",
+                                  physics=Physics.of(robot_model=robot_model,
+                                                     timing=timing).to_json())
+        runner = EpisodeRunner(spec)
+        while not runner.done:
+            runner.step()
+        b = runner.body.base
+        return (_state(b), b.tilts, b._k, b.ik_solves, b.q_kin.tobytes(),
+                sorted(runner.result.metrics.items()),
+                [(s.t, s.x, s.y, s.action) for s in runner.result.log])
+
+    off, on = _both(monkeypatch, run)
+    assert off == on
+    k, solves = on[2], on[3]
+    assert len(on[1]) == k and reasons["steps"] > 0.8 * k  # the kernel took most steps
+    assert solves == -(-k // runner_ik_every(robot_model))  # one solve per IK period
+
+
+def runner_ik_every(robot_model: str) -> int:
+    """The physical arm's IK period in physics steps (50 ms on the Jaco, 100 ms on the
+    TidyBot's Gen3, at 2 ms steps)."""
+    return {"disk": 25, "tidybot": 50}[robot_model]
+
+
+@pytest.mark.cross_cpu
 def test_recorded_paths_are_the_same_with_compiled_steps(monkeypatch, reasons):
     """A path recorder (``--record-path``) lets the kernel run the steps between its samples
     and takes each sample in Python: the same samples, state and decisions either way."""
@@ -264,13 +300,15 @@ def test_the_contact_sensor_counts_mjdatas_contacts(monkeypatch):
     ("navigate", Physics(), True),
     ("navigate", None, False),  # legacy: ideal sensor, plain detector
     ("navigate", Physics.of(base="diffdrive"), False),
-    ("carry", Physics(), False),
+    ("carry", Physics(), True),
     ("navigate", Physics.of(timing="guidance"), True),
-    ("carry", Physics.of(timing="guidance"), False),
+    ("carry", Physics.of(timing="guidance"), True),
+    ("carry", None, False),  # the legacy arm: its IK drives the base at 100 Hz
 ])
 def test_only_the_setups_it_mirrors_coast(task, physics, coasts):
-    """The kernel runs for the plain base with the realistic chain only (guided too); the
-    differential drive, the arm and the legacy sensing keep the Python path."""
+    """The kernel runs for the plain base and the physical carry arm with the realistic chain
+    only (guided too); the differential drive, the legacy arm and the legacy sensing keep
+    the Python path."""
     from pathpref.sim.body import base_params, build_base
 
     world = load_world("simple")

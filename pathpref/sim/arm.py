@@ -54,6 +54,11 @@ the decision protocol) and, with pushes at any time, yields by its admittance
 by its tray (25 N for 2 s: 0.62 m, as the plain base). The tray's plate collides with walls,
 obstacles and the base (``contype`` 1, ``conaffinity`` 0: not with the arm that holds it).
 
+**Compiled steps** (physical mode): between two IK solves the arm's step is one compiled
+function (:func:`~.arm_step.arm_step`: the tray's Jacobian, the impedance, the servo
+targets), which the Python step and the compiled move of :mod:`.coasting` both call, so a
+carry episode's quiet steps run there as the plain base's do, the same numbers.
+
 **IK rate** (physical mode: ``PHYSICAL_IK_PERIOD_S``, 50 ms, 20 Hz). Here the IK never meets a
 push (the impedance does, at every physics step): it only keeps the kinematic tray at its
 constant offset from the base and the arm clear of obstacles, so its solution is nearly still
@@ -81,13 +86,14 @@ from pathlib import Path
 
 import mink
 import mujoco
-import numba as nb
 import numpy as np
 
 from ..episode.physics import CELL_SIZE_M, QUIET_DEFAULTS
 from ..errors import EpisodeError
 from ..geometry.world import World
+from .arm_step import arm_step, tray_impedance
 from .mobile_base import MobileBase
+from .native import entry_point
 from .scene import BaseParams, Scene, build_spec, mjcf_path
 from .sensing import HandleSensor
 
@@ -187,63 +193,12 @@ def build_arm_scene(world: World, cell_size: float = CELL_SIZE_M, base: BasePara
 def tilt_deg(data: mujoco.MjData, body: int) -> float:
     """Angle between the tray's normal and the vertical (degrees): ``acos(R_zz)``, ``R`` the
     body's orientation (``xmat`` row-major, so ``R_zz`` is its last entry)."""
-    return math.degrees(math.acos(min(1.0, max(-1.0, float(data.xmat[body, 8])))))
+    return tilt_from(float(data.xmat[body, 8]))
 
 
-@nb.njit(cache=True)
-def tray_impedance(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin,
-                   gains):  # pragma: no cover - compiled
-    """The arm joints' torques of the tray impedance (module docstring, "Compliant arm"), N m,
-    on MuJoCo's arrays: ``bodies`` = (base, tray) body ids; ``rel`` the 3x4 ``[R_rel | p_rel]``
-    (the tray's pose relative to the base in the kinematic configuration); ``jac`` the tray's
-    6 x nv Jacobian (translational rows over rotational, ``mj_jacBody``); ``dofs``, ``qadr``
-    the arm joints' velocity and position addresses; ``gains`` = (K, D, K_r, D_r, k_0)::
-
-        p_d = p_b + R_b p_rel,  R_d = R_b R_rel
-        F   = K (p_d - p) - D J_p q_dot,   M = K_r e_r - D_r J_r q_dot
-        e_r = 1/2 sum_i r_i x r_d,i   (r_i, r_d,i the columns of R, R_d)
-        tau = J_p^T F + J_r^T M + k_0 (q_kin - q)
-    """
-    base, tray = bodies[0], bodies[1]
-    k, dmp, kr, dr, k0 = gains[0], gains[1], gains[2], gains[3], gains[4]
-    Rb = xmat[base].reshape(3, 3)
-    R = xmat[tray].reshape(3, 3)
-    Rd = np.empty((3, 3))
-    for a in range(3):
-        for c in range(3):
-            Rd[a, c] = Rb[a, 0] * rel[0, c] + Rb[a, 1] * rel[1, c] + Rb[a, 2] * rel[2, c]
-    n = dofs.shape[0]
-    f = np.empty(3)
-    m = np.empty(3)
-    for a in range(3):
-        v = 0.0
-        w = 0.0
-        for j in range(n):
-            qd = qvel[dofs[j]]
-            v += jac[a, dofs[j]] * qd
-            w += jac[3 + a, dofs[j]] * qd
-        p_d = xpos[base, a] + Rb[a, 0] * rel[0, 3] + Rb[a, 1] * rel[1, 3] + Rb[a, 2] * rel[2, 3]
-        b, c = (a + 1) % 3, (a + 2) % 3
-        e = 0.0
-        for i in range(3):  # (r_i x r_d,i)_a
-            e += R[b, i] * Rd[c, i] - R[c, i] * Rd[b, i]
-        f[a] = k * (p_d - xpos[tray, a]) - dmp * v
-        m[a] = kr * (0.5 * e) - dr * w
-    tau = np.empty(n)
-    for j in range(n):
-        t = k0 * (q_kin[j] - qpos[qadr[j]])
-        for a in range(3):
-            t += jac[a, dofs[j]] * f[a] + jac[3 + a, dofs[j]] * m[a]
-        tau[j] = t
-    return tau
-
-
-def _as_slice(idx: np.ndarray) -> slice | np.ndarray:
-    """``idx`` as a slice when its indices are consecutive (NumPy then takes a view, not a
-    gathered copy: the servo targets are written at every physics step), else ``idx``."""
-    lo = int(idx[0])
-    run = np.arange(lo, lo + len(idx))
-    return slice(lo, lo + len(idx)) if np.array_equal(idx, run) else idx
+def tilt_from(r_zz: float) -> float:
+    """:func:`tilt_deg` of the orientation's ``R_zz``."""
+    return math.degrees(math.acos(min(1.0, max(-1.0, r_zz))))
 
 
 class ArmBase(MobileBase):
@@ -270,7 +225,6 @@ class ArmBase(MobileBase):
         self.pushed_body = self.tray  # people push the tray
         self.arm_qpos = np.array([m.joint(j).qposadr[0] for j in arm.joints])
         self.arm_ctrl = np.array([m.actuator(a).id for a in arm.servos])
-        self._q_span, self._ctrl_span = _as_slice(self.arm_qpos), _as_slice(self.arm_ctrl)
         if ik_period is None:
             ik_period = arm.ik_period_s if physical else IK_PERIOD_S
         self.ik_every = max(1, int(round(ik_period / self.dt)))
@@ -327,6 +281,10 @@ class ArmBase(MobileBase):
                                          collision_detection_distance=0.15),
         ]
         self._kp = m.actuator_gainprm[self.arm_ctrl, 0].copy()  # the servos' kp
+        #: :func:`arm_step`'s scratch (the rotation R_d, the force and moment) and torques
+        self._Rd, self._f3, self._m3 = np.zeros((3, 3)), np.zeros(3), np.zeros(3)
+        self._tau = np.zeros(len(arm.joints))
+        self._arm_entry = None  # arm_step's compiled overload (entry_point, resolved once)
         self._k = 0
         self.tilts: list[float] = []
         self.ik_solves = 0
@@ -419,10 +377,48 @@ class ArmBase(MobileBase):
             self.q_kin = self.cfg.q[self.arm_qpos].copy()
             self._relative_target()
         self._k += 1
-        d.ctrl[self._ctrl_span] = d.qpos[self._q_span] + self.impedance_torque() / self._kp
+        args = self.arm_args()
+        if self._arm_entry is None:
+            self._arm_entry = entry_point(arm_step, args)
+        self._arm_entry(*args)
         self.tilts.append(tilt_deg(d, self.tray))
         super()._control()  # the base's command (under guidance it complies to the push)
         self.deepest = max(self.deepest, self.max_penetration())
+
+    def arm_args(self) -> tuple:
+        """:func:`arm_step`'s arguments now (the kinematic configuration's arm joints are a
+        new array after each IK solve)."""
+        d = self.data
+        return (self.model._address, d._address, d.xpos, d.xmat, self._bodies, self._rel,
+                self._jac, self.arm_dofs, d.qvel, d.qpos, self.arm_qpos, self.q_kin,
+                self._gains, self._kp, d.ctrl, self.arm_ctrl, self._Rd, self._f3, self._m3,
+                self._tau)
+
+    def kernel_mirrors(self) -> bool:
+        """The compiled move mirrors the physical arm's step (:func:`~.arm_step.arm_step`
+        between IK solves), not the legacy arm's."""
+        return self.physical
+
+    def kernel_ready(self) -> bool:
+        """The compiled move may take the next step (:meth:`.coasting.Coaster.ready`): no IK
+        solve due at it, nothing in contact (whose penetration the Python step measures)."""
+        return self._k % self.ik_every != 0 and self.data.ncon == 0
+
+    def compiled_arm(self) -> tuple:
+        """:func:`~.arm_step.arm_step`'s arrays (but MuJoCo's addresses and ``qvel``,
+        ``qpos``, ``ctrl``, which the compiled move has), a tilt record of one IK period and
+        ``(steps since the reset, IK period in steps)``: the arm record of
+        :func:`.coasting._coast`."""
+        d = self.data
+        return (d.xpos, d.xmat, self._bodies, self._rel, self._jac, self.arm_dofs,
+                self.arm_qpos, self.q_kin, self._gains, self._kp, self.arm_ctrl, self._Rd,
+                self._f3, self._m3, self._tau, np.empty(self.ik_every),
+                np.array([self._k, self.ik_every], dtype=np.int64))
+
+    def record_tilts(self, r_zz: np.ndarray) -> None:
+        """The tilts of steps the compiled move took, from the tray's ``xmat[tray, 8]`` each
+        (:func:`tilt_from`)."""
+        self.tilts.extend(tilt_from(float(z)) for z in r_zz)
 
     def impedance_torque(self) -> np.ndarray:
         """The arm joints' torques of the tray impedance (module docstring), N m: the tray's

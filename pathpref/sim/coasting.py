@@ -13,23 +13,24 @@ same ``mj_step``, the same BLAS kernels, CPython's ``hypot``) and the sensor's o
 same bit for bit whichever path runs it: ``tests/test_coasting.py`` runs episodes both ways
 and compares every state, cue and metric exactly.
 
-The kernel hands back to Python, before or within a step, whenever something it does not
-mirror may happen: the detector's force is not clearly below its onset threshold (the onset
-rule and the cue stream run in Python from there on, :data:`DETECT`), the base touches
-something (the contact measurements, :data:`CONTACTS`), an ``on_substep`` hook acts (a
-polytope change for the path's crossing hook, a path recorder's sample: :data:`CROSS`), or
-the move ends (:data:`END`: settled, or its time is up). It runs only where it applies
-(:meth:`Coaster.applies`, :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase`
-on the profiled controller's float path, the faulty sensor without thermal drift and its
-estimator, the filtered detector idle, no pushes or external forces, a guided base's
-admittance at most in its tail (no cue under way; the command through the safety filter), no
-``pre_substep`` hook but a quiet one (the simulated human of pushes at any time runs the
-kernel up to its next push), no ``on_substep`` hook but the path's crossing hook and quiet
-ones, a scene with the contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate
-task's drive runs on it too (:meth:`Coaster.drive`: the agent's velocity held,
-:class:`~.controller.HeldVelocity`, no move to end), and a timed move (guidance: its drive,
-then the hold). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns
-it off.
+The kernel hands back to Python, before or within a step, whenever something it does not mirror
+may happen: the detector's force is not clearly below its onset threshold (the onset rule and
+the cue stream run in Python from there on, :data:`DETECT`), the base touches something (the
+contact measurements, :data:`CONTACTS`), an ``on_substep`` hook acts (a polytope change for the
+path's crossing hook, a path recorder's sample: :data:`CROSS`), or the move ends (:data:`END`:
+settled, or its time is up). It runs only where it applies (:meth:`Coaster.applies`,
+:meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase`, or the physical carry arm's
+(:class:`~.arm.ArmBase`: its servo targets of the tray impedance, :func:`~.arm_step.arm_step`,
+at every step, the tilt recorded; an IK solve due, or a contact, hands the step to Python), on
+the profiled controller's float path, the faulty sensor without thermal drift and its estimator,
+the filtered detector idle, no pushes or external forces, a guided base's admittance at most in
+its tail (no cue under way; the command through the safety filter), no ``pre_substep`` hook but
+a quiet one (the simulated human of pushes at any time runs the kernel up to its next push), no
+``on_substep`` hook but the path's crossing hook and quiet ones, a scene with the contact sensor
+it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
+(:meth:`Coaster.drive`: the agent's velocity held, :class:`~.controller.HeldVelocity`, no move
+to end), and a timed move (guidance: its drive, then the hold). Every other step takes the
+Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it off.
 """
 
 from __future__ import annotations
@@ -40,9 +41,9 @@ import os
 import mujoco
 import numba as nb
 import numpy as np
-from numba.core.dispatcher import Dispatcher
 
 from . import native
+from .arm_step import arm_step
 from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
 from .cue_detector import FilteredCueDetector, filter_step
 from .estimator import estimate_step
@@ -68,7 +69,7 @@ READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
  T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
- HELD, FILTER, SAMPLES, GUIDED, POLY, HOOK_IN, N_IS) = range(22)
+ HELD, FILTER, SAMPLES, GUIDED, POLY, HOOK_IN, ARM, N_IS) = range(23)
 #: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
 CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
@@ -87,7 +88,8 @@ def _bad_states(warnings):
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, max_steps):
+def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs, ns,
+           max_steps):
     """Physics steps of the move phase (or a drive: :meth:`Coaster.drive`) until a hand-back
     (module docstring); returns
     ``(reason, steps)``. ``held`` receives the last sample, ``est``
@@ -104,7 +106,10 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, 
     a guided base at rest (``ns[GUIDED]``: the command through
     :func:`~.keep_clear.keep_clear_xy`, the map's ``Clearance.arrays`` and rows) and for its
     path's crossings (``ns[POLY] >= 0``: the polytope the base is in; the grid's
-    ``cell_index`` and ``cell_polytope``). Simulated time is ``fs[TIME]``, advanced by
+    ``cell_index`` and ``cell_polytope``); ``arm`` the physical carry arm's
+    (``ns[ARM]``: :func:`~.arm.arm_step`'s arrays, the tilt record ``tilts`` (the tray's
+    ``xmat[tray, 8]`` per step) and ``ak`` = (steps since the reset, IK period in steps):
+    an IK solve due hands back before its step). Simulated time is ``fs[TIME]``, advanced by
     ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
@@ -112,11 +117,22 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, 
     sbias, held, win, scratch = sensor
     f, baseline, dring, dqueue, dparams = det
     clr, rows, cell_index, cell_polytope, gv, gdef, gparams = guide
+    (xpos, xmat, bodies, rel, jac, dofs, qadr, q_kin, gains, kp, ctrl_idx, Rd, f3, m3, tau,
+     tilts, ak) = arm
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce = est[7]
     for step in range(max_steps):
         if fs[TIME] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
+        # --- ArmBase._control_physical: the IK in Python when due (Coaster.ready: not at 0),
+        # else the servo targets of the tray impedance and the tilt's record
+        if ns[ARM]:
+            if ak[0] % ak[1] == 0 or step >= tilts.shape[0]:
+                return READY, step
+            ak[0] += 1
+            arm_step(mp, dp, xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains,
+                     kp, ctrl, ctrl_idx, Rd, f3, m3, tau)
+            tilts[step] = xmat[bodies[1], 8]
         # --- MobileBase._control: a guided base's admittance tail (Guidance.admit, no cue
         # under way: Coaster.ready), then the float path: ProfiledController.goal_xy
         # (HeldVelocity's: the held command) and ramp_xy
@@ -231,18 +247,12 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, fs, cs, ns, 
 
 
 def compiled_entry(args: tuple):
-    """The compiled overload of :func:`_coast` for ``args``' numba types (compiled, or loaded
-    from numba's cache, if it is not yet), called directly. Numba's dispatcher resolves the
-    overload from the types of all ~40 arrays on every call, half the Python of a 10-step
-    call; a :class:`Coaster` resolves it once per setup (the constants' key: the arrays it
-    passes are the same kinds, shapes and layouts for as long as that key holds)."""
-    kernel = _coast
-    if not isinstance(kernel, Dispatcher):  # replaced, e.g. by a test's counting wrapper
-        return kernel
-    sig = tuple(kernel.typeof_pyval(a) for a in args)
-    if sig not in kernel.overloads:
-        kernel.compile(sig)
-    return kernel.overloads[sig].entry_point
+    """The compiled overload of :func:`_coast` for ``args``' numba types
+    (:func:`~.native.entry_point`: numba's dispatcher would type all ~50 arrays on every
+    call, half the Python of a 10-step call; a :class:`Coaster` resolves it once per setup,
+    the constants' key: the arrays it passes are the same kinds, shapes and layouts for as
+    long as that key holds)."""
+    return native.entry_point(_coast, args)
 
 
 def enabled() -> bool:
@@ -290,7 +300,7 @@ class Coaster:
         s = b.sensing
         f = s.faulty
         return (b.decision.final is None and not b.pushes and self._hooks_mirrored()
-
+                and b.kernel_ready()
                 and (not b.pre_substep or b.data.time < self._quiet_until())
                 and not b.external_forces and b._onset is None and not s.under_way
                 and f is not None and f._held is not None and s.estimator._qvel_mark is not None
@@ -346,6 +356,11 @@ class Coaster:
                        np.ascontiguousarray(sc.world.cell_polytope, dtype=np.int64))
         #: the kernel's compiled overload per constants' key (:func:`compiled_entry`)
         self._entries: dict = {}
+        #: the arm record of a base without an arm (empty arrays of the arm's types)
+        f2, i1, f1 = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0)
+        self._no_arm = (f2, np.zeros((0, 9)), i1, np.zeros((3, 4)), np.zeros((6, 0)), i1, i1,
+                        f1, f1, f1, i1, np.zeros((3, 3)), f1, f1, f1, f1,
+                        np.array([1, 1], np.int64))
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
@@ -408,7 +423,7 @@ class Coaster:
                                  int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
                                  b.model.sensor(CONTACT_SENSOR).adr[0],
                                  int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
-                                 -1, 0],
+                                 -1, 0, int(b.compiled_arm() is not None)],
                                 dtype=np.int64)
             self._guide_args = (*self._guide, *self._guidance())
             self._key = key
@@ -454,17 +469,21 @@ class Coaster:
         d = self._data
         fs[TIME] = d.time
         filt = self._err if force_filter is None else force_filter.f
+        arm = b.compiled_arm() if ns[ARM] else self._no_arm
         goal = c.u if type(c) is HeldVelocity else self._err
         args = ((b.model._address, d._address),
                 (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings),
                 (c.last, b.target, self._err, goal, filt),
                 (f.bias, held, f.win, self._scratch), f.rng, est.params,
                 est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
-                self._guide_args, fs, cs, ns, max_steps)
+                self._guide_args, arm, fs, cs, ns, max_steps)
         entry = self._entries.get(self._key)
         if entry is None:
             entry = self._entries[self._key] = compiled_entry(args)
         reason, steps = entry(*args)
+        if ns[ARM]:  # the arm's steps (each kernel step ran the arm's part: module docstring)
+            b._k = int(arm[-1][0])
+            b.record_tilts(arm[-2][:steps])
         # the quiet hooks learn of the steps they were not called for (the last step's hooks
         # run in Python after a hand-back within it)
         self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))

@@ -132,11 +132,26 @@ class MobileBase:
     def coaster(self) -> Coaster | None:
         """The compiled steps of a move with nothing pushing (:mod:`.coasting`) when they
         apply to this base as it is set up now, else None (a subclass steps otherwise)."""
-        if type(self) is not MobileBase or not Coaster.applies(self):
+        if not self.kernel_mirrors() or not Coaster.applies(self):
             return None
         if self._coaster is None:
             self._coaster = Coaster(self)
         return self._coaster
+
+    def kernel_mirrors(self) -> bool:
+        """Whether the compiled move mirrors this kind of base's step: the plain base (a
+        subclass that steps otherwise says so: the differential drive does not, the
+        physical carry arm does)."""
+        return type(self) is MobileBase
+
+    def kernel_ready(self) -> bool:
+        """Whether the compiled move may take the next step as far as this base's own parts
+        go (:meth:`.coasting.Coaster.ready`; the plain base: always)."""
+        return True
+
+    def compiled_arm(self) -> tuple | None:
+        """The physical carry arm's arrays for the compiled move (None: no arm)."""
+        return None
 
     def enable_pushes_any_time(self, admittance_b: float = 80.0) -> None:
         """Pushes at any time (module docstring): the splitting detector, admittance ``b``

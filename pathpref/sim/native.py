@@ -3,9 +3,9 @@
 A numba kernel that steps MuJoCo and does the robot's arithmetic gives the same numbers as the
 Python loop only if every operation is the same IEEE operation in the same order. So:
 
-* MuJoCo's ``mj_step``, ``mj_objectAcceleration`` and ``mj_jacBodyCom`` are called by symbol
-  from the ``libmujoco`` the Python bindings loaded (the same library, on the ``MjModel`` and
-  ``MjData`` the bindings hold, through their ``_address``);
+* MuJoCo's ``mj_step``, ``mj_objectAcceleration``, ``mj_jacBodyCom`` and ``mj_jacBody`` are
+  called by symbol from the ``libmujoco`` the Python bindings loaded (the same library, on the
+  ``MjModel`` and ``MjData`` the bindings hold, through their ``_address``);
 * matrix-vector and dot products go to the ``cblas_dgemv`` and ``cblas_ddot`` of NumPy's own
   OpenBLAS with the arguments NumPy passes for ``ndarray.dot`` (a C-ordered ``A`` row-major, a
   transposed view column-major), so they pick the same CPU kernel (FMA or not) as NumPy;
@@ -49,7 +49,7 @@ def _libraries() -> tuple[str, str]:
 
 
 #: the symbols the kernels call, by library (checked before numba is asked to link them)
-SYMBOLS = (("mj_step", "mj_objectAcceleration", "mj_jacBodyCom"),
+SYMBOLS = (("mj_step", "mj_objectAcceleration", "mj_jacBodyCom", "mj_jacBody"),
            ("scipy_cblas_dgemv64_", "scipy_cblas_ddot64_"))
 
 try:
@@ -70,6 +70,7 @@ mj_objectAcceleration = types.ExternalFunction(
     "mj_objectAcceleration", types.void(_ptr, _ptr, _i32, _i32, _ptr, _i32))
 mj_jacBodyCom = types.ExternalFunction("mj_jacBodyCom",
                                        types.void(_ptr, _ptr, _ptr, _ptr, _i32))
+mj_jacBody = types.ExternalFunction("mj_jacBody", types.void(_ptr, _ptr, _ptr, _ptr, _i32))
 _dgemv = types.ExternalFunction(
     "scipy_cblas_dgemv64_",
     types.void(_i32, _i32, _i64, _i64, _f64, _ptr, _i64, _ptr, _i64, _f64, _ptr, _i64))
@@ -151,6 +152,22 @@ def hypot(x, y):
     frac1 += pl
     h += (csum - 1.0 + (frac1 + frac2)) / (2.0 * h)
     return h / scale
+
+
+def entry_point(kernel, args: tuple):
+    """The compiled overload of the numba function ``kernel`` for ``args``' types (compiled,
+    or loaded from numba's cache, if it is not yet), to call directly: numba's dispatcher
+    resolves the overload from the types of every argument on each call, which for a kernel
+    of many arrays costs more than the call; a caller resolves it once per setup. A
+    ``kernel`` that is not a numba dispatcher (a test's wrapper) is returned as it is."""
+    from numba.core.dispatcher import Dispatcher
+
+    if not isinstance(kernel, Dispatcher):
+        return kernel
+    sig = tuple(kernel.typeof_pyval(a) for a in args)
+    if sig not in kernel.overloads:
+        kernel.compile(sig)
+    return kernel.overloads[sig].entry_point
 
 
 def ready() -> bool:

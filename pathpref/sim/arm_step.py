@@ -1,0 +1,82 @@
+"""The physical carry arm's arithmetic of one physics step (:class:`~.arm.ArmBase`, module
+docstring "Compliant arm"): the tray impedance's joint torques and the servo targets that
+realise them. One copy, compiled: the Python step (:meth:`~.arm.ArmBase._control_physical`)
+and the compiled move (:mod:`.coasting`) both call :func:`arm_step`."""
+
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from .native import mj_jacBody
+
+
+@nb.njit(cache=True, inline="always")
+def tray_impedance_into(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains,
+                        Rd, f, m, tau):  # pragma: no cover - compiled
+    """The arm joints' torques of the tray impedance (module docstring, "Compliant arm"), N m,
+    into ``tau``, on MuJoCo's arrays (allocating nothing: the compiled move calls it too;
+    ``Rd`` 3 x 3, ``f``, ``m`` 3 are scratch): ``bodies`` = (base, tray) body ids; ``rel``
+    the 3x4 ``[R_rel | p_rel]`` (the tray's pose relative to the base in the kinematic
+    configuration); ``jac`` the tray's 6 x nv Jacobian (translational rows over rotational,
+    ``mj_jacBody``); ``dofs``, ``qadr`` the arm joints' velocity and position addresses;
+    ``gains`` = (K, D, K_r, D_r, k_0)::
+
+        p_d = p_b + R_b p_rel,  R_d = R_b R_rel
+        F   = K (p_d - p) - D J_p q_dot,   M = K_r e_r - D_r J_r q_dot
+        e_r = 1/2 sum_i r_i x r_d,i   (r_i, r_d,i the columns of R, R_d)
+        tau = J_p^T F + J_r^T M + k_0 (q_kin - q)
+    """
+    base, tray = bodies[0], bodies[1]
+    k, dmp, kr, dr, k0 = gains[0], gains[1], gains[2], gains[3], gains[4]
+    Rb = xmat[base].reshape(3, 3)
+    R = xmat[tray].reshape(3, 3)
+    for a in range(3):
+        for c in range(3):
+            Rd[a, c] = Rb[a, 0] * rel[0, c] + Rb[a, 1] * rel[1, c] + Rb[a, 2] * rel[2, c]
+    n = dofs.shape[0]
+    for a in range(3):
+        v = 0.0
+        w = 0.0
+        for j in range(n):
+            qd = qvel[dofs[j]]
+            v += jac[a, dofs[j]] * qd
+            w += jac[3 + a, dofs[j]] * qd
+        p_d = xpos[base, a] + Rb[a, 0] * rel[0, 3] + Rb[a, 1] * rel[1, 3] + Rb[a, 2] * rel[2, 3]
+        b, c = (a + 1) % 3, (a + 2) % 3
+        e = 0.0
+        for i in range(3):  # (r_i x r_d,i)_a
+            e += R[b, i] * Rd[c, i] - R[c, i] * Rd[b, i]
+        f[a] = k * (p_d - xpos[tray, a]) - dmp * v
+        m[a] = kr * (0.5 * e) - dr * w
+    for j in range(n):
+        t = k0 * (q_kin[j] - qpos[qadr[j]])
+        for a in range(3):
+            t += jac[a, dofs[j]] * f[a] + jac[3 + a, dofs[j]] * m[a]
+        tau[j] = t
+
+
+@nb.njit(cache=True)
+def tray_impedance(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin,
+                   gains):  # pragma: no cover - compiled
+    """:func:`tray_impedance_into` into new arrays; the torques."""
+    tau = np.empty(dofs.shape[0])
+    tray_impedance_into(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains,
+                        np.empty((3, 3)), np.empty(3), np.empty(3), tau)
+    return tau
+
+
+@nb.njit(cache=True)
+def arm_step(mp, dp, xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains, kp,
+             ctrl, ctrl_idx, Rd, f, m, tau):  # pragma: no cover - compiled
+    """The physical arm's servo targets of one physics step (:meth:`ArmBase.
+    _control_physical`): the tray's Jacobian (MuJoCo's ``mj_jacBody``, the C function the
+    bindings call), the impedance torques (:func:`tray_impedance_into`), then ``ctrl = q +
+    tau / kp`` per arm joint (the servo's force ``kp (ctrl - q) - kv q_dot`` is then ``tau -
+    kv q_dot``). The Python step and the compiled move both call it."""
+    nv = qvel.shape[0]
+    mj_jacBody(mp, dp, jac.ctypes.data, jac.ctypes.data + 3 * nv * 8, bodies[1])
+    tray_impedance_into(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains,
+                        Rd, f, m, tau)
+    for j in range(dofs.shape[0]):
+        ctrl[ctrl_idx[j]] = qpos[qadr[j]] + tau[j] / kp[j]
