@@ -199,8 +199,8 @@ def test_bench_json_keys():
     assert tb["tray_deviation_30n_3s_mm"] <= 60.0 and tb["tray_recovery_s"] <= 1.0
     # the TidyBot as an episode body: its compiled move may beat a Python loop of mj_step
     # (below 1); its carry arm steps in Python (above 1)
-    assert tb["tidybot_navigate_episode_vs_bare"] > 0.3
-    assert tb["tidybot_carry_episode_vs_bare"] > 1.0
+    assert tb["navigate_episode_vs_bare"] > 0.3
+    assert tb["carry_episode_vs_bare"] > 1.0
     st = res["study"]  # every push reaches the belief; the target is <= 200 ms
     assert st["study_cues_seen"] == st["study_pushes"] and 0 < st["study_latency_ms"] < 1000
 

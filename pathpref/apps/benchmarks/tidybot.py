@@ -11,11 +11,12 @@ Menagerie carrying the tray with whole-body IK (:mod:`pathpref.sim.tidybot`).
   the project's guidance admittance (:func:`~pathpref.sim.tidybot.guided_push`);
 * the model's figures (:func:`~pathpref.sim.tidybot.physical_figures`) and
   ``tidybot_load_s`` (compiling the model with its meshes);
-* ``tidybot_navigate_episode_vs_bare``, ``tidybot_carry_episode_vs_bare``: the TidyBot as an
-  episode body (``robot_model`` tidybot, :mod:`pathpref.sim.tidybot_base`): a ``navigate`` and
-  a ``carry`` episode against bare MuJoCo plus planning on their own scenes, as
-  ``carry_episode_vs_bare`` measures the Jaco's (:func:`~.physics.episodes_vs_bare`, median
-  over 3 episodes, 1 when ``quick``), with their Python per physics step (us).
+* ``navigate_episode_vs_bare``, ``carry_episode_vs_bare`` (this section's: the TidyBot's;
+  ``arm.carry_episode_vs_bare`` is the Jaco's) and ``navigate_python_us_per_step``,
+  ``carry_python_us_per_step``: the TidyBot as an episode body (``robot_model`` tidybot,
+  :mod:`pathpref.sim.tidybot_base`), a ``navigate`` and a ``carry`` episode against bare
+  MuJoCo plus planning on their own scenes (:func:`~.physics.episodes_vs_bare`, median over
+  3 episodes, 1 when ``quick``), and their Python per physics step (us).
 """
 
 from __future__ import annotations
@@ -47,8 +48,8 @@ def bench_tidybot(quick: bool = False) -> dict[str, Any]:
     for task in ("navigate", "carry"):
         ratios, python_us, _ = episodes_vs_bare(Physics.of(robot_model="tidybot"),
                                                 1 if quick else 3, robot=task)
-        episodes[f"tidybot_{task}_episode_vs_bare"] = median(ratios)
-        episodes[f"tidybot_{task}_python_us_per_step"] = median(python_us)
+        episodes[f"{task}_episode_vs_bare"] = median(ratios)
+        episodes[f"{task}_python_us_per_step"] = median(python_us)
     return {"robot_model": tidybot.robot_model(model),
             **episodes,
             "tidybot_guidance_push_displacement_m": guided,
