@@ -47,7 +47,10 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   ``admittance_b`` (N s/m, how the base yields while a cue is under way), ``mass_kg`` (the
   whole base) and ``friction_n`` (the floor's Coulomb resistance to sliding, per axis, N);
   ``admittance_m`` (kg): the guided base's admittance ``M dv/dt + b v = F_hat``, ``v`` added to
-  its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017).
+  its tracking command (``guidance`` timing: the push deforms the motion, Bajcsy et al. 2017);
+  ``robot_model`` (:data:`ROBOT_MODELS`: ``disk``, the default, or ``tidybot``, MuJoCo
+  Menagerie's Stanford TidyBot at 1 m per cell, whose own drive defaults fill the fields not
+  given).
 
 **Guidance** (``timing = guidance``): the person takes the handle on the ``interval`` clock
 and the base complies (the simulator's ``guidance``); the person is closed-loop by default
@@ -99,7 +102,7 @@ class RobotModel:
 #: drive the physical defaults make a Clearpath Ridgeback; ``tidybot`` the Stanford TidyBot of
 #: MuJoCo Menagerie, 0.284 m from its centre to its bumper's corner, so 1 m per cell): its
 #: mass is Menagerie's (the base's 60 kg, the Gen3 arm, the gripper and the push handle:
-#: :func:`pathpref.sim.tidybot.navigation_mass_kg`), its limits those TidyBot++'s simulated
+#: :func:`pathpref.sim.tidybot_base.navigation_mass_kg`), its limits those TidyBot++'s simulated
 #: base controller plans with (0.5 m/s and 0.5 m/s^2, ``mujoco_env.py``'s Ruckig limits)
 ROBOT_MODELS: dict[str, RobotModel] = {
     "disk": RobotModel(cell_size_m=0.5),

@@ -107,7 +107,7 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
     :func:`~.keep_clear.keep_clear_xy`, the map's ``Clearance.arrays`` and rows) and for its
     path's crossings (``ns[POLY] >= 0``: the polytope the base is in; the grid's
     ``cell_index`` and ``cell_polytope``); ``arm`` the physical carry arm's
-    (``ns[ARM]``: :func:`~.arm.arm_step`'s arrays, the tilt record ``tilts`` (the tray's
+    (``ns[ARM]``: :func:`~.arm_step.arm_step`'s arrays, the tilt record ``tilts`` (the tray's
     ``xmat[tray, 8]`` per step) and ``ak`` = (steps since the reset, IK period in steps):
     an IK solve due hands back before its step). Simulated time is ``fs[TIME]``, advanced by
     ``mj_step``'s own operation (``time += timestep``)."""
