@@ -214,12 +214,15 @@ def test_arm_stiffness_is_a_physical_parameter():
 
 
 def test_tray_impedance_is_the_formula(worlds):
-    """The compiled impedance (:func:`~pathpref.sim.arm.tray_impedance`) against the module
-    docstring's formula written with matrices and ``np.cross``, on a deflected, moving arm
-    whose kinematic target is rotated and offset (every term nonzero): within 1e-9 relative."""
+    """The compiled arm step (:func:`~pathpref.sim.arm_step.arm_step`, which the Python step
+    and the compiled move both call: the Jacobian from MuJoCo, the impedance, the servo
+    targets) against the module docstring's formula written with matrices and ``np.cross``,
+    on a deflected, moving arm whose kinematic target is rotated and offset (every term
+    nonzero): the torques within 1e-9 relative, the servo targets ``q + tau / kp``."""
     import mujoco
 
     from pathpref.sim import arm as arm_module
+    from pathpref.sim.arm_step import arm_step
 
     arm = ArmBase(build_arm_scene_cached(), physical=True, stiffness=1300.0)
     m, d = arm.model, arm.data
@@ -247,7 +250,11 @@ def test_tray_impedance_is_the_formula(worlds):
     moment = a.TRAY_ROT_STIFFNESS * e_r - a.TRAY_ROT_DAMPING * (Jr @ qd)
     want = Jp.T @ f + Jr.T @ moment + a.POSTURE_STIFFNESS * (arm.q_kin - d.qpos[arm.arm_qpos])
     assert np.abs(want).min() > 1e-3
-    np.testing.assert_allclose(arm.impedance_torque(), want, rtol=1e-9, atol=1e-12)
+    arm_step(*arm.arm_args())
+    np.testing.assert_allclose(arm._tau, want, rtol=1e-9, atol=1e-12)
+    kp = m.actuator_gainprm[arm.arm_ctrl, 0]
+    np.testing.assert_allclose(d.ctrl[arm.arm_ctrl], d.qpos[arm.arm_qpos] + want / kp,
+                               rtol=1e-9, atol=1e-12)
 
 
 def test_penetration_is_the_deepest_arm_obstacle_contact(worlds):

@@ -91,7 +91,7 @@ import numpy as np
 from ..episode.physics import CELL_SIZE_M, QUIET_DEFAULTS
 from ..errors import EpisodeError
 from ..geometry.world import World
-from .arm_step import arm_step, tray_impedance
+from .arm_step import arm_step
 from .mobile_base import MobileBase
 from .native import entry_point
 from .scene import BaseParams, Scene, build_spec, mjcf_path
@@ -217,7 +217,7 @@ class ArmBase(MobileBase):
             from ..errors import ConfigError
 
             raise ConfigError(f"arm stiffness must be a positive number of N/m, got {stiffness}")
-        #: the impedance's gains (K, D, K_r, D_r, k_0; :func:`tray_impedance`)
+        #: the impedance's gains (K, D, K_r, D_r, k_0; :func:`~.arm_step.tray_impedance_into`)
         self._gains = np.array([float(stiffness), TRAY_DAMPING, TRAY_ROT_STIFFNESS,
                                 TRAY_ROT_DAMPING, POSTURE_STIFFNESS])
         self.sensing.sensor = HandleSensor(m, sensor="tool/tool_force", site="tool/tool_site")
@@ -285,6 +285,10 @@ class ArmBase(MobileBase):
         self._Rd, self._f3, self._m3 = np.zeros((3, 3)), np.zeros(3), np.zeros(3)
         self._tau = np.zeros(len(arm.joints))
         self._arm_entry = None  # arm_step's compiled overload (entry_point, resolved once)
+        #: the compiled move's tilt record (the tray's R_zz per step, at most one IK period)
+        #: and (steps since the reset, IK period in steps) (:meth:`compiled_arm`)
+        self._tilt_zz = np.zeros(self.ik_every)
+        self._ak = np.array([0, self.ik_every], dtype=np.int64)
         self._k = 0
         self.tilts: list[float] = []
         self.ik_solves = 0
@@ -405,28 +409,16 @@ class ArmBase(MobileBase):
         return self._k % self.ik_every != 0 and self.data.ncon == 0
 
     def compiled_arm(self) -> tuple:
-        """:func:`~.arm_step.arm_step`'s arrays (but MuJoCo's addresses and ``qvel``,
-        ``qpos``, ``ctrl``, which the compiled move has), a tilt record of one IK period and
-        ``(steps since the reset, IK period in steps)``: the arm record of
-        :func:`.coasting._coast`."""
-        d = self.data
-        return (d.xpos, d.xmat, self._bodies, self._rel, self._jac, self.arm_dofs,
-                self.arm_qpos, self.q_kin, self._gains, self._kp, self.arm_ctrl, self._Rd,
-                self._f3, self._m3, self._tau, np.empty(self.ik_every),
-                np.array([self._k, self.ik_every], dtype=np.int64))
+        """The arm record of :func:`.coasting._coast`: :meth:`arm_args`, the tilt record of
+        one IK period (the tray's ``R_zz`` per step) and ``(steps since the reset, IK period in
+        steps)``, which the kernel advances."""
+        self._ak[0] = self._k
+        return self.arm_args(), self._tilt_zz, self._ak
 
     def record_tilts(self, r_zz: np.ndarray) -> None:
         """The tilts of steps the compiled move took, from the tray's ``xmat[tray, 8]`` each
         (:func:`tilt_from`)."""
         self.tilts.extend(tilt_from(float(z)) for z in r_zz)
-
-    def impedance_torque(self) -> np.ndarray:
-        """The arm joints' torques of the tray impedance (module docstring), N m: the tray's
-        Jacobian from MuJoCo, the arithmetic compiled (:func:`tray_impedance`)."""
-        d, jac = self.data, self._jac
-        mujoco.mj_jacBody(self.model, d, jac[:3], jac[3:], self.tray)
-        return tray_impedance(d.xpos, d.xmat, self._bodies, self._rel, jac, self.arm_dofs,
-                              d.qvel, d.qpos, self.arm_qpos, self.q_kin, self._gains)
 
     def move_to(self, cell: int, min_s: float = 0.0) -> int:
         """Drive to ``cell`` for at least ``min_s`` (:meth:`MobileBase.move_to`), then record

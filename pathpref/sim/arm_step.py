@@ -6,7 +6,6 @@ and the compiled move (:mod:`.coasting`) both call :func:`arm_step`."""
 from __future__ import annotations
 
 import numba as nb
-import numpy as np
 
 from .native import mj_jacBody
 
@@ -54,16 +53,6 @@ def tray_impedance_into(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_
         for a in range(3):
             t += jac[a, dofs[j]] * f[a] + jac[3 + a, dofs[j]] * m[a]
         tau[j] = t
-
-
-@nb.njit(cache=True)
-def tray_impedance(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin,
-                   gains):  # pragma: no cover - compiled
-    """:func:`tray_impedance_into` into new arrays; the torques."""
-    tau = np.empty(dofs.shape[0])
-    tray_impedance_into(xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains,
-                        np.empty((3, 3)), np.empty(3), np.empty(3), tau)
-    return tau
 
 
 @nb.njit(cache=True)

@@ -32,6 +32,7 @@ from ..episode.physics import CELL_SIZE_M, Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
+from .arm import JACO, ArmBase, ArmModel, build_arm_scene
 from .controller import ProfiledController, TrackingController
 from .decision import RELEASE_WINDOW_S, move_limit, timed_steps
 from .diffdrive import DiffDriveBase
@@ -49,6 +50,8 @@ from .tidybot_base import TIDYBOT, TIDYBOT_ARM, TIDYBOT_CARRY
 ROBOT_BODIES: dict[str, dict[str, RobotBody | None]] = {
     "disk": {"navigate": None, "carry": None},
     "tidybot": {"navigate": TIDYBOT, "carry": TIDYBOT_CARRY}}
+#: the arm each body's ``carry`` drives (:class:`~.arm.ArmModel`)
+ROBOT_ARMS: dict[str, ArmModel] = {"disk": JACO, "tidybot": TIDYBOT_ARM}
 
 
 @lru_cache(maxsize=8)
@@ -61,8 +64,6 @@ def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigat
     if task not in ("navigate", "carry"):
         raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
     if task == "carry" and robot == "disk":
-        from .arm import build_arm_scene
-
         return build_arm_scene(world, cell_size, base)
     return build_scene(world, cell_size, base, ROBOT_BODIES[robot][task])
 
@@ -295,13 +296,10 @@ def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.
                   ProfiledController(v_max=physics.drive.v_max, a_max=physics.drive.a_max,
                                      time_limit_s=physics.move_limit_s(scene.cell_size))}
     if task == "carry":
-        from .arm import ArmBase
-
         if physics is not None:
             kwargs["physical"] = True
             kwargs["stiffness"] = physics.drive.arm_stiffness
-            if physics.drive.robot_model == "tidybot":
-                kwargs["arm"] = TIDYBOT_ARM
+            kwargs["arm"] = ROBOT_ARMS[physics.drive.robot_model]
         base: MobileBase = ArmBase(scene, profile=profile, data=data, **kwargs)
     elif physics is not None and physics.drive.kind == "diffdrive":
         base = DiffDriveBase(scene, profile=profile, data=data, **kwargs)

@@ -107,9 +107,9 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
     :func:`~.keep_clear.keep_clear_xy`, the map's ``Clearance.arrays`` and rows) and for its
     path's crossings (``ns[POLY] >= 0``: the polytope the base is in; the grid's
     ``cell_index`` and ``cell_polytope``); ``arm`` the physical carry arm's
-    (``ns[ARM]``: :func:`~.arm_step.arm_step`'s arrays, the tilt record ``tilts`` (the tray's
-    ``xmat[tray, 8]`` per step) and ``ak`` = (steps since the reset, IK period in steps):
-    an IK solve due hands back before its step). Simulated time is ``fs[TIME]``, advanced by
+    (``ns[ARM]``: :func:`~.arm_step.arm_step`'s arguments, the tilt record ``tilts`` (the
+    tray's ``xmat[tray, 8]`` per step) and ``ak`` = (steps since the reset, IK period in
+    steps): an IK solve due hands back before its step). Simulated time is ``fs[TIME]``, advanced by
     ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
@@ -117,8 +117,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
     sbias, held, win, scratch = sensor
     f, baseline, dring, dqueue, dparams = det
     clr, rows, cell_index, cell_polytope, gv, gdef, gparams = guide
-    (xpos, xmat, bodies, rel, jac, dofs, qadr, q_kin, gains, kp, ctrl_idx, Rd, f3, m3, tau,
-     tilts, ak) = arm
+    arm_args, tilts, ak = arm
+    xmat, tray = arm_args[3], arm_args[4][1]
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce = est[7]
     for step in range(max_steps):
@@ -130,9 +130,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
             if ak[0] % ak[1] == 0 or step >= tilts.shape[0]:
                 return READY, step
             ak[0] += 1
-            arm_step(mp, dp, xpos, xmat, bodies, rel, jac, dofs, qvel, qpos, qadr, q_kin, gains,
-                     kp, ctrl, ctrl_idx, Rd, f3, m3, tau)
-            tilts[step] = xmat[bodies[1], 8]
+            arm_step(*arm_args)
+            tilts[step] = xmat[tray, 8]
         # --- MobileBase._control: a guided base's admittance tail (Guidance.admit, no cue
         # under way: Coaster.ready), then the float path: ProfiledController.goal_xy
         # (HeldVelocity's: the held command) and ramp_xy
@@ -356,11 +355,13 @@ class Coaster:
                        np.ascontiguousarray(sc.world.cell_polytope, dtype=np.int64))
         #: the kernel's compiled overload per constants' key (:func:`compiled_entry`)
         self._entries: dict = {}
-        #: the arm record of a base without an arm (empty arrays of the arm's types)
-        f2, i1, f1 = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0)
-        self._no_arm = (f2, np.zeros((0, 9)), i1, np.zeros((3, 4)), np.zeros((6, 0)), i1, i1,
-                        f1, f1, f1, i1, np.zeros((3, 3)), f1, f1, f1, f1,
-                        np.array([1, 1], np.int64))
+        #: the arm record of a base without an arm (its types: :meth:`~.arm.ArmBase.
+        #: compiled_arm`; empty arrays, never read)
+        f1, f2, i1 = np.zeros(0), np.zeros((0, 3)), np.zeros(0, np.int64)
+        no_args = (0, 0, f2, np.zeros((0, 9)), np.zeros(2, np.int64), np.zeros((3, 4)),
+                   np.zeros((6, 0)), i1, f1, f1, i1, f1, f1, f1, f1, i1, np.zeros((3, 3)), f1,
+                   f1, f1)
+        self._no_arm = (no_args, f1, np.array([1, 1], np.int64))
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
@@ -482,8 +483,8 @@ class Coaster:
             entry = self._entries[self._key] = compiled_entry(args)
         reason, steps = entry(*args)
         if ns[ARM]:  # the arm's steps (each kernel step ran the arm's part: module docstring)
-            b._k = int(arm[-1][0])
-            b.record_tilts(arm[-2][:steps])
+            b._k = int(arm[2][0])
+            b.record_tilts(arm[1][:steps])
         # the quiet hooks learn of the steps they were not called for (the last step's hooks
         # run in Python after a hand-back within it)
         self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))

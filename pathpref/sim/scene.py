@@ -20,7 +20,7 @@ import mujoco
 import numba as nb
 import numpy as np
 
-from ..episode.physics import CELL_SIZE_M
+from ..episode.physics import CELL_SIZE_M, DRIVE_V_MAX
 from ..errors import ConfigError
 from ..geometry.footprint import Clearance
 from ..geometry.world import World
@@ -140,9 +140,7 @@ def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
     r = float(geom.size[0])
     spin = 0.5 * base.mass_kg * r * r  # the cylinder's yaw inertia (kg m^2)
     names = {a.name: a for a in spec.actuators}
-    if base.friction_n > 0:
-        for j in ("slide_x", "slide_y"):
-            spec.joint(j).frictionloss = base.friction_n
+    floor_friction(spec, base.friction_n)
     if base.kind == "diffdrive":
         body.add_site(name="drive_site", pos=[0.0, 0.0, 0.0])
         for old in ("vx", "vy"):
@@ -159,13 +157,33 @@ def apply_base(spec: mujoco.MjSpec, base: BaseParams) -> None:
                 a.ctrlrange = [-ctrl, ctrl]
                 a.ctrllimited = 1
     else:
-        for name in ("vx", "vy"):
-            a = names[name]
-            a.set_to_velocity(kv=base.kv)
-            a.forcerange = [-base.force_limit_n, base.force_limit_n]
-            a.ctrlrange = [-1.5, 1.5]
-    wz = names["wz"]
-    wz.set_to_velocity(kv=spin / 0.02)  # 20 ms yaw servo time constant
+        holonomic_servos(spec, base.kv, base.force_limit_n)
+    yaw_servo(spec, spin)
+
+
+def floor_friction(spec: mujoco.MjSpec, friction_n: float) -> None:
+    """The floor's Coulomb resistance to sliding on the planar joints ``slide_x``,
+    ``slide_y`` (N, MuJoCo's ``frictionloss``; 0: none)."""
+    if friction_n > 0:
+        for j in ("slide_x", "slide_y"):
+            spec.joint(j).frictionloss = friction_n
+
+
+def holonomic_servos(spec: mujoco.MjSpec, kv: float, limit_n: float) -> None:
+    """The planar velocity servos ``vx``, ``vy``: gain ``kv`` (N s/m), force limited to
+    ``limit_n`` per axis, commands within ``DRIVE_V_MAX``."""
+    for name in ("vx", "vy"):
+        a = spec.actuator(name)
+        a.set_to_velocity(kv=kv)
+        a.forcerange = [-limit_n, limit_n]
+        a.ctrlrange = [-DRIVE_V_MAX, DRIVE_V_MAX]
+
+
+def yaw_servo(spec: mujoco.MjSpec, spin: float) -> None:
+    """The yaw velocity servo ``wz`` for a yaw inertia ``spin`` (kg m^2): a 20 ms time
+    constant, its torque limited to ``20 spin`` (N m)."""
+    wz = spec.actuator("wz")
+    wz.set_to_velocity(kv=spin / 0.02)
     wz.forcerange = [-spin * 20.0, spin * 20.0]
 
 

@@ -39,7 +39,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from .arm import ArmModel
-from .scene import BaseParams, RobotBody, mjcf_path
+from .scene import BaseParams, RobotBody, floor_friction, holonomic_servos, mjcf_path, yaw_servo
 from .tidybot import ARM_JOINTS, ARM_SPEED, BASE_JOINTS, below, tidybot_xml
 
 PREFIX = "tidybot/"
@@ -80,24 +80,26 @@ def _robot_spec() -> mujoco.MjSpec:
 
 
 @lru_cache(maxsize=1)
-def _others_mass_kg() -> float:
-    """The robot's mass beyond its base link (arm, gripper, handle; kg), read from the model."""
+def _masses() -> tuple[float, float]:
+    """The whole robot's mass in Menagerie's model and its mass beyond the base link (arm,
+    gripper, handle), kg, read from the compiled model."""
     m = _robot_spec().compile()
     base = m.body("base_link").id
-    return float(m.body_subtreemass[base] - m.body_mass[base])
+    return float(m.body_subtreemass[base]), float(m.body_subtreemass[base] - m.body_mass[base])
 
 
 def navigation_mass_kg() -> float:
-    """The whole robot's mass in Menagerie's model (kg): its base link's and
-    :func:`_others_mass_kg`."""
-    m = _robot_spec().compile()
-    return float(m.body_subtreemass[m.body("base_link").id])
+    """The whole robot's mass in Menagerie's model (kg)."""
+    return _masses()[0]
 
 
 def navigation_spec(base: BaseParams | None) -> mujoco.MjSpec:
     """``navigate.xml`` with the TidyBot for its base (module docstring); ``base`` sets the
-    mass, the drive's force limit and the floor's friction (None: Menagerie's mass, 120 N)."""
-    if base is not None and base.kind != "holonomic":
+    mass, the drive's force limit and the floor's friction (None: Menagerie's mass and the
+    drive's defaults)."""
+    if base is None:
+        base = BaseParams(mass_kg=navigation_mass_kg())
+    if base.kind != "holonomic":
         raise ConfigError(f"the TidyBot's base is holonomic; got --base {base.kind} (use "
                           "--base holonomic)")
     try:
@@ -117,27 +119,18 @@ def navigation_spec(base: BaseParams | None) -> mujoco.MjSpec:
     spec.site(PREFIX + "handle_site").name = "handle_site"
     spec.add_sensor(name="handle_force", type=mujoco.mjtSensor.mjSENS_FORCE,
                     objtype=mujoco.mjtObj.mjOBJ_SITE, objname="handle_site")
-    mass = navigation_mass_kg() if base is None else base.mass_kg
-    own = mass - _others_mass_kg()
-    if own <= 0.0:
+    mass, others = base.mass_kg, _masses()[1]
+    if mass <= others:
         raise ConfigError(f"the TidyBot's mass_kg must exceed its arm's and handle's "
-                          f"{_others_mass_kg():.2f} kg, got {mass:g}")
-    spec.body(PREFIX + "base_link").mass = own
-    limit = 120.0 if base is None else base.force_limit_n
-    if base is not None and base.friction_n > 0:
-        for j in NAV_JOINTS[:2]:
-            spec.joint(j).frictionloss = base.friction_n
-    for name, joint in zip(("vx", "vy"), NAV_JOINTS[:2], strict=True):
-        a = spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        a.set_to_velocity(kv=mass / DRIVE_TAU_S)
-        a.forcerange = [-limit, limit]
-        a.ctrlrange = [-1.5, 1.5]
+                          f"{others:.2f} kg, got {mass:g}")
+    spec.body(PREFIX + "base_link").mass = mass - others
+    floor_friction(spec, base.friction_n)
+    for name, joint in zip(("vx", "vy", "wz"), NAV_JOINTS, strict=True):  # navigate.xml's
+        spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    spec.actuator("wz").ctrlrange = [-2.0, 2.0]
+    holonomic_servos(spec, mass / DRIVE_TAU_S, base.force_limit_n)
     r = TIDYBOT_RADIUS_M
-    spin = 0.5 * mass * r * r
-    wz = spec.add_actuator(name="wz", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-    wz.set_to_velocity(kv=spin / 0.02)
-    wz.forcerange = [-spin * 20.0, spin * 20.0]
-    wz.ctrlrange = [-2.0, 2.0]
+    yaw_servo(spec, 0.5 * mass * r * r)  # a solid cylinder of its mass and plan radius
     return spec
 
 
