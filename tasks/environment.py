@@ -33,9 +33,11 @@ class Environment(control.Environment):
     each step's reward is added to the task's ``episode_return``."""
 
     def step(self, action):
-        """Check ``action`` against the task's spec, then dm_control's ``step``."""
+        """Check ``action`` against the task's spec, then dm_control's ``step`` with the
+        checked action (which the task's ``before_step`` knows as checked: one check a
+        step)."""
         if not self._reset_next_step:
-            self._task.check_action(action)
+            action = self._task.checked_action = self._task.check_action(action)
         ts = super().step(action)
         if ts.reward is not None:  # None on the first step of a new episode
             self._task.episode_return += float(ts.reward)

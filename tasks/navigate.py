@@ -207,6 +207,9 @@ class Navigate(base.Task):
                 f"got {self.decision_s:g}")
         # the environment's reward is the paper's (SPEC 6) whatever preset the planner uses
         self.rewards = get_preset("paper").path_preference
+        #: the action :meth:`check_action` returned for the step under way (the Environment
+        #: checks it before dm_control's step; ``before_step`` takes it as it is)
+        self.checked_action = None
         if reward not in REWARDS:
             raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {reward!r}")
         #: the reward rule: ``paper`` (SPEC 6) or ``potential`` (:mod:`.reward`, no loops)
@@ -266,6 +269,9 @@ class Navigate(base.Task):
         self.episode_return = 0.0
         self.runner = EpisodeRunner(spec, self.world, self.body)
         self._goal_cells = self.world.cells[list(self.runner.instance.goals)].astype(np.float64)
+        # per cell: its grid coordinates and polytope, as the observations carry them
+        self._cells = self.world.cells.astype(np.float64)
+        self._polytopes = self.world.cell_polytope.tolist()
         self._belief_key = self._belief_obs = None  # (_belief_observation)
         self._phi = None if self.reward == "paper" else preference_potential(
             self.world, self.runner.instance.goal_cell, self.runner.pref)
@@ -323,9 +329,15 @@ class Navigate(base.Task):
         """``action`` as 0..8 (:func:`parse_action`)."""
         return parse_action(action)
 
+    def _take_action(self, action):
+        """``action`` checked (:meth:`check_action`) unless it is the one the Environment
+        checked for this step (:attr:`checked_action`)."""
+        checked, self.checked_action = self.checked_action, None
+        return action if action is checked else self.check_action(action)
+
     def before_step(self, action, physics: Physics) -> None:
         """Set the base's target: the grid neighbour the action names (module docstring)."""
-        a = self.check_action(action)
+        a = self._take_action(action)
         self._action, self._heading = self.runner.start_step(STAY if a == STAY_ACTION else a)
         cell = self.body.cell
         target = cell if self._action == STAY else int(self.world.motion.next_cell[cell, a])
@@ -405,18 +417,15 @@ class Navigate(base.Task):
         heading = np.zeros(8)
         if r.pending_heading is not None:
             heading[r.pending_heading] = 1.0
-        v = int(self.world.cell_polytope[r.cell])
-        obs = collections.OrderedDict()
-        obs["position"] = self.base.position.copy()
-        obs["cell"] = self.world.cells[r.cell].astype(np.float64)
-        obs["heading"] = heading
-        obs["force"] = self.filter.f.copy()
-        obs["detector_active"] = np.array([float(self.base.sensing.detector.active)])
+        cell = r.cell
+        v = self._polytopes[cell]
         marginal, h = self._belief_observation(v)
-        obs["goal_belief"] = marginal.copy()
-        obs["goal_cells"] = self._goal_cells.copy()
-        obs["polytope"] = np.array([v], dtype=np.float64)
-        obs["entropy"] = np.array([h])
+        obs = collections.OrderedDict((
+            ("position", self.base.position), ("cell", self._cells[cell].copy()),
+            ("heading", heading), ("force", self.filter.f.copy()),
+            ("detector_active", np.array([1.0 if self.base.sensing.detector.active else 0.0])),
+            ("goal_belief", marginal.copy()), ("goal_cells", self._goal_cells.copy()),
+            ("polytope", np.array([float(v)])), ("entropy", np.array([h]))))
         obs.update(self.interaction.observation())
         return obs
 
@@ -460,8 +469,9 @@ class Navigate(base.Task):
     def contact_unsafe(self) -> bool:
         """Whether the base has struck an obstacle or a wall beyond the limits of
         :mod:`pathpref.episode.safety` (measured with physical parameters only)."""
-        return not contact_safe(self.base.measurements.metrics()) if self.base.measure \
-            else False
+        b = self.base  # (no collision yet: safe, as contact_safe says, without the metrics)
+        return b.measure and b.measurements.collisions > 0 and \
+            not contact_safe(b.measurements.metrics())
 
     def get_reward(self, physics: Physics) -> float:
         """The reward of the last step (:meth:`_step_reward`); a step that ends the episode

@@ -146,12 +146,11 @@ class NavigateControl(Navigate):
         base's compiled steps apply (:meth:`~pathpref.sim.coasting.Coaster.drive`: the realistic
         sensing chain idle, nothing pushing, no contact), runs of them in one call with the
         force filter's update, the same numbers; every other step through :meth:`substep`."""
-        done = 0
+        done, b = 0, self.base
         while done < n:  # every pass takes at least one physics step
-            coaster = self.base.coaster
             # (not while the base touches something: the kernel would hand every step back)
-            if coaster is not None and self.base.decision.phase != PUSH and \
-                    self.base.data.ncon == 0 and coaster.ready():
+            coaster = b.coaster if b.decision.phase != PUSH and b.data.ncon == 0 else None
+            if coaster is not None and coaster.ready():
                 k, partial = coaster.drive(n - done, self.filter)
                 done += k
                 if partial:  # the step's task part after the base's (as substep)
@@ -207,7 +206,7 @@ class NavigateControl(Navigate):
 
     def before_step(self, action, physics: Physics) -> None:
         """Hold the commanded velocity; start the human's push when one is due."""
-        a = self.check_action(action)
+        a = self._take_action(action)
         # the base's controller (the arm's IK target in carry_control)
         self.command.hold(a, float(self.base.data.qpos[self.base.yaw]))
         self._reward = 0.0

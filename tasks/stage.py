@@ -163,7 +163,7 @@ class StepInteraction:
 
     def observation(self) -> dict[str, np.ndarray]:
         """``push_felt``, ``cues_felt`` and ``detector_active_s`` (class docstring)."""
-        felt = self.felt()
+        felt = self.felt() if len(self.base.felt) != self._from else ()
         push, counts = np.zeros(4), np.zeros(8)
         for f in felt:
             counts[f.heading] += 1.0

@@ -272,11 +272,11 @@ class Coaster:
     @staticmethod
     def applies(base) -> bool:
         """The base's setup is one the kernel mirrors (module docstring: the realistic chain
-        without thermal drift, the profiled or held-velocity controller, the scene's contact
-        sensor; the base checks its own kind: a plain :class:`~.mobile_base.MobileBase`)."""
+        without thermal drift, the profiled or held-velocity controller; the base checks its
+        own kind, a plain :class:`~.mobile_base.MobileBase`, and whether compiled steps are
+        on, :func:`enabled`, with the scene's contact sensor: ``base.compiled_steps``)."""
         s, c = base.sensing, base.controller
-        return (enabled() and s.sensor_model is not None
-                and mujoco.mj_name2id(base.model, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR) >= 0
+        return (s.sensor_model is not None
                 and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
                 and type(c) in (ProfiledController, HeldVelocity))
 
@@ -348,6 +348,7 @@ class Coaster:
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
         self._err = np.zeros(2)
         self._data = d
+        self._mj = (b.model._address, d._address)
         self._key = None  # the constants' (_constants)
         sc = b.scene
         self._guide = (sc.clearance.arrays, sc.clearance.near_rows,
@@ -443,40 +444,36 @@ class Coaster:
         return g.v, g.deformation, g.step_params(b)
 
     def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None
-             ) -> tuple[int, int, np.ndarray]:
+             ) -> tuple[int, int, list]:
         """One kernel call from the Python objects' state and back: ``(reason, steps,
-        fs)``; the move's start ``t0``, shortest time ``min_s`` and end ``t_end`` (s)."""
+        fs)``, ``fs`` the float state after it (a list, slots as :data:`QUIET` ...); the move's
+        start ``t0``, shortest time ``min_s`` and end ``t_end`` (s)."""
         b = self.base
         if self._data is not b.data:
             self._bind()
         s, c, m = b.sensing, b.controller, b.measurements
         f, est, det = s.faulty, s.estimator, s.detector
-        fs = np.zeros(N_FS)
-        fs[QUIET], fs[AT_REST] = est.quiet, est.at_rest
-        fs[VAR], fs[ON], fs[OFF] = det.var, det.on_n, det.off_n
-        fs[VPX], fs[VPY] = m._v_prev
-        fs[T_PREV], fs[PEAK], fs[PEAK_PUSHED] = m._t_prev, m.peak_accel, m.peak_accel_pushed
-        fs[PEAK_FORCE], fs[TOUCHING] = m.peak_force, m._touching
-        g = b.guidance
-        fs[MOVING] = g is not None and g.moving
+        g, d = b.guidance, self._data
+        vpx, vpy = m._v_prev
+        fs = np.array([est.quiet, est.at_rest, det.var, det.on_n, det.off_n, vpx, vpy,
+                       m._t_prev, m.peak_accel, m.peak_accel_pushed, m.peak_force, m._touching,
+                       0.0, 0.0, 0.0, 0.0, d.time, g is not None and g.moving], dtype=np.float64)
         cs, ns = self._constants(force_filter)
-        cs[T0], cs[MIN_S], cs[T_END], cs[T_STOP] = t0, min_s, t_end, self._quiet_until()
+        cs[T0], cs[MIN_S], cs[T_END] = t0, min_s, t_end
+        cs[T_STOP] = self._quiet_until() if b.pre_substep else math.inf
         b._anchor = None
         if not b.external_forces:
             b._wrench().fill(0.0)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
-        est_st = (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
-                  eforce, *est._scratch)
-        d = self._data
-        fs[TIME] = d.time
         filt = self._err if force_filter is None else force_filter.f
         arm = b.compiled_arm() if ns[ARM] else self._no_arm
         goal = c.u if type(c) is HeldVelocity else self._err
-        args = ((b.model._address, d._address),
-                (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings),
+        args = (self._mj, (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings),
                 (c.last, b.target, self._err, goal, filt),
                 (f.bias, held, f.win, self._scratch), f.rng, est.params,
-                est_st, (det.f, det.baseline, det._ring, det._queue, det.params),
+                (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
+                 eforce, *est._scratch),
+                (det.f, det.baseline, det._ring, det._queue, det.params),
                 self._guide_args, arm, fs, cs, ns, max_steps)
         entry = self._entries.get(self._key)
         if entry is None:
@@ -487,22 +484,24 @@ class Coaster:
             b.record_tilts(arm[1][:steps])
         # the quiet hooks learn of the steps they were not called for (the last step's hooks
         # run in Python after a hand-back within it)
-        self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))
+        if b.on_substep:
+            self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))
         # --- the state back into the Python objects (a sample gives a new held sample and
         # estimate, new arrays as the Python path's)
-        new_estimate = ns[SAMPLES] > 0
+        new_estimate = ns.item(SAMPLES) > 0
         if new_estimate:
             f._held = held
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
-        est.quiet, est.at_rest = float(fs[QUIET]), bool(fs[AT_REST])
+        fs = fs.tolist()
+        est.quiet, est.at_rest = fs[QUIET], fs[AT_REST] != 0.0
         if g is not None:
-            g.moving = bool(fs[MOVING])
-        det.var, det.on_n, det.off_n = float(fs[VAR]), float(fs[ON]), float(fs[OFF])
+            g.moving = fs[MOVING] != 0.0
+        det.var, det.on_n, det.off_n = fs[VAR], fs[ON], fs[OFF]
         if b.measure:
-            m._v_prev, m._t_prev = (float(fs[VPX]), float(fs[VPY])), float(fs[T_PREV])
-            m.peak_accel, m.peak_accel_pushed = float(fs[PEAK]), float(fs[PEAK_PUSHED])
-            m.peak_force, m._touching = float(fs[PEAK_FORCE]), bool(fs[TOUCHING])
+            m._v_prev, m._t_prev = (fs[VPX], fs[VPY]), fs[T_PREV]
+            m.peak_accel, m.peak_accel_pushed = fs[PEAK], fs[PEAK_PUSHED]
+            m.peak_force, m._touching = fs[PEAK_FORCE], fs[TOUCHING] != 0.0
             if not (reason == DETECT and new_estimate and f.fresh):
                 # measured by the kernel (a step handed back at an onset is measured in
                 # Python, with a new estimate if its sample gave one)
@@ -512,7 +511,7 @@ class Coaster:
                                f"{d.time!r}")
         return reason, steps, fs
 
-    def _hand_back(self, reason: int, step, fs: np.ndarray) -> bool:
+    def _hand_back(self, reason: int, step, fs: list) -> bool:
         """Finish the step the kernel handed back within (Python), then the move's end check;
         True when the phase ended."""
         from ..errors import EpisodeError
@@ -528,15 +527,15 @@ class Coaster:
             return True
         return step._move_ended(self._finish(reason, fs))
 
-    def _finish(self, reason: int, fs: np.ndarray):
+    def _finish(self, reason: int, fs: list):
         """The rest of the step the kernel handed back within (:data:`DETECT`: the onset rule,
         the cue stream, the measurements and hooks; :data:`CONTACTS`: the contact
         measurements and the hooks; :data:`CROSS`: the hooks); the step's cue (None: none)."""
         b = self.base
         if reason == DETECT:
-            cue = b.sensing.detector._decide(float(fs[EX]), float(fs[EY]))
+            cue = b.sensing.detector._decide(fs[EX], fs[EY])
             return b._after_read(cue, None)
         if reason == CONTACTS:
-            b.measurements._contacts(b.data, (float(fs[VPX_OLD]), float(fs[VPY_OLD])))
+            b.measurements._contacts(b.data, (fs[VPX_OLD], fs[VPY_OLD]))
         b.run_hooks(None)
         return None

@@ -33,6 +33,7 @@ import numpy as np
 from ..episode.physics import DETECTOR
 from ..errors import ConfigError
 from ..geometry.grid import heading_to_action
+from .native import _ddot
 
 #: how far from the lean's opposite a would-be onset may point and still be the resting hand
 #: leaving (degrees; :class:`FilteredCueDetector`)
@@ -57,110 +58,279 @@ class Cue:
         return heading_to_action(self.angle)
 
 
+#: the detector's state (:attr:`CueDetector.st`): the cue under way (cleared by
+#: :func:`clear_state`: ``ACTIVE`` ... ``SIMP_Y``), the resting hand in the baseline, the
+#: counters and the last cue given (:func:`decide_step`'s output)
+(ACTIVE, ABOVE, BELOW, IMP_X, IMP_Y, PEAK, DURATION, DIPPED, TURN, TURN_X, TURN_Y, SETTLE,
+ SUM_X, SUM_Y, SIMP_X, SIMP_Y, LEAN_X, LEAN_Y, LEANED, SETTLED, SPLITS, CUE_X, CUE_Y,
+ CUE_PEAK, CUE_DUR, N_ST) = range(26)
+#: :func:`decide_step`'s constants (:attr:`CueDetector.rule`): the step, ``on_s``, ``off_s``,
+#: the turn's cosine, the split switch, the filtered detector's rules switch (the settle and
+#: lean rules, the impulse summed above ``off`` only), ``settle_s``, ``lean_s``, ``lean_n`` and
+#: the cosine of :data:`LEAVE_DEG`
+(R_DT, R_ON_S, R_OFF_S, R_COS_TURN, R_SPLIT, R_FILTERED, R_SETTLE_S, R_LEAN_S, R_LEAN_N,
+ R_COS_LEAVE, N_RULE) = range(11)
+
+
+@nb.njit(cache=True)
+def clear_state(st):
+    """No cue under way: the slots ``ACTIVE`` ... ``SIMP_Y`` of ``st`` zeroed (the lean and
+    the counters stay)."""
+    for i in range(LEAN_X):
+        st[i] = 0.0
+
+
+@nb.njit(cache=True, inline="always")
+def _dot2(buf, ax, ay, bx, by):
+    """``a @ b`` of two 2-vectors as NumPy computes it (its BLAS ``ddot``), on ``buf``."""
+    buf[0], buf[1], buf[2], buf[3] = ax, ay, bx, by
+    return _ddot(2, buf.ctypes.data, 1, buf[2:].ctypes.data, 1)
+
+
+@nb.njit(cache=True, inline="always")
+def _give(st, ix, iy, peak, duration):
+    """The cue that ends: impulse ``(ix, iy)``, peak and duration into the output slots."""
+    st[CUE_X], st[CUE_Y], st[CUE_PEAK], st[CUE_DUR] = ix, iy, peak, duration
+
+
+@nb.njit(cache=True)
+def _onset(st, fx, fy, mag, on_n, rule):
+    """One sample before a cue: accumulate while above ``on_n``, go active after ``on_s`` of
+    it, forget a shorter excursion."""
+    dt = rule[R_DT]
+    if mag > on_n:
+        st[ABOVE] += dt
+        st[IMP_X] += fx * dt
+        st[IMP_Y] += fy * dt
+        if mag > st[PEAK]:
+            st[PEAK] = mag
+        st[DURATION] += dt
+        if st[ABOVE] >= rule[R_ON_S] - 1e-12:
+            st[ACTIVE] = 1.0
+            st[BELOW] = 0.0
+    elif st[ABOVE] != 0.0:  # idle with nothing accumulated is the cleared state
+        clear_state(st)
+
+
+@nb.njit(cache=True)
+def _split(st, fx, fy, mag, on_n, off_n, rule, buf):
+    """The split rules (module docstring): 1 when the cue under way ends here (given), -1
+    when it goes on. After a re-onset the new push goes through the onset rule; after a turn
+    it is active at once."""
+    dt = rule[R_DT]
+    if mag < off_n:
+        st[DIPPED] = 1.0
+        st[TURN], st[TURN_X], st[TURN_Y] = 0.0, 0.0, 0.0
+        return -1
+    if st[DIPPED] != 0.0 and mag > on_n:
+        _give(st, st[IMP_X], st[IMP_Y], st[PEAK], st[DURATION])
+        clear_state(st)
+        st[SPLITS] += 1.0
+        st[ABOVE], st[IMP_X], st[IMP_Y] = dt, fx * dt, fy * dt
+        st[PEAK], st[DURATION] = mag, dt
+        return 1
+    jx, jy = st[IMP_X], st[IMP_Y]
+    nj = math.hypot(jx, jy)
+    if mag > on_n and nj > 0 and _dot2(buf, fx, fy, jx, jy) < rule[R_COS_TURN] * mag * nj:
+        st[TURN] += dt
+        st[TURN_X] = st[TURN_X] + fx * dt
+        st[TURN_Y] = st[TURN_Y] + fy * dt
+        if st[TURN] >= rule[R_ON_S] - 1e-12:
+            _give(st, jx - st[TURN_X] + fx * dt, jy - st[TURN_Y] + fy * dt, st[PEAK],
+                  st[DURATION])
+            sx, sy, held = st[TURN_X], st[TURN_Y], st[TURN]
+            clear_state(st)
+            st[SPLITS] += 1.0
+            st[ACTIVE], st[IMP_X], st[IMP_Y] = 1.0, sx, sy
+            st[PEAK], st[DURATION] = mag, held
+            return 1
+    else:
+        st[TURN], st[TURN_X], st[TURN_Y] = 0.0, 0.0, 0.0
+    return -1
+
+
+@nb.njit(cache=True)
+def _active(st, fx, fy, mag, accumulate, on_n, off_n, rule, buf):
+    """One sample of an active cue: accumulate (when ``accumulate``), release after ``off_s``
+    below ``off_n`` (1: the cue given), or split (module docstring); 0: it goes on."""
+    if rule[R_SPLIT] != 0.0:
+        if _split(st, fx, fy, mag, on_n, off_n, rule, buf) == 1:
+            return 1
+    dt = rule[R_DT]
+    if accumulate:
+        st[IMP_X] += fx * dt
+        st[IMP_Y] += fy * dt
+    if mag > st[PEAK]:
+        st[PEAK] = mag
+    st[DURATION] += dt
+    st[BELOW] = st[BELOW] + dt if mag < off_n else 0.0
+    if st[BELOW] >= rule[R_OFF_S] - 1e-12:
+        _give(st, st[IMP_X], st[IMP_Y], st[PEAK], st[DURATION])
+        clear_state(st)
+        return 1
+    return 0
+
+
+@nb.njit(cache=True)
+def _lean_ends(st, ex, ey, mag, baseline, off_n, rule, buf):
+    """Whether a would-be onset ``e`` is the remembered lean leaving (the filtered
+    detector's docstring): then the baseline gives the lean back."""
+    lx, ly = st[LEAN_X], st[LEAN_Y]
+    size = math.hypot(lx, ly)
+    if size == 0.0 or mag > size + off_n or \
+            -_dot2(buf, ex, ey, lx, ly) < rule[R_COS_LEAVE] * mag * size:
+        return False
+    baseline[0], baseline[1] = baseline[0] - lx, baseline[1] - ly
+    st[LEAN_X], st[LEAN_Y] = 0.0, 0.0
+    clear_state(st)
+    return True
+
+
+@nb.njit(cache=True)
+def _settling(st, ex, ey, mag, baseline, on_n, off_n, rule):
+    """The settle rule (the filtered detector's docstring): -1 while the cue goes on, else
+    the cue ends at a new baseline (1: given, 0: dropped). The window restarts at a sample
+    farther than ``off`` from the window's mean so far; a full window whose mean is not
+    below ``on`` (a steady push, not a resting hand) starts a new window."""
+    dt = rule[R_DT]
+    if st[SETTLE] > 0.0:
+        mx, my = st[SUM_X] / st[SETTLE], st[SUM_Y] / st[SETTLE]
+        if math.hypot(ex - mx, ey - my) > off_n:
+            for i in range(SETTLE, SIMP_Y + 1):
+                st[i] = 0.0
+    st[SETTLE] += dt
+    st[SUM_X] = st[SUM_X] + ex * dt
+    st[SUM_Y] = st[SUM_Y] + ey * dt
+    if mag > off_n:
+        st[SIMP_X] = st[SIMP_X] + ex * dt
+        st[SIMP_Y] = st[SIMP_Y] + ey * dt
+    if st[SETTLE] < rule[R_SETTLE_S] - 1e-12:
+        return -1
+    lx, ly = st[SUM_X] / st[SETTLE], st[SUM_Y] / st[SETTLE]
+    lift = math.hypot(lx, ly)
+    if lift >= on_n:
+        if lift < rule[R_LEAN_N] and st[SETTLE] < rule[R_LEAN_S] - 1e-12:
+            return -1  # perhaps a lean: keep the window
+        if lift >= rule[R_LEAN_N]:
+            for i in range(SETTLE, SIMP_Y + 1):
+                st[i] = 0.0
+            return -1
+        st[LEAN_X], st[LEAN_Y] = st[LEAN_X] + lx, st[LEAN_Y] + ly  # a resting hand above on
+        st[LEANED] += 1.0
+    given = 0
+    if st[PEAK] - lift > on_n:
+        _give(st, st[IMP_X] - st[SIMP_X], st[IMP_Y] - st[SIMP_Y], st[PEAK],
+              st[DURATION] - st[SETTLE])
+        given = 1
+    baseline[0], baseline[1] = baseline[0] + lx, baseline[1] + ly
+    clear_state(st)
+    st[SETTLED] += 1.0
+    return given
+
+
+@nb.njit(cache=True)
+def decide_step(fx, fy, st, baseline, queue, on_n, off_n, rule, buf):
+    """The hysteresis of one sample ``(fx, y)`` (N) on the detector's state ``st``: the onset
+    rule while idle, else the release (and, with ``rule[R_SPLIT]``, the split rules); with
+    ``rule[R_FILTERED]`` the sample is ``e = f - b`` of :class:`FilteredCueDetector` (past its
+    low-pass and idle test), the lean's leaving is checked before an onset, an onset drops
+    the calibration ``queue``, the settle and lean rules run first on an active cue and the
+    impulse sums ``e`` only above ``off_n``. ``|f|`` is the C library's ``hypot`` (NumPy's),
+    the dot products NumPy's BLAS ``ddot`` (on ``buf``, 4 floats). Returns 1 when a cue ends
+    with this sample (impulse, peak and duration in ``st[CUE_X:]``), else 0 (a sample whose
+    magnitude is not finite changes nothing). The one arithmetic of both detectors' Python
+    steps and the compiled move (:mod:`.coasting`)."""
+    mag = math.hypot(fx, fy)
+    if not math.isfinite(mag):
+        return 0
+    if rule[R_FILTERED] == 0.0:
+        if st[ACTIVE] == 0.0:
+            _onset(st, fx, fy, mag, on_n, rule)
+            return 0
+        return _active(st, fx, fy, mag, True, on_n, off_n, rule, buf)
+    if st[ACTIVE] == 0.0:
+        if _lean_ends(st, fx, fy, mag, baseline, off_n, rule, buf):
+            return 0
+        _onset(st, fx, fy, mag, on_n, rule)
+        if st[ACTIVE] != 0.0:
+            queue[0], queue[1] = 0, 0  # the push's rising edge never calibrates
+        return 0
+    settled = _settling(st, fx, fy, mag, baseline, on_n, off_n, rule)
+    if settled >= 0:
+        return settled
+    return _active(st, fx, fy, mag, mag > off_n, on_n, off_n, rule, buf)
+
+
 class CueDetector:
     """Feed one force sample per physics step with :meth:`update`; it returns a :class:`Cue`
-    when one ends, else None."""
+    when one ends, else None. Its state is the array :attr:`st` (slots ``ACTIVE`` ...) that
+    :func:`decide_step` advances."""
+
+    #: the settle and lean rules of :class:`FilteredCueDetector` (``rule[R_FILTERED]``)
+    filtered = False
 
     def __init__(self, dt: float, on_n: float = DETECTOR["on_n"],
                  on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
                  off_s: float = DETECTOR["off_s"], split: bool = False,
                  turn_deg: float = 45.0):
         self.dt, self.on_n, self.on_s, self.off_n, self.off_s = dt, on_n, on_s, off_n, off_s
-        self.split, self.cos_turn = split, float(np.cos(np.deg2rad(turn_deg)))
-        #: cues that ended by a split (re-onset or turn) since :meth:`reset`
-        self.splits = 0
-        #: cues that ended at a new baseline (:class:`FilteredCueDetector`'s settle rule)
-        self.settled = 0
+        self.cos_turn = float(np.cos(np.deg2rad(turn_deg)))
+        #: :func:`decide_step`'s constants
+        self.rule = np.zeros(N_RULE)
+        self.rule[[R_DT, R_ON_S, R_OFF_S, R_COS_TURN, R_FILTERED, R_COS_LEAVE]] = (
+            dt, on_s, off_s, self.cos_turn, float(self.filtered),
+            math.cos(math.radians(LEAVE_DEG)))
+        self.split = split
+        self._buf = np.zeros(4)
+        #: the state (cue under way, lean, counters, last cue: slots ``ACTIVE`` ...)
+        self.st = np.zeros(N_ST)
         self.reset()
 
-    def reset(self) -> None:
-        """Forget any cue in progress."""
-        self._clear()
+    @property
+    def split(self) -> bool:
+        """Two pushes make two cues (module docstring)."""
+        return self.rule[R_SPLIT] != 0.0
 
-    def _clear(self) -> None:
-        self.active = False
-        self._above = 0.0
-        self._below = 0.0
-        self._impulse = np.zeros(2)
-        self._peak = 0.0
-        self._duration = 0.0
-        self._dipped = False
-        self._turn = 0.0
-        self._turn_impulse = np.zeros(2)
+    @split.setter
+    def split(self, on: bool) -> None:
+        self.rule[R_SPLIT] = float(bool(on))
+
+    @property
+    def active(self) -> bool:
+        """A cue is under way (past its onset)."""
+        return self.st[ACTIVE] != 0.0
+
+    @property
+    def _above(self) -> float:
+        """Seconds above ``on_n`` since the onset rule began counting (0: nothing under way)."""
+        return float(self.st[ABOVE])
+
+    @property
+    def splits(self) -> int:
+        """Cues that ended by a split (re-onset or turn) since :meth:`reset`."""
+        return int(self.st[SPLITS])
+
+    @property
+    def settled(self) -> int:
+        """Cues that ended at a new baseline (:class:`FilteredCueDetector`'s settle rule)."""
+        return int(self.st[SETTLED])
+
+    def reset(self) -> None:
+        """Forget any cue in progress (the counters stay)."""
+        clear_state(self.st)
+        self._baseline, self._queue = np.zeros(2), np.zeros(2, dtype=np.int64)
+
+    def _cue(self) -> Cue:
+        """The cue :func:`decide_step` gave."""
+        st = self.st
+        return Cue(np.array([st[CUE_X], st[CUE_Y]]), float(st[CUE_PEAK]), float(st[CUE_DUR]))
 
     def update(self, f_xy: np.ndarray) -> Cue | None:
         """One force sample: on above ``on_n`` for ``on_s``, off below ``off_n`` for ``off_s``;
         the cue (integrated impulse) when it ends, else None."""
-        mag = float(np.hypot(f_xy[0], f_xy[1]))
-        if not np.isfinite(mag):
-            return None
-        if not self.active:
-            self._onset(f_xy, mag)
-            return None
-        return self._active(f_xy, mag, True)
-
-    def _onset(self, f: np.ndarray, mag: float) -> None:
-        """One sample before a cue: accumulate while above ``on_n``, go active after ``on_s``
-        of it, forget a shorter excursion."""
-        if mag > self.on_n:
-            self._above += self.dt
-            self._impulse += f * self.dt
-            self._peak = max(self._peak, mag)
-            self._duration += self.dt
-            if self._above >= self.on_s - 1e-12:
-                self.active = True
-                self._below = 0.0
-        elif self._above != 0.0:  # idle with nothing accumulated is the cleared state
-            self._clear()
-
-    def _active(self, f: np.ndarray, mag: float, accumulate: bool) -> Cue | None:
-        """One sample of an active cue: accumulate (when ``accumulate``), release after
-        ``off_s`` below ``off_n``, or split (module docstring)."""
-        if self.split:
-            new = self._split(f, mag)
-            if new is not None:
-                return new
-        if accumulate:
-            self._impulse += f * self.dt
-        self._peak = max(self._peak, mag)
-        self._duration += self.dt
-        self._below = self._below + self.dt if mag < self.off_n else 0.0
-        if self._below >= self.off_s - 1e-12:
-            cue = Cue(self._impulse.copy(), self._peak, self._duration)
-            self._clear()
-            return cue
-        return None
-
-    def _split(self, f: np.ndarray, mag: float) -> Cue | None:
-        """The split rules (module docstring): the cue that ends, or None. After a re-onset
-        the new push goes through the onset rule; after a turn it is active at once."""
-        if mag < self.off_n:
-            self._dipped = True
-            self._turn, self._turn_impulse = 0.0, np.zeros(2)
-            return None
-        if self._dipped and mag > self.on_n:
-            cue = Cue(self._impulse.copy(), self._peak, self._duration)
-            self._clear()
-            self.splits += 1
-            self._above, self._impulse = self.dt, f * self.dt
-            self._peak, self._duration = mag, self.dt
-            return cue
-        j = self._impulse
-        nj = float(np.hypot(j[0], j[1]))
-        if mag > self.on_n and nj > 0 and float(f @ j) < self.cos_turn * mag * nj:
-            self._turn += self.dt
-            self._turn_impulse = self._turn_impulse + f * self.dt
-            if self._turn >= self.on_s - 1e-12:
-                cue = Cue(self._impulse - self._turn_impulse + f * self.dt, self._peak,
-                          self._duration)
-                started, held = self._turn_impulse.copy(), self._turn
-                self._clear()
-                self.splits += 1
-                self.active, self._impulse = True, started
-                self._peak, self._duration = mag, held
-                return cue
-        else:
-            self._turn, self._turn_impulse = 0.0, np.zeros(2)
+        if decide_step(float(f_xy[0]), float(f_xy[1]), self.st, self._baseline, self._queue,
+                       self.on_n, self.off_n, self.rule, self._buf):
+            return self._cue()
         return None
 
 
@@ -259,6 +429,8 @@ class FilteredCueDetector(CueDetector):
     :meth:`update` takes ``at_rest`` (from the estimator) besides the force sample.
     """
 
+    filtered = True
+
     def __init__(self, dt: float, *, tau_s: float = 0.015, on_n: float = DETECTOR["on_n"],
                  on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
                  off_s: float = DETECTOR["off_s"], on_k: float = 6.0, off_k: float = 3.0,
@@ -275,8 +447,6 @@ class FilteredCueDetector(CueDetector):
         self.base_on_n, self.base_off_n = on_n, off_n
         self.baseline_tau_s, self.hold_s, self.settle_s = baseline_tau_s, hold_s, settle_s
         self.lean_s, self.lean_n = max(lean_s, settle_s), lean_n
-        #: resting hands above ``on`` taken into the baseline (class docstring)
-        self.leaned = 0
         self._alpha = dt / (tau_s + dt)
         self._beta = dt / (floor_tau_s + dt)
         self._gamma = dt / (baseline_tau_s + dt)
@@ -288,21 +458,26 @@ class FilteredCueDetector(CueDetector):
         super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg)
 
     def reset(self) -> None:
-        """Forget any cue in progress, the filter's state and the baseline (the noise level
-        stays)."""
-        self._clear()
+        """Forget any cue in progress, the filter's state, the baseline and the lean (the
+        noise level and the counters stay)."""
+        self.rule[[R_SETTLE_S, R_LEAN_S, R_LEAN_N]] = self.settle_s, self.lean_s, self.lean_n
+        clear_state(self.st)
+        self.st[LEAN_X], self.st[LEAN_Y] = 0.0, 0.0
         self.f = np.zeros(2)
         self.baseline = np.zeros(2)
-        self.lean = np.zeros(2)  # the resting hand in the baseline (N; zero: none)
         # the calibration queue: a ring of (fx, fy) rows and its (head, length)
         self._ring = np.zeros((self._hold_n + 4, 2))
         self._queue = np.zeros(2, dtype=np.int64)
 
-    def _clear(self) -> None:
-        super()._clear()
-        self._settle = 0.0
-        self._settle_sum = np.zeros(2)
-        self._settle_impulse = np.zeros(2)
+    @property
+    def leaned(self) -> int:
+        """Resting hands above ``on`` taken into the baseline (class docstring)."""
+        return int(self.st[LEANED])
+
+    @property
+    def lean(self) -> np.ndarray:
+        """The resting hand in the baseline (N; zero: none; a new array)."""
+        return self.st[LEAN_X:LEAN_Y + 1].copy()
 
     @property
     def noise_n(self) -> float:
@@ -335,66 +510,9 @@ class FilteredCueDetector(CueDetector):
 
     def _decide(self, ex: float, ey: float) -> Cue | None:
         """The rest of :meth:`update` for ``e = (ex, ey)`` once the idle test did not
-        answer: the onset rule, or the settle rule and the hysteresis of an active cue."""
-        e = np.array([ex, ey])
-        mag = float(np.hypot(ex, ey))
-        if not self.active:
-            if self._lean_ends(e, mag):
-                return None
-            self._onset(e, mag)
-            if self.active:
-                self._queue[:] = 0  # the push's rising edge never calibrates
-            return None
-        settled = self._settling(e, mag)
-        if settled is not False:
-            return settled
-        return self._active(e, mag, mag > self.off_n)
-
-    def _lean_ends(self, e: np.ndarray, mag: float) -> bool:
-        """Whether a would-be onset ``e`` is the remembered lean leaving (class docstring):
-        then the baseline gives the lean back."""
-        L = self.lean
-        size = float(np.hypot(L[0], L[1]))
-        if size == 0.0 or mag > size + self.off_n or \
-                -float(e @ L) < math.cos(math.radians(LEAVE_DEG)) * mag * size:
-            return False
-        self.baseline = self.baseline - L
-        self.lean = np.zeros(2)
-        self._clear()
-        return True
-
-    def _settling(self, e: np.ndarray, mag: float) -> Cue | None | bool:
-        """The settle rule (class docstring): False while the cue goes on, else the cue that
-        ends at a new baseline (None when it is dropped). The window restarts at a sample
-        farther than ``off`` from the window's mean so far; a full window whose mean is not
-        below ``on`` (a steady push, not a resting hand) starts a new window."""
-        if self._settle > 0.0:
-            m = self._settle_sum / self._settle
-            if float(np.hypot(e[0] - m[0], e[1] - m[1])) > self.off_n:
-                self._settle, self._settle_sum = 0.0, np.zeros(2)
-                self._settle_impulse = np.zeros(2)
-        self._settle += self.dt
-        self._settle_sum = self._settle_sum + e * self.dt
-        if mag > self.off_n:
-            self._settle_impulse = self._settle_impulse + e * self.dt
-        if self._settle < self.settle_s - 1e-12:
-            return False
-        level = self._settle_sum / self._settle
-        lift = float(np.hypot(level[0], level[1]))
-        if lift >= self.on_n:
-            if lift < self.lean_n and self._settle < self.lean_s - 1e-12:
-                return False  # perhaps a lean: keep the window
-            if lift >= self.lean_n:
-                self._settle, self._settle_sum = 0.0, np.zeros(2)
-                self._settle_impulse = np.zeros(2)
-                return False
-            self.lean = self.lean + level  # a resting hand above on
-            self.leaned += 1
-        cue = None
-        if self._peak - lift > self.on_n:
-            cue = Cue(self._impulse - self._settle_impulse, self._peak,
-                      self._duration - self._settle)
-        self.baseline = self.baseline + level
-        self._clear()
-        self.settled += 1
-        return cue
+        answer (:func:`decide_step`): the onset rule, or the settle rule and the hysteresis
+        of an active cue."""
+        if decide_step(ex, ey, self.st, self.baseline, self._queue, self.on_n, self.off_n,
+                       self.rule, self._buf):
+            return self._cue()
+        return None

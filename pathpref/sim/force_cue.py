@@ -12,12 +12,44 @@ and down around a constant ``F_peak``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import numba as nb
 import numpy as np
 
 from ..errors import ConfigError
 from ..geometry.grid import ACTION_ANGLES
+
+#: the push shapes (module docstring), in :func:`push_magnitude`'s numbering
+SHAPES = ("half_sine", "bell", "plateau")
+
+
+@nb.njit(cache=True)
+def push_magnitude(shape, peak, duration, t):
+    """The force magnitude (N) ``t`` s after a push of ``shape`` (0 half-sine, 1 bell, 2
+    plateau; module docstring) began, of ``peak`` N over ``duration`` s: 0 outside
+    ``[0, duration]``. The one arithmetic of the Python step and the compiled move (the C
+    library's ``sin`` and ``cos``, as NumPy's scalars)."""
+    if t < 0 or t > duration:
+        return 0.0
+    if shape == 1:
+        s = t / duration
+        return 16.0 * peak * s * s * (1.0 - s) * (1.0 - s)
+    if shape == 2:
+        half = 0.5 * duration
+        r = half if half < 0.2 else 0.2
+        edge = duration - t if duration - t < t else t
+        return peak * (0.5 - 0.5 * math.cos(math.pi * edge / r)) if edge < r else peak
+    return peak * math.sin(math.pi * t / duration)
+
+
+@nb.njit(cache=True)
+def push_force(shape, peak, duration, angle, t, out):
+    """The world-frame force (N) ``t`` s into a push along ``angle`` (radians) into ``out``
+    (3): ``|F| (cos angle, sin angle, 0)``, ``|F|`` of :func:`push_magnitude`."""
+    f = push_magnitude(shape, peak, duration, t)
+    out[0], out[1], out[2] = f * math.cos(angle), f * math.sin(angle), 0.0
 
 
 @dataclass(frozen=True)
@@ -35,23 +67,18 @@ class PushProfile:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0 or (name != "noise_deg" and v == 0):
                 raise ConfigError(f"push {name} must be a positive finite number, got {v}")
-        if self.shape not in ("half_sine", "bell", "plateau"):
+        if self.shape not in SHAPES:
             raise ConfigError(f"push shape must be half_sine, bell or plateau, got "
                               f"{self.shape!r}")
 
+    @property
+    def shape_code(self) -> int:
+        """The shape's index in :data:`SHAPES` (:func:`push_magnitude`'s ``shape``)."""
+        return SHAPES.index(self.shape)
+
     def magnitude(self, t: float) -> float:
-        """Force magnitude at time ``t`` since the push began (half-sine or bell)."""
-        if t < 0 or t > self.duration_s:
-            return 0.0
-        if self.shape == "bell":
-            s = t / self.duration_s
-            return float(16.0 * self.peak_n * s * s * (1.0 - s) * (1.0 - s))
-        if self.shape == "plateau":
-            r = min(0.2, 0.5 * self.duration_s)
-            edge = min(t, self.duration_s - t)
-            return float(self.peak_n * (0.5 - 0.5 * np.cos(np.pi * edge / r)) if edge < r
-                         else self.peak_n)
-        return float(self.peak_n * np.sin(np.pi * t / self.duration_s))
+        """Force magnitude at time ``t`` since the push began (:func:`push_magnitude`)."""
+        return push_magnitude(self.shape_code, self.peak_n, self.duration_s, float(t))
 
 
 @dataclass
@@ -71,9 +98,16 @@ class HumanPush:
         return cls(float(ACTION_ANGLES[heading] + noise), t0, profile, heading)
 
     def force(self, t: float) -> np.ndarray:
-        """World-frame force (3,) at simulation time ``t``."""
-        f = self.profile.magnitude(t - self.t0)
-        return np.array([f * np.cos(self.angle), f * np.sin(self.angle), 0.0])
+        """World-frame force (3,) at simulation time ``t`` (:func:`push_force`)."""
+        out, p = np.zeros(3), self.profile
+        push_force(p.shape_code, p.peak_n, p.duration_s, self.angle, float(t) - self.t0, out)
+        return out
+
+    def record(self) -> np.ndarray:
+        """The push as :func:`push_force`'s arguments: ``(t0, duration, peak, angle,
+        shape)`` (the compiled move's push record)."""
+        p = self.profile
+        return np.array([self.t0, p.duration_s, p.peak_n, self.angle, p.shape_code])
 
     def active(self, t: float) -> bool:
         """Whether the push acts at simulation time ``t``."""

@@ -39,7 +39,8 @@ import numpy as np
 from ..episode.body import Felt
 from ..errors import EpisodeError
 from .admittance import yield_velocity
-from .coasting import Coaster
+from .coasting import CONTACT_SENSOR, Coaster
+from .coasting import enabled as compiled_steps_enabled
 from .controller import ProfiledController, TrackingController
 from .cue_detector import Cue
 from .cue_stream import track_cue
@@ -85,13 +86,19 @@ class MobileBase:
         self.force_limit = float(m.actuator_forcerange[self.actuators[0], 1])
         self._zero_q, self._zero_v = np.zeros(m.nq), np.zeros(m.nv)
         self._rest = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "rest")
+        #: the compiled steps may run for this base (:mod:`.coasting`: on, read from
+        #: ``PATHPREF_COMPILED_STEPS`` when the base is built, and the scene has the
+        #: contact-count sensor they read)
+        self.compiled_steps = compiled_steps_enabled() and mujoco.mj_name2id(
+            m, mujoco.mjtObj.mjOBJ_SENSOR, CONTACT_SENSOR) >= 0
         # MjData's arrays, bound once (its buffers stay put; an attribute read makes a new one)
         self._qpos, self._qvel, self._ctrl_view = self.data.qpos, self.data.qvel, self.data.ctrl
         a = self.actuators  # a slice when the actuators are adjacent (no index array per step)
         self._act = slice(int(a[0]), int(a[0]) + len(a)) \
             if list(a) == list(range(int(a[0]), int(a[0]) + len(a))) else a
-        q = self.xy
+        q, v = self.xy, self.vxy
         self._xy = slice(int(q[0]), int(q[0]) + 2) if q[1] == q[0] + 1 else q
+        self._v = slice(int(v[0]), int(v[0]) + 2) if v[1] == v[0] + 1 else v
         self._wrench_of: int | None = None
         self._step_push: HumanPush | None = None
         self._float_for: TrackingController | None = None  # the controller _can_float judged
@@ -132,7 +139,7 @@ class MobileBase:
     def coaster(self) -> Coaster | None:
         """The compiled steps of a move with nothing pushing (:mod:`.coasting`) when they
         apply to this base as it is set up now, else None (a subclass steps otherwise)."""
-        if not self.kernel_mirrors() or not Coaster.applies(self):
+        if not (self.compiled_steps and self.kernel_mirrors() and Coaster.applies(self)):
             return None
         if self._coaster is None:
             self._coaster = Coaster(self)
@@ -192,18 +199,18 @@ class MobileBase:
 
     @property
     def position(self) -> np.ndarray:
-        """The base's planar position (m)."""
-        return self.data.qpos[self.xy]
+        """The base's planar position (m; a new array)."""
+        return self._qpos[self._xy].copy()
 
     @property
     def velocity(self) -> np.ndarray:
-        """The base's planar velocity (m/s)."""
-        return self.data.qvel[self.vxy]
+        """The base's planar velocity (m/s; a new array)."""
+        return self._qvel[self._v].copy()
 
     @property
     def cell(self) -> int:
         """The grid cell under the base."""
-        return self.scene.cell_at(self.position)
+        return self.scene.cell_at(self._qpos[self._xy])
 
     @property
     def end_effector(self) -> np.ndarray | None:
