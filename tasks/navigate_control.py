@@ -142,16 +142,23 @@ class NavigateControl(Navigate):
         self.interaction.update()
 
     def substeps(self, n: int) -> None:
-        """``n`` physics steps, each what :meth:`substep` does: outside a push phase, where the
-        base's compiled steps apply (:meth:`~pathpref.sim.coasting.Coaster.drive`: the realistic
-        sensing chain idle, nothing pushing, no contact), runs of them in one call with the
-        force filter's update, the same numbers; every other step through :meth:`substep`."""
+        """``n`` physics steps, each what :meth:`substep` does: where the base's compiled steps
+        apply (:meth:`~pathpref.sim.coasting.Coaster.drive` outside a push phase: the
+        realistic sensing chain idle, no contact; :meth:`~pathpref.sim.coasting.Coaster.push`
+        through one), runs of them in one call with the force filter's and the interaction's
+        updates, the same numbers; every other step through :meth:`substep`."""
         done, b = 0, self.base
         while done < n:  # every pass takes at least one physics step
             # (not while the base touches something: the kernel would hand every step back)
-            coaster = b.coaster if b.decision.phase != PUSH and b.data.ncon == 0 else None
+            coaster = b.coaster if b.data.ncon == 0 else None
             if coaster is not None and coaster.ready():
-                k, partial = coaster.drive(n - done, self.filter)
+                if b.decision.phase == PUSH:
+                    k, partial, ended = coaster.push(b.decision, n - done, self.filter,
+                                                     self.interaction)
+                    if ended:
+                        self._push_over()
+                else:
+                    k, partial = coaster.drive(n - done, self.filter)
                 done += k
                 if partial:  # the step's task part after the base's (as substep)
                     self.filter.update()

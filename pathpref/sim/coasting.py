@@ -41,16 +41,21 @@ import os
 import mujoco
 import numba as nb
 import numpy as np
+from numba import types
+from numba.extending import overload
+from numba.np.random.distributions import random_standard_normal
 
 from . import native
 from .arm_step import arm_step
 from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
-from .cue_detector import FilteredCueDetector, filter_step
+from .cue_detector import ABOVE, ACTIVE, FilteredCueDetector, decide_step, filter_step
+from .decision import PUSH as PUSH_PHASE
 from .estimator import estimate_step
+from .force_cue import push_force
 from .guidance import admit_step
 from .keep_clear import keep_clear_xy
 from .measurements import planar_accel
-from .native import hypot, mj_step
+from .native import bit_generator, bit_generator_pointers, hypot, mj_step
 from .path_crossings import PathCrossings
 from .path_record import PathRecorder
 from .scene import grid_cell
@@ -61,15 +66,17 @@ from .sensing import W_MEAN, W_WINDOW_S, window_step
 #: :class:`~.path_crossings.PathCrossings` hook, or a quiet hook's step count ran out)
 READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
 #: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
-#: measurements, the detector's hand-back ``e`` and the velocity a contact met
-(QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK, PEAK_PUSHED, PEAK_FORCE, TOUCHING, EX,
- EY, VPX_OLD, VPY_OLD, TIME, MOVING, N_FS) = range(19)
+#: measurements, whether the detector gave a cue at a hand-back, the seconds of an active
+#: detector (the task's :class:`~pathpref_tasks.stage.StepInteraction`) and the velocity a
+#: contact met
+(QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK, PEAK_PUSHED, PEAK_FORCE, TOUCHING, CUE,
+ ACTIVE_S, VPX_OLD, VPY_OLD, TIME, MOVING, N_FS) = range(19)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
  T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
 #: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
- HELD, FILTER, SAMPLES, GUIDED, POLY, HOOK_IN, ARM, N_IS) = range(23)
+ HELD, FILTER, SAMPLES, GUIDED, POLY, HOOK_IN, PUSHING, INTERACT, N_IS) = range(24)
 #: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
 CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
@@ -85,6 +92,33 @@ def _bad_states(warnings):
     for i in BAD_STATE:
         n += warnings[i]
     return n
+
+
+def _arm_part(arm, step):
+    """The physical carry arm's part of kernel step ``step`` (``ArmBase._control_physical``
+    between IK solves): True (hand back before the step) when an IK solve is due or the
+    tilt record is full, else the servo targets of the tray impedance
+    (:func:`~.arm_step.arm_step`) and the tray's ``R_zz`` recorded. ``arm`` is
+    ``(arm_step's arguments, tilts, ak)``, ``ak`` = (steps since the reset, IK period in
+    steps); None (no arm) compiles to nothing. Compiled only (:func:`_arm_part_overload`)."""
+    raise NotImplementedError("_arm_part runs compiled, inside _coast")
+
+
+@overload(_arm_part, jit_options={"cache": True})
+def _arm_part_overload(arm, step):
+    if isinstance(arm, types.NoneType):
+        return lambda arm, step: False
+
+    def arm_part(arm, step):
+        arm_args, tilts, ak = arm
+        if ak[0] % ak[1] == 0 or step >= tilts.shape[0]:
+            return True
+        ak[0] += 1
+        arm_step(*arm_args)
+        tilts[step] = arm_args[3][arm_args[4][1], 8]
+        return False
+
+    return arm_part
 
 
 @nb.njit(cache=True, _nrt=False)
@@ -106,32 +140,35 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
     a guided base at rest (``ns[GUIDED]``: the command through
     :func:`~.keep_clear.keep_clear_xy`, the map's ``Clearance.arrays`` and rows) and for its
     path's crossings (``ns[POLY] >= 0``: the polytope the base is in; the grid's
-    ``cell_index`` and ``cell_polytope``); ``arm`` the physical carry arm's
-    (``ns[ARM]``: :func:`~.arm_step.arm_step`'s arguments, the tilt record ``tilts`` (the
-    tray's ``xmat[tray, 8]`` per step) and ``ak`` = (steps since the reset, IK period in
-    steps): an IK solve due hands back before its step). Simulated time is ``fs[TIME]``, advanced by
+    ``cell_index`` and ``cell_polytope``); ``arm`` the physical carry arm's record
+    (:func:`_arm_part`; None: no arm). Simulated time is ``fs[TIME]``, advanced by
     ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
+    bitgen = bit_generator(rng)  # the sensor's Generator's (Generator.standard_normal's)
     qpos, qvel, ctrl, sensordata, R, warnings = robot
-    last, target, err, goal, filt = drive
+    last, target, err, goal, filt, pp, wrench = drive
     sbias, held, win, scratch = sensor
-    f, baseline, dring, dqueue, dparams = det
+    f, baseline, dring, dqueue, dparams, st, rule, dbuf = det
     clr, rows, cell_index, cell_polytope, gv, gdef, gparams = guide
-    arm_args, tilts, ak = arm
-    xmat, tray = arm_args[3], arm_args[4][1]
     nq, nv = qpos.shape[0], qvel.shape[0]
-    eforce = est[7]
+    eforce, equeue = est[7], est[6]
     for step in range(max_steps):
         if fs[TIME] >= cs[T_STOP]:  # a pre_substep hook acts now (Coaster.ready: not at 0)
             return READY, step
-        # --- ArmBase._control_physical: the IK in Python when due (Coaster.ready: not at 0),
-        # else the servo targets of the tray impedance and the tilt's record
-        if ns[ARM]:
-            if ak[0] % ak[1] == 0 or step >= tilts.shape[0]:
-                return READY, step
-            ak[0] += 1
-            arm_step(*arm_args)
-            tilts[step] = xmat[tray, 8]
+        # --- MobileBase.substep's push (HumanPush.active, apply: the whole wrench written;
+        # a force that is not finite is Python's to refuse), else the wrench cleared
+        if ns[PUSHING]:
+            tp = fs[TIME]
+            if pp[0] <= tp <= pp[0] + pp[1]:
+                push_force(int(pp[4]), pp[2], pp[1], pp[3], tp - pp[0], wrench)
+                if not (math.isfinite(wrench[0]) and math.isfinite(wrench[1])):
+                    return READY, step
+            else:
+                wrench[0] = wrench[1] = wrench[2] = 0.0
+            wrench[3] = wrench[4] = wrench[5] = 0.0
+        # --- ArmBase._control_physical (an arm's record; None: no arm)
+        if _arm_part(arm, step):
+            return READY, step
         # --- MobileBase._control: a guided base's admittance tail (Guidance.admit, no cue
         # under way: Coaster.ready), then the float path: ProfiledController.goal_xy
         # (HeldVelocity's: the held command) and ramp_xy
@@ -168,6 +205,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
             if not math.isfinite(qvel[i]):
                 return DIVERGED, step + 1
         t = fs[TIME]
+        # a cue under way (SensingChain.under_way) before this step's sample
+        under_way = st[ACTIVE] != 0.0 or st[ABOVE] > 0.0
         # --- FaultySensor.read: the window, with the extra mass's inertia
         a = ns[SADR]
         fresh = window_step(mp, dp, ns[BODY], sensordata[a:a + 3], R, cs[EXTRA_M], scratch, win,
@@ -178,33 +217,42 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
             m0, m1, m2 = win[W_MEAN], win[W_MEAN + 1], win[W_MEAN + 2]
             # FaultySensor._emit (no thermal offset: Coaster.ready)
             if ns[DRIFT]:
-                z0 = rng.standard_normal()
-                z1 = rng.standard_normal()
+                z0 = random_standard_normal(bitgen)
+                z1 = random_standard_normal(bitgen)
                 sbias[0] += cs[DRIFT_STEP] * z0
                 sbias[1] += cs[DRIFT_STEP] * z1
             if cs[NOISE] > 0.0:
-                n0 = cs[NOISE] * rng.standard_normal()
-                n1 = cs[NOISE] * rng.standard_normal()
-                n2 = cs[NOISE] * rng.standard_normal()
+                n0 = cs[NOISE] * random_standard_normal(bitgen)
+                n1 = cs[NOISE] * random_standard_normal(bitgen)
+                n2 = cs[NOISE] * random_standard_normal(bitgen)
             else:
                 n0 = n1 = n2 = 0.0
             held[0] = m0 + sbias[0] + n0
             held[1] = m1 + sbias[1] + n1
             held[2] = m2 + sbias[2] + n2
-            # ForceEstimator.update (cue idle, fresh)
-            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S], True,
-                                    fs[QUIET], eparams, est)
+            # ForceEstimator.update (fresh; the bias tracked only with no cue under way)
+            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S],
+                                    not under_way, fs[QUIET], eparams, est)
             fs[QUIET], fs[AT_REST] = q, 1.0 if rest else 0.0
             measured = True
-        # --- FilteredCueDetector.update, idle (the estimate held between samples)
+        elif under_way:  # ForceEstimator.update between samples, a cue under way
+            fs[QUIET], fs[AT_REST] = 0.0, 0.0
+            equeue[0], equeue[1] = 0, 0
+        # --- FilteredCueDetector.update (the estimate held between samples): the low-pass
+        # and calibration, then, unless the idle test answers, decide_step; a cue given, or
+        # a cue under way begun, active or over hands the rest of the step to Python
         x, y = eforce[0], eforce[1]
         if math.isfinite(x) and math.isfinite(y):
             fs[VAR], fs[ON], fs[OFF], ex, ey, quiet = filter_step(
-                x, y, True, fs[AT_REST] != 0.0, f, baseline, dring, dqueue, fs[VAR], fs[ON],
-                fs[OFF], dparams, ns[HOLD_N])
+                x, y, not under_way, fs[AT_REST] != 0.0, f, baseline, dring, dqueue, fs[VAR],
+                fs[ON], fs[OFF], dparams, ns[HOLD_N])
             if not quiet:
-                fs[EX], fs[EY] = ex, ey
-                return DETECT, step + 1  # the onset rule, in Python
+                was_active = st[ACTIVE]
+                given = decide_step(ex, ey, st, baseline, dqueue, fs[ON], fs[OFF], rule, dbuf)
+                if given or st[ACTIVE] != was_active or \
+                        (st[ACTIVE] != 0.0 or st[ABOVE] > 0.0) != under_way:
+                    fs[CUE] = given
+                    return DETECT, step + 1
         # --- Measurements.update (nothing pushes: Coaster.ready)
         if ns[MEASURE]:
             vx, vy = qvel[ns[VX]], qvel[ns[VY]]
@@ -213,7 +261,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
             fs[VPX], fs[VPY], fs[T_PREV] = vx, vy, t
             if acc > fs[PEAK_PUSHED]:
                 fs[PEAK_PUSHED] = acc
-            if acc > fs[PEAK]:
+            # (not while a push acts or within 0.1 s of its end: MobileBase._pushed_now)
+            if acc > fs[PEAK] and not (ns[PUSHING] and pp[0] <= t <= pp[0] + pp[1] + 0.1):
                 fs[PEAK] = acc
             if measured:
                 h = hypot(eforce[0], eforce[1])
@@ -230,18 +279,22 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
                 return CROSS, step + 1
         if step + 1 >= ns[HOOK_IN]:  # a quiet on_substep hook is due (PathRecorder's sample)
             return CROSS, step + 1
-        # --- the task's low-pass of the estimate (navigate_control: stage.ForceFilter.update)
-        if ns[FILTER]:
-            f0, f1 = filt[0], filt[1]
-            filt[0], filt[1] = f0 + cs[ALPHA] * (eforce[0] - f0), f1 + cs[ALPHA] * (eforce[1] - f1)
         # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
-        # as nothing pushes) or time up
+        # as nothing pushes) or time up; the push phase's end (its time up: the detector's
+        # reset is Python's, before the task's part of the step)
         if t - cs[T0] >= cs[MIN_S]:
             if settled_at(target[0], target[1], qpos[ns[IX]], qpos[ns[IY]], qvel[ns[VX]],
                           qvel[ns[VY]], cs[TOL], cs[STILL], err):
                 return END, step + 1
         if t >= cs[T_END]:
             return END, step + 1
+        # --- the task's part of the step: the low-pass of the estimate (navigate_control:
+        # stage.ForceFilter.update) and the detector's active time (StepInteraction.update)
+        if ns[FILTER]:
+            f0, f1 = filt[0], filt[1]
+            filt[0], filt[1] = f0 + cs[ALPHA] * (eforce[0] - f0), f1 + cs[ALPHA] * (eforce[1] - f1)
+        if ns[INTERACT] and st[ACTIVE] != 0.0:
+            fs[ACTIVE_S] += cs[H]
     return READY, max_steps
 
 
@@ -290,19 +343,23 @@ class Coaster:
         return t
 
     def ready(self) -> bool:
-        """The next step is one the kernel mirrors: nothing pushes, no ``on_substep`` hook
-        but one :class:`~.path_crossings.PathCrossings`, every ``pre_substep`` hook quiet now,
-        no cue under way (a guidance admittance may still move: its tail), no waypoint on
-        the way
-        (:meth:`.decision.DecisionStep.move`)."""
+        """The next step is one the kernel mirrors: no pushes at any time, no ``on_substep``
+        hook but one :class:`~.path_crossings.PathCrossings`, every ``pre_substep`` hook quiet
+        now, no waypoint on the way (:meth:`.decision.DecisionStep.move`), and either no cue
+        under way (a guidance admittance may still move: its tail) or the push phase of a
+        base that neither yields nor is guided (its cue runs in the kernel)."""
         b = self.base
         s = b.sensing
         f = s.faulty
-        return (b.decision.final is None and not b.pushes and self._hooks_mirrored()
+        if b.decision.phase == PUSH_PHASE:
+            cues = b.admittance_b is None and b.guidance is None
+        else:
+            cues = b._onset is None and not s.under_way
+        return (cues and b.decision.final is None and not b.pushes and self._hooks_mirrored()
                 and b.kernel_ready()
                 and (not b.pre_substep or b.data.time < self._quiet_until())
-                and not b.external_forces and b._onset is None and not s.under_way
-                and f is not None and f._held is not None and s.estimator._qvel_mark is not None
+                and not b.external_forces and f is not None and f._held is not None
+                and s.estimator._qvel_mark is not None
                 and b._float_for is b.controller and b._float_control
                 and (not b.measure or b.measurements._f_measured is s.force_estimate))
 
@@ -349,20 +406,17 @@ class Coaster:
         self._err = np.zeros(2)
         self._data = d
         self._mj = (b.model._address, d._address)
-        self._key = None  # the constants' (_constants)
+        self._robot = (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings)
+        self._rng_of = None  # the Generator whose pointers _rng holds
+        self._key = None  # the objects the constants were built from (_constants)
         sc = b.scene
         self._guide = (sc.clearance.arrays, sc.clearance.near_rows,
                        sc.cell_index,
                        np.ascontiguousarray(sc.world.cell_polytope, dtype=np.int64))
-        #: the kernel's compiled overload per constants' key (:func:`compiled_entry`)
-        self._entries: dict = {}
-        #: the arm record of a base without an arm (its types: :meth:`~.arm.ArmBase.
-        #: compiled_arm`; empty arrays, never read)
-        f1, f2, i1 = np.zeros(0), np.zeros((0, 3)), np.zeros(0, np.int64)
-        no_args = (0, 0, f2, np.zeros((0, 9)), np.zeros(2, np.int64), np.zeros((3, 4)),
-                   np.zeros((6, 0)), i1, f1, f1, i1, f1, f1, f1, f1, i1, np.zeros((3, 3)), f1,
-                   f1, f1)
-        self._no_arm = (no_args, f1, np.array([1, 1], np.int64))
+        #: the kernel's compiled overload for the constants' objects (:func:`compiled_entry`)
+        self._entry = None
+        #: the push record of no push phase (:meth:`~.force_cue.HumanPush.record`'s kind)
+        self._no_push = np.zeros(5)
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
@@ -384,6 +438,24 @@ class Coaster:
             return step.timed_out()
         step._n += k - 1
         return self._hand_back(reason, step, fs)
+
+    def push(self, step, n: int = MAX_STEPS, force_filter=None, interaction=None
+             ) -> tuple[int, bool, bool]:
+        """Up to ``n`` physics steps of ``step``'s push phase (a
+        :class:`~.decision.DecisionStep`; the push acts, the detector runs through its cue),
+        ``force_filter`` and ``interaction`` as :meth:`drive` and :meth:`_run` take them.
+        Returns ``(steps, partial, ended)``: the steps taken, whether the last one was handed
+        back within the step (its base part finished here, the caller's part of it still to
+        do) and whether the phase ended with it (:meth:`~.decision.DecisionStep.push_ended`:
+        a cue, or its time up)."""
+        reason, steps, fs = self._run(0.0, math.inf, step._t_end, n, force_filter,
+                                      step._push, interaction)
+        if reason == READY:
+            return steps, False, False
+        if reason == DIVERGED:
+            self._hand_back(reason, step, fs)
+        cue = None if reason == END else self._finish(reason, fs, step._push)
+        return steps, True, step.push_ended(cue)
 
     def drive(self, n: int, force_filter=None) -> tuple[int, bool]:
         """Up to ``n`` physics steps of a drive with no move to end (a control-rate task's
@@ -408,8 +480,9 @@ class Coaster:
         b = self.base
         s, c = b.sensing, b.controller
         f, det = s.faulty, s.detector
-        key = (c, f, det, b.measure, force_filter is None, b.guidance)
-        if self._key != key:
+        k, g = self._key, b.guidance
+        if k is None or k[0] is not c or k[1] is not f or k[2] is not det or \
+                k[3] != b.measure or k[4] is not force_filter or k[5] is not g:
             spec = f.spec
             self._cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
                                  f.period, f._drift_step, spec.noise_n, f._extra_m, 0.0, 0.0,
@@ -425,10 +498,12 @@ class Coaster:
                                  int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
                                  b.model.sensor(CONTACT_SENSOR).adr[0],
                                  int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
-                                 -1, 0, int(b.compiled_arm() is not None)],
+                                 -1, 0, 0, 0],
                                 dtype=np.int64)
             self._guide_args = (*self._guide, *self._guidance())
-            self._key = key
+            self._key = (c, f, det, b.measure, force_filter, g)
+            self._entry = None  # resolved again (compiled_entry) at the next call
+            self._arm = b.compiled_arm() is not None
         cs, ns = self._cs, self._ns
         cs[ALPHA] = 0.0 if force_filter is None else force_filter.alpha
         ns[FILTER], ns[SAMPLES] = force_filter is not None, 0
@@ -443,11 +518,13 @@ class Coaster:
             return self._err, self._err, np.zeros(7)
         return g.v, g.deformation, g.step_params(b)
 
-    def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None
-             ) -> tuple[int, int, list]:
+    def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None,
+             push=None, interaction=None) -> tuple[int, int, list]:
         """One kernel call from the Python objects' state and back: ``(reason, steps,
         fs)``, ``fs`` the float state after it (a list, slots as :data:`QUIET` ...); the move's
-        start ``t0``, shortest time ``min_s`` and end ``t_end`` (s)."""
+        start ``t0``, shortest time ``min_s`` and end ``t_end`` (s); ``push`` the push phase's
+        :class:`~.force_cue.HumanPush` (None: no push phase), ``interaction`` an object whose
+        ``active_s`` gains the timestep at every step the detector is active (None: none)."""
         b = self.base
         if self._data is not b.data:
             self._bind()
@@ -457,29 +534,36 @@ class Coaster:
         vpx, vpy = m._v_prev
         fs = np.array([est.quiet, est.at_rest, det.var, det.on_n, det.off_n, vpx, vpy,
                        m._t_prev, m.peak_accel, m.peak_accel_pushed, m.peak_force, m._touching,
-                       0.0, 0.0, 0.0, 0.0, d.time, g is not None and g.moving], dtype=np.float64)
+                       0.0, 0.0 if interaction is None else interaction.active_s, 0.0, 0.0,
+                       d.time, g is not None and g.moving], dtype=np.float64)
         cs, ns = self._constants(force_filter)
+        ns[PUSHING], ns[INTERACT] = push is not None, interaction is not None
         cs[T0], cs[MIN_S], cs[T_END] = t0, min_s, t_end
         cs[T_STOP] = self._quiet_until() if b.pre_substep else math.inf
         b._anchor = None
+        wrench = b._wrench()
         if not b.external_forces:
-            b._wrench().fill(0.0)
+            wrench.fill(0.0)
+        if self._rng_of is not f.rng:  # (native.bit_generator_pointers)
+            self._rng_of, self._rng = f.rng, bit_generator_pointers(f.rng)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
         filt = self._err if force_filter is None else force_filter.f
-        arm = b.compiled_arm() if ns[ARM] else self._no_arm
+        arm = b.compiled_arm() if self._arm else None
         goal = c.u if type(c) is HeldVelocity else self._err
-        args = (self._mj, (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings),
-                (c.last, b.target, self._err, goal, filt),
-                (f.bias, held, f.win, self._scratch), f.rng, est.params,
+        args = (self._mj, self._robot,
+                (c.last, b.target, self._err, goal, filt,
+                 self._no_push if push is None else push.record(), wrench),
+                (f.bias, held, f.win, self._scratch), self._rng, est.params,
                 (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
                  eforce, *est._scratch),
-                (det.f, det.baseline, det._ring, det._queue, det.params),
+                (det.f, det.baseline, det._ring, det._queue, det.params, det.st, det.rule,
+                 det._buf),
                 self._guide_args, arm, fs, cs, ns, max_steps)
-        entry = self._entries.get(self._key)
+        entry = self._entry
         if entry is None:
-            entry = self._entries[self._key] = compiled_entry(args)
+            entry = self._entry = compiled_entry(args)
         reason, steps = entry(*args)
-        if ns[ARM]:  # the arm's steps (each kernel step ran the arm's part: module docstring)
+        if self._arm:  # the arm's steps (each kernel step ran the arm's part: module docstring)
             b._k = int(arm[2][0])
             b.record_tilts(arm[1][:steps])
         # the quiet hooks learn of the steps they were not called for (the last step's hooks
@@ -494,6 +578,8 @@ class Coaster:
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
         fs = fs.tolist()
+        if interaction is not None:
+            interaction.active_s = fs[ACTIVE_S]
         est.quiet, est.at_rest = fs[QUIET], fs[AT_REST] != 0.0
         if g is not None:
             g.moving = fs[MOVING] != 0.0
@@ -527,15 +613,16 @@ class Coaster:
             return True
         return step._move_ended(self._finish(reason, fs))
 
-    def _finish(self, reason: int, fs: list):
-        """The rest of the step the kernel handed back within (:data:`DETECT`: the onset rule,
-        the cue stream, the measurements and hooks; :data:`CONTACTS`: the contact
-        measurements and the hooks; :data:`CROSS`: the hooks); the step's cue (None: none)."""
+    def _finish(self, reason: int, fs: list, push=None):
+        """The rest of the step the kernel handed back within (:data:`DETECT`: the cue stream,
+        the measurements and hooks after the detector's step; :data:`CONTACTS`: the contact
+        measurements and the hooks; :data:`CROSS`: the hooks), ``push`` the push that
+        acted in it (None: none); the step's cue (None: none)."""
         b = self.base
         if reason == DETECT:
-            cue = b.sensing.detector._decide(fs[EX], fs[EY])
-            return b._after_read(cue, None)
+            det = b.sensing.detector
+            return b._after_read(det._cue() if fs[CUE] else None, push)
         if reason == CONTACTS:
             b.measurements._contacts(b.data, (fs[VPX_OLD], fs[VPY_OLD]))
-        b.run_hooks(None)
+        b.run_hooks(push)
         return None

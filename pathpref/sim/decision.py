@@ -126,22 +126,30 @@ class DecisionStep:
         """One physics step of the phase under way; True when it ended with this step."""
         b, phase = self.base, self.phase
         if phase == PUSH:
-            cue = b.substep(self._push)
-            if self.onset_s is None and b.sensing.detector.active:
-                self.onset_s = float(b.data.time) - self._push.t0
-            if cue is None and b.data.time < self._t_end:
-                return False
-            b.sensing.detector.reset()
-            self.cue = cue
-        elif phase == MOVE:
+            return self.push_ended(b.substep(self._push))
+        if phase == MOVE:
             return self._move_ended(b.substep())
-        elif phase == HOLD:
+        if phase == HOLD:
             cue = b.substep()
             if not (cue is not None and self._until_cue) and b.data.time < self._t_end:
                 return False
         else:
             b.substep()
             return True
+        self.phase = None
+        return True
+
+    def push_ended(self, cue) -> bool:
+        """The push phase's check after a physics step that gave ``cue``: note when the
+        detector went active; True (the detector reset, :attr:`cue` set, no phase under way)
+        at a cue or once the release window is over."""
+        b = self.base
+        if self.onset_s is None and b.sensing.detector.active:
+            self.onset_s = float(b.data.time) - self._push.t0
+        if cue is None and b.data.time < self._t_end:
+            return False
+        b.sensing.detector.reset()
+        self.cue = cue
         self.phase = None
         return True
 
@@ -196,12 +204,13 @@ class DecisionStep:
 
     def run(self) -> DecisionStep:
         """Advance until the phase under way ends (a blocking caller). The steps of a move
-        with nothing pushing go through the compiled kernel of :mod:`.coasting` where it
-        applies (the same numbers), the others through :meth:`advance`."""
+        with nothing pushing and of a push phase go through the compiled kernel of
+        :mod:`.coasting` where it applies (the same numbers), the others through
+        :meth:`advance`."""
         coaster = self.base.coaster
         while True:
-            if coaster is not None and self.phase == MOVE and coaster.ready():
-                if coaster.move(self):
+            if coaster is not None and self.phase in (MOVE, PUSH) and coaster.ready():
+                if coaster.move(self) if self.phase == MOVE else coaster.push(self)[2]:
                     return self
             elif self.advance():
                 return self

@@ -32,6 +32,8 @@ import mujoco
 import numba as nb
 import numpy as np
 from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 #: mjtObj's mjOBJ_BODY
 OBJ_BODY = int(mujoco.mjtObj.mjOBJ_BODY)
@@ -75,6 +77,42 @@ _dgemv = types.ExternalFunction(
     "scipy_cblas_dgemv64_",
     types.void(_i32, _i32, _i64, _i64, _f64, _ptr, _i64, _ptr, _i64, _f64, _ptr, _i64))
 _ddot = types.ExternalFunction("scipy_cblas_ddot64_", _f64(_i64, _ptr, _i64, _ptr, _i64))
+
+
+def bit_generator_pointers(rng: np.random.Generator) -> np.ndarray:
+    """What numba's unboxing of ``rng`` reads of its bit generator, read once: the state's
+    address, the state pointer and the ``next_uint64``, ``next_uint32`` and ``next_double``
+    functions' addresses (``BitGenerator.ctypes``; int64[5], for :func:`bit_generator`). A
+    kernel called often takes these instead of the ``Generator``, whose unboxing asks
+    ``ctypes`` for all of them at every call."""
+    c = rng.bit_generator.ctypes
+
+    def address(fn) -> int:
+        return ctypes.cast(fn, ctypes.c_void_p).value
+
+    return np.array([c.state_address, c.state.value, address(c.next_uint64),
+                     address(c.next_uint32), address(c.next_double)], dtype=np.int64)
+
+
+@intrinsic
+def bit_generator(typingctx, pointers):
+    """numba's ``BitGenerator`` value (what ``Generator.bit_generator`` is in compiled code)
+    from :func:`bit_generator_pointers`: ``numba.np.random.distributions``' functions draw
+    from it exactly as from the unboxed ``Generator`` (the same state, the same C functions
+    of NumPy's bit generator)."""
+    bitgen = types.NumPyRandomBitGeneratorType("bit_generator")
+    fields = ("state_address", "state", "fnptr_next_uint64", "fnptr_next_uint32",
+              "fnptr_next_double")
+
+    def codegen(context, builder, sig, args):
+        arr = context.make_array(sig.args[0])(context, builder, args[0])
+        out = cgutils.create_struct_proxy(bitgen)(context, builder)
+        for i, name in enumerate(fields):
+            setattr(out, name, builder.load(cgutils.gep(builder, arr.data, i)))
+        out.parent = cgutils.get_null_value(out.parent.type)
+        return out._getvalue()
+
+    return bitgen(pointers), codegen
 
 
 @nb.njit(cache=True, inline="always")
