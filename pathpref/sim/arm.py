@@ -80,7 +80,6 @@ and the arm (``tool/tool_force``), through the same detector as the handle.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -91,7 +90,7 @@ import numpy as np
 from ..episode.physics import CELL_SIZE_M, QUIET_DEFAULTS
 from ..errors import EpisodeError
 from ..geometry.world import World
-from .arm_step import arm_step
+from .arm_step import arm_step, tilt_from
 from .mobile_base import MobileBase
 from .native import entry_point
 from .scene import BaseParams, Scene, build_spec, mjcf_path
@@ -196,10 +195,6 @@ def tilt_deg(data: mujoco.MjData, body: int) -> float:
     return tilt_from(float(data.xmat[body, 8]))
 
 
-def tilt_from(r_zz: float) -> float:
-    """:func:`tilt_deg` of the orientation's ``R_zz``."""
-    return math.degrees(math.acos(min(1.0, max(-1.0, r_zz))))
-
 
 class ArmBase(MobileBase):
     """A :class:`MobileBase` whose base and arm follow whole-body IK (module docstring)."""
@@ -285,10 +280,12 @@ class ArmBase(MobileBase):
         self._Rd, self._f3, self._m3 = np.zeros((3, 3)), np.zeros(3), np.zeros(3)
         self._tau = np.zeros(len(arm.joints))
         self._arm_entry = None  # arm_step's compiled overload (entry_point, resolved once)
-        #: the compiled move's tilt record (the tray's R_zz per step, at most one IK period)
-        #: and (steps since the reset, IK period in steps) (:meth:`compiled_arm`)
-        self._tilt_zz = np.zeros(self.ik_every)
-        self._ak = np.array([0, self.ik_every], dtype=np.int64)
+        #: the compiled move's tilt record (degrees per step, at most one IK period;
+        #: :meth:`compiled_arm`)
+        self._tilt_deg = np.zeros(self.ik_every)
+        #: the kernel's (steps since the reset, IK period in steps, the step whose IK ran)
+        self._ak = np.array([0, self.ik_every, -1], dtype=np.int64)
+        self._ik_at = -1  # the step (self._k) whose IK solve ran
         self._k = 0
         self.tilts: list[float] = []
         self.ik_solves = 0
@@ -313,7 +310,7 @@ class ArmBase(MobileBase):
         mujoco.mj_forward(self.model, self.data)
         self._reset_sensing()
         self._reset_control()
-        self._k = 0
+        self._k, self._ik_at = 0, -1
         self.tilts = []
         self.deepest = 0.0
         self.cfg.update(self.data.qpos.copy())  # the kinematic configuration starts at home
@@ -375,11 +372,7 @@ class ArmBase(MobileBase):
         configuration every ``ik_period``; every physics step the impedance at the tray about
         the pose it gives, and the base's own command."""
         d = self.data
-        if self._k % self.ik_every == 0:
-            v = self.solve_ik()
-            self.cfg.integrate_inplace(v, self.ik_dt)
-            self.q_kin = self.cfg.q[self.arm_qpos].copy()
-            self._relative_target()
+        self.kernel_prepare()
         self._k += 1
         args = self.arm_args()
         if self._arm_entry is None:
@@ -393,10 +386,9 @@ class ArmBase(MobileBase):
         """:func:`arm_step`'s arguments now (the kinematic configuration's arm joints are a
         new array after each IK solve)."""
         d = self.data
-        return (self.model._address, d._address, d.xpos, d.xmat, self._bodies, self._rel,
-                self._jac, self.arm_dofs, d.qvel, d.qpos, self.arm_qpos, self.q_kin,
-                self._gains, self._kp, d.ctrl, self.arm_ctrl, self._Rd, self._f3, self._m3,
-                self._tau)
+        return ((self.model._address, d._address), (d.xpos, d.xmat, d.qvel, d.qpos, d.ctrl),
+                (self._bodies, self._rel, self._jac, self.arm_dofs, self.arm_qpos, self.q_kin,
+                 self._gains, self._kp, self.arm_ctrl), (self._Rd, self._f3, self._m3, self._tau))
 
     def kernel_mirrors(self) -> bool:
         """The compiled move mirrors the physical arm's step (:func:`~.arm_step.arm_step`
@@ -404,21 +396,33 @@ class ArmBase(MobileBase):
         return self.physical
 
     def kernel_ready(self) -> bool:
-        """The compiled move may take the next step (:meth:`.coasting.Coaster.ready`): no IK
-        solve due at it, nothing in contact (whose penetration the Python step measures)."""
-        return self._k % self.ik_every != 0 and self.data.ncon == 0
+        """The compiled move may take the next step (:meth:`.coasting.Coaster.ready`): nothing
+        in contact (whose penetration the Python step measures)."""
+        return self.data.ncon == 0
+
+    def kernel_prepare(self) -> None:
+        """The IK solve of the coming step when one is due and has not run (every
+        ``ik_period``: the kinematic configuration integrated, the tray's pose relative to
+        the base in it), the first part of :meth:`_control_physical`; the compiled move runs
+        it before its steps (each hands back when the next one is due)."""
+        if self._k % self.ik_every == 0 and self._ik_at != self._k:
+            v = self.solve_ik()
+            self.cfg.integrate_inplace(v, self.ik_dt)
+            self.q_kin = self.cfg.q[self.arm_qpos].copy()
+            self._relative_target()
+            self._ik_at = self._k
 
     def compiled_arm(self) -> tuple:
         """The arm record of :func:`.coasting._coast`: :meth:`arm_args`, the tilt record of
-        one IK period (the tray's ``R_zz`` per step) and ``(steps since the reset, IK period in
-        steps)``, which the kernel advances."""
-        self._ak[0] = self._k
-        return self.arm_args(), self._tilt_zz, self._ak
+        one IK period (the tray's tilt per step, :func:`~.arm_step.tilt_from`) and ``(steps
+        since the reset, IK period in steps, the step whose IK ran)``, which the kernel
+        advances."""
+        self._ak[0], self._ak[2] = self._k, self._ik_at
+        return self.arm_args(), self._tilt_deg, self._ak
 
-    def record_tilts(self, r_zz: np.ndarray) -> None:
-        """The tilts of steps the compiled move took, from the tray's ``xmat[tray, 8]`` each
-        (:func:`tilt_from`)."""
-        self.tilts.extend(tilt_from(float(z)) for z in r_zz)
+    def record_tilts(self, tilts: np.ndarray) -> None:
+        """The tilts (degrees) of steps the compiled move took."""
+        self.tilts.extend(tilts.tolist())
 
     def move_to(self, cell: int, min_s: float = 0.0) -> int:
         """Drive to ``cell`` for at least ``min_s`` (:meth:`MobileBase.move_to`), then record

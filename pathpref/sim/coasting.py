@@ -46,7 +46,7 @@ from numba.extending import overload
 from numba.np.random.distributions import random_standard_normal
 
 from . import native
-from .arm_step import arm_step
+from .arm_step import arm_step, tilt_from
 from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
 from .cue_detector import ABOVE, ACTIVE, FilteredCueDetector, decide_step, filter_step
 from .decision import PUSH as PUSH_PHASE
@@ -96,11 +96,12 @@ def _bad_states(warnings):
 
 def _arm_part(arm, step):
     """The physical carry arm's part of kernel step ``step`` (``ArmBase._control_physical``
-    between IK solves): True (hand back before the step) when an IK solve is due or the
-    tilt record is full, else the servo targets of the tray impedance
-    (:func:`~.arm_step.arm_step`) and the tray's ``R_zz`` recorded. ``arm`` is
-    ``(arm_step's arguments, tilts, ak)``, ``ak`` = (steps since the reset, IK period in
-    steps); None (no arm) compiles to nothing. Compiled only (:func:`_arm_part_overload`)."""
+    between IK solves): True (hand back before the step) when an IK solve is due and has
+    not run (:meth:`~.arm.ArmBase.kernel_prepare`) or the tilt record is full, else the servo
+    targets of the tray impedance (:func:`~.arm_step.arm_step`) and the tray's tilt recorded
+    (:func:`~.arm_step.tilt_from`). ``arm`` is ``(arm_step's arguments, tilts, ak)``, ``ak``
+    = (steps since the reset, IK period in steps, the step whose IK ran); None (no arm)
+    compiles to nothing. Compiled only (:func:`_arm_part_overload`)."""
     raise NotImplementedError("_arm_part runs compiled, inside _coast")
 
 
@@ -111,11 +112,11 @@ def _arm_part_overload(arm, step):
 
     def arm_part(arm, step):
         arm_args, tilts, ak = arm
-        if ak[0] % ak[1] == 0 or step >= tilts.shape[0]:
+        if (ak[0] % ak[1] == 0 and ak[2] != ak[0]) or step >= tilts.shape[0]:
             return True
         ak[0] += 1
         arm_step(*arm_args)
-        tilts[step] = arm_args[3][arm_args[4][1], 8]
+        tilts[step] = tilt_from(arm_args[1][1][arm_args[2][0][1], 8])  # xmat[tray, 8]
         return False
 
     return arm_part
@@ -528,6 +529,7 @@ class Coaster:
         b = self.base
         if self._data is not b.data:
             self._bind()
+        b.kernel_prepare()
         s, c, m = b.sensing, b.controller, b.measurements
         f, est, det = s.faulty, s.estimator, s.detector
         g, d = b.guidance, self._data

@@ -156,6 +156,10 @@ class MobileBase:
         go (:meth:`.coasting.Coaster.ready`; the plain base: always)."""
         return True
 
+    def kernel_prepare(self) -> None:
+        """What this base does before the compiled move's steps (the plain base: nothing;
+        the physical carry arm: an IK solve that is due)."""
+
     def compiled_arm(self) -> tuple | None:
         """The physical carry arm's arrays for the compiled move (None: no arm)."""
         return None
