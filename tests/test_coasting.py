@@ -19,11 +19,12 @@ import pytest  # noqa: E402
 import pathpref.sim  # noqa: E402,F401 - registers the MuJoCo body
 from pathpref.episode import EpisodeSpec, Physics  # noqa: E402
 from pathpref.episode.runner import EpisodeRunner  # noqa: E402
-from pathpref.errors import EpisodeError  # noqa: E402
+from pathpref.errors import ConfigError, EpisodeError  # noqa: E402
 from pathpref.geometry.world import load_world  # noqa: E402
 from pathpref.sim import coasting, native  # noqa: E402
 from pathpref.sim.body import scene_for  # noqa: E402
 from pathpref.sim.controller import ProfiledController  # noqa: E402
+from pathpref.sim.force_cue import HumanPush, PushProfile  # noqa: E402
 from pathpref.sim.mobile_base import MobileBase  # noqa: E402
 from pathpref.sim.sensing import SensorModel  # noqa: E402
 
@@ -321,9 +322,10 @@ def test_only_the_setups_it_mirrors_coast(task, physics, coasts):
 
 @pytest.mark.cross_cpu
 def test_the_step_handed_back_at_an_onset_is_measured(monkeypatch):
-    """The kernel hands back within the step whose force crosses the detector's onset: the
-    rest of that step (the onset rule, the measurements of its force) runs in Python. Stopped
-    right there, the two paths agree, the peak push estimate included. Without the low-pass
+    """The kernel hands back within the step whose force crosses the detector's onset, after
+    the detector's step (:func:`~pathpref.sim.cue_detector.decide_step`): the rest of that
+    step (the cue stream, the measurements of its force) runs in Python. Stopped right there,
+    the two paths agree, the peak push estimate included. Without the low-pass
     (``tau_s`` 0) the estimate crosses at a sensor sample: a new estimate, the largest so far,
     that only that step's measurement sees."""
     settings = {"on_n": 2.5, "off_n": 1.5, "on_k": 0.0, "off_k": 0.0, "tau_s": 0.0}
@@ -377,3 +379,54 @@ def test_the_control_rate_task_drives_the_same_compiled(monkeypatch, reasons, ph
     off, on = _both(monkeypatch, run)
     assert off == on
     assert reasons["steps"] > 1000  # most physics steps ran on the kernel
+
+
+@pytest.mark.cross_cpu
+@pytest.mark.parametrize("shape,peak_n,duration_s", [
+    ("half_sine", 30.0, 0.3), ("bell", 25.0, 0.5), ("plateau", 20.0, 1.2),
+    ("half_sine", 5.0, 0.3)])  # the last too weak to feel: the release window runs out
+def test_a_push_phase_runs_compiled_the_same(monkeypatch, reasons, shape, peak_n, duration_s):
+    """A push phase on the standing base (:meth:`~pathpref.sim.mobile_base.MobileBase.
+    receive_push`, the realistic chain) runs in the kernel (the push's force, the estimator
+    with a cue under way, the detector's whole step), handing back only when the cue begins,
+    goes active or ends: the same cue, onset time and state as the Python steps, bit for
+    bit, for each push shape, and for a push the detector misses."""
+    def run():
+        base, world = _base()
+        base.hold(0.5)
+        cues, pushed = [], 0
+        for heading in (0, 3, 6):
+            push = HumanPush.sample(heading, 0.0, PushProfile(peak_n, duration_s, 0.0, shape),
+                                    np.random.default_rng(heading))
+            before = reasons["steps"]
+            t0 = base.data.time
+            step = base.decision.push(push, hold=True).run()
+            pushed += round((base.data.time - t0) / base.dt)
+            cues.append((None if step.cue is None else (step.cue.heading, step.cue.peak_n,
+                                                         step.cue.impulse.tobytes()),
+                         step.onset_s, reasons["steps"] - before))
+            base.hold(0.4)
+        return _state(base), cues, pushed
+
+    off, on = _both(monkeypatch, run)
+    assert off[0] == on[0] and [c[:2] for c in off[1]] == [c[:2] for c in on[1]]
+    felt = [c for c, _, _ in on[1] if c is not None]
+    assert len(felt) == (0 if peak_n < 8.0 else 3)
+    if felt:
+        assert [c[0] for c in felt] == [0, 3, 6]  # as pushed (no heading noise)
+        assert reasons.get(coasting.DETECT, 0) >= 3  # a hand-back per cue's begin and end
+    # the push phases' steps ran on the kernel (all but the steps of each hand-back)
+    assert sum(k for _, _, k in on[1]) >= on[2] - 10 and on[2] > 300
+
+
+def test_a_push_force_that_is_not_finite_is_refused_not_looped(monkeypatch):
+    """A push whose force is not finite (a NaN angle) is left by the kernel to the Python
+    step, which refuses it with one ConfigError: the push phase's loop cannot spin on a
+    kernel that takes no step."""
+    monkeypatch.setenv("PATHPREF_COMPILED_STEPS", "1")
+    base, _ = _base()
+    base.hold(0.3)
+    push = HumanPush(float("nan"), 0.0, PushProfile(), 0)
+    assert base.coaster is not None
+    with pytest.raises(ConfigError, match="not finite"):
+        base.receive_push(push)

@@ -208,9 +208,16 @@ class DecisionStep:
         :mod:`.coasting` where it applies (the same numbers), the others through
         :meth:`advance`."""
         coaster = self.base.coaster
-        while True:
+        while True:  # every pass takes at least one physics step
             if coaster is not None and self.phase in (MOVE, PUSH) and coaster.ready():
-                if coaster.move(self) if self.phase == MOVE else coaster.push(self)[2]:
+                if self.phase == MOVE:
+                    if coaster.move(self):
+                        return self
+                    continue
+                steps, _, ended = coaster.push(self)
+                if ended:
                     return self
-            elif self.advance():
+                if steps:
+                    continue  # (none: the kernel left this step to Python, e.g. to refuse it)
+            if self.advance():
                 return self
