@@ -43,7 +43,6 @@ import numba as nb
 import numpy as np
 from numba import types
 from numba.extending import overload
-from numba.np.random.distributions import random_standard_normal
 
 from . import native
 from .arm_step import arm_step, tilt_from
@@ -55,11 +54,11 @@ from .force_cue import push_force
 from .guidance import admit_step
 from .keep_clear import keep_clear_xy
 from .measurements import planar_accel
-from .native import bit_generator, bit_generator_pointers, hypot, mj_step
+from .native import hypot, mj_step
 from .path_crossings import PathCrossings
 from .path_record import PathRecorder
 from .scene import grid_cell
-from .sensing import W_MEAN, W_WINDOW_S, window_step
+from .sensing import W_MEAN, W_WINDOW_S, emit_step, window_step
 
 #: hand-back reasons of :func:`_coast` (``CROSS``: an ``on_substep`` hook acts at this step:
 #: the base entered another polytope, or a cell the grid's lookup does not hold, with a
@@ -145,7 +144,6 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
     (:func:`_arm_part`; None: no arm). Simulated time is ``fs[TIME]``, advanced by
     ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
-    bitgen = bit_generator(rng)  # the sensor's Generator's (Generator.standard_normal's)
     qpos, qvel, ctrl, sensordata, R, warnings = robot
     last, target, err, goal, filt, pp, wrench = drive
     sbias, held, win, scratch = sensor
@@ -215,22 +213,9 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
         measured = False
         if fresh:
             ns[SAMPLES] += 1
-            m0, m1, m2 = win[W_MEAN], win[W_MEAN + 1], win[W_MEAN + 2]
             # FaultySensor._emit (no thermal offset: Coaster.ready)
-            if ns[DRIFT]:
-                z0 = random_standard_normal(bitgen)
-                z1 = random_standard_normal(bitgen)
-                sbias[0] += cs[DRIFT_STEP] * z0
-                sbias[1] += cs[DRIFT_STEP] * z1
-            if cs[NOISE] > 0.0:
-                n0 = cs[NOISE] * random_standard_normal(bitgen)
-                n1 = cs[NOISE] * random_standard_normal(bitgen)
-                n2 = cs[NOISE] * random_standard_normal(bitgen)
-            else:
-                n0 = n1 = n2 = 0.0
-            held[0] = m0 + sbias[0] + n0
-            held[1] = m1 + sbias[1] + n1
-            held[2] = m2 + sbias[2] + n2
+            emit_step(rng, win[W_MEAN:W_MEAN + 3], sbias, ns[DRIFT] != 0, cs[DRIFT_STEP],
+                      cs[NOISE], held)
             # ForceEstimator.update (fresh; the bias tracked only with no cue under way)
             q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S],
                                     not under_way, fs[QUIET], eparams, est)
@@ -408,7 +393,6 @@ class Coaster:
         self._data = d
         self._mj = (b.model._address, d._address)
         self._robot = (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings)
-        self._rng_of = None  # the Generator whose pointers _rng holds
         self._key = None  # the objects the constants were built from (_constants)
         sc = b.scene
         self._guide = (sc.clearance.arrays, sc.clearance.near_rows,
@@ -546,8 +530,6 @@ class Coaster:
         wrench = b._wrench()
         if not b.external_forces:
             wrench.fill(0.0)
-        if self._rng_of is not f.rng:  # (native.bit_generator_pointers)
-            self._rng_of, self._rng = f.rng, bit_generator_pointers(f.rng)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
         filt = self._err if force_filter is None else force_filter.f
         arm = b.compiled_arm() if self._arm else None
@@ -555,7 +537,7 @@ class Coaster:
         args = (self._mj, self._robot,
                 (c.last, b.target, self._err, goal, filt,
                  self._no_push if push is None else push.record(), wrench),
-                (f.bias, held, f.win, self._scratch), self._rng, est.params,
+                (f.bias, held, f.win, self._scratch), f.rng_pointers, est.params,
                 (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
                  eforce, *est._scratch),
                 (det.f, det.baseline, det._ring, det._queue, det.params, det.st, det.rule,

@@ -31,9 +31,10 @@ from dataclasses import dataclass
 import mujoco
 import numba as nb
 import numpy as np
+from numba.np.random.distributions import random_standard_normal
 
 from ..errors import ConfigError
-from .native import OBJ_BODY, matTvec, mj_objectAcceleration
+from .native import OBJ_BODY, bit_generator, bit_generator_pointers, matTvec, mj_objectAcceleration
 
 #: the thermal warm-up's time constant (s; :class:`SensorModel` ``thermal_n``)
 THERMAL_S = 120.0
@@ -98,6 +99,32 @@ def window_step(mp, dp, body, reading, R, extra_m, scratch, win, t, dt, period, 
         while win[W_NEXT_T] <= t + 1e-9:
             win[W_NEXT_T] += period
     return fresh
+
+
+@nb.njit(cache=True)
+def emit_step(rng, mean, bias, drift, drift_step, noise_n, out):
+    """One output sample of the faulty sensor from its window's ``mean`` (N, sensor frame)
+    into ``out``: with ``drift``, the bias's random walk ``bias[:2] += drift_step z`` (two
+    normals), then ``out = mean + bias + noise_n z`` (three normals when ``noise_n > 0``),
+    the normals drawn from the sensor's ``Generator`` (``rng``: its
+    :func:`~.native.bit_generator_pointers`; the draws NumPy's ``standard_normal`` gives).
+    The one arithmetic of :meth:`FaultySensor.read` and the compiled move (:mod:`.coasting`;
+    the thermal warm-up is Python's, added after)."""
+    bitgen = bit_generator(rng)
+    if drift:
+        z0 = random_standard_normal(bitgen)
+        z1 = random_standard_normal(bitgen)
+        bias[0] += drift_step * z0
+        bias[1] += drift_step * z1
+    if noise_n > 0.0:
+        n0 = noise_n * random_standard_normal(bitgen)
+        n1 = noise_n * random_standard_normal(bitgen)
+        n2 = noise_n * random_standard_normal(bitgen)
+    else:
+        n0 = n1 = n2 = 0.0
+    out[0] = mean[0] + bias[0] + n0
+    out[1] = mean[1] + bias[1] + n1
+    out[2] = mean[2] + bias[2] + n2
 
 
 class HandleSensor:
@@ -199,6 +226,8 @@ class FaultySensor:
         self.model, self.sensor, self.body = model, sensor, int(body)
         self.spec = sensor_model
         self.rng = rng
+        #: the Generator's pointers (:func:`~.native.bit_generator_pointers`; :func:`emit_step`)
+        self.rng_pointers = bit_generator_pointers(rng)
         self.mass = float(model.body_subtreemass[self.body])  # the model's sensed mass
         self.dt = float(model.opt.timestep)
         self.period = self.dt if sensor_model.rate_hz is None else 1.0 / sensor_model.rate_hz
@@ -240,15 +269,15 @@ class FaultySensor:
         self._R = data.site_xmat[self.sensor.site].reshape(3, 3)
 
     def _emit(self, mean: np.ndarray) -> np.ndarray:
-        sm = self.spec
-        if sm.drift_n_per_sqrt_s > 0:
-            self.bias[:2] += self._drift_step * self.rng.standard_normal(2)
-        noise = sm.noise_n * self.rng.standard_normal(3) if sm.noise_n > 0 else 0.0
-        if sm.thermal_n > 0:  # the warm-up since the sensor was zeroed (restart)
+        """A new output sample from a window's ``mean`` (:func:`emit_step`, then the thermal
+        warm-up since the sensor was zeroed)."""
+        sm, out = self.spec, np.empty(3)
+        emit_step(self.rng_pointers, mean, self.bias, sm.drift_n_per_sqrt_s > 0,
+                  self._drift_step, float(sm.noise_n), out)
+        if sm.thermal_n > 0:
             self.warm_s += self.period
-            return mean + self.bias + noise + \
-                (1.0 - np.exp(-self.warm_s / THERMAL_S)) * self._thermal
-        return mean + self.bias + noise
+            return out + (1.0 - np.exp(-self.warm_s / THERMAL_S)) * self._thermal
+        return out
 
     def read(self, data) -> np.ndarray:
         """The sensor's output after this physics step (N, sensor frame, 3 axes). Every
