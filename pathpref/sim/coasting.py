@@ -1,36 +1,41 @@
-"""A move with no push under way, compiled: the same physics steps at a fraction of the Python.
+"""A move or a push phase, compiled: the same physics steps at a fraction of the Python.
 
-95 % of a physical episode's steps are a base driving to a cell with nobody pushing it
-(``docs/physics.md``, section 11). Each is, in Python: the profiled controller's law, one
-``mj_step``, the realistic sensor's window (with the extra mass's inertia), every fifth step a
-sensor sample (drift and noise drawn, the estimator's inertial compensation and bias
-tracking), the detector's low-pass and idle calibration, the measurements and the move's end
-check. :func:`_coast` runs these steps in one numba call, operation for operation as
-:meth:`~.mobile_base.MobileBase.substep` and :meth:`~.decision.DecisionStep.advance` do them
-(the methods it mirrors are named at each part), with the C functions of :mod:`.native` (the
-same ``mj_step``, the same BLAS kernels, CPython's ``hypot``) and the sensor's own NumPy
-``Generator`` (numba draws the same normals from the same bit generator). So an episode is the
-same bit for bit whichever path runs it: ``tests/test_coasting.py`` runs episodes both ways
-and compares every state, cue and metric exactly.
+95 % of a physical episode's steps are a base driving to a cell with nobody pushing it, 4 % a
+push phase (``docs/physics.md``, section 11). Each is, in Python: the profiled controller's
+law, the push's force, one ``mj_step``, the realistic sensor's window (with the extra mass's
+inertia), every fifth step a sensor sample (drift and noise drawn, the estimator's inertial
+compensation and bias tracking), the detector's low-pass, calibration and hysteresis, the
+measurements and the phase's end check. :func:`_coast` runs these steps in one numba call,
+operation for operation as :meth:`~.mobile_base.MobileBase.substep` and
+:meth:`~.decision.DecisionStep.advance` do them (the methods it mirrors are named at each
+part; each part is one compiled function that the Python step calls too), with the C
+functions of :mod:`.native` (the same ``mj_step``, the same BLAS kernels, CPython's
+``hypot``) and the sensor's own NumPy ``Generator`` (numba draws the same normals from the
+same bit generator). So an episode is the same bit for bit whichever path runs it:
+``tests/test_coasting.py`` runs episodes both ways and compares every state, cue and metric
+exactly.
 
 The kernel hands back to Python, before or within a step, whenever something it does not mirror
-may happen: the detector's force is not clearly below its onset threshold (the onset rule and
-the cue stream run in Python from there on, :data:`DETECT`), the base touches something (the
-contact measurements, :data:`CONTACTS`), an ``on_substep`` hook acts (a polytope change for the
-path's crossing hook, a path recorder's sample: :data:`CROSS`), or the move ends (:data:`END`:
-settled, or its time is up). It runs only where it applies (:meth:`Coaster.applies`,
-:meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase`, or the physical carry arm's
-(:class:`~.arm.ArmBase`: its servo targets of the tray impedance, :func:`~.arm_step.arm_step`,
-at every step, the tilt recorded; an IK solve due, or a contact, hands the step to Python), on
-the profiled controller's float path, the faulty sensor without thermal drift and its estimator,
-the filtered detector idle, no pushes or external forces, a guided base's admittance at most in
-its tail (no cue under way; the command through the safety filter), no ``pre_substep`` hook but
-a quiet one (the simulated human of pushes at any time runs the kernel up to its next push), no
-``on_substep`` hook but the path's crossing hook and quiet ones, a scene with the contact sensor
-it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
+may happen: a cue begins, goes active, ends or is given (after the detector's step: the cue
+stream and the push phase's end run in Python, :data:`DETECT`), the base touches something
+(the contact measurements, :data:`CONTACTS`), an ``on_substep`` hook acts (a polytope change
+for the path's crossing hook, a path recorder's sample: :data:`CROSS`), or the move or push
+phase ends (:data:`END`: settled, or its time is up). It runs only where it applies
+(:meth:`Coaster.applies`, :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase`, or
+the physical carry arm's (:class:`~.arm.ArmBase`: its servo targets of the tray impedance,
+:func:`~.arm_step.arm_step`, at every step, the tilt recorded; its IK solve runs before the
+kernel's steps, :meth:`~.arm.ArmBase.kernel_prepare`, and the next one due hands back, as a
+contact does), on the profiled controller's float path, the faulty sensor without thermal drift
+and its estimator, the filtered detector (idle, or through a push phase's cue), a push phase's
+one push or none, no pushes at any time or external forces, a guided base's admittance at most
+in its tail (no cue under way; the command through the safety filter), no ``pre_substep`` hook
+but a quiet one (the simulated human of pushes at any time runs the kernel up to its next
+push), no ``on_substep`` hook but the path's crossing hook and quiet ones, a scene with the
+contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
 (:meth:`Coaster.drive`: the agent's velocity held, :class:`~.controller.HeldVelocity`, no move
-to end), and a timed move (guidance: its drive, then the hold). Every other step takes the
-Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it off.
+to end; :meth:`Coaster.push` through a push phase), and a timed move (guidance: its drive,
+then the hold). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it
+off (read when a base is built).
 """
 
 from __future__ import annotations
@@ -124,25 +129,28 @@ def _arm_part_overload(arm, step):
 @nb.njit(cache=True, _nrt=False)
 def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs, ns,
            max_steps):
-    """Physics steps of the move phase (or a drive: :meth:`Coaster.drive`) until a hand-back
-    (module docstring); returns
+    """Physics steps of the move phase, a push phase (``ns[PUSHING]``: :meth:`Coaster.push`)
+    or a drive (:meth:`Coaster.drive`) until a hand-back (module docstring); returns
     ``(reason, steps)``. ``held`` receives the last sample, ``est``
     (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
     the state arrays are updated in place. The records: ``mj`` the ``MjModel``'s and
     ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
     sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
     ``drive`` the controller's last command, the target, a scratch pair, the held goal
-    velocity (``ns[HELD]``: :class:`~.controller.HeldVelocity`) and the task's filtered force
-    (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step); ``sensor`` the
-    faulty sensor's drift bias, its held sample, its window (:func:`~.sensing.window_step`'s
-    ``win``, the sensor's own) and scratch;
-    ``det`` :func:`~.cue_detector.filter_step`'s arrays and constants; ``guide`` the map for
-    a guided base at rest (``ns[GUIDED]``: the command through
-    :func:`~.keep_clear.keep_clear_xy`, the map's ``Clearance.arrays`` and rows) and for its
-    path's crossings (``ns[POLY] >= 0``: the polytope the base is in; the grid's
-    ``cell_index`` and ``cell_polytope``); ``arm`` the physical carry arm's record
-    (:func:`_arm_part`; None: no arm). Simulated time is ``fs[TIME]``, advanced by
-    ``mj_step``'s own operation (``time += timestep``)."""
+    velocity (``ns[HELD]``: :class:`~.controller.HeldVelocity`), the task's filtered force
+    (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step), the push record
+    (:meth:`~.force_cue.HumanPush.record`) and the pushed body's ``xfrc_applied`` row;
+    ``sensor`` the faulty sensor's drift bias, its held sample, its window
+    (:func:`~.sensing.window_step`'s ``win``, the sensor's own) and scratch; ``rng`` its
+    ``Generator``'s pointers (:func:`~.sensing.emit_step`); ``det``
+    :func:`~.cue_detector.filter_step`'s arrays and constants, then the detector's state,
+    rule and scratch (:func:`~.cue_detector.decide_step`); ``guide`` the map for a guided
+    base at rest (``ns[GUIDED]``: the command through :func:`~.keep_clear.keep_clear_xy`, the
+    map's ``Clearance.arrays`` and rows) and for its path's crossings (``ns[POLY] >= 0``: the
+    polytope the base is in; the grid's ``cell_index`` and ``cell_polytope``); ``arm`` the
+    physical carry arm's record (:func:`_arm_part`; None: no arm); ``fs[ACTIVE_S]`` gains
+    the timestep at every step the detector is active (``ns[INTERACT]``). Simulated time is
+    ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
     last, target, err, goal, filt, pp, wrench = drive
