@@ -46,8 +46,6 @@ import os
 import mujoco
 import numba as nb
 import numpy as np
-from numba import types
-from numba.extending import overload
 
 from . import native
 from .arm_step import arm_step, tilt_from
@@ -98,6 +96,7 @@ def _bad_states(warnings):
     return n
 
 
+@nb.njit(cache=True)
 def _arm_part(arm, step):
     """The physical carry arm's part of kernel step ``step`` (``ArmBase._control_physical``
     between IK solves): True (hand back before the step) when an IK solve is due and has
@@ -105,25 +104,16 @@ def _arm_part(arm, step):
     targets of the tray impedance (:func:`~.arm_step.arm_step`) and the tray's tilt recorded
     (:func:`~.arm_step.tilt_from`). ``arm`` is ``(arm_step's arguments, tilts, ak)``, ``ak``
     = (steps since the reset, IK period in steps, the step whose IK ran); None (no arm)
-    compiles to nothing. Compiled only (:func:`_arm_part_overload`)."""
-    raise NotImplementedError("_arm_part runs compiled, inside _coast")
-
-
-@overload(_arm_part, jit_options={"cache": True})
-def _arm_part_overload(arm, step):
-    if isinstance(arm, types.NoneType):
-        return lambda arm, step: False
-
-    def arm_part(arm, step):
-        arm_args, tilts, ak = arm
-        if (ak[0] % ak[1] == 0 and ak[2] != ak[0]) or step >= tilts.shape[0]:
-            return True
-        ak[0] += 1
-        arm_step(*arm_args)
-        tilts[step] = tilt_from(arm_args[1][1][arm_args[2][0][1], 8])  # xmat[tray, 8]
+    compiles to nothing (numba prunes the branch of an argument typed None)."""
+    if arm is None:
         return False
-
-    return arm_part
+    arm_args, tilts, ak = arm
+    if (ak[0] % ak[1] == 0 and ak[2] != ak[0]) or step >= tilts.shape[0]:
+        return True
+    ak[0] += 1
+    arm_step(*arm_args)
+    tilts[step] = tilt_from(arm_args[1][1][arm_args[2][0][1], 8])  # xmat[tray, 8]
+    return False
 
 
 @nb.njit(cache=True, _nrt=False)

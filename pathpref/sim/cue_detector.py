@@ -284,6 +284,8 @@ class CueDetector:
         self._buf = np.zeros(4)
         #: the state (cue under way, lean, counters, last cue: slots ``ACTIVE`` ...)
         self.st = np.zeros(N_ST)
+        # decide_step's baseline and calibration queue, which only the filtered rules use
+        self._baseline, self._queue = np.zeros(2), np.zeros(2, dtype=np.int64)
         self.reset()
 
     @property
@@ -318,7 +320,6 @@ class CueDetector:
     def reset(self) -> None:
         """Forget any cue in progress (the counters stay)."""
         clear_state(self.st)
-        self._baseline, self._queue = np.zeros(2), np.zeros(2, dtype=np.int64)
 
     def _cue(self) -> Cue:
         """The cue :func:`decide_step` gave."""
