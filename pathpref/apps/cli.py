@@ -206,8 +206,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--map", default="simple",
                     help="built-in name (simple, office, classroom) or a JSON map file")
     ev.add_argument("--methods", nargs="+", default=["all"],
-                    help="compliant goal_only path_preference blended oracle goal_known; "
-                    "all (the paper's four) or reference (oracle, goal_known)")
+                    help="compliant goal_only path_preference blended hindsight oracle "
+                    "goal_known; all (the paper's four), reference (oracle, goal_known) or "
+                    "baselines (hindsight: hindsight optimisation, Javdani et al. 2018)")
     ev.add_argument("--delta-t", nargs="+", action=RangeAction, limits="delta_t",
                     default=[1, 5, 10, 20, 30],
                     help="decision steps between the human's inputs (one or more)")

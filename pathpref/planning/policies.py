@@ -34,6 +34,7 @@ from ..inference.belief import Belief, GoalBelief
 from ..inference.human import ObservationModel
 from ..inference.priors import PriorInputs, make_belief
 from .crossing import check_crossing
+from .hindsight import hindsight_action
 from .pomcp import POMCP
 from .pomdp import Preset, Rewards
 from .slack import WaitBudget
@@ -209,6 +210,28 @@ class GoalKnownPolicy(PlannerPolicy):
         super().__init__(ctx, belief, ctx.preset.path_preference)
 
 
+class HindsightPolicy(PlannerPolicy):
+    """Hindsight optimisation (Javdani et al., IJRR 2018), the standard answer of shared
+    autonomy: the move that maximises the belief-weighted value of each hypothesis ``(g, p)``
+    as if it became known after this step (:mod:`.hindsight`), on the path-preference belief
+    and with the path-preference value of the preset (a robust, route-prior preset)."""
+
+    name = "hindsight"
+
+    def __init__(self, ctx: PolicyContext):
+        if ctx.preset.search != "robust" or ctx.preset.prior != "routes":
+            raise ConfigError(f"hindsight needs a robust preset with the route prior, not "
+                              f"'{ctx.preset.name}' (prior {ctx.preset.prior}); use --preset "
+                              "robust-slack (the default), robust-check, robust-wait or robust")
+        super().__init__(ctx, preference_belief(ctx), ctx.preset.path_preference)
+        self.waits = None
+
+    def act(self, t: int, cell: int, heading: int | None) -> int:
+        """Hindsight optimisation's move from ``cell`` with ``T_max - t + 1`` steps left."""
+        return hindsight_action(self.planner, self.belief, cell, self.ctx.t_max - t + 1,
+                                self._seed(), self.history)
+
+
 class OraclePolicy(Policy):
     """Reference ceiling: knows goal and preference and follows the shortest path that obeys
     the preference (leave ``v`` only toward ``p_v``; anywhere from a polytope without one).
@@ -294,9 +317,12 @@ METHODS: dict[str, Callable[[PolicyContext], Policy]] = {
     "blended": BlendedPolicy,
     "goal_known": GoalKnownPolicy,
     "oracle": OraclePolicy,
+    "hindsight": HindsightPolicy,
 }
 #: the reference methods (they know what the others infer); 'all' leaves them out
 REFERENCE_METHODS = ("goal_known", "oracle")
+#: methods from outside the paper ('baselines'); 'all' (the paper's four) leaves them out
+OUTSIDE_METHODS = ("hindsight",)
 
 
 def register_method(name: str, factory: Callable[[PolicyContext], Policy]) -> None:
@@ -329,13 +355,16 @@ def make_policy(name: str, ctx: PolicyContext) -> Policy:
 def resolve_methods(names: list[str]) -> list[str]:
     """Expand 'all' and check every name."""
     out: list[str] = []
-    everyday = [m for m in METHODS if m not in REFERENCE_METHODS]
+    everyday = [m for m in METHODS if m not in REFERENCE_METHODS + OUTSIDE_METHODS]
+    groups = {"all": everyday, "reference": list(REFERENCE_METHODS),
+              "baselines": list(OUTSIDE_METHODS)}
     for n in names:
-        for m in ({"all": everyday, "reference": list(REFERENCE_METHODS)}.get(n, [n])):
+        for m in groups.get(n, [n]):
             if not _known(m):
                 raise ConfigError(
                     f"unknown method '{m}'; choose from {', '.join(METHODS)}, 'all' (the four "
-                    "methods of the paper) or 'reference' (oracle, goal_known)"
+                    "methods of the paper), 'reference' (oracle, goal_known) or 'baselines' "
+                    "(hindsight)"
                 )
             if m not in out:
                 out.append(m)

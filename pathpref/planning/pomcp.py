@@ -319,6 +319,17 @@ class POMCP:
                                            int(cell), int(seed) % (2**32))
         return SearchResult(int(a), visits, values, int(nodes), self.queries)
 
+    def particles(self, belief: Belief, seed: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(goal indices, preference slots)``: :meth:`pool_size` exact draws of the
+        route-prior posterior of ``belief`` without a search (:meth:`_pool`: the same draws,
+        and the same reuse while the belief is unchanged, as the search's root particles);
+        None for a belief without route-prior draws (the independent prior)."""
+        if self.tables is None:
+            return None
+        goals, slots = self._pool(belief, np.cumsum(belief.goal_marginal()),
+                                  self.preference_cdf(belief), seed)
+        return (goals, slots) if len(goals) else None
+
     def root_particles(self) -> tuple[np.ndarray, np.ndarray] | None:
         """``(goal indices, preference slots)`` of the root particles the last robust search
         started from (:meth:`_pool`), or None when it drew none (the independent prior)."""
