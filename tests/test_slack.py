@@ -13,9 +13,10 @@ from pathpref.geometry.grid import STAY
 from pathpref.inference.human import ObservationModel
 from pathpref.inference.routes import RouteBelief
 from pathpref.planning.crossing import effective_rho, route_steps, route_walks
+from pathpref.planning.hindsight import plan_values
 from pathpref.planning.pomcp import POMCP
 from pathpref.planning.pomdp import get_preset
-from pathpref.planning.slack import ON_TIME, PUSHES_PER_CROSSING, WaitBudget, doubt
+from pathpref.planning.slack import CONFIDENT, ON_TIME, PUSHES_PER_CROSSING, WaitBudget, doubt
 
 
 def _searched(world, goals, cell, depth=60):
@@ -226,3 +227,91 @@ def test_arrival_one_values_any_route(simple):
         assert best[a] <= bound + 1e-9
     assert best[1.0] >= 0.8 * r.discount ** (d - 1)
     assert best[0.0] < best[1.0]
+
+
+def _shortest_walk(planner, s, g, theta, depth):
+    """Plain-Python reference: the shortest-way walk of the rollouts (``moves[s, 0, g]``, first
+    of tied moves) from ``s`` to goal ``g``, its steps (``depth + 1``: no arrival) and its
+    crossings against ``theta`` (the goal's polytope excepted)."""
+    steps, against, gc = 0, 0, planner.goal_cells[g]
+    while s != gc and steps <= depth:
+        bits = int(planner.moves[s, 0, g])
+        a = next((b for b in range(8) if bits >> b & 1), 0)
+        s2 = int(planner.next_cell[s, a])
+        if s2 == s:
+            return depth + 1, against
+        v, k = int(planner.cell_poly[s]), int(planner.cross_slot[s, a])
+        against += k >= 0 and v != planner.goal_poly[g] and theta[v] != k
+        s, steps = s2, steps + 1
+    return (steps if s == gc else depth + 1), against
+
+
+def test_plan_values_by_hand(searched):
+    """Each particle's two plans (``robust-value``, rule 0'): the route pays ``gamma^L`` when it
+    arrives in the steps left (``L``: the walk of :func:`route_walks`, no crossing against the
+    exits on it), 0 otherwise; arriving alone pays ``gamma^L_A (alpha + (1 - alpha) rho^n_A)``
+    by a plain walk of the shortest way."""
+    s, planner, _, _ = searched
+    g, th = planner.root_particles()
+    r = planner.rewards
+    steps = route_steps(s, 200, g, th, planner.goal_cells, planner.cell_poly, planner.next_cell,
+                        planner.moves)
+    some_against = False
+    for depth in (int(steps.max()), int(np.median(steps)), int(steps.min()) - 1):
+        route, arrive = plan_values(s, depth, g, th, planner.goal_cells, planner.goal_poly,
+                                    planner.cell_poly, planner.next_cell, planner.cross_slot,
+                                    planner.moves, r.discount, r.arrival, r.goal_after_violation)
+        np.testing.assert_allclose(route, np.where(steps <= depth, r.discount ** steps, 0.0),
+                                   rtol=1e-12)
+        for j in range(len(g)):
+            la, n = _shortest_walk(planner, s, int(g[j]), th[j], depth)
+            some_against |= n > 0
+            want = r.discount ** la * (r.arrival + (1 - r.arrival) * r.goal_after_violation ** n) \
+                if la <= depth else 0.0
+            assert arrive[j] == pytest.approx(want, rel=1e-12, abs=1e-300), j
+    assert some_against  # the case exercises the crossings' count
+
+
+def test_goal_uncertainty_alone_does_not_switch(searched):
+    """Rule 0 (robust-slack) switches to arriving when fewer than ON_TIME of the particles'
+    routes fit, so the particles of a goal whose routes cannot fit switch it whatever the
+    others say. Rule 0' (robust-value) weighs each goal by its own routes: a pool whose share
+    of fitting routes is below ON_TIME switches only when arriving alone is worth more."""
+    s, planner, belief, _ = searched
+    g, th = planner.root_particles()
+    steps = route_steps(s, 200, g, th, planner.goal_cells, planner.cell_poly, planner.next_cell,
+                        planner.moves)
+    r = planner.rewards
+    for depth in range(int(steps.min()), int(steps.max()) + 1):
+        share = np.mean(steps <= depth)
+        route, arrive = plan_values(s, depth, g, th, planner.goal_cells, planner.goal_poly,
+                                    planner.cell_poly, planner.next_cell, planner.cross_slot,
+                                    planner.moves, r.discount, r.arrival, r.goal_after_violation)
+        assert WaitBudget().plan(planner, belief, s, depth) == (share < ON_TIME)
+        assert WaitBudget(per_goal=True).plan(planner, belief, s, depth) == \
+            (arrive.mean() > route.mean())
+    depth = int(np.sort(steps)[len(steps) // 2])  # about half the routes fit
+    assert np.mean(steps <= depth) < ON_TIME and WaitBudget().plan(planner, belief, s, depth)
+
+
+def test_one_push_crossing_waits_below_confidence(searched):
+    """Rule 4 (robust-value): nothing observed (the crossing's probability is the prior's, below
+    CONFIDENT), ample time: a crossing is a stand-still until two pushes were felt in the
+    polytope, then it passes; without slack it passes at once; robust-slack lets it pass."""
+    s, planner, belief, model = searched
+    lik = model.cell_likelihood
+    cross = _crossing(planner.world, s)
+    v = int(planner.cell_poly[s])
+    slots = [int(x) for x in planner.nbr[v] if x >= 0]
+    u = int(planner.cell_poly[planner.next_cell[s, cross]])
+    assert float(belief.joint(v)[:, slots.index(u)].sum()) < CONFIDENT
+    budget = WaitBudget(per_goal=True)
+    assert budget.decide(planner, belief, lik, cross, s, 60, (1, 1), pushed=False) == STAY
+    assert budget.decide(planner, belief, lik, cross, s, 59, (1, 1), pushed=True) == STAY
+    assert budget.decide(planner, belief, lik, cross, s, 58, (1, 1), pushed=True) == cross
+    assert WaitBudget().decide(planner, belief, lik, cross, s, 60, (1, 1)) == cross
+    g, th = planner.root_particles()
+    tight = int(route_steps(s, 60, g, th, planner.goal_cells, planner.cell_poly,
+                            planner.next_cell, planner.moves).min())
+    assert WaitBudget(per_goal=True).decide(planner, belief, lik, cross, s, tight,
+                                            (1, 1)) == cross

@@ -152,3 +152,28 @@ def hindsight_action(planner, belief, cell: int, depth: int, seed: int, history)
         return STAY
     d = planner.dist[pool_g][:, planner.next_cell[cell]].mean(axis=0)
     return int(np.argmin(np.where(free, planner.cost[cell] + d, np.inf)))
+
+
+@nb.njit(cache=True)
+def plan_values(cell, depth, pool_g, pool_theta, goal_cells, goal_poly, cell_poly, next_cell,
+                cross_slot, moves, discount, arrival, rho):
+    """``(route, arrive)``, each ``(m,)``: what each particle ``(g_j, p_j)`` pays from
+    ``cell`` with ``depth`` steps left under the two plans of the module docstring, the
+    person's route ``[L_P <= D] gamma^L_P`` (no crossing against ``p_j`` on it) and arriving
+    alone ``[L_A <= D] gamma^L_A (alpha + (1 - alpha) rho^n_A)`` (:mod:`.slack`, rule 0 of the
+    ``robust-value`` preset). At most ``2 (depth + 1)`` walk steps per particle."""
+    m = pool_g.shape[0]
+    route = np.zeros(m)
+    arrive = np.zeros(m)
+    for j in range(m):
+        g = pool_g[j]
+        theta = pool_theta[j]
+        steps, against = _walk(cell, depth, g, theta, True, goal_cells, goal_poly, cell_poly,
+                               next_cell, cross_slot, moves)
+        if steps <= depth:
+            route[j] = discount ** steps * (arrival + (1.0 - arrival) * rho ** against)
+        steps, against = _walk(cell, depth, g, theta, False, goal_cells, goal_poly, cell_poly,
+                               next_cell, cross_slot, moves)
+        if steps <= depth:
+            arrive[j] = discount ** steps * (arrival + (1.0 - arrival) * rho ** against)
+    return route, arrive

@@ -133,7 +133,7 @@ class PlannerPolicy(Policy):
                              if robust and p.wait_for_pushes else None)
         self.history: list[tuple[int, int]] = []
         self.input_steps: list[int] = []
-        self.waits = WaitBudget() if robust and p.budget_waits else None
+        self.waits = WaitBudget(p.value_per_goal) if robust and p.budget_waits else None
         self._arrival: POMCP | None = None
 
     def enter(self, v_from: int, v_to: int) -> None:
@@ -151,6 +151,9 @@ class PlannerPolicy(Policy):
         a = res.action
         if self.waits is not None and self.planner.rewards.use_preference \
                 and self.waits.plan(self.planner, self.belief, cell, depth):
+            if self.waits.per_goal:  # hindsight optimisation on the same value (slack, 0')
+                return hindsight_action(self.planner, self.belief, cell, depth, self._seed(),
+                                        self.history)
             return self.arrival().search(cell, self.belief, depth, self._seed(), self.history,
                                          pushes).action
         if self.ctx.preset.check_crossings and self.planner.tables is not None \
@@ -159,7 +162,7 @@ class PlannerPolicy(Policy):
                                res, cell, depth, pushes)
         if self.waits is not None:
             a = self.waits.decide(self.planner, self.belief, self.ctx.model.cell_likelihood,
-                                  a, cell, depth, pushes)
+                                  a, cell, depth, pushes, heading is not None)
         return a
 
     def arrival(self) -> POMCP:

@@ -95,6 +95,12 @@ class Preset:
         budget_waits: wait for pushes only within a budget of the time slack per crossing,
             standing still while waiting, and commit to the most probable route otherwise
             (:mod:`.slack`; route-prior beliefs); the ``robust-slack`` preset.
+        value_per_goal: with ``budget_waits``, one objective judged per goal: arrive first
+            only when arriving alone is worth more than the particles' routes under the
+            rewards' value (each goal by its own routes), then move by hindsight
+            optimisation on that value; waits budgeted against every particle's route; no
+            crossing below :data:`~.slack.CONFIDENT` on fewer than two pushes while the slack
+            pays for another (:mod:`.slack`, rules 0', 2', 4); the ``robust-value`` preset.
 
     This is the one home of every planner setting: an episode resolves its preset with its
     overrides once (:func:`get_preset`) and policies read nothing else.
@@ -114,6 +120,7 @@ class Preset:
     wait_for_pushes: bool = False
     check_crossings: bool = False
     budget_waits: bool = False
+    value_per_goal: bool = False
 
 
 
@@ -161,6 +168,11 @@ PRESETS["robust-check"] = replace(PRESETS["robust-wait"], name="robust-check",
 PRESETS["robust-slack"] = replace(
     PRESETS["robust-check"], name="robust-slack", budget_waits=True,
     path_preference=replace(PRESETS["robust-check"].path_preference, arrival=0.2))
+
+#: robust-slack with one objective judged per goal (Preset.value_per_goal; docs/robust.md,
+#: "One objective, per goal")
+PRESETS["robust-value"] = replace(PRESETS["robust-slack"], name="robust-value",
+                                  value_per_goal=True)
 
 #: the preset of applications (render, demo, interact, tasks, studies, evaluate without
 #: --preset); the tables of docs/robust.md name the preset they were made with

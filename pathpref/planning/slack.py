@@ -48,6 +48,32 @@ Otherwise, on the move ``a`` the search and the check chose (:meth:`WaitBudget.d
    ``m_j`` among the particles whose exit of ``v`` is the most probable one
    (``argmax_e P(p_v = e | o)``; all particles when ``v`` is the goal's polytope of each).
 
+**One objective, per goal** (:attr:`WaitBudget.per_goal`, the ``robust-value`` preset). Three
+rules change, so that the value the robot acts on is the one its rewards state, arriving first
+and the person's route second (``gamma^(L-1) (alpha + (1 - alpha) rho^n)``,
+:attr:`~.pomdp.Rewards.arrival`):
+
+0'. *Arrive first when arriving is worth more*: each particle ``j`` is valued under two plans
+   from ``s`` (:func:`~.hindsight.plan_values`): keeping to its route, ``R_j = [L_j <= D]
+   gamma^L_j``, and arriving alone by the shortest way, ``A_j = [L^A_j <= D] gamma^L^A_j
+   (alpha + (1 - alpha) rho^n^A_j)`` (``n^A_j`` its crossings against ``theta_j``). Each goal
+   ``g`` is judged by its own particles, ``R(g)`` and ``A(g)`` their means, and the belief
+   weighs the goals: the robot plans for arriving when ``sum_g P(g) A(g) > sum_g P(g) R(g)``
+   (the particles are exact draws, so this is ``mean_j A_j > mean_j R_j``). A goal whose
+   routes do not fit adds its arrival value, not a switch: with ``P = 0.6`` on a goal whose
+   route fits and ``0.4`` on one whose route cannot, the route is worth ``0.6``, arriving at
+   most ``0.28``, and the robot keeps to the route (rule 0 switched below ``ON_TIME``). The
+   move then comes from hindsight optimisation on the same value
+   (:func:`~.hindsight.hindsight_action`), which keeps the person's exit wherever the
+   particles agree on it and takes the shortest way where their routes cannot arrive.
+2'. *Waits budgeted against every particle's route*: ``L`` and ``U'`` are medians over all
+   the particles, a route that does not arrive counting ``D + 1`` steps (rule 2 took them over
+   the routes that arrive, so a far goal's particles did not shorten the slack).
+4. *Crossings committed at a stated confidence*: a move that leaves ``v`` into ``u`` with
+   ``P(p_v = u | o) <`` :data:`CONFIDENT`, after fewer than two pushes felt in ``v`` on this
+   visit, is a wait (a stand-still) while rule 2's budget pays for the next push and a push
+   at ``s`` is expected to raise the best exit's probability by :data:`MIN_GAIN`.
+
 The rule needs root particles (route-prior beliefs); without them the move passes unchanged.
 Bounds: one route walk of at most ``D + 1`` steps per particle per decision, ``8`` heading
 rows for the gain, and at most ``K T`` steps of waiting in a polytope per visit.
@@ -59,6 +85,7 @@ import numpy as np
 
 from ..geometry.grid import STAY
 from .crossing import LOOKAHEAD_PUSHES, best_exit_after_pushes, route_walks
+from .hindsight import plan_values
 
 #: the least expected gain in the probability of the best exit that one more push must offer
 #: for a wait to be kept
@@ -72,6 +99,9 @@ SETTLED = 0.95
 ON_TIME = 0.75
 #: the most pushes a robot waits for at one crossing (the crossing check's lookahead)
 PUSHES_PER_CROSSING = LOOKAHEAD_PUSHES
+#: rule 4: the least probability that a crossing is the preferred one for the robot to make it
+#: after fewer than two pushes felt in the polytope, while the slack pays for another push
+CONFIDENT = 0.97
 
 
 def doubt(pool_theta: np.ndarray) -> np.ndarray:
@@ -87,11 +117,14 @@ def doubt(pool_theta: np.ndarray) -> np.ndarray:
 
 class WaitBudget:
     """The rule of the module docstring, with the state it keeps over an episode: the polytope
-    the robot is in and the steps ``W_v`` it has waited there."""
+    the robot is in, the steps ``W_v`` it has waited there and the pushes felt there.
+    ``per_goal``: rules 0', 2' and 4 (one objective, per goal) in place of 0 and 2."""
 
-    def __init__(self) -> None:
+    def __init__(self, per_goal: bool = False) -> None:
+        self.per_goal = bool(per_goal)
         self.poly = -1
         self.waited = 0
+        self.felt = 0
         self._walks = None
 
     def plan(self, planner, belief, cell: int, depth: int) -> bool:
@@ -113,14 +146,22 @@ class WaitBudget:
                                            planner.cell_poly, planner.next_cell, planner.moves,
                                            u)
         self._walks = (cell, depth, u, steps, doubts, first)
-        return bool(np.mean(steps <= depth) < ON_TIME)
+        if not self.per_goal:
+            return bool(np.mean(steps <= depth) < ON_TIME)
+        r = planner.rewards
+        route, arrive = plan_values(cell, depth, pool_g, pool_theta, planner.goal_cells,
+                                    planner.goal_poly, planner.cell_poly, planner.next_cell,
+                                    planner.cross_slot, planner.moves, float(r.discount),
+                                    float(r.arrival), float(r.goal_after_violation))
+        return bool(arrive.mean() > route.mean())
 
     def decide(self, planner, belief, likelihood, a: int, cell: int, depth: int,
-               pushes: tuple[int, int]) -> int:
+               pushes: tuple[int, int], pushed: bool = False) -> int:
         """The move to make instead of ``a`` (module docstring). ``planner``: the robust
         :class:`~.pomcp.POMCP` whose last search ran from ``cell`` with ``depth`` steps left;
         ``likelihood``: :attr:`~pathpref.inference.human.ObservationModel.cell_likelihood`;
-        ``pushes``: ``(next, every)`` as the search was given them."""
+        ``pushes``: ``(next, every)`` as the search was given them; ``pushed``: a push was
+        felt at this step (rule 4 counts them per visit of a polytope)."""
         particles = planner.root_particles()
         if particles is None:
             return a
@@ -131,24 +172,36 @@ class WaitBudget:
         _, _, u, steps, doubts, first = self._walks
         v = int(planner.cell_poly[cell])
         slots = [int(x) for x in planner.nbr[v] if x >= 0]
-        ok = steps <= depth
+        ok = np.ones(len(steps), bool) if self.per_goal else steps <= depth
         route = float(np.median(steps[ok])) if ok.any() else float(depth)
         later = float(np.median(doubts[ok])) - u[v] if ok.any() else 0.0
         every = max(int(pushes[1]), 1)
         reserve = RESERVE * every * max(later, 0.0)
         if v != self.poly:
-            self.poly, self.waited = v, 0
-        if a != STAY:
-            s2 = int(planner.next_cell[cell, a])
-            if s2 != cell and (int(planner.cell_poly[s2]) != v
-                               or self._togo(planner, s2, v, pool_g, pool_theta)
-                               < self._togo(planner, cell, v, pool_g, pool_theta)):
-                return a
+            self.poly, self.waited, self.felt = v, 0, 0
+        self.felt += bool(pushed)
         w = max(int(pushes[0]), 1)
         at_goal = bool(np.all(planner.goal_poly[pool_g] == v))
-        if not at_goal and slots and w + reserve <= depth - route \
-                and self.waited + w <= PUSHES_PER_CROSSING * every:
-            gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
+        can_wait = not at_goal and bool(slots) and w + reserve <= depth - route \
+            and self.waited + w <= PUSHES_PER_CROSSING * every
+        gain = None
+        if a != STAY:
+            s2 = int(planner.next_cell[cell, a])
+            u2 = int(planner.cell_poly[s2])
+            if s2 != cell and u2 != v:
+                if self.per_goal and can_wait and self.felt < 2 and u2 in slots and float(
+                        belief.joint(v)[:, slots.index(u2)].sum()) < CONFIDENT:
+                    gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
+                    if gain[1] - gain[0] >= MIN_GAIN:
+                        self.waited += 1
+                        return STAY
+                return a
+            if s2 != cell and self._togo(planner, s2, v, pool_g, pool_theta) \
+                    < self._togo(planner, cell, v, pool_g, pool_theta):
+                return a
+        if can_wait:
+            if gain is None:
+                gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
             if gain[1] - gain[0] >= MIN_GAIN:
                 self.waited += 1
                 return STAY
