@@ -22,9 +22,10 @@ from pathlib import Path
 from pathpref.experiments.outcomes import failure_split
 from pathpref.experiments.report import wilson
 
-ORDER = ("compliant", "goal_only", "path_preference", "blended", "goal_known", "oracle")
+ORDER = ("compliant", "goal_only", "path_preference", "blended", "hindsight", "goal_known",
+         "oracle")
 LABEL = {"goal_only": "goal only", "path_preference": "path preference",
-         "blended": "path preference + blend"}
+         "blended": "path preference + blend", "hindsight": "hindsight optimisation"}
 
 
 def why(db: Path, exclude_failed: bool = False) -> dict[tuple[str, int], dict[str, int]]:

@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 COLORS = {"compliant": "tab:orange", "goal_only": "tab:green", "path_preference": "tab:blue",
-          "blended": "tab:purple"}
+          "blended": "tab:purple", "hindsight": "tab:brown"}
 
 
 def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
