@@ -5,6 +5,7 @@ plans with degrees up to 5; Wilson's sampler against the exact marginals."""
 from __future__ import annotations
 
 import itertools
+import time
 
 import numpy as np
 import pytest
@@ -459,23 +460,63 @@ def test_ping_pong_pushes_keep_decisions_bounded(simple):
     assert time.process_time() - t0 < 60.0
 
 
-def test_observed_first_walk_stage_gives_up_with_one_line(simple):
-    """The fallback's walk over the unobserved polytopes is bounded too: with no step allowed
-    it is tried ``WALK_TRIES`` times per tree (a budget of 0 doubles to 0) and the decision
-    fails with one EpisodeError line (recorded as a failed episode), never loops."""
-    from pathpref.errors import EpisodeError
+def _leads_to_root(nbr, row, root):
+    """Every polytope of ``root``'s component reaches ``root`` by following ``row``'s exits."""
+    from pathpref.inference.routes import components
+    comp = components([n[n >= 0] for n in nbr])
+    for v in np.flatnonzero(comp == comp[root]):
+        u, hops = int(v), 0
+        while u != root:
+            assert row[u] >= 0 and hops <= len(nbr), (v, u)
+            u, hops = int(nbr[u, row[u]]), hops + 1
+    return True
+
+
+def test_observed_first_walk_stage_never_errors(simple):
+    """The fallback's walk over the unobserved polytopes is bounded, and where it cannot finish
+    the decision still has its trees: with no step allowed (a budget of 0 doubles to 0, the
+    worst case) every tree is completed (:func:`~pathpref.planning.guided.complete_tree`): the
+    observed exits as drawn, every polytope of the goal's component leading to its polytope,
+    counted in ``completed_trees``; no error, no loop."""
     from pathpref.planning.pomcp import POMCP
     from pathpref.planning.pomdp import get_preset
 
-    goals = np.array([simple.cell((9, 9))])
+    goals = np.array([simple.cell((9, 9)), simple.cell((1, 8))])
     model = ObservationModel.build(simple, goals, normalize=True)
     belief = RouteBelief(model)
+    for xy, h in (((4, 2), 0), ((2, 7), 1), ((8, 2), 1)):
+        belief.update(simple.cell(xy), h)
     planner = POMCP(simple, goals, get_preset("robust").path_preference, tables=model.tables)
-    with pytest.raises(EpisodeError, match=r"passed its budget 8 times \(0 steps, doubled each "
-                                           r"time up to 0\) for 4 of 4 trees") as e:
-        planner._observed_first(belief, np.zeros(4, np.int64), planner.preference_cdf(belief),
-                                0, 0)
-    assert "\n" not in str(e.value)
+    g = np.array([0, 1, 0, 1])
+    slots = planner._observed_first(belief, g, planner.preference_cdf(belief), 0, 0)
+    assert planner.completed_trees == 4
+    for j in range(4):
+        assert _leads_to_root(planner.nbr, slots[j], int(planner.goal_poly[g[j]]))
+
+
+def test_completed_tree_keeps_set_exits_on_a_large_plan():
+    """On a 40 x 40 plan (1046 polytopes) a completion keeps every exit set before it (those
+    that leave room for a tree) and leads every polytope to the root, in well under a second."""
+    from pathpref.geometry.generate import floor_plan
+    from pathpref.geometry.world import load_world
+    from pathpref.planning.guided import complete_tree
+
+    w = load_world(floor_plan(5001, "open", width=40, height=40, rotated=32))
+    nbr = w.graph.neighbor_table().astype(np.int64)
+    P = len(nbr)
+    assert P > 1000
+    rng = np.random.default_rng(0)
+    root = int(rng.integers(P))
+    base = complete_tree(nbr, np.full(P, -2), root)  # a tree: its exits may all be set
+    assert _leads_to_root(nbr, base, root)
+    row = np.full(P, -2)
+    keep = rng.choice(np.flatnonzero(base >= 0), P // 3, replace=False)
+    row[keep] = base[keep]
+    t0 = time.process_time()
+    out = complete_tree(nbr, row, root)
+    assert time.process_time() - t0 < 1.0
+    np.testing.assert_array_equal(out[keep], base[keep])
+    assert _leads_to_root(nbr, out, root)
 
 
 def _fresh(model, pushes):

@@ -257,7 +257,42 @@ def observed_first_trees(nbr, pref_cdf, goals, root, comp, states, n_states, slo
                 ok[j] = True
                 break
             b *= 2
+        if not ok[j]:  # the drawn observed exits, -2 elsewhere (:func:`complete_tree`)
+            slots[j, :] = -2
+            for i in range(k):
+                slots[j, states[g, i]] = exits[i]
     return slots, ok
+
+
+def complete_tree(nbr: np.ndarray, row: np.ndarray, root: int) -> np.ndarray:
+    """A tree toward ``root`` that keeps the exits set in ``row`` (slots ``>= 0``; ``-2``:
+    unset): breadth first from ``root``, a polytope joins when its set exit leads into the
+    tree, an unset one by its first neighbour already in the tree (the fewest polytopes to
+    the root). Not a draw: the completion of a tree whose walks passed every budget
+    (:meth:`~.pomcp.POMCP._observed_first`). Polytopes it cannot join (another component)
+    take slot 0 (-1 without neighbours). ``O(P K)``."""
+    P = len(nbr)
+    out = row.copy()
+    joined = np.zeros(P, bool)
+    joined[root] = True
+    out[root] = -1
+    queue = [int(root)]
+    head = 0
+    while head < len(queue):
+        t = queue[head]
+        head += 1
+        for u in nbr[t]:
+            if u < 0 or joined[u]:
+                continue
+            k = int(np.flatnonzero(nbr[u] == t)[0])
+            if row[u] >= 0 and row[u] != k:
+                continue  # u's exit is set elsewhere: it joins when that polytope does
+            joined[u] = True
+            out[u] = k
+            queue.append(int(u))
+    left = ~joined & (out < 0)
+    out[left] = np.where(nbr[left, 0] >= 0, 0, -1)
+    return out
 
 
 @nb.njit(cache=True, inline="always")
