@@ -270,6 +270,9 @@ class EpisodeRunner:
             self.result.path = self.body.recorded_path()
             if self._path_judged:
                 self.result.metrics.update(self.path_metrics)
+            completed = getattr(getattr(self.policy, "planner", None), "completed_trees", 0)
+            if completed:  # trees completed, not drawn (POMCP.completed_trees): said, not hidden
+                self.result.metrics["completed_trees"] = float(completed)
         return self.result.log[-1]
 
     def step(self, action: int | None = None) -> StepLog:
