@@ -186,9 +186,10 @@ class PlannerNode:
 
 def run_planner(spec: EpisodeSpec, topics: dict | None = None, timeout_s: float = 120.0,
                 record: str | None = None, live_port: int | None = None,
-                ros_args=None) -> dict:
+                ros_args=None, mark_wait_s: float = 30.0) -> dict:
     """Run the planner node until the episode ends (or ``timeout_s`` of wall time); its
-    outcome: the decisions, cues, latencies."""
+    outcome: the decisions, cues, latencies. A step mark waits up to ``mark_wait_s`` for the
+    messages it counts."""
     from . import require_ros
 
     rclpy = require_ros()
@@ -208,15 +209,20 @@ def run_planner(spec: EpisodeSpec, topics: dict | None = None, timeout_s: float 
     try:
         node = rclpy.create_node("pathpref_planner")
         pn = PlannerNode(node, core, topics, recorder, live)
+        from rclpy.executors import SingleThreadedExecutor
+
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
         end = time.monotonic() + timeout_s
         while not pn.done and time.monotonic() < end:
-            rclpy.spin_once(node, timeout_sec=0.02)
-            pn.poll()
+            ex.spin_once(timeout_sec=0.02)
+            pn.poll(mark_wait_s)
         if not pn.done:
             _warn(f"stopped after {timeout_s:g} s: no step mark ended the episode")
         t_flush = time.monotonic() + 0.5  # let the last messages go out
         while time.monotonic() < t_flush:
-            rclpy.spin_once(node, timeout_sec=0.05)
+            ex.spin_once(timeout_sec=0.05)
+        ex.shutdown()
         node.destroy_node()
     finally:
         rclpy.try_shutdown()

@@ -164,7 +164,8 @@ class SimRobot:
 
 
 def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: float = 0.0,
-            timeout_s: float = 120.0, wait_s: float = 30.0, ros_args=None) -> dict:
+            timeout_s: float = 120.0, wait_s: float = 30.0, live_port: int | None = None,
+            ros_args=None) -> dict:
     """Run the sim node until the episode ends (or ``timeout_s`` of wall time); its outcome
     (the runner's result fields)."""
     from . import require_ros
@@ -208,10 +209,14 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
             raise ConfigError(f"no planner met on {topics['wrench']}, {topics['odom']}, "
                               f"{topics['step']} and {topics['waypoint']} within {wait_s:g} s: "
                               "start 'pathpref ros planner' with the same topics")
+        from rclpy.executors import SingleThreadedExecutor
+
+        ex = SingleThreadedExecutor()
+        ex.add_node(node)
         robot.begin()
         end = time.monotonic() + timeout_s
         while not robot.runner.done and time.monotonic() < end:
-            rclpy.spin_once(node, timeout_sec=0.05)
+            ex.spin_once(timeout_sec=0.05)
             while inbox and not robot.runner.done:
                 robot.waypoint(inbox.pop(0))
         r = robot.runner.result
@@ -224,7 +229,8 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
                   "answer")
         t_flush = time.monotonic() + 1.0  # let the last mark reach the planner
         while time.monotonic() < t_flush:
-            rclpy.spin_once(node, timeout_sec=0.05)
+            ex.spin_once(timeout_sec=0.05)
+        ex.shutdown()
         node.destroy_node()
         return out
     finally:
