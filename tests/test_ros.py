@@ -1,0 +1,156 @@
+"""pathpref as ROS 2 nodes (docs/ros.md): the two-node loop (``pathpref ros sim`` and ``pathpref
+ros planner``) reaches the outcome of ``evaluate --sim mujoco`` for the same seed, inside a
+network namespace of its own (``unshare -n``, loopback up, ``ROS_AUTOMATIC_DISCOVERY_RANGE=
+LOCALHOST``: discovery cannot leave the machine); messages it cannot read are one line.
+
+Without the ``ros`` extra the ROS tests are skipped with one line saying so; the readers and
+the planner's core (no ROS) are tested either way."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from types import SimpleNamespace as N
+
+import numpy as np
+import pytest
+
+from pathpref.episode.physics import Physics
+from pathpref.episode.spec import EpisodeSpec
+from pathpref.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _spec(seed: int) -> EpisodeSpec:
+    return EpisodeSpec.single("simple", "path_preference", 5, seed=seed, sim="mujoco",
+                              physics=Physics().to_json())
+
+
+def _reference(spec: EpisodeSpec) -> dict:
+    """``evaluate --sim mujoco``'s episode, stepped by its own runner: the cells and actions
+    at every decision, the cues felt (cell, heading, peak force)."""
+    import pathpref.sim  # noqa: F401  (registers the MuJoCo body)
+    from pathpref.episode.runner import EpisodeRunner
+
+    r = EpisodeRunner(spec)
+    cells, actions = [], []
+    while not r.done:
+        cells.append(r.cell)
+        log = r.step()
+        actions.append(log.action)
+    cells.append(r.cell)
+    felt = r.body.base.felt
+    return {"steps": r.result.steps, "goal_reached": r.result.goal_reached,
+            "violations": r.result.violations, "cells": cells, "actions": actions,
+            "felt": [[f.cell, f.heading] for f in felt], "peaks": [f.peak_n for f in felt]}
+
+
+def test_readers_refuse_malformed_messages():
+    """A message missing a field, with a non-finite value or a non-unit quaternion is a
+    BadMessage naming the topic's field (the node prints it as one line and goes on)."""
+    from pathpref.ros.streams import BadMessage, read_odom, read_step, read_wrench
+
+    stamp = N(sec=1, nanosec=5)
+    ok = N(header=N(stamp=stamp, frame_id="map"),
+           wrench=N(force=N(x=1.0, y=2.0, z=0.0), torque=N(x=0.0, y=0.0, z=0.1)))
+    w = read_wrench(ok)
+    assert (w.stamp_ns, w.frame, w.force) == (1_000_000_005, "map", (1.0, 2.0, 0.0))
+    bad = [N(header=N(stamp=stamp, frame_id="map"), wrench=N(force=N(x=float("nan"), y=0,
+                                                                     z=0), torque=N(x=0, y=0,
+                                                                                    z=0))),
+           N(header=N(stamp=stamp, frame_id="map")),  # a Twist-like message: no wrench
+           N(header=N(stamp=N(sec=0, nanosec=2_000_000_000), frame_id="map"), wrench=None)]
+    for msg in bad:
+        with pytest.raises(BadMessage) as e:
+            read_wrench(msg, "/w")
+        assert e.value.args[0].startswith("/w") and "\n" not in e.value.args[0]
+    pose = N(position=N(x=0.1, y=0.2, z=0.0), orientation=N(x=0.0, y=0.0, z=0.5, w=0.5))
+    twist = N(linear=N(x=0.0, y=0.0, z=0.0), angular=N(x=0.0, y=0.0, z=0.0))
+    with pytest.raises(BadMessage, match="unit quaternion"):
+        read_odom(N(header=N(stamp=stamp, frame_id="map"), child_frame_id="base_link",
+                    pose=N(pose=pose), twist=N(twist=twist)))
+    with pytest.raises(BadMessage, match="5 values"):
+        read_step(N(data=[1, 2, 3]))
+
+
+def test_core_refuses_a_wrench_in_another_frame():
+    """A wrench in a frame the planner cannot turn into the map's is refused with one line
+    and changes nothing; one in ``base_link`` is turned by the base's yaw."""
+    from pathpref.ros.planner import PlannerCore
+    from pathpref.ros.streams import Odom, Wrench
+
+    lines: list[str] = []
+    core = PlannerCore(_spec(0), warn=lines.append)
+    core.wrench(Wrench(0, "camera", (30.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    assert len(lines) == 1 and "'camera'" in lines[0] and core.n_wrench == 1
+    core.odom(Odom(0, "odom", "base_link", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+    assert len(lines) == 2 and "odom_frame" in lines[1]
+    core.odom(Odom(0, "map", "base_link", *core.pose[:2], np.pi / 2, 0.0, 0.0, 0.0))
+    core.wrench(Wrench(0, "base_link", (10.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+    assert np.allclose(core.force_estimate, [0.0, 10.0], atol=1e-12)
+
+
+def test_missing_extra_is_one_line(monkeypatch):
+    """Without rclpy the ``ros`` commands stop with one line naming the extra."""
+    import pathpref.ros as ros
+
+    monkeypatch.setitem(sys.modules, "rclpy", None)
+    with pytest.raises(ConfigError) as e:
+        ros.require_ros()
+    assert "pathpref[ros]" in str(e.value) and "\n" not in str(e.value)
+    assert not ros.ros_available()
+
+
+def _namespace_ready() -> str | None:
+    from pathpref.ros import ros_available
+
+    if not ros_available():
+        return "the ROS 2 extra is absent (pip install 'pathpref[ros]'): ROS node tests skipped"
+    if not (shutil.which("unshare") and shutil.which("ip")) or os.geteuid() != 0:
+        return "unshare/ip or root missing: the ROS node tests need a network namespace"
+    return None
+
+
+#: the two nodes in a network namespace of their own (loopback up, discovery on localhost)
+PAIR = """
+ip link set lo up || exit 3
+export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST MUJOCO_GL=egl
+"$PY" -m pathpref ros sim --json --timeout 100 $ARGS > "$OUT/sim.json" 2> "$OUT/sim.err" &
+"$PY" -m pathpref ros planner --json --timeout 100 $ARGS > "$OUT/planner.json" \
+    2> "$OUT/planner.err"
+wait
+"""
+
+
+def test_two_nodes_reach_evaluates_outcome(tmp_path):
+    """Seed 4 of ``simple`` (path_preference, delta_t 5, default physics; 8 steps, 2 cues):
+    the planner's decisions (cells and actions), the cues (cell and heading) and the outcome
+    (steps, goal, violations) equal those of the same episode run by ``evaluate --sim
+    mujoco``'s runner; the cues' peak forces agree to 1e-6 relative (the remote detector's
+    rest rule reads the odometry's twist, not the estimator's joint velocities)."""
+    why = _namespace_ready()
+    if why:
+        pytest.skip(why)
+    env = {**os.environ, "PY": sys.executable, "OUT": str(tmp_path), "ARGS": "--seed 4"}
+    done = subprocess.run(["unshare", "-n", "sh", "-c", PAIR], cwd=ROOT, env=env,
+                          timeout=180, capture_output=True, text=True)
+    errs = (tmp_path / "sim.err").read_text() + (tmp_path / "planner.err").read_text()
+    assert done.returncode == 0, done.stderr + errs
+    sim = json.loads((tmp_path / "sim.json").read_text())
+    planner = json.loads((tmp_path / "planner.json").read_text())
+    ref = _reference(_spec(4))
+    assert ref["steps"] == 8 and len(ref["felt"]) == 2  # the episode the docstring names
+    for out in (sim, planner):
+        assert out["done"] and (out["steps"], out["goal_reached"], out["violations"]) == (
+            ref["steps"], ref["goal_reached"], ref["violations"])
+        assert out["felt"] == ref["felt"]
+    assert sim["cells"] == ref["cells"]
+    assert planner["cells"] == ref["cells"] and planner["actions"] == ref["actions"]
+    assert np.allclose(planner["peaks"], ref["peaks"], rtol=1e-6, atol=0)
+    assert planner["wrenches"] == sim["wrenches"]  # no sample lost on the way
+    assert "deciding without" not in errs
