@@ -444,7 +444,7 @@ def build_parser() -> argparse.ArgumentParser:
         if name == "planner":
             rn.add_argument("--record", default=None, metavar="OUT.mcap",
                             help="write every message in and out as MCAP (ROS 2 profile, CDR; "
-                            "replayed offline by the same planner)")
+                            "default: none)")
         else:
             rn.add_argument("--path-hz", type=float, default=100.0,
                             help="odometry and /pose rate (Hz, at least 50)")
@@ -452,7 +452,8 @@ def build_parser() -> argparse.ArgumentParser:
                             help="pace the physics to the wall clock times this factor (0: "
                             "as fast as the planner answers)")
         rn.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None,
-                        help="everything after it goes to ROS (-p wrench_topic:=/ft ...)")
+                        help="everything after it goes to ROS (-p wrench_topic:=/ft ...; "
+                        "default: none)")
         episode_options(rn, sweep=False)
         physics_options(rn)
         rn.set_defaults(func=func)
