@@ -121,7 +121,8 @@ PAIR = """
 ip link set lo up || exit 3
 export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST MUJOCO_GL=egl
 "$PY" -m pathpref ros sim --json --timeout 100 $ARGS > "$OUT/sim.json" 2> "$OUT/sim.err" &
-"$PY" -m pathpref ros planner --json --timeout 100 $ARGS > "$OUT/planner.json" \
+"$PY" -m pathpref ros planner --json --timeout 100 $ARGS --record "$OUT/planner.mcap" \
+    > "$OUT/planner.json" \
     2> "$OUT/planner.err"
 wait
 """
@@ -154,3 +155,20 @@ def test_two_nodes_reach_evaluates_outcome(tmp_path):
     assert np.allclose(planner["peaks"], ref["peaks"], rtol=1e-6, atol=0)
     assert planner["wrenches"] == sim["wrenches"]  # no sample lost on the way
     assert "deciding without" not in errs
+    # the recording: rosbag2's profile, and the planner's decisions again offline
+    from mcap.reader import make_reader
+
+    from pathpref.ros.bag import replay
+
+    with open(tmp_path / "planner.mcap", "rb") as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        encodings = {s.encoding for s in summary.schemas.values()}
+        topics = {c.topic: summary.statistics.channel_message_counts[i]
+                  for i, c in summary.channels.items()}
+    assert encodings == {"ros2msg"}
+    assert topics["/pathpref/handle/wrench"] == sim["wrenches"]
+    again = replay(tmp_path / "planner.mcap")
+    assert again["waypoints_equal"] and again["beliefs_equal"]
+    assert again["actions"] == ref["actions"] and again["cells"] == ref["cells"]

@@ -457,6 +457,12 @@ def build_parser() -> argparse.ArgumentParser:
         episode_options(rn, sweep=False)
         physics_options(rn)
         rn.set_defaults(func=func)
+    rr = rsub.add_parser("replay", help="replay a recording of 'ros planner --record' through "
+                         "the planner offline; exit 0 when every decision equals the recorded "
+                         "one bit for bit")
+    rr.add_argument("recording", help="the .mcap file")
+    rr.add_argument("--json", action="store_true", help="print the replay as one JSON object")
+    rr.set_defaults(func=c.cmd_ros_replay)
     _mark_leaves(p)
     return p
 

@@ -686,3 +686,19 @@ def cmd_ros_sim(args: argparse.Namespace) -> int:
     return _ros_out(args, run_sim(spec, TOPICS, path_hz=args.path_hz, realtime=args.realtime,
                                   timeout_s=args.timeout, live_port=args.live_port,
                                   ros_args=ros_args))
+
+
+def cmd_ros_replay(args: argparse.Namespace) -> int:
+    """``pathpref ros replay``: a planner recording through the planner offline."""
+    load_simulator("mujoco")
+    from ..ros.bag import replay
+
+    out = replay(args.recording)
+    same = out["waypoints_equal"] and out["beliefs_equal"]
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{out['decisions']} decisions replayed: "
+              + ("the same as recorded, bit for bit" if same else "they DIFFER from the "
+                 "recording"))
+    return 0 if same else 1

@@ -153,6 +153,10 @@ class PlannerCore:
         #: the action under way and the heading it was chosen with (None: none yet)
         self._pending: tuple[int, int | None] | None = None
         self.decisions: list[Decision] = []
+        #: the route planned at the last decision (cells)
+        self.planned: list[int] = [self.cell]
+        #: their probabilities then (:meth:`route_probs`)
+        self.planned_probs: list[float] = []
         #: per cue: the stamp (ns) of the wrench sample that ended it
         self.cue_stamps: list[int] = []
 
@@ -286,15 +290,22 @@ class PlannerCore:
                 if len(nb):
                     pref[v] = int(nb[int(np.argmax(marginal(v)))])
         route = human_route(self.world, pref, self.cell, goal) or [self.cell]
-        probs = []
+        self.planned, self.planned_probs = route, self.route_probs(route)
+        return route, self.planned_probs
+
+    def route_probs(self, route: list[int]) -> list[float]:
+        """``P(p_v = w | o)`` of each polytope change ``v -> w`` along ``route`` (none for a
+        goal-only belief)."""
+        marginal = getattr(self.runner.policy.belief, "preference_marginal", None)
+        probs: list[float] = []
         if marginal is not None:
-            poly = self.world.cell_polytope
+            poly, graph = self.world.cell_polytope, self.world.graph
             for a, b in zip(route, route[1:], strict=False):
                 v, w = int(poly[a]), int(poly[b])
                 if v != w:
                     nb = list(graph.neighbors[v])
                     probs.append(float(marginal(v)[nb.index(w)]) if w in nb else 0.0)
-        return route, probs
+        return probs
 
     def velocity_command(self, target_xy: tuple[float, float], v_max: float | None = None
                          ) -> tuple[float, float, float]:

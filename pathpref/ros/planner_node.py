@@ -145,8 +145,10 @@ class PlannerNode:
             self.publish(c.step(mark))
 
     def publish_belief(self, ns: int) -> None:
-        """The belief now (goal marginal, route probabilities)."""
-        route, probs = self.core.route()
+        """The belief now: the goal marginal now and the route probabilities of the last
+        decision (a route belief's preference marginals take 0.1 s per polytope on this
+        machine: they are computed at decisions, not at every cue)."""
+        probs = self.core.planned_probs
         g = [float(p) for p in self.core.runner.policy.belief.goal_marginal()]
         msg = self.mk.belief(g, probs)
         self.pub["belief"].publish(msg)
@@ -199,12 +201,12 @@ def run_planner(spec: EpisodeSpec, topics: dict | None = None, timeout_s: float 
     if record:
         from .bag import Recorder
 
-        recorder = Recorder(record)
+        recorder = Recorder(record, spec)
     live = None
     if live_port is not None:
         from .live import LiveView
 
-        live = LiveView(core, live_port)
+        live = LiveView(core.world, core.runner.instance, core.scene.cell_size, live_port)
     rclpy.init(args=ros_args)
     try:
         node = rclpy.create_node("pathpref_planner")

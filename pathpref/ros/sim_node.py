@@ -71,7 +71,6 @@ class SimRobot:
         self._d = d
         self._wall0: float | None = None
         self.cells = [self.runner.cell]
-        self.publish_odom()
         base.on_substep.append(self._after_step)
 
     def ns(self) -> int:
@@ -116,6 +115,7 @@ class SimRobot:
 
     def begin(self) -> None:
         """The person's first push (when due) and the first step mark."""
+        self.publish_odom()  # the base at its start
         n = len(self.body.readings)
         self.runner.begin()
         self._mark(len(self.body.readings) > n)
@@ -185,12 +185,25 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
                 "pose": node.create_publisher(PoseStamped, topics["pose"], mk.STREAM_QOS),
                 "step": node.create_publisher(UInt64MultiArray, topics["step"], mk.MARK_QOS)}
 
+        live = None
+        if live_port is not None:
+            from ..episode.cache import cached_world
+            from ..episode.instances import episode_instance
+            from .live import LiveView
+
+            world = cached_world(spec.map)
+            inst, _ = episode_instance(world, spec.fixed, spec.instance_seed, spec.n_goals,
+                                       spec.human, spec.t_max)
+            live = LiveView(world, inst, 1.0, live_port)
+
         def emit(kind, *a):
             if kind == "wrench":
                 pubs["wrench"].publish(mk.wrench(a[0], "map", a[1], a[2]))
             elif kind == "odom":
                 pubs["odom"].publish(mk.odometry(*a))
                 pubs["pose"].publish(mk.pose(a[0], a[1], a[2], a[3]))
+                if live is not None:
+                    live.pose(*a[:4])
             else:
                 pubs["step"].publish(mk.step_mark(*a))
 
@@ -232,6 +245,8 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
             ex.spin_once(timeout_sec=0.05)
         ex.shutdown()
         node.destroy_node()
+        if live is not None:
+            live.close()
         return out
     finally:
         rclpy.try_shutdown()
