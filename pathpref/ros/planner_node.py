@@ -72,6 +72,9 @@ class PlannerNode:
         self.cue_latency_s: list[float] = []
         self.cue_stamp_latency_s: list[float] = []
         self.done = False
+        #: the process CPU time (s) at the first wrench message, and at the ``cpu_n``-th
+        self.cpu_first: float | None = None
+        self.cpu_last, self.cpu_n, self._n_in = 0.0, 1, 0
 
     def _check_types(self, expected: dict) -> None:
         """A topic already carrying another type: one line (the node still subscribes)."""
@@ -88,6 +91,15 @@ class PlannerNode:
     def on_wrench(self, msg) -> None:
         """A wrench sample through the detector; the belief when a cue ended."""
         t_in = time.perf_counter()
+        self._n_in += 1
+        if self.cpu_first is None:
+            self.cpu_first = time.process_time()
+            self._n_in = 1
+        elif self._n_in % 250 == 1:  # (reading a process's CPU clock is costly: 3 ms here)
+            self.cpu_last, self.cpu_n = time.process_time(), self._n_in
+        self._on_wrench(msg, t_in)
+
+    def _on_wrench(self, msg, t_in: float) -> None:
         self._record(self.topics["wrench"], msg)
         try:
             w = read_wrench(msg, self.topics["wrench"])
@@ -97,6 +109,11 @@ class PlannerNode:
             return
         cues = len(self.core.cue_stamps)
         self.core.wrench(w)
+        self._after(cues, t_in)
+
+    def _after(self, cues: int, t_in: float) -> None:
+        """The belief, when a message just taken (a wrench, or an odometry message that let
+        waiting wrenches through) ended a cue; its latencies."""
         if len(self.core.cue_stamps) > cues:
             self.publish_belief(self.core.cue_stamps[-1])
             now = time.perf_counter()
@@ -112,7 +129,9 @@ class PlannerNode:
             self.core.n_odom += 1
             _warn(str(e))
             return
+        cues, t_in = len(self.core.cue_stamps), time.perf_counter()
         self.core.odom(o)
+        self._after(cues, t_in)
         if self.live is not None:
             self.live.pose(o.stamp_ns, o.x, o.y, o.yaw)
         if self.waypoint is not None and not self.waypoint.done:
@@ -211,9 +230,9 @@ def run_planner(spec: EpisodeSpec, topics: dict | None = None, timeout_s: float 
     try:
         node = rclpy.create_node("pathpref_planner")
         pn = PlannerNode(node, core, topics, recorder, live)
-        from rclpy.executors import SingleThreadedExecutor
+        from .messages import executor
 
-        ex = SingleThreadedExecutor()
+        ex = executor()
         ex.add_node(node)
         end = time.monotonic() + timeout_s
         while not pn.done and time.monotonic() < end:
@@ -243,4 +262,6 @@ def run_planner(spec: EpisodeSpec, topics: dict | None = None, timeout_s: float 
             "log": [(s.t, s.x, s.y, s.action, s.heading, s.p_true_goal, s.goal_entropy)
                     for s in r.log],
             "wrenches": core.n_wrench, "odoms": core.n_odom,
-            "cue_latency_s": pn.cue_latency_s, "cue_stamp_latency_s": pn.cue_stamp_latency_s}
+            "cue_latency_s": pn.cue_latency_s, "cue_stamp_latency_s": pn.cue_stamp_latency_s,
+            "cpu_s_per_wrench": (pn.cpu_last - pn.cpu_first) / (pn.cpu_n - 1)
+            if pn.cpu_n > 1 else None}

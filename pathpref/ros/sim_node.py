@@ -222,9 +222,9 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
             raise ConfigError(f"no planner met on {topics['wrench']}, {topics['odom']}, "
                               f"{topics['step']} and {topics['waypoint']} within {wait_s:g} s: "
                               "start 'pathpref ros planner' with the same topics")
-        from rclpy.executors import SingleThreadedExecutor
+        from .messages import executor
 
-        ex = SingleThreadedExecutor()
+        ex = executor()
         ex.add_node(node)
         robot.begin()
         end = time.monotonic() + timeout_s
