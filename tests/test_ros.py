@@ -169,6 +169,21 @@ def test_two_nodes_reach_evaluates_outcome(tmp_path):
                   for i, c in summary.channels.items()}
     assert encodings == {"ros2msg"}
     assert topics["/pathpref/handle/wrench"] == sim["wrenches"]
+    # /tf and /pose at the odometry's rate (sim time: at least 50 Hz), the push's torque
+    assert topics["/tf"] == topics["/pose"] == topics["/odom"] == planner["odoms"]
+    from mcap_ros2.decoder import DecoderFactory
+
+    stamps, torques = [], []
+    with open(tmp_path / "planner.mcap", "rb") as f:
+        for _, ch, _, m in make_reader(f, decoder_factories=[DecoderFactory()]) \
+                .iter_decoded_messages(topics=["/pose", "/pathpref/handle/wrench"]):
+            t = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+            if ch.topic == "/pose":
+                stamps.append(t)
+            elif np.hypot(m.wrench.force.x, m.wrench.force.y) > 8.0:  # a push under way
+                torques.append(np.hypot(m.wrench.torque.x, m.wrench.torque.y))
+    assert max(np.diff(stamps)) <= 0.02 + 1e-9  # >= 50 Hz everywhere
+    assert torques and min(torques) > 0.05 * 8.0 * 0.99  # 5 cm below the sensor: 0.05 |F|
     again = replay(tmp_path / "planner.mcap")
     assert again["waypoints_equal"] and again["beliefs_equal"]
     assert again["actions"] == ref["actions"] and again["cells"] == ref["cells"]

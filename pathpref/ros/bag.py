@@ -82,6 +82,26 @@ def definition(name: str) -> str:
                          for d, t in order)
 
 
+#: ``tf2_msgs/msg/TFMessage``: its one field (the rest from geometry_msgs' installed files)
+TF_MESSAGE = "tf2_msgs/msg/TFMessage"
+
+
+def tf_definition() -> str:
+    """The ``ros2msg`` schema of ``tf2_msgs/msg/TFMessage``."""
+    top = "geometry_msgs/TransformStamped[] transforms\n"
+    seen, order, todo = set(), [], _deps("tf2_msgs", top)
+    while todo:
+        dep = todo.pop(0)
+        if dep in seen:
+            continue
+        seen.add(dep)
+        text = _msg_text(dep)
+        order.append((dep, text))
+        todo = _deps(dep.split("/")[0], text) + todo
+    return top + "".join(f"{SEP}\nMSG: {d.split('/')[0]}/{d.split('/')[2]}\n{t}"
+                         for d, t in order)
+
+
 def type_name(msg) -> str:
     """``pkg/msg/Type`` of an ``rclpy`` message."""
     cls = type(msg)
@@ -121,6 +141,31 @@ class Recorder:
         self.w.add_message(cid, log_time=now, publish_time=pub, data=serialize_message(msg),
                            sequence=self._seq[topic])
         self._seq[topic] += 1
+
+    def pose(self, ns: int, x: float, y: float, yaw: float) -> None:
+        """The base's pose at an odometry message: ``/pose`` (``geometry_msgs/PoseStamped``)
+        and ``/tf`` (``tf2_msgs/TFMessage``, ``map -> base_link``; encoded from its
+        definition, the registry has no ``tf2_msgs`` wheel), at the odometry's rate."""
+        from . import messages as mk
+        from .streams import BASE_FRAME, MAP_FRAME, quaternion_z
+
+        self.write(TOPICS["pose"], mk.pose(ns, x, y, yaw))
+        if "/tf" not in self._channels:
+            sid = self.w.register_schema(TF_MESSAGE, "ros2msg", tf_definition().encode())
+            self._channels["/tf"] = self.w.register_channel("/tf", "cdr", sid)
+            self._seq["/tf"] = 0
+            from mcap_ros2._dynamic import serialize_dynamic
+
+            self._tf = serialize_dynamic(TF_MESSAGE, tf_definition())[TF_MESSAGE]
+        qz, qw = quaternion_z(yaw)
+        stamp = {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+        msg = {"transforms": [{"header": {"stamp": stamp, "frame_id": MAP_FRAME},
+                               "child_frame_id": BASE_FRAME, "transform": {
+                                   "translation": {"x": x, "y": y, "z": 0.0},
+                                   "rotation": {"x": 0.0, "y": 0.0, "z": qz, "w": qw}}}]}
+        self.w.add_message(self._channels["/tf"], log_time=time.time_ns(), publish_time=ns,
+                           data=self._tf(msg), sequence=self._seq["/tf"])
+        self._seq["/tf"] += 1
 
     def close(self) -> None:
         """Finish the file (summary, index)."""

@@ -134,6 +134,8 @@ class PlannerNode:
         self._after(cues, t_in)
         if self.live is not None:
             self.live.pose(o.stamp_ns, o.x, o.y, o.yaw)
+        if self.recorder is not None:
+            self.recorder.pose(o.stamp_ns, o.x, o.y, o.yaw)
         if self.waypoint is not None and not self.waypoint.done:
             self.pub["cmd_vel"].publish(self.mk.twist(
                 *self.core.velocity_command(self.waypoint.target_xy)))
