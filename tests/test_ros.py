@@ -187,3 +187,58 @@ def test_two_nodes_reach_evaluates_outcome(tmp_path):
     again = replay(tmp_path / "planner.mcap")
     assert again["waypoints_equal"] and again["beliefs_equal"]
     assert again["actions"] == ref["actions"] and again["cells"] == ref["cells"]
+
+
+#: a publisher of messages the planner must refuse with one line each: a wrench in the frame
+#: 'camera', odometry with a non-unit quaternion, a step mark of two values; then a String on
+#: the wrench topic's name under another type is simply not delivered (DDS matches types)
+BAD = r"""
+import time, rclpy
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
+from std_msgs.msg import UInt64MultiArray
+from pathpref.ros import messages as mk
+rclpy.init()
+n = rclpy.create_node("bad")
+pw = n.create_publisher(WrenchStamped, "/pathpref/handle/wrench", mk.STREAM_QOS)
+po = n.create_publisher(Odometry, "/odom", mk.STREAM_QOS)
+ps = n.create_publisher(UInt64MultiArray, "/pathpref/step", mk.MARK_QOS)
+end = time.monotonic() + 20
+while time.monotonic() < end and not (pw.get_subscription_count() and
+                                      po.get_subscription_count()):
+    rclpy.spin_once(n, timeout_sec=0.05)
+time.sleep(0.5)
+pw.publish(mk.wrench(1, "camera", (30.0, 0.0, 0.0), (0.0, 0.0, 0.0)))
+o = mk.odometry(2, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0)
+o.pose.pose.orientation.w = 2.0
+po.publish(o)
+m = UInt64MultiArray(); m.data = [1, 2]
+ps.publish(m)
+time.sleep(2.0)
+"""
+
+
+def test_planner_node_survives_malformed_messages(tmp_path):
+    """The planner node, sent a wrench in a frame it cannot use, odometry with a non-unit
+    quaternion and a step mark of the wrong length, prints one line for each and keeps
+    running until its timeout (exit 1: no episode ended; no traceback)."""
+    why = _namespace_ready()
+    if why:
+        pytest.skip(why)
+    (tmp_path / "bad.py").write_text(BAD)
+    script = ('export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST MUJOCO_GL=egl\n'
+              'ip link set lo up || exit 3\n'
+              '"$PY" "$OUT/bad.py" > "$OUT/bad.out" 2>&1 &\n'
+              '"$PY" -m pathpref ros planner --timeout 8 --seed 0 > "$OUT/pl.out" '
+              '2> "$OUT/pl.err"\necho "rc=$?" >> "$OUT/pl.out"\nwait\n')
+    env = {**os.environ, "PY": sys.executable, "OUT": str(tmp_path),
+           "PYTHONPATH": str(ROOT)}
+    subprocess.run(["unshare", "-n", "sh", "-c", script], cwd=ROOT, env=env, timeout=120)
+    err = (tmp_path / "pl.err").read_text()
+    assert "rc=1" in (tmp_path / "pl.out").read_text(), err
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert any("'camera'" in x and "refused" in x for x in lines), err
+    assert any("unit quaternion" in x for x in lines), err
+    assert any("5 values" in x for x in lines), err
+    assert all(x.startswith("pathpref ros planner: ") for x in lines), err
