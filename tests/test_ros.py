@@ -242,3 +242,28 @@ def test_planner_node_survives_malformed_messages(tmp_path):
     assert any("unit quaternion" in x for x in lines), err
     assert any("5 values" in x for x in lines), err
     assert all(x.startswith("pathpref ros planner: ") for x in lines), err
+
+
+def test_sim_follows_the_velocity_command(tmp_path):
+    """``pathpref ros sim --drive cmd_vel --realtime 1``: the base drives by the planner's
+    ``/cmd_vel`` (held by its drive within ``a_max``) instead of its own tracking controller;
+    on seed 0 (2 steps, 1 cue) the two nodes end the episode together at the goal, the robot
+    in the cells the planner saw, after taking hundreds of velocity commands."""
+    why = _namespace_ready()
+    if why:
+        pytest.skip(why)
+    script = ('export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST MUJOCO_GL=egl\n'
+              'ip link set lo up || exit 3\n'
+              '"$PY" -m pathpref ros sim --json --timeout 60 --seed 0 --drive cmd_vel '
+              '--realtime 1 > "$OUT/sim.json" 2> "$OUT/sim.err" &\n'
+              '"$PY" -m pathpref ros planner --json --timeout 60 --seed 0 '
+              '> "$OUT/planner.json" 2> "$OUT/planner.err"\nwait\n')
+    env = {**os.environ, "PY": sys.executable, "OUT": str(tmp_path)}
+    subprocess.run(["unshare", "-n", "sh", "-c", script], cwd=ROOT, env=env, timeout=150)
+    errs = (tmp_path / "sim.err").read_text() + (tmp_path / "planner.err").read_text()
+    sim = json.loads((tmp_path / "sim.json").read_text())
+    planner = json.loads((tmp_path / "planner.json").read_text())
+    assert sim["done"] and planner["done"] and sim["goal_reached"], errs
+    assert sim["steps"] == planner["steps"] and sim["cells"] == planner["cells"]
+    assert sim["felt"] == planner["felt"] and len(sim["felt"]) >= 1
+    assert sim["cmd_vel"] > 100

@@ -448,6 +448,10 @@ def build_parser() -> argparse.ArgumentParser:
         else:
             rn.add_argument("--path-hz", type=float, default=100.0,
                             help="odometry and /pose rate (Hz, at least 50)")
+            rn.add_argument("--drive", choices=["waypoint", "cmd_vel"], default="waypoint",
+                            help="what the base follows: the next waypoint with its own "
+                            "tracking controller (as evaluate's body) or the planner's "
+                            "velocity commands (needs --realtime)")
             rn.add_argument("--realtime", type=float, default=0.0,
                             help="pace the physics to the wall clock times this factor (0: "
                             "as fast as the planner answers)")

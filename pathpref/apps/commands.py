@@ -685,7 +685,7 @@ def cmd_ros_sim(args: argparse.Namespace) -> int:
     ros_args = None if args.ros_args is None else ["--ros-args", *args.ros_args]
     return _ros_out(args, run_sim(spec, TOPICS, path_hz=args.path_hz, realtime=args.realtime,
                                   timeout_s=args.timeout, live_port=args.live_port,
-                                  ros_args=ros_args))
+                                  ros_args=ros_args, drive=args.drive))
 
 
 def cmd_ros_replay(args: argparse.Namespace) -> int:

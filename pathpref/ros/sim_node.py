@@ -48,7 +48,7 @@ class SimRobot:
     vx, vy, wz)`` and ``emit("step", mark...)``."""
 
     def __init__(self, spec: EpisodeSpec, emit, path_hz: float = 100.0,
-                 realtime: float = 0.0):
+                 realtime: float = 0.0, drive: str = "waypoint"):
         if spec.sim != "mujoco":
             raise ConfigError("pathpref ros sim runs the MuJoCo body (sim 'mujoco')")
         physics = spec.physical
@@ -72,6 +72,33 @@ class SimRobot:
         self._wall0: float | None = None
         self.cells = [self.runner.cell]
         base.on_substep.append(self._after_step)
+        #: called at every odometry message while the physics runs (the node takes the
+        #: velocity commands that came meanwhile)
+        self.poll = None
+        if drive not in ("waypoint", "cmd_vel"):
+            raise ConfigError(f"--drive {drive!r}: choose waypoint or cmd_vel")
+        self.drive = drive
+        if drive == "cmd_vel":
+            if self.realtime <= 0:
+                raise ConfigError("--drive cmd_vel needs --realtime (e.g. 1): the base follows "
+                                  "the planner's velocity commands as they come")
+            from ..sim.controller import HeldVelocity
+
+            c = base.controller
+            base.controller = HeldVelocity(v_max=c.v_max, a_max=c.a_max, dt=base.dt,
+                                           time_limit_s=c.time_limit_s, tol_m=c.tol_m,
+                                           still_mps=c.still_mps)
+            base.controller.reset()
+
+    def velocity(self, vx: float, vy: float, wz: float) -> None:
+        """A velocity command (m/s in ``base_link``): held by the base's drive until the next
+        (:class:`~pathpref.sim.controller.HeldVelocity`: reached within ``a_max``, the yaw
+        regulated to zero; ``--drive cmd_vel``); ignored when the base tracks waypoints."""
+        if self.drive != "cmd_vel":
+            return
+        yaw = float(self._d.qpos[self.base.yaw])
+        c, s = np.cos(yaw), np.sin(yaw)
+        self.base.controller.hold(np.array([c * vx - s * vy, s * vx + c * vy]))
 
     def ns(self) -> int:
         """The simulated time now (ns since the reset)."""
@@ -101,6 +128,8 @@ class SimRobot:
         self._n += 1
         if self._n % self.every == 0:
             self.publish_odom()
+            if self.poll is not None:
+                self.poll()
         if self.realtime > 0:
             if self._wall0 is None:
                 self._wall0 = time.perf_counter() - float(self._d.time) / self.realtime
@@ -165,7 +194,7 @@ class SimRobot:
 
 def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: float = 0.0,
             timeout_s: float = 120.0, wait_s: float = 30.0, live_port: int | None = None,
-            ros_args=None) -> dict:
+            ros_args=None, drive: str = "waypoint") -> dict:
     """Run the sim node until the episode ends (or ``timeout_s`` of wall time); its outcome
     (the runner's result fields)."""
     from . import require_ros
@@ -207,11 +236,24 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
             else:
                 pubs["step"].publish(mk.step_mark(*a))
 
-        robot = SimRobot(spec, emit, path_hz, realtime)
+        robot = SimRobot(spec, emit, path_hz, realtime, drive)
         inbox: list = []
         node.create_subscription(PoseStamped, topics["waypoint"], inbox.append, mk.MARK_QOS)
         twists: list = []
-        node.create_subscription(Twist, topics["cmd_vel"], lambda m: twists.append(m), 10)
+
+        def on_twist(m) -> None:
+            twists.append(1)
+            try:
+                v = [float(m.linear.x), float(m.linear.y), float(m.angular.z)]
+            except (AttributeError, TypeError, ValueError):
+                _warn("cmd_vel refused: not a geometry_msgs/Twist")
+                return
+            if not all(np.isfinite(v)):
+                _warn(f"cmd_vel refused: not finite: {v}")
+                return
+            robot.velocity(*v)
+
+        node.create_subscription(Twist, topics["cmd_vel"], on_twist, 10)
         deadline = time.monotonic() + wait_s
         while time.monotonic() < deadline and not (
                 pubs["wrench"].get_subscription_count() and pubs["odom"].get_subscription_count()
@@ -226,6 +268,13 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
 
         ex = executor()
         ex.add_node(node)
+
+        def poll() -> None:  # the commands that came while the physics ran
+            for _ in range(8):
+                ex.spin_once(timeout_sec=0)
+
+        if drive == "cmd_vel":
+            robot.poll = poll
         robot.begin()
         end = time.monotonic() + timeout_s
         while not robot.runner.done and time.monotonic() < end:
