@@ -412,6 +412,62 @@ def build_parser() -> argparse.ArgumentParser:
                    help=PRESET_HELP + " (default: %(default)s); the stored sweep says "
                    "which one made it")
     d.set_defaults(func=c.cmd_demo)
+    ros = sub.add_parser("ros", help="pathpref as ROS 2 nodes: the planner on a robot's "
+                         "topics and the MuJoCo base as a robot (docs/ros.md; the 'ros' extra)")
+    rsub = ros.add_subparsers(dest="ros_command", required=True)
+    for name, text, func in (
+            ("planner", "the planner node: handle wrench and odometry in; route, waypoint, "
+             "velocity command, belief and markers out", c.cmd_ros_planner),
+            ("sim", "the MuJoCo base as a ROS 2 robot: odometry, pose and the simulated "
+             "person's handle wrench out; the planner's waypoints in", c.cmd_ros_sim)):
+        rn = rsub.add_parser(name, help=text)
+        rn.add_argument("--map", default="simple",
+                        help="built-in name (simple, office, classroom) or a JSON map file")
+        rn.add_argument("--method", default="path_preference",
+                        help="the planner's method (as in evaluate --methods)")
+        rn.add_argument("--delta-t", action=RangeAction, limits="delta_t", default=5,
+                        help="decision steps between the person's pushes")
+        rn.add_argument("--instance", action=RangeAction, limits="seed", default=0,
+                        help="instance index under --seed (evaluate's first is 0)")
+        rn.add_argument("--run", action=RangeAction, limits="seed", default=0,
+                        help="run index of the instance (evaluate's first is 0)")
+        rn.add_argument("--goals", action=RangeAction, limits="goals", default=10,
+                        help="goal candidates of the instance")
+        rn.add_argument("--robot", "--task", dest="task", default="navigate",
+                        help="navigate (the base) or carry (arm on the base)")
+        rn.add_argument("--timeout", type=float, default=300.0,
+                        help="wall-clock seconds after which the node stops")
+        rn.add_argument("--json", action="store_true",
+                        help="print the node's outcome as one JSON object when it stops")
+        rn.add_argument("--live-port", type=int, default=None, metavar="PORT",
+                        help="serve a Foxglove live view on 127.0.0.1:PORT (default: none; "
+                        "the study server's port is 8765, use another, e.g. 8766)")
+        if name == "planner":
+            rn.add_argument("--record", default=None, metavar="OUT.mcap",
+                            help="write every message in and out as MCAP (ROS 2 profile, CDR; "
+                            "default: none)")
+        else:
+            rn.add_argument("--path-hz", type=float, default=100.0,
+                            help="odometry and /pose rate (Hz, at least 50)")
+            rn.add_argument("--drive", choices=["waypoint", "cmd_vel"], default="waypoint",
+                            help="what the base follows: the next waypoint with its own "
+                            "tracking controller (as evaluate's body) or the planner's "
+                            "velocity commands (needs --realtime)")
+            rn.add_argument("--realtime", type=float, default=0.0,
+                            help="pace the physics to the wall clock times this factor (0: "
+                            "as fast as the planner answers)")
+        rn.add_argument("--ros-args", dest="ros_args", nargs=argparse.REMAINDER, default=None,
+                        help="everything after it goes to ROS (-p wrench_topic:=/ft ...; "
+                        "default: none)")
+        episode_options(rn, sweep=False)
+        physics_options(rn)
+        rn.set_defaults(func=func)
+    rr = rsub.add_parser("replay", help="replay a recording of 'ros planner --record' through "
+                         "the planner offline; exit 0 when every decision equals the recorded "
+                         "one bit for bit")
+    rr.add_argument("recording", help="the .mcap file")
+    rr.add_argument("--json", action="store_true", help="print the replay as one JSON object")
+    rr.set_defaults(func=c.cmd_ros_replay)
     _mark_leaves(p)
     return p
 

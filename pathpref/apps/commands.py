@@ -627,3 +627,78 @@ def cmd_demo(args: argparse.Namespace) -> int:
     out = check_output_folder(args.out, "--out")
     run_demo(out=out, seed=args.seed, sim=args.sim, runs=args.runs, preset=args.preset)
     return 0
+
+
+def _ros_spec(args: argparse.Namespace):
+    """The episode of a ``pathpref ros`` node: the sweeps' rule (``evaluate --sim mujoco``
+    with ``--seed``, instance ``--instance``, run ``--run``)."""
+    from ..episode.spec import EpisodeSpec
+
+    load_simulator("mujoco")
+    check_goal_count(args.map, args.goals)
+    spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
+                              instance=args.instance, run=args.run, n_goals=args.goals,
+                              sim="mujoco", robot=args.task,
+                              physics=physics_json(args, "mujoco"),
+                              **_common_episode_args(args, args.map))
+    spec.validate()
+    if not args.timeout > 0:
+        raise ConfigError(f"--timeout must be a positive number of seconds, got {args.timeout}")
+    return spec
+
+
+def _ros_out(args: argparse.Namespace, out: dict) -> int:
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{out['steps']} steps, goal {'reached' if out['goal_reached'] else 'not reached'}"
+              f", {len(out['felt'])} cues")
+    return 0 if out["done"] else 1
+
+
+def cmd_ros_planner(args: argparse.Namespace) -> int:
+    """``pathpref ros planner``: the planner node (docs/ros.md)."""
+    from ..ros import require_ros
+
+    require_ros()
+    spec = _ros_spec(args)
+    if args.record:
+        check_writable(args.record, "--record", (".mcap",))
+    from ..ros.planner_node import run_planner
+
+    ros_args = None if args.ros_args is None else ["--ros-args", *args.ros_args]
+    return _ros_out(args, run_planner(spec, timeout_s=args.timeout, record=args.record,
+                                      live_port=args.live_port, ros_args=ros_args))
+
+
+def cmd_ros_sim(args: argparse.Namespace) -> int:
+    """``pathpref ros sim``: the MuJoCo base as a ROS 2 robot (docs/ros.md)."""
+    from ..ros import require_ros
+
+    require_ros()
+    spec = _ros_spec(args)
+    if not args.path_hz >= 50:
+        raise ConfigError(f"--path-hz must be at least 50 (Hz), got {args.path_hz:g}")
+    from ..ros.sim_node import run_sim
+    from ..ros.streams import TOPICS
+
+    ros_args = None if args.ros_args is None else ["--ros-args", *args.ros_args]
+    return _ros_out(args, run_sim(spec, TOPICS, path_hz=args.path_hz, realtime=args.realtime,
+                                  timeout_s=args.timeout, live_port=args.live_port,
+                                  ros_args=ros_args, drive=args.drive))
+
+
+def cmd_ros_replay(args: argparse.Namespace) -> int:
+    """``pathpref ros replay``: a planner recording through the planner offline."""
+    load_simulator("mujoco")
+    from ..ros.bag import replay
+
+    out = replay(args.recording)
+    same = out["waypoints_equal"] and out["beliefs_equal"]
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"{out['decisions']} decisions replayed: "
+              + ("the same as recorded, bit for bit" if same else "they DIFFER from the "
+                 "recording"))
+    return 0 if same else 1

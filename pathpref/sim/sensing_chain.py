@@ -32,6 +32,24 @@ from .sensing import FaultySensor, HandleSensor, SensorModel
 PLAIN_SETTINGS = ("on_n", "on_s", "off_n", "off_s", "split", "turn_deg")
 
 
+def make_detector(dt: float, sensor_model: SensorModel | None,
+                  settings: dict | None = None) -> CueDetector:
+    """The detector of a chain whose sensor is ``sensor_model`` (None or ideal: the plain
+    hysteresis :class:`CueDetector` with the :data:`PLAIN_SETTINGS` of ``settings``; with
+    faults: the :class:`FilteredCueDetector` with all of them), taking one force sample every
+    ``dt`` seconds. The one choice :class:`SensingChain` and a remote robot's chain
+    (:mod:`pathpref.ros`, fed a force/torque sensor's messages) make."""
+    settings = dict(settings or {})
+    if sensor_model is None or sensor_model.is_ideal:
+        return CueDetector(dt, **{k: v for k, v in settings.items() if k in PLAIN_SETTINGS})
+    return FilteredCueDetector(dt, **settings)
+
+
+def cue_under_way(detector: CueDetector) -> bool:
+    """A cue is under way in ``detector``: it is active or the force is above its onset."""
+    return detector.active or detector._above > 0.0
+
+
 class SensingChain:
     """The sensor, its faults and estimator, and the detector of one base (module
     docstring). ``detector`` holds the detector's settings (thresholds, ``split``)."""
@@ -52,15 +70,13 @@ class SensingChain:
         #: the push estimate the detector was last fed (N, world frame)
         self.force_estimate = np.zeros(2)
         self.pushed_body: int | None = None
-        if self.sensor_model is None:
-            self.detector: CueDetector = CueDetector(dt, **{
-                k: v for k, v in self.detector_settings.items() if k in PLAIN_SETTINGS})
-        else:
+        if self.sensor_model is not None:
             if not isinstance(rng, np.random.Generator):
                 raise ConfigError("a sensor model with faults needs the body's numpy "
                                   "Generator (rng=...)")
             self._rng = rng.spawn(1)[0]
-            self.detector = FilteredCueDetector(dt, **self.detector_settings)
+        self.detector: CueDetector = make_detector(dt, self.sensor_model,
+                                                   self.detector_settings)
 
     def split_pushes(self) -> None:
         """Two pushes make two cues (pushes at any time; :mod:`.cue_detector`)."""
@@ -70,8 +86,7 @@ class SensingChain:
     @property
     def under_way(self) -> bool:
         """A cue is under way: the detector is active or the force is above its onset."""
-        det = self.detector
-        return det.active or det._above > 0.0
+        return cue_under_way(self.detector)
 
     def reset(self, data: mujoco.MjData, pushed_body: int) -> None:
         """Reset the detector; with a faulty sensor, (re)build the faults and the estimator

@@ -7,7 +7,9 @@
 * ``physics`` and ``arm``: MuJoCo cue detection, false cues, episode time, rendering, IK;
   the dm_control tasks' step rates (``control_steps_per_s``, :mod:`.tasks`);
 * ``tidybot``: the Stanford TidyBot carrying the tray, whole-body IK (:mod:`.tidybot`);
-* ``study``: browser front end, WebSocket push to the cue in the belief (``study_latency_ms``).
+* ``study``: browser front end, WebSocket push to the cue in the belief (``study_latency_ms``);
+* ``ros``: the ROS 2 nodes over loopback: push to belief, CPU per wrench message, the two-node
+  loop against ``evaluate --sim mujoco`` (:mod:`.ros`; not with ``quick``).
 
 They report numbers; they assert nothing (tests check behaviour). The JSON keys named in the
 issues are a contract: add keys, never rename them. Layout::
@@ -16,7 +18,8 @@ issues are a contract: add keys, never rename them. Layout::
      "maps": {"simple": {"arrangement_build_s": ..., "cost_tables_s": ...,
                          "belief_update_ms": ..., "goal_belief_update_ms": ..., ...}, ...},
      "physics": {...}, "arm": {...}, "tidybot": {...},
-     "study": {"study_latency_ms": ...}, "scale": {...}}
+     "study": {"study_latency_ms": ...}, "ros": {"ros_push_to_belief_ms_p50": ...},
+     "scale": {...}}
 """
 
 from __future__ import annotations
@@ -46,6 +49,10 @@ def run_benchmarks(maps: list[str] | None = None, quick: bool = False,
         out["arm"] = bench_arm(quick=quick)
         out["tidybot"] = bench_tidybot(quick=quick)
         out["study"] = bench_study(quick=quick)
+    if physics and not quick:
+        from .ros import bench_ros
+
+        out["ros"] = bench_ros()
     if not quick:
         out["scale"] = {**bench_ray(), **bench_coordinator(), **bench_ray_cluster(),
                         **bench_robust_40(), **bench_scale()}
