@@ -13,7 +13,7 @@ from pathpref.geometry.grid import STAY
 from pathpref.inference.human import ObservationModel
 from pathpref.inference.routes import RouteBelief
 from pathpref.planning.crossing import effective_rho, route_steps, route_walks
-from pathpref.planning.hindsight import plan_values
+from pathpref.planning.hindsight import shortest_walks
 from pathpref.planning.pomcp import POMCP
 from pathpref.planning.pomdp import get_preset
 from pathpref.planning.slack import CONFIDENT, ON_TIME, PUSHES_PER_CROSSING, WaitBudget, doubt
@@ -246,52 +246,71 @@ def _shortest_walk(planner, s, g, theta, depth):
     return (steps if s == gc else depth + 1), against
 
 
-def test_plan_values_by_hand(searched):
-    """Each particle's two plans (``robust-value``, rule 0'): the route pays ``gamma^L`` when it
-    arrives in the steps left (``L``: the walk of :func:`route_walks`, no crossing against the
-    exits on it), 0 otherwise; arriving alone pays ``gamma^L_A (alpha + (1 - alpha) rho^n_A)``
-    by a plain walk of the shortest way."""
+def test_shortest_walks_by_hand(searched):
+    """The arrival plan's walks (:func:`shortest_walks`) against a plain walk of the shortest
+    way: the same steps and the same count of crossings against each particle's exits."""
     s, planner, _, _ = searched
     g, th = planner.root_particles()
-    r = planner.rewards
     steps = route_steps(s, 200, g, th, planner.goal_cells, planner.cell_poly, planner.next_cell,
                         planner.moves)
     some_against = False
-    for depth in (int(steps.max()), int(np.median(steps)), int(steps.min()) - 1):
-        route, arrive = plan_values(s, depth, g, th, planner.goal_cells, planner.goal_poly,
-                                    planner.cell_poly, planner.next_cell, planner.cross_slot,
-                                    planner.moves, r.discount, r.arrival, r.goal_after_violation)
-        np.testing.assert_allclose(route, np.where(steps <= depth, r.discount ** steps, 0.0),
-                                   rtol=1e-12)
+    for depth in (int(steps.max()), int(np.median(steps)), 3):
+        got, against = shortest_walks(s, depth, g, th, planner.goal_cells, planner.goal_poly,
+                                      planner.cell_poly, planner.next_cell, planner.cross_slot,
+                                      planner.moves)
         for j in range(len(g)):
             la, n = _shortest_walk(planner, s, int(g[j]), th[j], depth)
-            some_against |= n > 0
-            want = r.discount ** la * (r.arrival + (1 - r.arrival) * r.goal_after_violation ** n) \
-                if la <= depth else 0.0
-            assert arrive[j] == pytest.approx(want, rel=1e-12, abs=1e-300), j
+            some_against |= n > 0 and la <= depth
+            assert (got[j], against[j]) == (la, n), j
     assert some_against  # the case exercises the crossings' count
 
 
-def test_goal_uncertainty_alone_does_not_switch(searched):
-    """Rule 0 (robust-slack) switches to arriving when fewer than ON_TIME of the particles'
-    routes fit, so the particles of a goal whose routes cannot fit switch it whatever the
-    others say. Rule 0' (robust-value) weighs each goal by its own routes: a pool whose share
-    of fitting routes is below ON_TIME switches only when arriving alone is worth more."""
+def test_late_goals_by_hand(searched):
+    """Rule 0' (robust-value): a goal is late when fewer than ON_TIME of its own particles'
+    routes fit, counted here particle by particle; robust-value never switches the whole
+    decision (``plan`` is False), where rule 0 switches once fewer than ON_TIME of all the
+    particles fit, whatever goal they hold."""
     s, planner, belief, _ = searched
+    g, th = planner.root_particles()
+    G = len(planner.goal_cells)
+    steps = route_steps(s, 200, g, th, planner.goal_cells, planner.cell_poly, planner.next_cell,
+                        planner.moves)
+    mixed = 0
+    for depth in range(int(steps.min()) - 1, int(steps.max()) + 1):
+        budget = WaitBudget(per_goal=True)
+        assert budget.plan(planner, belief, s, depth) is False
+        want = np.zeros(G, bool)
+        for k in range(G):
+            mine = [steps[j] <= depth for j in range(len(g)) if g[j] == k]
+            want[k] = bool(mine) and sum(mine) < ON_TIME * len(mine)
+        np.testing.assert_array_equal(budget.late_goals(G), want)
+        mixed += 0 < want.sum() < len(set(g.tolist()))
+        assert WaitBudget().plan(planner, belief, s, depth) == (np.mean(steps <= depth) < ON_TIME)
+    assert mixed  # some depth makes one goal late and not another
+
+
+def test_late_particles_roll_out_by_the_shortest_way(simple):
+    """No late goal: the search is bit for bit the one without the argument. Every goal late,
+    with enough steps left for every particle's shortest way but not for every route (some
+    of those particles' rollouts timed out): the rollouts that arrive raise the root's best
+    value."""
+    goals = np.array([simple.cell((9, 9)), simple.cell((9, 1)), simple.cell((1, 8))])
+    s = simple.cell((4, 2))
+    planner, belief, _ = _searched(simple, goals, s)
     g, th = planner.root_particles()
     steps = route_steps(s, 200, g, th, planner.goal_cells, planner.cell_poly, planner.next_cell,
                         planner.moves)
-    r = planner.rewards
-    for depth in range(int(steps.min()), int(steps.max()) + 1):
-        share = np.mean(steps <= depth)
-        route, arrive = plan_values(s, depth, g, th, planner.goal_cells, planner.goal_poly,
-                                    planner.cell_poly, planner.next_cell, planner.cross_slot,
-                                    planner.moves, r.discount, r.arrival, r.goal_after_violation)
-        assert WaitBudget().plan(planner, belief, s, depth) == (share < ON_TIME)
-        assert WaitBudget(per_goal=True).plan(planner, belief, s, depth) == \
-            (arrive.mean() > route.mean())
-    depth = int(np.sort(steps)[len(steps) // 2])  # about half the routes fit
-    assert np.mean(steps <= depth) < ON_TIME and WaitBudget().plan(planner, belief, s, depth)
+    short = shortest_walks(s, 200, g, th, planner.goal_cells, planner.goal_poly,
+                           planner.cell_poly, planner.next_cell, planner.cross_slot,
+                           planner.moves)[0]
+    depth = int(short.max())
+    assert (steps > depth).mean() > 0.25
+    base = planner.search(s, belief, depth, 7, [], (1, 1))
+    same = planner.search(s, belief, depth, 7, [], (1, 1), np.zeros(len(goals), bool))
+    np.testing.assert_array_equal(base.visits, same.visits)
+    np.testing.assert_array_equal(base.values, same.values)
+    late = planner.search(s, belief, depth, 7, [], (1, 1), np.ones(len(goals), bool))
+    assert late.values.max() > base.values.max()
 
 
 def test_one_push_crossing_waits_below_confidence(searched):

@@ -498,6 +498,7 @@ def _simulate(world, belief, lik, nodes, scratch, settings, s0, t0):
     goal_cdf, pref_cdf, known = belief.goal_cdf, belief.pref_cdf, belief.known
     pool_g, pool_theta, hist_v, hist_k = belief.pool_g, belief.pool_theta, belief.hist_v, \
         belief.hist_k
+    pool_late = belief.pool_late
     n_node, n_sa, q_sa, child, heard = nodes
     theta, stamp, fixed, made_q, told_q, cand, p_goal, visited_q, path_node, path_a, root_sq = \
         scratch
@@ -518,11 +519,13 @@ def _simulate(world, belief, lik, nodes, scratch, settings, s0, t0):
         if budget_s > 0 and q % 32 == 0 and q > 0 and _clock() - t0 > budget_s:
             break
         done_q += 1
+        follows = tree  # rollouts through the particle's exits everywhere (else: known only)
         if tree:  # a particle of the route-prior posterior (tree_pool)
             j = np.random.randint(pool_g.shape[0])
             gi = pool_g[j]
             theta = pool_theta[j]  # read only: _theta draws nothing under a FIXED stamp
             stamp = fixed
+            follows = not pool_late[j]
         else:
             gi = sample_index(goal_cdf)
         s = s0
@@ -596,7 +599,7 @@ def _simulate(world, belief, lik, nodes, scratch, settings, s0, t0):
                     if tgt < 0:  # every candidate passed: cannot happen for a drawn goal
                         tgt = gi
                 a = _rollout_action(s, tgt, gi, q, world, pref_cdf, theta, stamp, made_q,
-                                    tree or known[cell_poly[s]], use_pref)
+                                    follows or known[cell_poly[s]], use_pref)
             s, viol, done = _step(s, a, gi, q, world, known, pref_cdf, theta, stamp, made_q,
                                   use_pref, viol, tree and told_q[cell_poly[s]] != q)
             L += 1

@@ -155,25 +155,16 @@ def hindsight_action(planner, belief, cell: int, depth: int, seed: int, history)
 
 
 @nb.njit(cache=True)
-def plan_values(cell, depth, pool_g, pool_theta, goal_cells, goal_poly, cell_poly, next_cell,
-                cross_slot, moves, discount, arrival, rho):
-    """``(route, arrive)``, each ``(m,)``: what each particle ``(g_j, p_j)`` pays from
-    ``cell`` with ``depth`` steps left under the two plans of the module docstring, the
-    person's route ``[L_P <= D] gamma^L_P`` (no crossing against ``p_j`` on it) and arriving
-    alone ``[L_A <= D] gamma^L_A (alpha + (1 - alpha) rho^n_A)`` (:mod:`.slack`, rule 0 of the
-    ``robust-value`` preset). At most ``2 (depth + 1)`` walk steps per particle."""
+def shortest_walks(cell, depth, pool_g, pool_theta, goal_cells, goal_poly, cell_poly, next_cell,
+                   cross_slot, moves):
+    """``(steps, against)``, each ``(m,)``: each particle's walk from ``cell`` to its goal by
+    the shortest way (the arrival plan of the module docstring; ``depth + 1`` steps where it
+    does not arrive within ``depth``) and its crossings against the particle's exits. At most
+    ``depth + 1`` steps per particle."""
     m = pool_g.shape[0]
-    route = np.zeros(m)
-    arrive = np.zeros(m)
+    steps = np.empty(m, np.int64)
+    against = np.empty(m, np.int64)
     for j in range(m):
-        g = pool_g[j]
-        theta = pool_theta[j]
-        steps, against = _walk(cell, depth, g, theta, True, goal_cells, goal_poly, cell_poly,
-                               next_cell, cross_slot, moves)
-        if steps <= depth:
-            route[j] = discount ** steps * (arrival + (1.0 - arrival) * rho ** against)
-        steps, against = _walk(cell, depth, g, theta, False, goal_cells, goal_poly, cell_poly,
-                               next_cell, cross_slot, moves)
-        if steps <= depth:
-            arrive[j] = discount ** steps * (arrival + (1.0 - arrival) * rho ** against)
-    return route, arrive
+        steps[j], against[j] = _walk(cell, depth, pool_g[j], pool_theta[j], False, goal_cells,
+                                     goal_poly, cell_poly, next_cell, cross_slot, moves)
+    return steps, against

@@ -147,13 +147,18 @@ class PlannerPolicy(Policy):
         if heading is not None:
             self.input_steps.append(t)
         pushes = self.expected_pushes(t)
-        res = self.planner.search(cell, self.belief, depth, self._seed(), self.history, pushes)
+        seed = self._seed()
+        late = None
+        if self.waits is not None and self.waits.per_goal \
+                and self.planner.rewards.use_preference \
+                and self.planner.particles(self.belief, seed) is not None:
+            self.waits.plan(self.planner, self.belief, cell, depth)  # the search's own pool
+            late = self.waits.late_goals(len(self.ctx.model.goals))
+        res = self.planner.search(cell, self.belief, depth, seed, self.history, pushes, late)
         a = res.action
-        if self.waits is not None and self.planner.rewards.use_preference \
+        if self.waits is not None and not self.waits.per_goal \
+                and self.planner.rewards.use_preference \
                 and self.waits.plan(self.planner, self.belief, cell, depth):
-            if self.waits.per_goal:  # hindsight optimisation on the same value (slack, 0')
-                return hindsight_action(self.planner, self.belief, cell, depth, self._seed(),
-                                        self.history)
             return self.arrival().search(cell, self.belief, depth, self._seed(), self.history,
                                          pushes).action
         if self.ctx.preset.check_crossings and self.planner.tables is not None \

@@ -302,20 +302,25 @@ class POMCP:
         return cdf
 
     def search(self, cell: int, belief: Belief, depth: int, seed: int,
-               history: list[tuple[int, int]] = (), pushes: tuple[int, int] = (1, 1)
-               ) -> SearchResult:
+               history: list[tuple[int, int]] = (), pushes: tuple[int, int] = (1, 1),
+               late_goals: np.ndarray | None = None) -> SearchResult:
         """Plan from ``cell`` with root states drawn from ``belief``; return the best action.
 
         ``history``: the episode's polytope transitions ``(v, w)`` so far (robust search: they
         count toward the success reward). ``pushes``: ``(next, every)``, the simulation step of
-        the next expected push and the interval after it (robust search, route prior)."""
+        the next expected push and the interval after it (robust search, route prior).
+        ``late_goals``: ``(G,)`` the goals whose particles roll out by the shortest way,
+        keeping the preference where it was observed (:mod:`.slack`, rule 0'; None: none)."""
         goal_cdf = np.cumsum(belief.goal_marginal())
         cdf = self.preference_cdf(belief) if self.rewards.use_preference else self._dummy_cdf()
         r = self.rewards
         depth = int(max(depth, 1))
         if self.tables is not None:
+            pool_g, pool_theta = self._pool(belief, goal_cdf, cdf, seed)
+            late = np.zeros(len(pool_g), np.bool_) if late_goals is None else \
+                np.asarray(late_goals, np.bool_)[pool_g]
             rows = BeliefRows(goal_cdf, cdf, self._known(belief), *self._history(history),
-                              *self._pool(belief, goal_cdf, cdf, seed))
+                              pool_g, pool_theta, late)
             settings = RobustSettings(
                 depth, self.queries, self.c, float(r.discount), float(r.goal),
                 float(r.goal_after_violation), float(r.arrival), bool(r.use_preference),

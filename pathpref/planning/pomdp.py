@@ -95,12 +95,13 @@ class Preset:
         budget_waits: wait for pushes only within a budget of the time slack per crossing,
             standing still while waiting, and commit to the most probable route otherwise
             (:mod:`.slack`; route-prior beliefs); the ``robust-slack`` preset.
-        value_per_goal: with ``budget_waits``, one objective judged per goal: arrive first
-            only when arriving alone is worth more than the particles' routes under the
-            rewards' value (each goal by its own routes), then move by hindsight
-            optimisation on that value; waits budgeted against every particle's route; no
-            crossing below :data:`~.slack.CONFIDENT` on fewer than two pushes while the slack
-            pays for another (:mod:`.slack`, rules 0', 2', 4); the ``robust-value`` preset.
+        value_per_goal: with ``budget_waits``, one objective judged per goal: the search's
+            particles whose goal's own routes no longer fit arrive by the shortest way in its
+            rollouts (keeping the preference where it was observed), so one search weighs
+            arriving against the route goal by goal, instead of switching to the goal-only
+            search; waits budgeted against every particle's planned route; no crossing below
+            :data:`~.slack.CONFIDENT` on fewer than two pushes while the slack pays for
+            another (:mod:`.slack`, rules 0', 2', 4); the ``robust-value`` preset.
 
     This is the one home of every planner setting: an episode resolves its preset with its
     overrides once (:func:`get_preset`) and policies read nothing else.

@@ -79,7 +79,9 @@ class BeliefRows(NamedTuple):
     cumulative ``goal_cdf``, the per-polytope cumulative rows ``pref_cdf[g, v, k]``, the
     polytopes ``known`` (observed), the episode's transitions ``hist_v -> slot hist_k``, and
     the root particles ``pool_g``, ``pool_theta`` (empty: the independent prior's lazy
-    draws)."""
+    draws), and ``pool_late``: the particles whose rollouts arrive by the shortest way,
+    keeping the preference only where it was observed (their goal's routes do not fit:
+    :mod:`.slack`, rule 0'; all False but under ``robust-value``)."""
 
     goal_cdf: np.ndarray
     pref_cdf: np.ndarray
@@ -88,6 +90,7 @@ class BeliefRows(NamedTuple):
     hist_k: np.ndarray
     pool_g: np.ndarray
     pool_theta: np.ndarray
+    pool_late: np.ndarray
 
 
 class HeadingTable(NamedTuple):

@@ -51,24 +51,24 @@ Otherwise, on the move ``a`` the search and the check chose (:meth:`WaitBudget.d
 **One objective, per goal** (:attr:`WaitBudget.per_goal`, the ``robust-value`` preset). Three
 rules change, so that the value the robot acts on is the one its rewards state, arriving first
 and the person's route second (``gamma^(L-1) (alpha + (1 - alpha) rho^n)``,
-:attr:`~.pomdp.Rewards.arrival`):
+:attr:`~.pomdp.Rewards.arrival`), judged goal by goal:
 
-0'. *Arrive first when arriving is worth more*: each particle ``j`` is valued under two plans
-   from ``s`` (:func:`~.hindsight.plan_values`): keeping to its route, ``R_j = [L_j <= D]
-   gamma^L_j``, and arriving alone by the shortest way, ``A_j = [L^A_j <= D] gamma^L^A_j
-   (alpha + (1 - alpha) rho^n^A_j)`` (``n^A_j`` its crossings against ``theta_j``). Each goal
-   ``g`` is judged by its own particles, ``R(g)`` and ``A(g)`` their means, and the belief
-   weighs the goals: the robot plans for arriving when ``sum_g P(g) A(g) > sum_g P(g) R(g)``
-   (the particles are exact draws, so this is ``mean_j A_j > mean_j R_j``). A goal whose
-   routes do not fit adds its arrival value, not a switch: with ``P = 0.6`` on a goal whose
-   route fits and ``0.4`` on one whose route cannot, the route is worth ``0.6``, arriving at
-   most ``0.28``, and the robot keeps to the route (rule 0 switched below ``ON_TIME``). The
-   move then comes from hindsight optimisation on the same value
-   (:func:`~.hindsight.hindsight_action`), which keeps the person's exit wherever the
-   particles agree on it and takes the shortest way where their routes cannot arrive.
-2'. *Waits budgeted against every particle's route*: ``L`` and ``U'`` are medians over all
-   the particles, a route that does not arrive counting ``D + 1`` steps (rule 2 took them over
-   the routes that arrive, so a far goal's particles did not shorten the slack).
+0'. *Arrive first, per goal, inside the one search* (:meth:`WaitBudget.plan` before the search,
+   :meth:`WaitBudget.late_goals`): a goal ``g`` is *late* when fewer than :data:`ON_TIME` of its
+   own particles' routes arrive in the ``D`` steps left (``mean_{j: g_j = g} [L_j <= D] <
+   ON_TIME``); the search's simulations from a late goal's particles roll out by the shortest
+   way, following the particle's exit only in polytopes the belief has observed
+   (:class:`~.search_inputs.BeliefRows` ``pool_late``). So the search values, for each goal,
+   arriving by another route (``alpha + (1 - alpha) rho^n``) where its routes no longer fit,
+   and the person's route where they do; there is no switch to a separate search, and goal
+   uncertainty alone changes nothing (rule 0 switched the whole decision to the goal-only
+   search when fewer than ``ON_TIME`` of all the particles' routes fitted, so a far goal's
+   particles switched it while the near goal's route still fitted).
+2'. *Waits budgeted against every particle's route*: ``L`` and ``U'`` are medians over all the
+   particles of the route each is planned to take: its route (``L_j``, ``U_j``), or for a late
+   goal's particle the shortest way (:func:`~.hindsight.shortest_walks`, doubt 0: it does not
+   wait); rule 2 took them over the routes that arrive, so the particles that did not fit did
+   not shorten the slack.
 4. *Crossings committed at a stated confidence*: a move that leaves ``v`` into ``u`` with
    ``P(p_v = u | o) <`` :data:`CONFIDENT`, after fewer than two pushes felt in ``v`` on this
    visit, is a wait (a stand-still) while rule 2's budget pays for the next push and a push
@@ -85,7 +85,7 @@ import numpy as np
 
 from ..geometry.grid import STAY
 from .crossing import LOOKAHEAD_PUSHES, best_exit_after_pushes, route_walks
-from .hindsight import plan_values
+from .hindsight import shortest_walks
 
 #: the least expected gain in the probability of the best exit that one more push must offer
 #: for a wait to be kept
@@ -145,15 +145,26 @@ class WaitBudget:
         steps, doubts, first = route_walks(cell, depth, pool_g, pool_theta, planner.goal_cells,
                                            planner.cell_poly, planner.next_cell, planner.moves,
                                            u)
-        self._walks = (cell, depth, u, steps, doubts, first)
-        if not self.per_goal:
-            return bool(np.mean(steps <= depth) < ON_TIME)
-        r = planner.rewards
-        route, arrive = plan_values(cell, depth, pool_g, pool_theta, planner.goal_cells,
-                                    planner.goal_poly, planner.cell_poly, planner.next_cell,
-                                    planner.cross_slot, planner.moves, float(r.discount),
-                                    float(r.arrival), float(r.goal_after_violation))
-        return bool(arrive.mean() > route.mean())
+        planned, planned_doubt = steps, doubts
+        if self.per_goal:  # rule 2': each particle's planned route, the shortest for late goals
+            late = self.late_goals(len(planner.goal_cells), pool_g, steps, depth)[pool_g]
+            short = shortest_walks(cell, depth, pool_g, pool_theta, planner.goal_cells,
+                                   planner.goal_poly, planner.cell_poly, planner.next_cell,
+                                   planner.cross_slot, planner.moves)[0]
+            planned = np.where(late, short, steps)
+            planned_doubt = np.where(late, 0.0, doubts)
+        self._walks = (cell, depth, u, steps, doubts, first, planned, planned_doubt, pool_g)
+        return bool(np.mean(steps <= depth) < ON_TIME) and not self.per_goal
+
+    def late_goals(self, n_goals: int, pool_g=None, steps=None, depth=None) -> np.ndarray:
+        """``(G,)`` rule 0': the goals fewer than :data:`ON_TIME` of whose particles' routes
+        arrive in the steps left (from the walks of the last :meth:`plan`, or the arrays
+        given); False for a goal without particles."""
+        if pool_g is None:
+            depth, steps, pool_g = self._walks[1], self._walks[3], self._walks[8]
+        n = np.bincount(pool_g, minlength=n_goals)
+        fit = np.bincount(pool_g, weights=(steps <= depth).astype(float), minlength=n_goals)
+        return (n > 0) & (fit < ON_TIME * n)
 
     def decide(self, planner, belief, likelihood, a: int, cell: int, depth: int,
                pushes: tuple[int, int], pushed: bool = False) -> int:
@@ -169,9 +180,11 @@ class WaitBudget:
         cell, depth = int(cell), int(depth)
         if self._walks is None or self._walks[:2] != (cell, depth):
             self.plan(planner, belief, cell, depth)
-        _, _, u, steps, doubts, first = self._walks
+        _, _, u, steps, doubts, first, planned, planned_doubt, _ = self._walks
         v = int(planner.cell_poly[cell])
         slots = [int(x) for x in planner.nbr[v] if x >= 0]
+        if self.per_goal:
+            steps, doubts = planned, planned_doubt
         ok = np.ones(len(steps), bool) if self.per_goal else steps <= depth
         route = float(np.median(steps[ok])) if ok.any() else float(depth)
         later = float(np.median(doubts[ok])) - u[v] if ok.any() else 0.0
