@@ -411,6 +411,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help=PRESET_HELP + " (default: %(default)s); the stored sweep says "
                    "which one made it")
     d.set_defaults(func=c.cmd_demo)
+    dr = sub.add_parser("doctor", help="check that this installation can run the compiled "
+                        "physics: versions, native symbols, the internals relied on (one line "
+                        "per failure, exit 1)")
+    dr.set_defaults(func=c.cmd_doctor)
+
+    wu = sub.add_parser("warmup", help="compile (or load from numba's cache) every kernel, "
+                        "rare paths included, so that no decision compiles (make install "
+                        "runs it)")
+    wu.add_argument("--quiet", action="store_true", help="no line per warm-up step")
+    wu.set_defaults(func=c.cmd_warmup)
     _mark_leaves(p)
     return p
 
