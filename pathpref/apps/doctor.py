@@ -101,15 +101,16 @@ def check_versions() -> list[str]:
 
 
 def check_native() -> list[str]:
-    """The native module imports (NumPy's floor, the libraries and their symbols): its
-    one line otherwise."""
+    """NumPy's floor, the libraries and their symbols (:func:`pathpref.sim.native.problem`,
+    which the module's import raises): its one line, if any."""
     from ..errors import PathprefError
 
     try:
-        from ..sim import native  # noqa: F401
+        from ..sim import native
     except PathprefError as e:
         return [str(e)]
-    return []
+    why = native.problem()
+    return [why] if why else []
 
 
 #: a body on a free joint above a floor: every function below has something to compute
@@ -265,7 +266,7 @@ CHECKS: tuple[tuple[str, Callable[[], list[str]], bool], ...] = (
     ("MuJoCo by address", check_mujoco_by_address, True),
     ("numba BitGenerator", check_bit_generator, True),
     ("numba entry points", check_entry_point, True),
-    ("numba _nrt=False", check_no_nrt, False),
+    ("numba _nrt=False", check_no_nrt, True),
 )
 
 
