@@ -182,6 +182,7 @@ def physics_steps() -> list[tuple[str, Callable[[], None]]]:
     from .commands import load_simulator
 
     load_simulator("mujoco")
+    from ..sim.robots import ROBOTS
 
     def physical(robot="navigate", t_max=3, **phys) -> Callable[[], None]:
         return lambda: _episode("simple", t_max=t_max, sim="mujoco", robot=robot,
@@ -198,11 +199,11 @@ def physics_steps() -> list[tuple[str, Callable[[], None]]]:
     steps.append(("mujoco: diffdrive base", physical(base="diffdrive", timing="interval")))
     steps.append(("mujoco: legacy body", lambda: _episode("simple", t_max=3, sim="mujoco",
                                                           physics="legacy")))
-    for robot in ("disk", "tidybot"):
+    for robot in ROBOTS:
         for t in ("decision", "interval", "guidance"):
             steps.append((f"mujoco: carry on {robot}, {t}",
                           physical("carry", timing=t, robot_model=robot)))
-    steps.append(("mujoco: tidybot base", physical(timing="interval", robot_model="tidybot")))
+        steps.append((f"mujoco: {robot} base", physical(timing="interval", robot_model=robot)))
     steps += [(f"dm_control: {t}", lambda t=t: _task(t)) for t in
               ("navigate", "navigate_control", "carry", "carry_control")]
     return steps
