@@ -24,7 +24,7 @@ with ``ctypes`` and before numba is asked to link anything, that NumPy is at lea
 symbol of :data:`SYMBOLS`; if not it raises :class:`~pathpref.errors.ConfigError`, one line
 naming the requirement (numba would otherwise abort the interpreter, "LLVM ERROR: Symbol not
 found", at the first physical step). Conda's and distributions' NumPy ship no OpenBLAS of
-their own; NumPy's PyPI wheels ship ``scipy-openblas64`` since 2.0. ``pathpref doctor``
+their own, and older PyPI wheels (1.26's) a differently named one. ``pathpref doctor``
 (:mod:`pathpref.apps.doctor`) checks the same, and the private internals this module relies on.
 """
 
@@ -58,7 +58,8 @@ NUMPY_FIX = ("install NumPy's PyPI wheel: pip install --force-reinstall "
              f"'numpy>={NUMPY_MIN[0]}.{NUMPY_MIN[1]}'")
 
 #: how to get MuJoCo's library back
-MUJOCO_FIX = "reinstall the mujoco pyproject pins (pip install --force-reinstall pathpref)"
+MUJOCO_FIX = ("reinstall MuJoCo at the version pathpref pins (pyproject; pathpref doctor "
+              "names it) with pip install --force-reinstall")
 
 
 def _libraries() -> tuple[str, str]:
