@@ -10,6 +10,8 @@ $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip "setuptools>=77"
 	$(BIN)/pip install --quiet -e '.[dev,ray,export,parquet,dataset,lsl,rrd,ros]'
+	@# every numba kernel compiled into its cache now, not at the first decision (docs/install)
+	MUJOCO_GL=egl $(BIN)/pathpref warmup --quiet
 	@# the study's browser tests drive Debian's chromium (Playwright, no browser download);
 	@# its viewer test opens a real MuJoCo window on a virtual screen (xvfb-run)
 	(command -v chromium >/dev/null && command -v xvfb-run >/dev/null) || \

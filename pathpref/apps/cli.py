@@ -468,6 +468,16 @@ def build_parser() -> argparse.ArgumentParser:
     rr.add_argument("recording", help="the .mcap file")
     rr.add_argument("--json", action="store_true", help="print the replay as one JSON object")
     rr.set_defaults(func=c.cmd_ros_replay)
+    dr = sub.add_parser("doctor", help="check that this installation can run the compiled "
+                        "physics: versions, native symbols, the internals relied on (one line "
+                        "per failure, exit 1)")
+    dr.set_defaults(func=c.cmd_doctor)
+
+    wu = sub.add_parser("warmup", help="compile (or load from numba's cache) every kernel, "
+                        "rare paths included, so that no decision compiles (make install "
+                        "runs it)")
+    wu.add_argument("--quiet", action="store_true", help="no line per warm-up step")
+    wu.set_defaults(func=c.cmd_warmup)
     _mark_leaves(p)
     return p
 

@@ -702,3 +702,34 @@ def cmd_ros_replay(args: argparse.Namespace) -> int:
               + ("the same as recorded, bit for bit" if same else "they DIFFER from the "
                  "recording"))
     return 0 if same else 1
+# --- doctor / warmup ------------------------------------------------------------------------
+def cmd_doctor(args: argparse.Namespace) -> int:
+    """``pathpref doctor``: one line per failed check on stderr and exit status 1, else one
+    line of the versions checked (:mod:`.doctor`)."""
+    from .doctor import CHECKS, diagnose, versions
+
+    failures = diagnose()
+    for line in failures:
+        print(f"pathpref doctor: {line}", file=sys.stderr)
+    if failures:
+        return 1
+    print(f"pathpref doctor: all {len(CHECKS)} checks passed ({versions()})")
+    return 0
+
+
+def cmd_warmup(args: argparse.Namespace) -> int:
+    """``pathpref warmup``: every kernel compiled or loaded from numba's cache
+    (:mod:`.warmup`), then one line of what it did; a kernel it did not reach is named on
+    stderr (exit status 1: the warm-up misses a path)."""
+    from .warmup import warm
+
+    def progress(what: str) -> None:
+        if not args.quiet:
+            print(f"  {what}", file=sys.stderr, flush=True)
+
+    r = warm(progress=progress)
+    print(f"pathpref warmup: {r['kernels']} kernels ready, {r['signatures']} signatures "
+          f"({r['compiled']} compiled, the rest from numba's cache) in {r['cpu_s']:.1f} s CPU")
+    for name in r["unreached"]:
+        print(f"pathpref warmup: {name} was not reached", file=sys.stderr)
+    return 1 if r["unreached"] else 0

@@ -92,9 +92,14 @@ class RobotModel:
     defaults (each with its source in ``docs/physics.md``).
 
     The scale is the body's: a map's moves are made for a footprint of 0.3 cells (the maps'
-    default), so a body of plan radius ``r`` needs at least ``r / 0.3`` m per cell."""
+    default), so a body of plan radius ``footprint_m`` needs at least ``footprint_m / 0.3`` m
+    per cell. The simulator's parts of the body (the scene it stands in per task, the arm its
+    ``carry`` drives) are in the simulator's robot table (``ROBOTS``), whose record of the same
+    name holds this one as its ``model`` (this layer names no simulator module)."""
 
     cell_size_m: float
+    #: the plan radius (m) from the base's centre: what the scale is chosen for
+    footprint_m: float
     drive: dict = field(default_factory=dict)
 
 
@@ -105,9 +110,9 @@ class RobotModel:
 #: :func:`pathpref.sim.tidybot_base.navigation_mass_kg`), its limits those TidyBot++'s simulated
 #: base controller plans with (0.5 m/s and 0.5 m/s^2, ``mujoco_env.py``'s Ruckig limits)
 ROBOT_MODELS: dict[str, RobotModel] = {
-    "disk": RobotModel(cell_size_m=0.5),
-    "tidybot": RobotModel(cell_size_m=1.0, drive={"mass_kg": 69.29, "v_max": 0.5,
-                                                 "a_max": 0.5}),
+    "disk": RobotModel(cell_size_m=0.5, footprint_m=0.15),
+    "tidybot": RobotModel(cell_size_m=1.0, footprint_m=0.284,
+                          drive={"mass_kg": 69.29, "v_max": 0.5, "a_max": 0.5}),
 }
 #: the simulated person under ``guidance`` timing: ``closed``, who pushes toward their route
 #: and lets go when the robot heads the right way (the simulator's ``guiding_human``), or

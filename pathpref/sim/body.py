@@ -32,7 +32,7 @@ from ..episode.physics import CELL_SIZE_M, Physics
 from ..errors import ConfigError
 from ..geometry.grid import STAY
 from ..geometry.world import World
-from .arm import JACO, ArmBase, ArmModel, build_arm_scene
+from .arm import ArmBase
 from .controller import ProfiledController, TrackingController
 from .decision import RELEASE_WINDOW_S, move_limit, timed_steps
 from .diffdrive import DiffDriveBase
@@ -42,30 +42,21 @@ from .mobile_base import MobileBase
 from .path_crossings import PathCrossings
 from .path_record import PathRecorder
 from .pushing_human import PushingHuman, sample_profile
-from .scene import BaseParams, RobotBody, Scene, build_scene
-from .tidybot_base import TIDYBOT, TIDYBOT_ARM, TIDYBOT_CARRY
-
-#: the bodies of :data:`~pathpref.episode.physics.ROBOT_MODELS` per task (None:
-#: ``navigate.xml``'s own cylinder, with the Jaco for ``carry``)
-ROBOT_BODIES: dict[str, dict[str, RobotBody | None]] = {
-    "disk": {"navigate": None, "carry": None},
-    "tidybot": {"navigate": TIDYBOT, "carry": TIDYBOT_CARRY}}
-#: the arm each body's ``carry`` drives (:class:`~.arm.ArmModel`)
-ROBOT_ARMS: dict[str, ArmModel] = {"disk": JACO, "tidybot": TIDYBOT_ARM}
+from .robots import ROBOTS
+from .scene import BaseParams, Scene
 
 
 @lru_cache(maxsize=8)
 def scene_for(world: World, cell_size: float = CELL_SIZE_M, task: str = "navigate",
               base: BaseParams | None = None, robot: str = "disk") -> Scene:
     """One compiled scene per world (worlds hash by identity), cell size, task, base and
-    body (``robot``, :data:`ROBOT_BODIES`)."""
-    if robot not in ROBOT_BODIES:
-        raise ConfigError(f"unknown robot model '{robot}'; choose {', '.join(ROBOT_BODIES)}")
-    if task not in ("navigate", "carry"):
-        raise ConfigError(f"unknown task '{task}'; choose navigate or carry")
-    if task == "carry" and robot == "disk":
-        return build_arm_scene(world, cell_size, base)
-    return build_scene(world, cell_size, base, ROBOT_BODIES[robot][task])
+    body (``robot``, :data:`~.robots.ROBOTS`: its scene for ``task``)."""
+    if robot not in ROBOTS:
+        raise ConfigError(f"unknown robot model '{robot}'; choose {', '.join(ROBOTS)}")
+    if task not in ROBOTS[robot].scenes:
+        raise ConfigError(f"unknown task '{task}'; choose "
+                          f"{' or '.join(ROBOTS[robot].scenes)}")
+    return ROBOTS[robot].scenes[task](world, cell_size, base)
 
 
 class MujocoBody(Body):
@@ -299,7 +290,7 @@ def build_base(scene: Scene, task: str, physics: Physics | None, rng: np.random.
         if physics is not None:
             kwargs["physical"] = True
             kwargs["stiffness"] = physics.drive.arm_stiffness
-            kwargs["arm"] = ROBOT_ARMS[physics.drive.robot_model]
+            kwargs["arm"] = ROBOTS[physics.drive.robot_model].arm
         base: MobileBase = ArmBase(scene, profile=profile, data=data, **kwargs)
     elif physics is not None and physics.drive.kind == "diffdrive":
         base = DiffDriveBase(scene, profile=profile, data=data, **kwargs)

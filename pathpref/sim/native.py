@@ -17,8 +17,15 @@ Scalars of ``MjData`` are not arrays in the bindings, so the kernels read none: 
 of contacts comes from the scene's ``contact`` sensor (``sensordata``, see
 ``mjcf/navigate.xml``) and the kernels track ``time`` themselves, as ``mj_step`` advances it.
 
-:func:`ready` is False (with :data:`WHY`) when a library or a symbol is missing: the callers
-then keep their Python path.
+There is no path without them: the Python step calls the same compiled functions (the cue
+detector's ``decide_step``, the estimator's, the sensor's), so importing this module checks,
+with ``ctypes`` and before numba is asked to link anything, that NumPy is at least
+:data:`NUMPY_MIN` (pyproject's floor, the version tested) and that both libraries have every
+symbol of :data:`SYMBOLS`; if not it raises :class:`~pathpref.errors.ConfigError`, one line
+naming the requirement (numba would otherwise abort the interpreter, "LLVM ERROR: Symbol not
+found", at the first physical step). Conda's and distributions' NumPy ship no OpenBLAS of
+their own, and older PyPI wheels (1.26's) a differently named one. ``pathpref doctor``
+(:mod:`pathpref.apps.doctor`) checks the same, and the private internals this module relies on.
 """
 
 from __future__ import annotations
@@ -35,18 +42,38 @@ from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from ..errors import ConfigError
+
 #: mjtObj's mjOBJ_BODY
 OBJ_BODY = int(mujoco.mjtObj.mjOBJ_BODY)
 #: CBLAS's order and transpose codes
 ROW_MAJOR, COL_MAJOR, NO_TRANS = 101, 102, 111
 
 
+#: the oldest NumPy tested (pyproject's ``numpy>=`` floor; tests/test_doctor.py checks both say
+#: the same): its PyPI wheels bundle ``scipy-openblas64``, whose symbols :data:`SYMBOLS` names
+NUMPY_MIN = (2, 4)
+#: how to get a NumPy with its own OpenBLAS (the end of every line of :func:`problem`)
+NUMPY_FIX = ("install NumPy's PyPI wheel: pip install --force-reinstall "
+             f"'numpy>={NUMPY_MIN[0]}.{NUMPY_MIN[1]}'")
+
+#: how to get MuJoCo's library back
+MUJOCO_FIX = ("reinstall MuJoCo at the version pathpref pins (pyproject; pathpref doctor "
+              "names it) with pip install --force-reinstall")
+
+
 def _libraries() -> tuple[str, str]:
     mj = glob.glob(os.path.join(os.path.dirname(mujoco.__file__), "libmujoco.so*"))
     blas = glob.glob(os.path.join(os.path.dirname(np.__file__), os.pardir, "numpy.libs",
                                   "libscipy_openblas64_*.so"))
-    if len(mj) != 1 or len(blas) != 1:
-        raise OSError(f"libmujoco {mj} / NumPy's OpenBLAS {blas} not found exactly once")
+    if len(mj) != 1:
+        raise OSError(f"pathpref's MuJoCo physics needs the libmujoco of the mujoco package, "
+                      f"found {len(mj)} in {os.path.dirname(mujoco.__file__)}: {MUJOCO_FIX}")
+    if len(blas) != 1:
+        raise OSError(f"pathpref's MuJoCo physics needs NumPy's own OpenBLAS "
+                      f"(numpy.libs/libscipy_openblas64_*.so), found {len(blas)} beside "
+                      f"numpy {np.__version__} at {os.path.dirname(np.__file__)} (conda's and "
+                      f"distributions' NumPy ship none): {NUMPY_FIX}")
     return mj[0], blas[0]
 
 
@@ -54,17 +81,44 @@ def _libraries() -> tuple[str, str]:
 SYMBOLS = (("mj_step", "mj_objectAcceleration", "mj_jacBodyCom", "mj_jacBody"),
            ("scipy_cblas_dgemv64_", "scipy_cblas_ddot64_"))
 
-try:
-    from llvmlite import binding as _llvm
 
-    for _lib, _names in zip(_libraries(), SYMBOLS, strict=True):
-        _missing = [n for n in _names if not hasattr(ctypes.CDLL(_lib), n)]
-        if _missing:
-            raise OSError(f"{os.path.basename(_lib)} lacks {', '.join(_missing)}")
-        _llvm.load_library_permanently(_lib)
-    AVAILABLE, WHY = True, ""
-except (OSError, RuntimeError) as exc:  # pragma: no cover - depends on the wheels installed
-    AVAILABLE, WHY = False, str(exc)
+def numpy_version() -> tuple[int, int]:
+    """NumPy's ``(major, minor)`` (its version string's leading numbers)."""
+    major, minor = (np.__version__.split(".") + ["0"])[:2]
+    return int(major), int("".join(ch for ch in minor if ch.isdigit()) or 0)
+
+
+def problem() -> str:
+    """Why the compiled functions cannot link here, as one line ("" when they can): NumPy
+    older than :data:`NUMPY_MIN`, a library not found, or a symbol of :data:`SYMBOLS` it
+    lacks (looked up with ``ctypes``, which fails softly where numba's linker aborts)."""
+    if numpy_version() < NUMPY_MIN:
+        return (f"pathpref's MuJoCo physics needs NumPy >= {NUMPY_MIN[0]}.{NUMPY_MIN[1]} "
+                f"(found {np.__version__}): {NUMPY_FIX}")
+    try:
+        libs = _libraries()
+    except OSError as exc:
+        return str(exc)
+    for lib, names in zip(libs, SYMBOLS, strict=True):
+        missing = [n for n in names if not hasattr(ctypes.CDLL(lib), n)]
+        if missing:
+            fix = NUMPY_FIX if lib == libs[1] else MUJOCO_FIX
+            return (f"pathpref's MuJoCo physics needs {', '.join(missing)} in "
+                    f"{os.path.basename(lib)}, which lacks it (numpy {np.__version__}, mujoco "
+                    f"{mujoco.__version__}): {fix}")
+    return ""
+
+
+WHY = problem()
+if WHY:
+    raise ConfigError(WHY)
+from llvmlite import binding as _llvm  # noqa: E402
+
+for _lib in _libraries():
+    _llvm.load_library_permanently(_lib)
+#: the libraries and symbols were found (importing this module fails otherwise; kept for the
+#: callers that ask :func:`ready`)
+AVAILABLE = True
 
 _ptr, _i32, _i64, _f64 = types.voidptr, types.int32, types.int64, types.float64
 mj_step = types.ExternalFunction("mj_step", types.void(_ptr, _ptr))
@@ -94,6 +148,12 @@ def bit_generator_pointers(rng: np.random.Generator) -> np.ndarray:
                      address(c.next_uint32), address(c.next_double)], dtype=np.int64)
 
 
+#: the members of numba's ``BitGenerator`` data model :func:`bit_generator` fills, in the order
+#: of :func:`bit_generator_pointers` (numba's private struct: ``pathpref doctor`` checks it)
+BIT_GENERATOR_FIELDS = ("state_address", "state", "fnptr_next_uint64", "fnptr_next_uint32",
+                        "fnptr_next_double")
+
+
 @intrinsic
 def bit_generator(typingctx, pointers):
     """numba's ``BitGenerator`` value (what ``Generator.bit_generator`` is in compiled code)
@@ -101,8 +161,7 @@ def bit_generator(typingctx, pointers):
     from it exactly as from the unboxed ``Generator`` (the same state, the same C functions
     of NumPy's bit generator)."""
     bitgen = types.NumPyRandomBitGeneratorType("bit_generator")
-    fields = ("state_address", "state", "fnptr_next_uint64", "fnptr_next_uint32",
-              "fnptr_next_double")
+    fields = BIT_GENERATOR_FIELDS
 
     def codegen(context, builder, sig, args):
         arr = context.make_array(sig.args[0])(context, builder, args[0])
@@ -209,6 +268,6 @@ def entry_point(kernel, args: tuple):
 
 
 def ready() -> bool:
-    """Whether the compiled path can run here: the libraries and symbols found
-    (:data:`AVAILABLE`; else :data:`WHY` says why and the callers keep their Python path)."""
+    """Whether the compiled path can run here: always, once this module is imported (its
+    import raises, naming the requirement, where the libraries or symbols are missing)."""
     return AVAILABLE

@@ -37,6 +37,7 @@ from functools import lru_cache
 import mujoco
 import numpy as np
 
+from ..episode.physics import ROBOT_MODELS
 from ..errors import ConfigError
 from .arm import ArmModel
 from .scene import BaseParams, RobotBody, floor_friction, holonomic_servos, mjcf_path, yaw_servo
@@ -172,9 +173,10 @@ def navigation_radius_m(model: mujoco.MjModel) -> float:
     return far
 
 
-#: the plan radius the yaw servo is sized with (m; :func:`navigation_radius_m` of the model,
+#: the plan radius the yaw servo is sized with (m; the TidyBot's footprint in its record,
+#: :data:`~pathpref.episode.physics.ROBOT_MODELS`; :func:`navigation_radius_m` of the model,
 #: checked by the tests)
-TIDYBOT_RADIUS_M = 0.284
+TIDYBOT_RADIUS_M = ROBOT_MODELS["tidybot"].footprint_m
 
 #: the TidyBot as a scene's robot (:func:`~.scene.build_scene`)
 TIDYBOT = RobotBody(name="tidybot", spec=navigation_spec, radius_m=navigation_radius_m,
