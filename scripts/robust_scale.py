@@ -40,9 +40,9 @@ def _world(name: str):
 
 def child_episode(preset: str) -> dict:
     """One bench-spec episode on the 200 x 200 floor plan under ``preset``."""
-    import resource
     import time
 
+    from pathpref.apps.benchmarks.peak import peak_rss_mb
     from pathpref.apps.benchmarks.scale import scale_map
     from pathpref.episode import EpisodeSpec, run_episode
     from pathpref.geometry.maps import load_map
@@ -57,7 +57,7 @@ def child_episode(preset: str) -> dict:
         c = time.process_time()
         ep = run_episode(spec)
         return {"cpu_s": time.process_time() - c,
-                "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                "peak_mb": peak_rss_mb(),
                 "steps": ep.steps, "goal_reached": bool(ep.goal_reached)}
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from pathpref.apps.cli import main
+from pathpref.planning.pomdp import DEFAULT_PRESET
 
 
 def run(*args: str) -> subprocess.CompletedProcess:
@@ -184,6 +185,11 @@ def test_bench_json_keys():
               "pomcp_queries_per_s", "route_update_ms"):
         assert m[k] > 0
     assert m["crossing_check_ms"] is None or m["crossing_check_ms"] > 0
+    # the default preset's first decision (CPU) and the robust preset's search, each named
+    assert m["robust_decision_preset"] == m["default_preset"] == DEFAULT_PRESET
+    for k in ("robust_decision_ms", "robust_goal_only_decision_ms", "preset_robust_decision_ms",
+              "preset_robust_goal_only_decision_ms", "default_decision_ms"):
+        assert m[k] > 0
     ph = res["physics"]
     assert ph["cue_sector_accuracy_no_noise"] == 1.0 and ph["cue_sector_accuracy"] >= 0.9
     assert ph["false_cues_per_hour"] == 0 and ph["episode_s"] > 0 and ph["render_fps"] > 0

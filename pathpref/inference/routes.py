@@ -65,7 +65,6 @@ import numba as nb
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
-from scipy.sparse.csgraph import connected_components
 from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
@@ -565,11 +564,9 @@ def _support(rows: np.ndarray, heads: np.ndarray, minor: _Minor, state: np.ndarr
     if not len(heads):
         return rows
     src, dst = minor.src, minor.dst
-    P, m = len(state), rows.shape[1]
+    m = rows.shape[1]
     in_u = (minor.index >= 0) & (state < 0)
-    both = in_u[src] & in_u[dst]
-    g = sp.csr_matrix((np.ones(int(both.sum())), (src[both], dst[both])), shape=(P, P))
-    _, comp = connected_components(g, directed=False)
+    comp = _u_components(src, dst, in_u)
     edge = in_u[src] & (state[dst] >= 0)
     allowed = np.unique(comp[src[edge]].astype(np.int64) * m + state[dst[edge]])
     keys = comp[heads].astype(np.int64)[:, None] * m + np.arange(m)[None, :]
@@ -581,6 +578,36 @@ def _support(rows: np.ndarray, heads: np.ndarray, minor: _Minor, state: np.ndarr
         out[cleared] = np.where(tot > 0, out[cleared] / np.where(tot > 0, tot, 1.0),
                                 out[cleared])
     return out
+
+
+@nb.njit(cache=True)
+def _u_components(src, dst, in_u):
+    """``comp[v]``: a label of ``v``'s connected component in the graph of the slots
+    ``(src[e], dst[e])`` with both ends in ``in_u`` (the smallest member's index; a polytope
+    outside ``in_u`` is alone). Union-find, each root the smaller index, so every ``find``
+    walks toward smaller indices and ends: ``O(E log P)`` with no graph built, where a sparse
+    matrix and SciPy's ``connected_components`` cost milliseconds a call (:func:`_support`
+    runs at every goal's split)."""
+    n = in_u.shape[0]
+    parent = np.arange(n)
+    for e in range(src.shape[0]):
+        a, b = src[e], dst[e]
+        if not (in_u[a] and in_u[b]):
+            continue
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        while parent[b] != b:
+            parent[b] = parent[parent[b]]
+            b = parent[b]
+        if a < b:
+            parent[b] = a
+        elif b < a:
+            parent[a] = b
+    comp = np.empty(n, np.int64)
+    for v in range(n):  # parent[v] <= v: a root's label is final before v reads it
+        comp[v] = v if parent[v] == v else comp[parent[v]]
+    return comp
 
 
 def _positions(rows: np.ndarray, n: int) -> np.ndarray:

@@ -28,7 +28,7 @@ from ...planning.pomdp import DEFAULT_PRESET, get_preset
 
 # --- maps: setup, belief, POMCP ------------------------------------------------------------
 def _timeit(fn, repeat: int) -> list[float]:
-    """Wall times (s) of ``repeat`` calls of ``fn``."""
+    """Wall times (s) of ``repeat`` calls of ``fn`` (``time.perf_counter``)."""
     out = []
     for _ in range(repeat):
         t = time.perf_counter()
@@ -38,7 +38,10 @@ def _timeit(fn, repeat: int) -> list[float]:
 
 
 def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
-    """Build, table and belief-update timings for one map (10 goal candidates)."""
+    """Build, table and belief-update timings for one map (10 goal candidates): wall clock
+    for the setup (``arrangement_build_s``, ``cost_tables_s``, ``setup_s``) and the belief
+    updates (``belief_update_ms``, ``_p99_ms``, ``goal_belief_update_ms``); CPU time for the
+    route prior's update, the default preset's first decisions and its decision steps."""
     rng = np.random.default_rng(seed)
     spec = load_map(name)
     reps = 3 if quick else 7
@@ -67,6 +70,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         gb.update(c, h)
         t_goal.append(time.perf_counter() - t)
     planning = bench_pomcp(world, name, quick=quick, seed=seed)
+    first = bench_first_decisions(name, instances=5 if quick else 20, seed=seed)
     routes = bench_route_update(model, pushes=20 if quick else 40, seed=seed)
     decisions = bench_default_decisions(name, episodes=2 if quick else 6, seed=seed)
     return {
@@ -82,6 +86,7 @@ def bench_map(name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
         "belief_updates": n_upd,
         "paper_belief_update_ms": paper.update_ms(name),
         **planning,
+        **first,
         **decisions,
         **routes,
     }
@@ -108,6 +113,31 @@ def bench_route_update(model: ObservationModel, pushes: int = 40, seed: int = 0
             "route_update_mean_ms": 1e3 * float(np.mean(out)),
             "route_update_pushes": pushes,
             "route_update_observed_polytopes": len(belief.observed_polytopes())}
+
+
+def bench_first_decisions(name: str, instances: int = 20, seed: int = 0) -> dict[str, Any]:
+    """``robust_decision_ms`` and ``robust_goal_only_decision_ms``: the median CPU time (ms) of
+    the first decision step of an episode under the default preset
+    (:data:`~pathpref.planning.pomdp.DEFAULT_PRESET`), path preference and goal only, ΔT = 5,
+    the preset's queries, over ``instances`` instances (the sweeps' rule, ``seed``) after one
+    warm-up instance that compiles or loads the kernels. The step is the whole decision as an
+    episode runs it: the human's first push and the belief's update, the search from that
+    belief (the route posterior's solve and the root pool included), the crossing check and
+    the wait budget. ``robust_decision_preset`` names the preset."""
+    out: dict[str, list[float]] = {"path_preference": [], "goal_only": []}
+    for method, times in out.items():
+        for i in range(instances + 1):
+            spec = EpisodeSpec.single(name, method, 5, seed=seed, instance=i,
+                                      preset=DEFAULT_PRESET)
+            runner = EpisodeRunner(spec)
+            t = time.process_time()
+            runner.step()
+            if i > 0:
+                times.append(time.process_time() - t)
+    return {"robust_decision_preset": DEFAULT_PRESET,
+            "robust_decision_ms": 1e3 * median(out["path_preference"]),
+            "robust_goal_only_decision_ms": 1e3 * median(out["goal_only"]),
+            "robust_decisions": instances}
 
 
 def bench_default_decisions(name: str, episodes: int = 6, seed: int = 0) -> dict[str, Any]:
@@ -151,11 +181,15 @@ def _check_times(planner: POMCP, belief, model: ObservationModel, res, start: in
 
 
 def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> dict[str, Any]:
-    """First-decision POMCP time: 5000 queries at depth T_max, median over random instances.
-    The robust search is timed from the robust preset's belief after one push (the route
-    prior: the posterior's solve and the Wilson particles, :meth:`POMCP.pool_size`, are in
-    the time); after it, the crossing check of each move from the start into another polytope
-    (``crossing_check_ms``; None where no start had one)."""
+    """First-decision POMCP time, wall clock: 5000 queries at depth T_max, median over random
+    instances, of one search each (no episode around it). ``pomcp_decision_ms`` and
+    ``pomcp_goal_only_decision_ms``: the paper preset. ``preset_robust_decision_ms`` and
+    ``preset_robust_goal_only_decision_ms``: the ``robust`` preset's search (what
+    ``robust_decision_ms`` timed before it timed the default preset,
+    :func:`bench_first_decisions`), from the robust preset's belief after one push (the route
+    prior: the posterior's solve and the Wilson particles, :meth:`POMCP.pool_size`, are in the
+    time); after it, the crossing check (the default preset's) of each move from the start into
+    another polytope (``crossing_check_ms``; None where no start had one)."""
     preset = get_preset("paper")
     robust = get_preset("robust")
     depth = world.spec.t_max
@@ -192,8 +226,8 @@ def bench_pomcp(world: World, name: str, quick: bool = False, seed: int = 0) -> 
         "pomcp_queries_per_s": preset.queries / median(t_pp),
         "pomcp_decisions": n,
         "paper_pomcp_decision_ms": paper.solve_ms(name),
-        "robust_decision_ms": 1e3 * median(t_rb),
-        "robust_goal_only_decision_ms": 1e3 * median(t_rb_go),
+        "preset_robust_decision_ms": 1e3 * median(t_rb),
+        "preset_robust_goal_only_decision_ms": 1e3 * median(t_rb_go),
         "crossing_check_ms": 1e3 * median(t_ck) if t_ck else None,
     }
 

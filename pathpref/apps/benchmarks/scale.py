@@ -13,6 +13,7 @@ from ...episode import EpisodeSpec, run_episode, sample_instance
 from ...geometry.maps import load_map
 from ...geometry.world import World
 from ...planning.pomdp import DEFAULT_PRESET
+from .peak import peak_rss_mb
 
 
 # --- scale: Ray, big maps -------------------------------------------------------------------
@@ -48,37 +49,74 @@ def bench_ray(n: int = 40, queries: int = 5000) -> dict[str, Any]:
             "single_worker_episodes_per_s": n / t_local, "ray_episodes_per_s": n / t_ray}
 
 
-def bench_robust_40(instances: int = 5, queries: int = 5000) -> dict[str, Any]:
-    """``robust_first_decision_40x40_ms``: the median CPU time of the first robust-check
-    decision (path preference, ΔT = 5, ``queries``) over ``instances`` instances of the 40 x 40
-    plan with 32 rotated obstacles (seed 1) and a loop preference, after one warm-up instance;
-    ``robust_pool_40x40``, the root pool there
-    (:meth:`~pathpref.planning.pomcp.POMCP.pool_size`)."""
+#: the 40 x 40 plan of the first-decision keys: 32 rotated obstacles, seed 1, a loop preference
+ROTATED_40 = {"width": 40, "height": 40, "n_rotated": 32, "seed": 1}
+
+
+def rotated_40() -> dict[str, Any]:
+    """The 40 x 40 plan of :data:`ROTATED_40` with a loop preference (``rotated_40``)."""
+    from ...geometry.generate import random_floor_plan, with_loop_preference
+
+    return with_loop_preference(random_floor_plan(name="rotated_40", **ROTATED_40))
+
+
+def bench_robust_40(instances: int = 5, queries: int = 5000, episodes: int = 2
+                    ) -> dict[str, Any]:
+    """The 40 x 40 plan of :func:`rotated_40`, CPU time (ms), path preference, ΔT = 5,
+    ``queries`` per decision:
+
+    * ``robust_first_decision_40x40_ms``: the median of the first decision step under the
+      default preset (:data:`~pathpref.planning.pomdp.DEFAULT_PRESET`: the first push, the
+      search, the crossing check and the wait budget) over ``instances`` instances, after one
+      warm-up instance; ``robust-check_first_decision_40x40_ms`` the same under
+      ``robust-check`` (the preset this key timed until the default became ``robust-slack``);
+    * ``robust_pool_40x40``: the root pool there
+      (:meth:`~pathpref.planning.pomcp.POMCP.pool_size`; the same under both);
+    * ``default_decision_40x40_ms``, ``_p95_ms``, ``_max_ms``: median, 95th percentile and
+      maximum of every decision step of ``episodes`` whole episodes under the default preset
+      (instances 1 to ``episodes``, the warm-up instance 0 first)."""
     import json
     import statistics
     import tempfile
 
     from ...episode.runner import EpisodeRunner
-    from ...geometry.generate import random_floor_plan, with_loop_preference
 
+    res: dict[str, Any] = {"robust_first_decision_40x40_preset": DEFAULT_PRESET}
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "rotated_40.json")
         with open(path, "w") as f:
-            json.dump(with_loop_preference(random_floor_plan(40, 40, 32, seed=1,
-                                                             name="rotated_40")), f)
+            json.dump(rotated_40(), f)
         t_max = load_map(path).t_max
-        times, pool = [], None
-        for i in range(instances + 1):
-            ep = EpisodeSpec(map=path, method="path_preference", delta_t=5, instance=i, run=0,
-                             instance_seed=100 + i, run_seed=7, queries=queries, t_max=t_max,
-                             preset="robust-check")
-            runner = EpisodeRunner(ep)
-            c = time.process_time()
-            runner.step()
-            times.append((time.process_time() - c) * 1000)
-            pool = runner.policy.planner.pool_size()
-    return {"robust_first_decision_40x40_ms": statistics.median(times[1:]),
-            "robust_pool_40x40": pool}
+        world = World.from_spec(load_map(path))
+
+        def runner(preset: str, i: int) -> EpisodeRunner:
+            return EpisodeRunner(EpisodeSpec(
+                map=path, method="path_preference", delta_t=5, instance=i, run=0,
+                instance_seed=100 + i, run_seed=7, queries=queries, t_max=t_max,
+                preset=preset), world=world)
+
+        for preset, key in ((DEFAULT_PRESET, "robust_first_decision_40x40_ms"),
+                            ("robust-check", "robust-check_first_decision_40x40_ms")):
+            times = []
+            for i in range(instances + 1):
+                run = runner(preset, i)
+                c = time.process_time()
+                run.step()
+                times.append((time.process_time() - c) * 1000)
+            res[key] = statistics.median(times[1:])
+            res["robust_pool_40x40"] = run.policy.planner.pool_size()
+        steps = []
+        for i in range(episodes + 1):
+            run = runner(DEFAULT_PRESET, i)
+            while not run.done:
+                c = time.process_time()
+                run.step()
+                if i > 0:
+                    steps.append((time.process_time() - c) * 1000)
+    res.update(default_decision_40x40_ms=statistics.median(steps),
+               default_decision_40x40_p95_ms=float(np.percentile(steps, 95)),
+               default_decision_40x40_max_ms=max(steps), default_decisions_40x40=len(steps))
+    return res
 
 
 SCALE_MAP = {"width": 200, "height": 200, "n_rotated": 20, "n_boxes": 40, "seed": 0,
@@ -108,13 +146,12 @@ def map_500() -> dict[str, Any]:
 def _map_500_child(queries: int = 1000, steps: int = 1) -> None:
     """Run in a fresh interpreter: the 500 x 500 map built (forced), the robust preset's
     episode set up for instance 0 (10 goals: cost tables, route prior, search), its likelihood
-    tables and its first decision. Prints JSON: the CPU seconds and the process's peak RSS (MB,
-    ``ru_maxrss``, which only grows) after each stage (``world``, ``policy``, ``tables``,
-    ``decision``), polytopes, lines, cells and the maximum degree. With ``steps > 1`` the
-    episode goes on to at most ``steps`` decisions (``episode`` stage; ``episode_steps``
-    run, ``observed_polytopes`` of the belief then)."""
+    tables and its first decision. Prints JSON: the CPU seconds and the process's own peak RSS
+    (MB, ``VmHWM``: :func:`.peak.peak_rss_mb`, which only grows) after each stage (``world``,
+    ``policy``, ``tables``, ``decision``), polytopes, lines, cells and the maximum degree.
+    With ``steps > 1`` the episode goes on to at most ``steps`` decisions (``episode`` stage;
+    ``episode_steps`` run, ``observed_polytopes`` of the belief then)."""
     import json
-    import resource
     import tempfile
 
     from ...episode.runner import EpisodeRunner
@@ -124,7 +161,7 @@ def _map_500_child(queries: int = 1000, steps: int = 1) -> None:
 
     def stage(name: str) -> None:
         out[f"{name}_cpu_s"] = time.process_time() - c0
-        out[f"{name}_peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        out[f"{name}_peak_mb"] = peak_rss_mb()
 
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "floor_500.json")
@@ -158,9 +195,8 @@ def _map_500_child(queries: int = 1000, steps: int = 1) -> None:
 
 def _scale_setup_child() -> None:
     """Run in a fresh interpreter: arrangement + graph + cost tables for 10 goals on the
-    benchmark floor plan; prints ``seconds peak_MB``."""
-    import resource
-
+    benchmark floor plan; prints ``wall_seconds peak_MB`` (the process's own peak,
+    :func:`.peak.peak_rss_mb`), then the route update's CPU ms, median and mean."""
     from ...inference.costs import build_cost_tables
 
     raw = scale_map()
@@ -169,7 +205,7 @@ def _scale_setup_child() -> None:
     world = World.from_spec(load_map(raw))
     build_cost_tables(world, np.array(sample_instance(world, 0, 10).goals))
     dt = time.perf_counter() - t
-    print(dt, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)
+    print(dt, peak_rss_mb())
     from ...inference.human import ObservationModel
     from .maps import bench_route_update
 
@@ -181,10 +217,9 @@ def _scale_setup_child() -> None:
 def _episode_child(preset: str, queries: int) -> None:
     """Run in a fresh interpreter: one path-preference episode on the benchmark floor plan
     (ΔT = 5, instance 0) under ``preset``; prints JSON: wall and CPU seconds of the episode
-    (world, cost and likelihood tables, every decision), the process's peak RSS in MB
-    (tables included), steps, goal reached."""
+    (world, cost and likelihood tables, every decision), the process's own peak RSS in MB
+    (tables included; ``VmHWM``, :func:`.peak.peak_rss_mb`), steps, goal reached."""
     import json
-    import resource
     import tempfile
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -197,7 +232,7 @@ def _episode_child(preset: str, queries: int) -> None:
         c, t = time.process_time(), time.perf_counter()
         ep = run_episode(spec)
         print(json.dumps({"wall_s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
-                          "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                          "peak_mb": peak_rss_mb(),
                           "steps": ep.steps, "goal_reached": bool(ep.goal_reached)}))
 
 
