@@ -306,6 +306,11 @@ class Coaster:
         self.base = base
         self._data = None
 
+    def __getstate__(self) -> dict:
+        """A copy's state (``copy.deepcopy``, a task's snapshot): the base only; the copy binds
+        its arrays and addresses (:meth:`_bind`) and resolves its constants at its first run."""
+        return {"base": self.base, "_data": None}
+
     @staticmethod
     def applies(base) -> bool:
         """The base's setup is one the kernel mirrors (module docstring: the realistic chain

@@ -250,6 +250,21 @@ class FaultySensor:
         self._data = None
         self.restart()
 
+    def __getstate__(self) -> dict:
+        """The sensor's state for a copy (``copy.deepcopy``, a task's snapshot:
+        ``pathpref_tasks.snapshot``) without what is bound to addresses: the ``MjData`` views
+        and address (bound again at the next read) and the Generator's pointers (taken again
+        from the copy's own Generator, :meth:`__setstate__`)."""
+        state = dict(self.__dict__)
+        for k in ("_dp", "_reading", "_R", "rng_pointers"):
+            state.pop(k, None)
+        state["_data"] = None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.rng_pointers = bit_generator_pointers(self.rng)
+
     @property
     def fresh(self) -> bool:
         """Whether the last :meth:`read` gave a new sample."""
