@@ -250,6 +250,14 @@ class FaultySensor:
         self._data = None
         self.restart()
 
+    #: the compiled move runs this sensor's step (:mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """The compiled move runs the next sample: no thermal warm-up (its offset is
+        Python's) and a sample held (the first one is taken in Python)."""
+        return self.spec.thermal_n == 0 and self._held is not None
+
     def __getstate__(self) -> dict:
         """The sensor's state for a copy (``copy.deepcopy``, a task's snapshot:
         ``pathpref_tasks.snapshot``) without what is bound to addresses: the ``MjData`` views
