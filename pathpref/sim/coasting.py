@@ -411,7 +411,6 @@ class Coaster:
         d = b.data
         self._warnings = d.warning.number
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
-        self._scratch = np.zeros(15)  # sensing.physical_reading's
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
         self._err = np.zeros(2)
         self._data = d
@@ -569,11 +568,8 @@ class Coaster:
                 (c.last, b.target, self._err, goal, filt,
                  self._no_push if push is None else push.record(), wrench,
                  self._no_rec if interaction is None else interaction.rec),
-                (f.bias, held, f.win, self._scratch), f.rng_pointers, (est.params, est.rec),
-                (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
-                 eforce, *est._scratch),
-                (det.f, det.baseline, det._ring, det._queue, det.params, det.st, det.rule,
-                 det._buf, det.rec),
+                f.step_arrays(held), f.rng_pointers, (est.params, est.rec),
+                est.step_arrays(eacc, eforce), det.step_arrays(),
                 (*self._guide_args, self._no_rec if g is None else g.rec), arm, m.rec,
                 fs, cs, ns, max_steps)
         entry = self._entry

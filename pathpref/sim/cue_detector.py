@@ -491,6 +491,14 @@ class FilteredCueDetector(CueDetector):
         self._ring = np.zeros((self._hold_n + 4, 2))
         self._queue = np.zeros(2, dtype=np.int64)
 
+    def step_arrays(self) -> tuple:
+        """The detector's arrays as the compiled move (:mod:`.coasting`) takes them:
+        :func:`filter_step`'s (the low-pass, baseline, calibration ring and queue, constants),
+        then :func:`decide_step`'s (state, rule, scratch) and the record :attr:`rec`; the
+        same arrays :meth:`update` passes."""
+        return (self.f, self.baseline, self._ring, self._queue, self.params, self.st,
+                self.rule, self._buf, self.rec)
+
     @property
     def leaned(self) -> int:
         """Resting hands above ``on`` taken into the baseline (class docstring)."""

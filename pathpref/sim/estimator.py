@@ -207,12 +207,17 @@ class ForceEstimator:
         if self._qvel_mark is None:
             self._qvel_mark = data.qvel.copy()
         self.acc, self.force = np.zeros(3), np.zeros(2)  # new arrays: a new estimate
-        st = (self._qvel_mark, self._jac, self._dv, self.acc, self.bias, self._ring,
-              self._queue, self.force, *self._scratch)
         self.quiet, self.at_rest = estimate_step(
             self.model._address, data._address, self.body, reading, R, data.qvel, window,
-            cue_idle, self.quiet, self.params, st)
+            cue_idle, self.quiet, self.params, self.step_arrays(self.acc, self.force))
         return self.force
+
+    def step_arrays(self, acc: np.ndarray, force: np.ndarray) -> tuple:
+        """:func:`estimate_step`'s state arrays (its ``st``), with ``acc`` and ``force`` the
+        arrays the step writes its acceleration and estimate into: what :meth:`update` and
+        the compiled move (:mod:`.coasting`) both pass."""
+        return (self._qvel_mark, self._jac, self._dv, acc, self.bias, self._ring, self._queue,
+                force, *self._scratch)
 
 
 class ResidualEstimator:

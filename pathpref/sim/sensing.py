@@ -258,6 +258,12 @@ class FaultySensor:
         Python's) and a sample held (the first one is taken in Python)."""
         return self.spec.thermal_n == 0 and self._held is not None
 
+    def step_arrays(self, held: np.ndarray) -> tuple:
+        """The sensor's arrays as the compiled move (:mod:`.coasting`) takes them: the drift
+        bias, ``held`` (where a new sample goes), the window (:func:`window_step`'s ``win``)
+        and :func:`physical_reading`'s scratch; the arrays :meth:`read` passes."""
+        return self.bias, held, self.win, self._scratch
+
     def __getstate__(self) -> dict:
         """The sensor's state for a copy (``copy.deepcopy``, a task's snapshot:
         ``pathpref_tasks.snapshot``) without what is bound to addresses: the ``MjData`` views
