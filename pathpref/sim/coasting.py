@@ -367,9 +367,12 @@ class Coaster:
         else:
             cues = b._onset is None and not s.under_way
         return (cues and b.decision.final is None and not b.pushes and self._hooks_mirrored()
-                and runs(b) and f is not None and runs(f) and runs(s.estimator)
-                and runs(s.detector) and runs(b.controller) and runs(b.measurements)
-                and (b.guidance is None or runs(b.guidance))
+                # (the base, detector, controller, measurements and guidance declare:
+                # applies, asked with the coaster; the sensor and estimator exist after a reset)
+                and b.kernel_ready() and f is not None and runs(f) and runs(s.estimator)
+                and s.detector.kernel_ready() and b.controller.kernel_ready()
+                and b.measurements.kernel_ready()
+                and (b.guidance is None or b.guidance.kernel_ready())
                 and (not b.pre_substep or b.data.time < self._quiet_until())
                 and not b.external_forces)
 

@@ -16,17 +16,27 @@ instead of running compiled without its behaviour until someone forbids it.
 
 from __future__ import annotations
 
+#: per class: whether its own body declares (module docstring) and its own ``kernel_setup``
+#: (None: none); a class's body is read once (the checks run before every kernel call)
+_DECLARATIONS: dict[type, tuple[bool, object]] = {}
+
+
+def _declaration(cls: type) -> tuple[bool, object]:
+    own = cls.__dict__
+    found = (own.get("KERNEL_RUNS") is True and "kernel_ready" in own,
+             own.get("kernel_setup"))
+    _DECLARATIONS[cls] = found
+    return found
+
 
 def declared(part) -> bool:
     """Whether ``part``'s own class declares that the kernel runs it (module docstring):
     ``KERNEL_RUNS = True`` and ``kernel_ready`` both in its class's body, and, when that
     body also has a ``kernel_setup()``, the part's setup (fixed when it was built: the carry
     arm's legacy mode is not run) is one the kernel runs."""
-    own = type(part).__dict__
-    if own.get("KERNEL_RUNS") is not True or "kernel_ready" not in own:
-        return False
-    setup = own.get("kernel_setup")
-    return setup is None or setup(part)
+    cls = type(part)
+    ok, setup = _DECLARATIONS.get(cls) or _declaration(cls)
+    return ok and (setup is None or setup(part))
 
 
 def runs(part) -> bool:
