@@ -1,7 +1,8 @@
 """The dm_control environment of a task (:func:`load`, re-exported by :mod:`pathpref_tasks`,
 whose docstring describes the arguments) and :class:`Environment`, dm_control's
-``control.Environment`` with the task's action check, ``episode_metrics`` and bounds of a flat
-observation."""
+``control.Environment`` with the task's action check, ``episode_metrics``, bounds of a flat
+observation and snapshots of an episode (:meth:`Environment.snapshot`, :meth:`Environment.restore`:
+:mod:`.snapshot`)."""
 
 from __future__ import annotations
 
@@ -19,6 +20,7 @@ from dm_env import specs
 from pathpref.episode.spec import check_number
 from pathpref.errors import ConfigError
 
+from . import snapshot as snapshots
 from .navigate_control import CONTROL_TIMESTEP, CONTROL_TIMESTEPS
 from .registry import task_class, task_names
 from .stage import Physics
@@ -58,6 +60,18 @@ class Environment(control.Environment):
         key = control.FLAT_OBSERVATION_KEY
         return collections.OrderedDict([(key, specs.BoundedArray(
             (n,), np.float64, np.concatenate(lo), np.concatenate(hi), name=key))])
+
+    def snapshot(self) -> snapshots.Snapshot:
+        """The episode now: the physics (the whole ``MjData``), every part's state and the
+        task's (belief, runner, planner, random generators) and the step count
+        (:mod:`.snapshot`). :meth:`restore` it, replay the same actions: the same
+        observations, rewards and metrics, bit for bit."""
+        return snapshots.take(self)
+
+    def restore(self, snapshot: snapshots.Snapshot) -> None:
+        """Put the episode of ``snapshot`` (:meth:`snapshot`; of this environment or of one
+        loaded with the same arguments) back; the next ``step`` continues it."""
+        snapshots.put(self, snapshot)
 
     @property
     def episode_metrics(self) -> dict[str, float | bool]:

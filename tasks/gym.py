@@ -19,7 +19,8 @@ camera. Keyword arguments are the task's (``task_kwargs``), plus ``environment_k
 ``time_limit`` of :func:`pathpref_tasks.load`. Each id is registered with a string entry point
 (:data:`ENTRY_POINT`: ``gym.spec(id).to_json()`` works) and ``max_episode_steps``
 (:func:`max_episode_steps`); ``info`` also holds ``is_success``, ``is_intervention`` and
-``intervention_heading`` every step (:meth:`PathprefEnv._info`).
+``intervention_heading`` every step (:meth:`PathprefEnv._info`). ``env.unwrapped.snapshot()``
+and ``env.unwrapped.restore(s)`` save and restore an episode (:mod:`.snapshot`).
 
 Vectorised (each sub-environment gets its own seed from ``reset(seed=...)``)::
 
@@ -245,6 +246,23 @@ class PathprefEnv(gym.Env):
         heading = int(push.intended_heading) if pushed and push is not None else -1
         return {**metrics, "t": task.runner.t, "is_success": bool(metrics["success"]),
                 "is_intervention": bool(pushed), "intervention_heading": heading}
+
+    def snapshot(self) -> dict[str, Any]:
+        """The episode now (:meth:`pathpref_tasks.Environment.snapshot`: physics, parts, task)
+        and this env's own count of pushes and whether the episode is over. Through
+        ``gym.make``'s wrappers call ``env.unwrapped.snapshot()``; the ``TimeLimit``
+        wrapper's step count is the wrapper's, not the episode's."""
+        return {"episode": self._env.snapshot(), "over": self._over, "pushes": self._pushes}
+
+    def restore(self, snapshot: dict[str, Any]) -> None:
+        """Put the episode of ``snapshot`` (:meth:`snapshot`, of this env or one made with the
+        same arguments) back: replaying the same actions gives the same observations,
+        rewards and infos bit for bit."""
+        if not isinstance(snapshot, dict) or set(snapshot) != {"episode", "over", "pushes"}:
+            raise ConfigError("restore takes a snapshot from env.unwrapped.snapshot(), got "
+                              f"{type(snapshot).__name__}")
+        self._env.restore(snapshot["episode"])
+        self._over, self._pushes = snapshot["over"], snapshot["pushes"]
 
     def render(self):
         """The top camera as an ``(height, width, 3)`` uint8 image (``rgb_array``)."""

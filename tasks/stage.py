@@ -23,6 +23,7 @@ from dm_control import mujoco as dm_mujoco
 
 from pathpref.sim.body import MujocoBody
 from pathpref.sim.force_cue import HumanPush
+from pathpref.sim.kernel_parts import Slot
 from pathpref.sim.mobile_base import MobileBase
 
 #: time constant (s) of the low-pass force the observations carry
@@ -144,7 +145,12 @@ class StepInteraction:
     def __init__(self, base: MobileBase):
         self.base = base
         self._from = len(base.felt)
+        #: the state the compiled steps read and write in place: ``[active_s]``
+        self.rec = np.zeros(1)
         self.active_s = 0.0
+
+    #: physics seconds of the step with the detector active, in :attr:`rec`
+    active_s = Slot(0)
 
     def start(self) -> None:
         """A new environment step: forget what the previous one felt."""

@@ -120,8 +120,7 @@ class EpisodeRunner:
         self.body = body if body is not None else make_body(spec, world)
         self.body.connect(self.observe)  # the one door of what the robot feels
         #: the body gives the human's inputs at times of its own (pushes at any time)
-        self.continuous = self.body.attach_human(
-            lambda cell: self.human.sample(cell, self.human_rng), self.human.probs)
+        self.continuous = self.body.attach_human(self._heading_at, self.human.probs)
         if self.corrective is not None and self.continuous:
             raise ConfigError(_ANY_TIME.format(rule=spec.push_rule, where="this body"))
         self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
@@ -144,6 +143,12 @@ class EpisodeRunner:
             self.body.record_path(spec.record_path_hz)
         self.body.reset(self.cell)
         self._log(STAY, -1)
+
+    def _heading_at(self, cell: int) -> int:
+        """The human's heading at ``cell`` drawn from the run's human stream (what a body
+        that pushes at its own times asks for; a bound method, not a closure, so a copy of
+        the episode, ``pathpref_tasks.snapshot``, draws from the copy's stream)."""
+        return self.human.sample(cell, self.human_rng)
 
     def _preference(self, free_goal: bool) -> np.ndarray:
         """The human's preference per polytope (the map's, or the consistent human's completion

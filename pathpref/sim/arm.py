@@ -390,15 +390,20 @@ class ArmBase(MobileBase):
                 (self._bodies, self._rel, self._jac, self.arm_dofs, self.arm_qpos, self.q_kin,
                  self._gains, self._kp, self.arm_ctrl), (self._Rd, self._f3, self._m3, self._tau))
 
-    def kernel_mirrors(self) -> bool:
-        """The compiled move mirrors the physical arm's step (:func:`~.arm_step.arm_step`
-        between IK solves), not the legacy arm's."""
+    #: the compiled move runs the physical arm's step (:func:`~.arm_step.arm_step` between
+    #: IK solves: :mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_setup(self) -> bool:
+        """The physical arm's step is the kernel's; the legacy arm's (its IK drives the base
+        at 100 Hz) is not."""
         return self.physical
 
     def kernel_ready(self) -> bool:
         """The compiled move may take the next step (:meth:`.coasting.Coaster.ready`): nothing
-        in contact (whose penetration the Python step measures)."""
-        return self.data.ncon == 0
+        in contact (whose penetration the Python step measures) and the base's own state
+        (:meth:`MobileBase.kernel_ready`)."""
+        return self.data.ncon == 0 and super().kernel_ready()
 
     def kernel_prepare(self) -> None:
         """The IK solve of the coming step when one is due and has not run (every

@@ -21,7 +21,9 @@ stream and the push phase's end run in Python, :data:`DETECT`), the base touches
 (the contact measurements, :data:`CONTACTS`), an ``on_substep`` hook acts (a polytope change
 for the path's crossing hook, a path recorder's sample: :data:`CROSS`), or the move or push
 phase ends (:data:`END`: settled, or its time is up). It runs only where it applies
-(:meth:`Coaster.applies`, :meth:`Coaster.ready`): a plain :class:`~.mobile_base.MobileBase`, or
+(:meth:`Coaster.applies`, :meth:`Coaster.ready`): each part it runs declares so in its own
+class, with the modes it runs (:mod:`.kernel_parts`: safe by default, a part or mode that
+does not declare keeps the Python path); so: a plain :class:`~.mobile_base.MobileBase`, or
 the physical carry arm's (:class:`~.arm.ArmBase`: its servo targets of the tray impedance,
 :func:`~.arm_step.arm_step`, at every step, the tilt recorded; its IK solve runs before the
 kernel's steps, :meth:`~.arm.ArmBase.kernel_prepare`, and the next one due hands back, as a
@@ -49,14 +51,24 @@ import numpy as np
 
 from . import native
 from .arm_step import arm_step, tilt_from
-from .controller import HeldVelocity, ProfiledController, profiled_goal, ramp_step, settled_at
-from .cue_detector import ABOVE, ACTIVE, FilteredCueDetector, decide_step, filter_step
+from .controller import HeldVelocity, profiled_goal, ramp_step, settled_at
+from .cue_detector import ABOVE, ACTIVE, D_OFF, D_ON, D_VAR, decide_step, filter_step
 from .decision import PUSH as PUSH_PHASE
-from .estimator import estimate_step
+from .estimator import E_AT_REST, E_QUIET, estimate_step
 from .force_cue import push_force
 from .guidance import admit_step
 from .keep_clear import keep_clear_xy
-from .measurements import planar_accel
+from .kernel_parts import declared, runs
+from .measurements import (
+    M_PEAK,
+    M_PEAK_FORCE,
+    M_PEAK_PUSHED,
+    M_T,
+    M_TOUCHING,
+    M_VX,
+    M_VY,
+    planar_accel,
+)
 from .native import hypot, mj_step
 from .path_crossings import PathCrossings
 from .path_record import PathRecorder
@@ -67,12 +79,10 @@ from .sensing import W_MEAN, W_WINDOW_S, emit_step, window_step
 #: the base entered another polytope, or a cell the grid's lookup does not hold, with a
 #: :class:`~.path_crossings.PathCrossings` hook, or a quiet hook's step count ran out)
 READY, END, DETECT, CONTACTS, DIVERGED, CROSS = range(6)
-#: float state (in and out): the sensor's window, the estimator's and detector's scalars, the
-#: measurements, whether the detector gave a cue at a hand-back, the seconds of an active
-#: detector (the task's :class:`~pathpref_tasks.stage.StepInteraction`) and the velocity a
-#: contact met
-(QUIET, AT_REST, VAR, ON, OFF, VPX, VPY, T_PREV, PEAK, PEAK_PUSHED, PEAK_FORCE, TOUCHING, CUE,
- ACTIVE_S, VPX_OLD, VPY_OLD, TIME, MOVING, N_FS) = range(19)
+#: the kernel's own floats (the parts' state is in their records, read and written in
+#: place): whether the detector gave a cue at a hand-back, the velocity a contact met, the
+#: simulated time (MjData's, advanced as mj_step advances it)
+CUE, VPX_OLD, VPY_OLD, TIME, N_FS = range(5)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
  T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
@@ -117,7 +127,7 @@ def _arm_part(arm, step):
 
 
 @nb.njit(cache=True, _nrt=False)
-def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs, ns,
+def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, fs, cs, ns,
            max_steps):
     """Physics steps of the move phase, a push phase (``ns[PUSHING]``: :meth:`Coaster.push`)
     or a drive (:meth:`Coaster.drive`) until a hand-back (module docstring); returns
@@ -129,24 +139,31 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
     ``drive`` the controller's last command, the target, a scratch pair, the held goal
     velocity (``ns[HELD]``: :class:`~.controller.HeldVelocity`), the task's filtered force
     (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step), the push record
-    (:meth:`~.force_cue.HumanPush.record`) and the pushed body's ``xfrc_applied`` row;
-    ``sensor`` the faulty sensor's drift bias, its held sample, its window
+    (:meth:`~.force_cue.HumanPush.record`), the pushed body's ``xfrc_applied`` row and the
+    task's interaction record (:class:`~pathpref_tasks.stage.StepInteraction`'s ``rec``:
+    ``[active_s]`` gains the timestep at every step the detector is active,
+    ``ns[INTERACT]``); ``sensor`` the faulty sensor's drift bias, its held sample, its window
     (:func:`~.sensing.window_step`'s ``win``, the sensor's own) and scratch; ``rng`` its
-    ``Generator``'s pointers (:func:`~.sensing.emit_step`); ``det``
+    ``Generator``'s pointers (:func:`~.sensing.emit_step`); ``eparams`` the estimator's
+    constants and its record (:data:`~.estimator.E_QUIET`, ...); ``det``
     :func:`~.cue_detector.filter_step`'s arrays and constants, then the detector's state,
-    rule and scratch (:func:`~.cue_detector.decide_step`); ``guide`` the map for a guided
+    rule and scratch (:func:`~.cue_detector.decide_step`) and its record
+    (:data:`~.cue_detector.D_VAR`, ...); ``guide`` the map for a guided
     base at rest (``ns[GUIDED]``: the command through :func:`~.keep_clear.keep_clear_xy`, the
     map's ``Clearance.arrays`` and rows) and for its path's crossings (``ns[POLY] >= 0``: the
-    polytope the base is in; the grid's ``cell_index`` and ``cell_polytope``); ``arm`` the
-    physical carry arm's record (:func:`_arm_part`; None: no arm); ``fs[ACTIVE_S]`` gains
-    the timestep at every step the detector is active (``ns[INTERACT]``). Simulated time is
+    polytope the base is in; the grid's ``cell_index`` and ``cell_polytope``), then the
+    guidance's record (``[moving]``); ``arm`` the physical carry arm's record
+    (:func:`_arm_part`; None: no arm); ``meas`` the measurements' record
+    (:data:`~.measurements.M_VX`, ...). The parts' records are each part's own ``rec``,
+    read and written in place (:class:`~.kernel_parts.Slot`). Simulated time is
     ``fs[TIME]``, advanced by ``mj_step``'s own operation (``time += timestep``)."""
     mp, dp = mj
     qpos, qvel, ctrl, sensordata, R, warnings = robot
-    last, target, err, goal, filt, pp, wrench = drive
+    last, target, err, goal, filt, pp, wrench, irec = drive
     sbias, held, win, scratch = sensor
-    f, baseline, dring, dqueue, dparams, st, rule, dbuf = det
-    clr, rows, cell_index, cell_polytope, gv, gdef, gparams = guide
+    eparams, erec = eparams
+    f, baseline, dring, dqueue, dparams, st, rule, dbuf, drec = det
+    clr, rows, cell_index, cell_polytope, gv, gdef, gparams, grec = guide
     nq, nv = qpos.shape[0], qvel.shape[0]
     eforce, equeue = est[7], est[6]
     for step in range(max_steps):
@@ -169,8 +186,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
         # --- MobileBase._control: a guided base's admittance tail (Guidance.admit, no cue
         # under way: Coaster.ready), then the float path: ProfiledController.goal_xy
         # (HeldVelocity's: the held command) and ramp_xy
-        if fs[MOVING] != 0.0:
-            fs[MOVING] = 1.0 if admit_step(gv, target, gdef, gv, False, gparams, clr) else 0.0
+        if grec[0] != 0.0:
+            grec[0] = 1.0 if admit_step(gv, target, gdef, gv, False, gparams, clr) else 0.0
         if ns[HELD]:
             gx, gy = goal[0], goal[1]
         else:
@@ -178,7 +195,7 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
                                    cs[V_MAX], cs[BRAKE], cs[A_MAX])
         lx, ly = ramp_step(gx, gy, last, cs[A_MAX] * cs[C_DT])
         if ns[GUIDED]:  # MobileBase._base_command under guidance: the admittance's velocity
-            if fs[MOVING] != 0.0:  # as feedforward within v_max, then the safety filter
+            if grec[0] != 0.0:  # as feedforward within v_max, then the safety filter
                 lx, ly = lx + gv[0], ly + gv[1]
                 speed = hypot(lx, ly)
                 if speed > cs[V_MAX]:
@@ -216,23 +233,24 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
                       cs[NOISE], held)
             # ForceEstimator.update (fresh; the bias tracked only with no cue under way)
             q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S],
-                                    not under_way, fs[QUIET], eparams, est)
-            fs[QUIET], fs[AT_REST] = q, 1.0 if rest else 0.0
+                                    not under_way, erec[E_QUIET], eparams, est)
+            erec[E_QUIET], erec[E_AT_REST] = q, 1.0 if rest else 0.0
             measured = True
         elif under_way:  # ForceEstimator.update between samples, a cue under way
-            fs[QUIET], fs[AT_REST] = 0.0, 0.0
+            erec[E_QUIET], erec[E_AT_REST] = 0.0, 0.0
             equeue[0], equeue[1] = 0, 0
         # --- FilteredCueDetector.update (the estimate held between samples): the low-pass
         # and calibration, then, unless the idle test answers, decide_step; a cue given, or
         # a cue under way begun, active or over hands the rest of the step to Python
         x, y = eforce[0], eforce[1]
         if math.isfinite(x) and math.isfinite(y):
-            fs[VAR], fs[ON], fs[OFF], ex, ey, quiet = filter_step(
-                x, y, not under_way, fs[AT_REST] != 0.0, f, baseline, dring, dqueue, fs[VAR],
-                fs[ON], fs[OFF], dparams, ns[HOLD_N])
+            drec[D_VAR], drec[D_ON], drec[D_OFF], ex, ey, quiet = filter_step(
+                x, y, not under_way, erec[E_AT_REST] != 0.0, f, baseline, dring, dqueue,
+                drec[D_VAR], drec[D_ON], drec[D_OFF], dparams, ns[HOLD_N])
             if not quiet:
                 was_active = st[ACTIVE]
-                given = decide_step(ex, ey, st, baseline, dqueue, fs[ON], fs[OFF], rule, dbuf)
+                given = decide_step(ex, ey, st, baseline, dqueue, drec[D_ON], drec[D_OFF], rule,
+                                    dbuf)
                 if given or st[ACTIVE] != was_active or \
                         (st[ACTIVE] != 0.0 or st[ABOVE] > 0.0) != under_way:
                     fs[CUE] = given
@@ -240,21 +258,21 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
         # --- Measurements.update (nothing pushes: Coaster.ready)
         if ns[MEASURE]:
             vx, vy = qvel[ns[VX]], qvel[ns[VY]]
-            acc = planar_accel(vx, vy, fs[VPX], fs[VPY], t, fs[T_PREV], cs[DT])
-            fs[VPX_OLD], fs[VPY_OLD] = fs[VPX], fs[VPY]
-            fs[VPX], fs[VPY], fs[T_PREV] = vx, vy, t
-            if acc > fs[PEAK_PUSHED]:
-                fs[PEAK_PUSHED] = acc
+            acc = planar_accel(vx, vy, meas[M_VX], meas[M_VY], t, meas[M_T], cs[DT])
+            fs[VPX_OLD], fs[VPY_OLD] = meas[M_VX], meas[M_VY]
+            meas[M_VX], meas[M_VY], meas[M_T] = vx, vy, t
+            if acc > meas[M_PEAK_PUSHED]:
+                meas[M_PEAK_PUSHED] = acc
             # (not while a push acts or within 0.1 s of its end: MobileBase._pushed_now)
-            if acc > fs[PEAK] and not (ns[PUSHING] and pp[0] <= t <= pp[0] + pp[1] + 0.1):
-                fs[PEAK] = acc
+            if acc > meas[M_PEAK] and not (ns[PUSHING] and pp[0] <= t <= pp[0] + pp[1] + 0.1):
+                meas[M_PEAK] = acc
             if measured:
                 h = hypot(eforce[0], eforce[1])
-                if h > fs[PEAK_FORCE]:
-                    fs[PEAK_FORCE] = h
+                if h > meas[M_PEAK_FORCE]:
+                    meas[M_PEAK_FORCE] = h
             if sensordata[ns[CADR]] > 0.0:  # mjData.ncon, from the contact sensor
                 return CONTACTS, step + 1
-            fs[TOUCHING] = 0.0
+            meas[M_TOUCHING] = 0.0
         # --- PathCrossings (the on_substep hook; nothing pushes): the polytope under the base
         # (Scene.cell_at's grid lookup); another one, or a cell off the lookup, in Python
         if ns[POLY] >= 0:
@@ -278,7 +296,7 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, fs, cs,
             f0, f1 = filt[0], filt[1]
             filt[0], filt[1] = f0 + cs[ALPHA] * (eforce[0] - f0), f1 + cs[ALPHA] * (eforce[1] - f1)
         if ns[INTERACT] and st[ACTIVE] != 0.0:
-            fs[ACTIVE_S] += cs[H]
+            irec[0] += cs[H]
     return READY, max_steps
 
 
@@ -306,16 +324,22 @@ class Coaster:
         self.base = base
         self._data = None
 
+    def __getstate__(self) -> dict:
+        """A copy's state (``copy.deepcopy``, a task's snapshot): the base only; the copy binds
+        its arrays and addresses (:meth:`_bind`) and resolves its constants at its first run."""
+        return {"base": self.base, "_data": None}
+
     @staticmethod
     def applies(base) -> bool:
-        """The base's setup is one the kernel mirrors (module docstring: the realistic chain
-        without thermal drift, the profiled or held-velocity controller; the base checks its
-        own kind, a plain :class:`~.mobile_base.MobileBase`, and whether compiled steps are
-        on, :func:`enabled`, with the scene's contact sensor: ``base.compiled_steps``)."""
-        s, c = base.sensing, base.controller
-        return (s.sensor_model is not None
-                and s.sensor_model.thermal_n == 0 and type(s.detector) is FilteredCueDetector
-                and type(c) in (ProfiledController, HeldVelocity))
+        """The base's setup is one the kernel mirrors: a sensor with faults, and the base,
+        its detector, controller, measurements and guidance (if any) each of a class that
+        declares the kernel runs it (:func:`~.kernel_parts.declared`: safe by default; the
+        base checks whether compiled steps are on, :func:`enabled`, with the scene's contact
+        sensor: ``base.compiled_steps``)."""
+        s = base.sensing
+        return (s.sensor_model is not None and declared(base) and declared(s.detector)
+                and declared(base.controller) and declared(base.measurements)
+                and (base.guidance is None or declared(base.guidance)))
 
     def _quiet_until(self) -> float:
         """The time before which every ``pre_substep`` hook does nothing (each says so with a
@@ -327,11 +351,14 @@ class Coaster:
         return t
 
     def ready(self) -> bool:
-        """The next step is one the kernel mirrors: no pushes at any time, no ``on_substep``
-        hook but one :class:`~.path_crossings.PathCrossings`, every ``pre_substep`` hook quiet
-        now, no waypoint on the way (:meth:`.decision.DecisionStep.move`), and either no cue
-        under way (a guidance admittance may still move: its tail) or the push phase of a
-        base that neither yields nor is guided (its cue runs in the kernel)."""
+        """The next step is one the kernel mirrors: every part in a mode the kernel runs
+        (:func:`~.kernel_parts.runs`: the base, the faulty sensor, its estimator, the
+        detector, the controller, the measurements, the guidance), no pushes at any time,
+        no ``on_substep`` hook but one :class:`~.path_crossings.PathCrossings`, every
+        ``pre_substep`` hook quiet now, no waypoint on the way
+        (:meth:`.decision.DecisionStep.move`), and either no cue under way (a guidance
+        admittance may still move: its tail) or the push phase of a base that neither yields
+        nor is guided (its cue runs in the kernel)."""
         b = self.base
         s = b.sensing
         f = s.faulty
@@ -340,12 +367,14 @@ class Coaster:
         else:
             cues = b._onset is None and not s.under_way
         return (cues and b.decision.final is None and not b.pushes and self._hooks_mirrored()
-                and b.kernel_ready()
+                # (the base, detector, controller, measurements and guidance declare:
+                # applies, asked with the coaster; the sensor and estimator exist after a reset)
+                and b.kernel_ready() and f is not None and runs(f) and runs(s.estimator)
+                and s.detector.kernel_ready() and b.controller.kernel_ready()
+                and b.measurements.kernel_ready()
+                and (b.guidance is None or b.guidance.kernel_ready())
                 and (not b.pre_substep or b.data.time < self._quiet_until())
-                and not b.external_forces and f is not None and f._held is not None
-                and s.estimator._qvel_mark is not None
-                and b._float_for is b.controller and b._float_control
-                and (not b.measure or b.measurements._f_measured is s.force_estimate))
+                and not b.external_forces)
 
     def _hooks_mirrored(self) -> bool:
         """Every ``on_substep`` hook is one the kernel runs without: at most one
@@ -385,7 +414,6 @@ class Coaster:
         d = b.data
         self._warnings = d.warning.number
         self._R = d.site_xmat[b.sensing.sensor.site].reshape(3, 3)
-        self._scratch = np.zeros(15)  # sensing.physical_reading's
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
         self._err = np.zeros(2)
         self._data = d
@@ -400,6 +428,10 @@ class Coaster:
         self._entry = None
         #: the push record of no push phase (:meth:`~.force_cue.HumanPush.record`'s kind)
         self._no_push = np.zeros(5)
+        #: the record of no guidance and of no interaction (the kernel leaves it at 0)
+        self._no_rec = np.zeros(1)
+        #: the kernel's own floats (slots ``CUE`` ...)
+        self._fs = np.zeros(N_FS)
 
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
@@ -503,11 +535,16 @@ class Coaster:
 
     def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None,
              push=None, interaction=None) -> tuple[int, int, list]:
-        """One kernel call from the Python objects' state and back: ``(reason, steps,
-        fs)``, ``fs`` the float state after it (a list, slots as :data:`QUIET` ...); the move's
+        """One kernel call on the parts' own state: ``(reason, steps, fs)``, ``fs`` the
+        kernel's floats after it (a list, slots as :data:`CUE` ...). The parts' records (the
+        estimator's, detector's, measurements', guidance's and interaction's ``rec``, the
+        sensor's window, the controller's ramp, the task's filter) are read and written in
+        place; only a new sample's held sample and estimate are new arrays (the Python path's
+        are, and a part tells a new estimate by its identity). The move's
         start ``t0``, shortest time ``min_s`` and end ``t_end`` (s); ``push`` the push phase's
         :class:`~.force_cue.HumanPush` (None: no push phase), ``interaction`` an object whose
-        ``active_s`` gains the timestep at every step the detector is active (None: none)."""
+        record ``rec[0]`` (its ``active_s``) gains the timestep at every step the detector is
+        active (None: none)."""
         b = self.base
         if self._data is not b.data:
             self._bind()
@@ -515,11 +552,8 @@ class Coaster:
         s, c, m = b.sensing, b.controller, b.measurements
         f, est, det = s.faulty, s.estimator, s.detector
         g, d = b.guidance, self._data
-        vpx, vpy = m._v_prev
-        fs = np.array([est.quiet, est.at_rest, det.var, det.on_n, det.off_n, vpx, vpy,
-                       m._t_prev, m.peak_accel, m.peak_accel_pushed, m.peak_force, m._touching,
-                       0.0, 0.0 if interaction is None else interaction.active_s, 0.0, 0.0,
-                       d.time, g is not None and g.moving], dtype=np.float64)
+        fs = self._fs
+        fs[CUE], fs[TIME] = 0.0, d.time
         cs, ns = self._constants(force_filter)
         ns[PUSHING], ns[INTERACT] = push is not None, interaction is not None
         cs[T0], cs[MIN_S], cs[T_END] = t0, min_s, t_end
@@ -528,19 +562,19 @@ class Coaster:
         wrench = b._wrench()
         if not b.external_forces:
             wrench.fill(0.0)
+        # a sample gives a new held sample and estimate (new arrays, as the Python path's)
         held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
         filt = self._err if force_filter is None else force_filter.f
         arm = b.compiled_arm() if self._arm else None
         goal = c.u if type(c) is HeldVelocity else self._err
         args = (self._mj, self._robot,
                 (c.last, b.target, self._err, goal, filt,
-                 self._no_push if push is None else push.record(), wrench),
-                (f.bias, held, f.win, self._scratch), f.rng_pointers, est.params,
-                (est._qvel_mark, est._jac, est._dv, eacc, est.bias, est._ring, est._queue,
-                 eforce, *est._scratch),
-                (det.f, det.baseline, det._ring, det._queue, det.params, det.st, det.rule,
-                 det._buf),
-                self._guide_args, arm, fs, cs, ns, max_steps)
+                 self._no_push if push is None else push.record(), wrench,
+                 self._no_rec if interaction is None else interaction.rec),
+                f.step_arrays(held), f.rng_pointers, (est.params, est.rec),
+                est.step_arrays(eacc, eforce), det.step_arrays(),
+                (*self._guide_args, self._no_rec if g is None else g.rec), arm, m.rec,
+                fs, cs, ns, max_steps)
         entry = self._entry
         if entry is None:
             entry = self._entry = compiled_entry(args)
@@ -552,28 +586,16 @@ class Coaster:
         # run in Python after a hand-back within it)
         if b.on_substep:
             self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))
-        # --- the state back into the Python objects (a sample gives a new held sample and
-        # estimate, new arrays as the Python path's)
         new_estimate = ns.item(SAMPLES) > 0
         if new_estimate:
             f._held = held
             est.acc, est.force = eacc, eforce
             s.force_estimate = est.force
+        if b.measure and not (reason == DETECT and new_estimate and f.fresh):
+            # measured by the kernel (a step handed back at an onset is measured in Python,
+            # with a new estimate if its sample gave one)
+            m._f_measured = s.force_estimate
         fs = fs.tolist()
-        if interaction is not None:
-            interaction.active_s = fs[ACTIVE_S]
-        est.quiet, est.at_rest = fs[QUIET], fs[AT_REST] != 0.0
-        if g is not None:
-            g.moving = fs[MOVING] != 0.0
-        det.var, det.on_n, det.off_n = fs[VAR], fs[ON], fs[OFF]
-        if b.measure:
-            m._v_prev, m._t_prev = (fs[VPX], fs[VPY]), fs[T_PREV]
-            m.peak_accel, m.peak_accel_pushed = fs[PEAK], fs[PEAK_PUSHED]
-            m.peak_force, m._touching = fs[PEAK_FORCE], fs[TOUCHING] != 0.0
-            if not (reason == DETECT and new_estimate and f.fresh):
-                # measured by the kernel (a step handed back at an onset is measured in
-                # Python, with a new estimate if its sample gave one)
-                m._f_measured = s.force_estimate
         if fs[TIME] != d.time:  # pragma: no cover - mj_step advances time by its timestep
             raise RuntimeError(f"the compiled move's time {fs[TIME]!r} is not MjData's "
                                f"{d.time!r}")

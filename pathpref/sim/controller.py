@@ -141,6 +141,15 @@ class ProfiledController(TrackingController):
         """Forget the last command (the base stands)."""
         self.last[:] = 0.0
 
+    #: the compiled move runs this controller's law (its goal and ramp: :func:`profiled_goal`,
+    #: :func:`ramp_step`; :mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """Every step (whether the base takes its float path is the base's:
+        :meth:`~.mobile_base.MobileBase.kernel_ready`)."""
+        return True
+
     def goal_xy(self, px: float, py: float, tx: float, ty: float) -> tuple[float, float]:
         """:meth:`goal_velocity` on floats (subclasses with another goal override this)."""
         return profiled_goal(float(px), float(py), float(tx), float(ty), self.kp, self.v_max,
@@ -176,6 +185,14 @@ class HeldVelocity(ProfiledController):
     u: np.ndarray = field(default_factory=lambda: np.zeros(3), compare=False)
     #: the agent's velocity, not a target: the diff-drive base turns toward it everywhere
     tracks_target: ClassVar[bool] = False
+
+    #: the compiled move runs this held command (its goal is ``u[:2]`` as is;
+    #: :mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """Every step."""
+        return True
 
     def hold(self, v: np.ndarray, yaw: float = 0.0) -> None:
         """Hold ``v = (vx, vy)`` (m/s) until the next call (the yaw is regulated at every

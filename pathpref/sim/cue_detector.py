@@ -33,6 +33,7 @@ import numpy as np
 from ..episode.physics import DETECTOR
 from ..errors import ConfigError
 from ..geometry.grid import heading_to_action
+from .kernel_parts import Slot
 from .native import _ddot
 
 #: how far from the lean's opposite a would-be onset may point and still be the resting hand
@@ -337,6 +338,9 @@ class CueDetector:
 
 #: :func:`filter_step`'s constants, in this order in :attr:`FilteredCueDetector.params`
 ALPHA, BETA, GAMMA, ON_K, OFF_K, BASE_ON, BASE_OFF = range(7)
+#: slots of :attr:`FilteredCueDetector.rec`, its calibration's scalars (the variance at rest
+#: in N^2 and the thresholds it sets, N), which both drivers read and write in place
+D_VAR, D_ON, D_OFF, N_DREC = range(4)
 
 
 @nb.njit(cache=True)
@@ -438,6 +442,8 @@ class FilteredCueDetector(CueDetector):
                  floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0,
                  baseline_tau_s: float = 1.0, hold_s: float = 0.15, settle_s: float = 0.5,
                  lean_s: float = 3.0, lean_n: float = 20.0):
+        #: the calibration's scalars (slots ``D_*``: :attr:`var`, :attr:`on_n`, :attr:`off_n`)
+        self.rec = np.zeros(N_DREC)
         for name, v in (("tau_s", tau_s), ("floor_tau_s", floor_tau_s),
                         ("baseline_tau_s", baseline_tau_s), ("hold_s", hold_s),
                         ("settle_s", settle_s), ("lean_s", lean_s), ("lean_n", lean_n)):
@@ -454,9 +460,24 @@ class FilteredCueDetector(CueDetector):
         self._hold_n = int(round(hold_s / dt))
         #: :func:`filter_step`'s constants (its ``params``)
         self.params = np.array([self._alpha, self._beta, self._gamma, on_k, off_k, on_n, off_n])
-        self.var = 0.0  # per-axis variance of the filtered force at rest (N^2)
+        self.var = 0.0
         self.baseline = np.zeros(2)  # N, world x-y
         super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg)
+
+    #: the per-axis variance of the filtered force at rest (N^2) and the thresholds it sets
+    #: (N), in :attr:`rec`
+    var = Slot(D_VAR)
+    on_n = Slot(D_ON)
+    off_n = Slot(D_OFF)
+
+    #: the compiled move runs this detector's step (the low-pass and calibration,
+    #: :func:`filter_step`, and :func:`decide_step`; :mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """Every step (a cue under way runs in the kernel only through a push phase:
+        :meth:`.coasting.Coaster.ready`)."""
+        return True
 
     def reset(self) -> None:
         """Forget any cue in progress, the filter's state, the baseline and the lean (the
@@ -469,6 +490,14 @@ class FilteredCueDetector(CueDetector):
         # the calibration queue: a ring of (fx, fy) rows and its (head, length)
         self._ring = np.zeros((self._hold_n + 4, 2))
         self._queue = np.zeros(2, dtype=np.int64)
+
+    def step_arrays(self) -> tuple:
+        """The detector's arrays as the compiled move (:mod:`.coasting`) takes them:
+        :func:`filter_step`'s (the low-pass, baseline, calibration ring and queue, constants),
+        then :func:`decide_step`'s (state, rule, scratch) and the record :attr:`rec`; the
+        same arrays :meth:`update` passes."""
+        return (self.f, self.baseline, self._ring, self._queue, self.params, self.st,
+                self.rule, self._buf, self.rec)
 
     @property
     def leaned(self) -> int:

@@ -34,11 +34,15 @@ import numba as nb
 import numpy as np
 
 from ..errors import ConfigError
+from .kernel_parts import Slot
 from .native import matTvec, matvec, mj_jacBodyCom, norm
 
 GRAVITY_UP = np.array([0.0, 0.0, 9.81])
 #: :func:`estimate_step`'s constants, in this order in :attr:`ForceEstimator.params`
 MASS, BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, COMPENSATE = range(6)
+#: slots of :attr:`ForceEstimator.rec`, the estimator's scalar state (the rest timer
+#: ``quiet`` in s and ``at_rest``, 1.0 or 0.0), which both drivers read and write in place
+E_QUIET, E_AT_REST, N_EREC = range(3)
 #: the bias queue's rows beyond ``quiet_s / dt + 1`` (the most it holds)
 QUEUE_SLACK = 4
 
@@ -130,6 +134,8 @@ class ForceEstimator:
     def __init__(self, model: mujoco.MjModel, body: int, mass_kg: float,
                  config: EstimatorConfig | None = None):
         self.model, self.body, self.mass = model, int(body), float(mass_kg)
+        #: the scalar state (slots ``E_*``: :attr:`quiet`, :attr:`at_rest`)
+        self.rec = np.zeros(N_EREC)
         self.config = config or EstimatorConfig()
         self.dt = float(model.opt.timestep)
         self._jac = np.zeros((3, model.nv))
@@ -141,6 +147,18 @@ class ForceEstimator:
         self._ring = np.zeros((int(c.quiet_s / self.dt) + 1 + QUEUE_SLACK, 3))
         self._scratch = (np.zeros(3), np.zeros(3), np.zeros(3))
         self.reset()
+
+    #: how long the base has been still (s) and whether it is at rest (:attr:`rec`)
+    quiet = Slot(E_QUIET)
+    at_rest = Slot(E_AT_REST, boolean=True)
+
+    #: the compiled move runs this estimator's step (:mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """The compiled move runs the next update: the estimator has started (its first
+        sample, which marks the velocities, is Python's)."""
+        return self._qvel_mark is not None
 
     def reset(self) -> None:
         """Forget the bias estimate and the rest timer (a new robot, not yet zeroed)."""
@@ -189,12 +207,17 @@ class ForceEstimator:
         if self._qvel_mark is None:
             self._qvel_mark = data.qvel.copy()
         self.acc, self.force = np.zeros(3), np.zeros(2)  # new arrays: a new estimate
-        st = (self._qvel_mark, self._jac, self._dv, self.acc, self.bias, self._ring,
-              self._queue, self.force, *self._scratch)
         self.quiet, self.at_rest = estimate_step(
             self.model._address, data._address, self.body, reading, R, data.qvel, window,
-            cue_idle, self.quiet, self.params, st)
+            cue_idle, self.quiet, self.params, self.step_arrays(self.acc, self.force))
         return self.force
+
+    def step_arrays(self, acc: np.ndarray, force: np.ndarray) -> tuple:
+        """:func:`estimate_step`'s state arrays (its ``st``), with ``acc`` and ``force`` the
+        arrays the step writes its acceleration and estimate into: what :meth:`update` and
+        the compiled move (:mod:`.coasting`) both pass."""
+        return (self._qvel_mark, self._jac, self._dv, acc, self.bias, self._ring, self._queue,
+                force, *self._scratch)
 
 
 class ResidualEstimator:

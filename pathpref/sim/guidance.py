@@ -29,6 +29,7 @@ from ..episode.body import Felt
 from ..episode.physics import CELL_SIZE_M, GUIDANCE_MAX_EVIDENCE, GUIDANCE_PERIOD_S
 from ..geometry.footprint import _clear_at
 from ..geometry.grid import heading_to_action
+from .kernel_parts import Slot
 from .native import hypot
 
 #: below this admittance speed, with no cue under way, the admittance is at rest (m/s): the
@@ -50,11 +51,23 @@ class Guidance:
         self.evidence = np.zeros(2)  # the impulse since the last evidence record (N s)
         self.evidence_s = 0.0  # its duration (s)
         self.deformation = np.zeros(2)  # the target's displacement since the last record (m)
-        #: the admittance moves the target (False: at rest, ``v = 0``)
+        #: the state the compiled move reads and writes in place: ``[moving]``
+        self.rec = np.zeros(1)
         self.moving = False
         self.given = 0.0  # the evidence the cue under way has given (observations)
         self._rest = np.zeros(2)  # the force while no cue is under way
         self._params_for = None  # the controller step_params were made for
+
+    #: the admittance moves the target (False: at rest, ``v = 0``), in :attr:`rec`
+    moving = Slot(0, boolean=True)
+
+    #: the compiled move runs this admittance's tail (:func:`admit_step` with no cue under
+    #: way; :mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """Every step with no cue under way (:meth:`.coasting.Coaster.ready` asks that)."""
+        return True
 
     def reset(self) -> None:
         """A standing base: no admittance velocity, no evidence."""

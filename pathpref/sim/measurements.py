@@ -21,6 +21,7 @@ import mujoco
 import numba as nb
 import numpy as np
 
+from .kernel_parts import Slot
 from .native import hypot
 
 
@@ -35,21 +36,48 @@ def planar_accel(vx, vy, vpx, vpy, t, t_prev, dt):
     return hypot(vx - vpx, vy - vpy) / span
 
 
+#: slots of :attr:`Measurements.rec`, the scalars a step updates (the velocity and time of the
+#: step before, the peaks, whether the base touches the static world), which both drivers
+#: read and write in place
+M_VX, M_VY, M_T, M_PEAK, M_PEAK_PUSHED, M_PEAK_FORCE, M_TOUCHING, N_MREC = range(8)
+
+
 class Measurements:
     """The measurements of one base (module docstring); :meth:`update` after each physics
     step, :meth:`metrics` at the end of the episode."""
 
     def __init__(self, model: mujoco.MjModel, dt: float):
         self.model, self.dt = model, dt
+        #: the scalars a step updates (slots ``M_*``)
+        self.rec = np.zeros(N_MREC)
         self._static = np.array([model.geom(i).name.startswith(("obstacle_", "wall_"))
                                  for i in range(model.ngeom)], dtype=bool)
         self._wrench = np.zeros(6)
         self._data: mujoco.MjData | None = None
         self.reset(0.0)
 
+    #: the peaks (m/s^2, N) and whether the base touches the static world, in :attr:`rec`
+    peak_accel = Slot(M_PEAK)
+    peak_accel_pushed = Slot(M_PEAK_PUSHED)
+    peak_force = Slot(M_PEAK_FORCE)
+    _touching = Slot(M_TOUCHING, boolean=True)
+
+    #: the compiled move runs these measurements of a step nothing pushes
+    #: (:func:`planar_accel`, the peaks, the contact count; :mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """Every step (whether the estimate is the one measured is the base's: :meth:`holds`)."""
+        return True
+
+    def holds(self, force: np.ndarray) -> bool:
+        """Whether ``force`` is the estimate measured last (the kernel measures a new
+        estimate only)."""
+        return self._f_measured is force
+
     def reset(self, t: float) -> None:
         """Start measuring at simulated time ``t`` with the base at rest."""
-        self._v_prev, self._t_prev = (0.0, 0.0), float(t)
+        self.rec[M_VX], self.rec[M_VY], self.rec[M_T] = 0.0, 0.0, float(t)
         self.peak_accel = 0.0
         self.peak_accel_pushed = 0.0
         self.peak_force = 0.0
@@ -67,11 +95,11 @@ class Measurements:
         only when the step's acceleration is a new peak) and the push estimate ``force``."""
         if data is not self._data:  # MjData's qvel, bound once (its buffer stays put)
             self._data, self._qvel = data, data.qvel
-        t, qvel = data.time, self._qvel
+        t, qvel, rec = data.time, self._qvel, self.rec
         vx, vy = qvel.item(vxy_adr[0]), qvel.item(vxy_adr[1])
-        v_prev = self._v_prev  # the velocity a contact begun now met
-        a = planar_accel(vx, vy, v_prev[0], v_prev[1], t, self._t_prev, self.dt)
-        self._v_prev, self._t_prev = (vx, vy), t
+        v_prev = rec.item(M_VX), rec.item(M_VY)  # the velocity a contact begun now met
+        a = planar_accel(vx, vy, v_prev[0], v_prev[1], t, rec.item(M_T), self.dt)
+        rec[M_VX], rec[M_VY], rec[M_T] = vx, vy, t
         if a > self.peak_accel_pushed:
             self.peak_accel_pushed = a
         if a > self.peak_accel and not pushed():

@@ -139,22 +139,25 @@ class MobileBase:
     def coaster(self) -> Coaster | None:
         """The compiled steps of a move with nothing pushing (:mod:`.coasting`) when they
         apply to this base as it is set up now, else None (a subclass steps otherwise)."""
-        if not (self.compiled_steps and self.kernel_mirrors() and Coaster.applies(self)):
+        if not (self.compiled_steps and Coaster.applies(self)):
             return None
         if self._coaster is None:
             self._coaster = Coaster(self)
         return self._coaster
 
-    def kernel_mirrors(self) -> bool:
-        """Whether the compiled move mirrors this kind of base's step: the plain base (a
-        subclass that steps otherwise says so: the differential drive does not, the
-        physical carry arm does)."""
-        return type(self) is MobileBase
+    #: the compiled move runs this kind of base's step (:mod:`.kernel_parts`: a subclass
+    #: that steps otherwise declares nothing and keeps the Python path, as the differential
+    #: drive does; the physical carry arm declares its own)
+    KERNEL_RUNS = True
 
     def kernel_ready(self) -> bool:
-        """Whether the compiled move may take the next step as far as this base's own parts
-        go (:meth:`.coasting.Coaster.ready`; the plain base: always)."""
-        return True
+        """Whether the compiled move may take the next step as far as this base's own state
+        goes (:meth:`.coasting.Coaster.ready`): its float control path for its controller
+        (:meth:`_can_float`, judged when the controller changed) and, when it measures, the
+        estimate held already measured (the kernel measures a new one only)."""
+        return (self._float_for is self.controller and self._float_control
+                and (not self.measure
+                     or self.measurements.holds(self.sensing.force_estimate)))
 
     def kernel_prepare(self) -> None:
         """What this base does before the compiled move's steps (the plain base: nothing;

@@ -250,6 +250,35 @@ class FaultySensor:
         self._data = None
         self.restart()
 
+    #: the compiled move runs this sensor's step (:mod:`.kernel_parts`)
+    KERNEL_RUNS = True
+
+    def kernel_ready(self) -> bool:
+        """The compiled move runs the next sample: no thermal warm-up (its offset is
+        Python's) and a sample held (the first one is taken in Python)."""
+        return self.spec.thermal_n == 0 and self._held is not None
+
+    def step_arrays(self, held: np.ndarray) -> tuple:
+        """The sensor's arrays as the compiled move (:mod:`.coasting`) takes them: the drift
+        bias, ``held`` (where a new sample goes), the window (:func:`window_step`'s ``win``)
+        and :func:`physical_reading`'s scratch; the arrays :meth:`read` passes."""
+        return self.bias, held, self.win, self._scratch
+
+    def __getstate__(self) -> dict:
+        """The sensor's state for a copy (``copy.deepcopy``, a task's snapshot:
+        ``pathpref_tasks.snapshot``) without what is bound to addresses: the ``MjData`` views
+        and address (bound again at the next read) and the Generator's pointers (taken again
+        from the copy's own Generator, :meth:`__setstate__`)."""
+        state = dict(self.__dict__)
+        for k in ("_dp", "_reading", "_R", "rng_pointers"):
+            state.pop(k, None)
+        state["_data"] = None
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self.rng_pointers = bit_generator_pointers(self.rng)
+
     @property
     def fresh(self) -> bool:
         """Whether the last :meth:`read` gave a new sample."""
