@@ -87,7 +87,7 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
     p = k / n
     centre = (p + z * z / (2 * n)) / (1 + z * z / n)
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return centre - half, centre + half
+    return max(0.0, centre - half), min(1.0, centre + half)  # no -0.0 of rounding
 
 
 def train_plans(n: int = len(TRAIN_PLANS)) -> list[dict]:
@@ -254,6 +254,7 @@ def plot_curve(episodes: list[dict], path: Path, title: str, window: int = 50) -
                     "-", label=f"mean of {window} episodes")
             ax.legend(loc="lower right")
         ax.set_ylabel(key)
+    ax1.set_ylim(-0.05, 1.05)
     ax2.set_xlabel("environment steps (decisions)")
     ax1.set_title(title)
     fig.tight_layout()
