@@ -15,7 +15,8 @@ their directions, the expected goal direction, the occupancy around the base, th
 Training episodes are drawn round the :data:`TRAIN_PLANS` generated plans
 (:func:`pathpref.geometry.generate.floor_plan`, 24 x 16 cells, a preferred route through four
 waypoints; a random plan per episode), each plan's episodes from its own seed; training stops
-after ``--steps`` environment steps (decisions), whatever the CPU time. Then the saved agent,
+after ``--steps`` environment steps (decisions), whatever the CPU time (``--cpu-minutes``,
+off by default, adds a CPU cap as the earlier example had). Then the saved agent,
 deterministic, is evaluated on ``--eval`` episodes of each of: held-out instances of the
 training plans (seeds from :data:`EVAL_SEED`, never drawn in training) and each built-in map of
 ``--maps`` (never seen), with success and its Wilson 95% interval.
@@ -160,15 +161,17 @@ def make_env(map_, seed: int) -> gym.Env:
 
 class Progress(BaseCallback):
     """After each rollout prints one JSON line: steps, wall and CPU seconds, the success and
-    mean return of the last 100 training episodes."""
+    mean return of the last 100 training episodes; stops training past ``cpu_limit_s`` of
+    this process's CPU time (``--cpu-minutes``, off by default)."""
 
-    def __init__(self, log: PlanMix):
+    def __init__(self, log: PlanMix, cpu_limit_s: float = math.inf):
         super().__init__()
         self.log = log
         self.t0 = time.monotonic()
+        self.cpu_limit_s = cpu_limit_s
 
     def _on_step(self) -> bool:
-        return True
+        return cpu_seconds() < self.cpu_limit_s
 
     def _on_rollout_end(self) -> None:
         last = self.log.episodes[-100:]
@@ -264,10 +267,13 @@ def plot_curve(episodes: list[dict], path: Path, title: str, window: int = 50) -
 
 def main(argv: list[str] | None = None) -> dict:
     """Train, plot, evaluate, save and film (module docstring); the summary."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=" ".join(__doc__.split("\n\n")[0].split()))
     ap.add_argument("--out", default="ppo_out", help="output folder")
     ap.add_argument("--steps", type=int, default=6000,
                     help="environment steps (decisions) to train")
+    ap.add_argument("--cpu-minutes", type=float, default=None,
+                    help="also stop training after this much CPU time of the process (off by "
+                    "default: the step budget alone makes runs comparable across machines)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--plans", type=int, default=len(TRAIN_PLANS),
                     help=f"generated plans to train on (1..{len(TRAIN_PLANS)})")
@@ -303,7 +309,8 @@ def main(argv: list[str] | None = None) -> dict:
                 gamma=args.gamma, ent_coef=args.ent_coef, seed=args.seed,
                 policy_kwargs={"net_arch": net}, device="cpu", verbose=0)
     cpu0, wall0 = cpu_seconds(), time.monotonic()
-    model.learn(total_timesteps=args.steps, callback=Progress(env))
+    limit = math.inf if args.cpu_minutes is None else cpu0 + 60.0 * args.cpu_minutes
+    model.learn(total_timesteps=args.steps, callback=Progress(env, limit))
     train_cpu_s, train_wall_s = cpu_seconds() - cpu0, time.monotonic() - wall0
     model.save(out / "agent.zip")
     eps = env.episodes

@@ -216,7 +216,8 @@ class Navigate(base.Task):
         self.checked_action = None
         if reward not in REWARDS:
             raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {reward!r}")
-        #: the reward rule: ``paper`` (SPEC 6) or ``potential`` (:mod:`.reward`, no loops)
+        #: the reward rule: ``paper`` (SPEC 6), ``potential`` (:mod:`.reward`, no loops) or
+        #: ``route`` (:mod:`.route_reward`, the person's route its optimum)
         self.reward = reward
         self._phi: np.ndarray | None = None
         #: the discount of the ``route`` reward's shaping (:mod:`.route_reward`)
