@@ -43,10 +43,12 @@ TASKS = BUILTIN_TASKS
 
 try:  # Gymnasium is optional for the dm_control tasks; with it, the ids are registered
     from .gym import register_envs
+    from .gym_v1 import register_envs_v1
 except ImportError:  # pragma: no cover - gymnasium not installed
     pass
 else:
     register_envs()
+    register_envs_v1()
 
 __all__ = ["ENVIRONMENT_KWARGS", "TASKS", "Environment", "all_tasks", "gym_id", "load",
            "task_names"]

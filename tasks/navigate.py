@@ -33,8 +33,10 @@ last time step) and every Gymnasium ``info``.
 
 Reward: :func:`pathpref.planning.pomdp.transition_reward` (the paper's, SPEC 6, the one rule
 the POMDP uses) with the human's true preference; with ``reward="potential"`` the loop-free
-rule of :mod:`.reward` (the preference as a potential). The episode ends at the goal (discount 0) or
-after ``T_max`` decisions (discount 1). Seeds: the ``k``-th episode after ``load(seed=s)``
+rule of :mod:`.reward` (the preference as a potential); with ``reward="route"`` that of
+:mod:`.route_reward` (the ``-v1`` ids': its optimum is the person's route; shaped with the
+discount ``gamma``, and a violation ends the episode). The episode ends at the goal (discount
+0) or after ``T_max`` decisions (discount 1). Seeds: the ``k``-th episode after ``load(seed=s)``
 draws its instance from ``seed_for(s, k)`` and its run from ``seed_for(s, k, 0)``, so a task
 is reproducible episode by episode. ``env.task.policy_action()`` is the loaded method's own
 choice (its planner and belief), so the environment runs end to end without an agent.
@@ -98,6 +100,7 @@ from pathpref.sim.scene import Scene
 from .drawing import TaskDrawing
 from .plugins import entry_point_map
 from .reward import REWARDS, potential_reward, preference_potential
+from .route_reward import DISCOUNT, RouteReward
 from .stage import ForceFilter, Physics, StagedBody, StepInteraction
 
 #: the action that keeps the base in its cell (the compliant baseline's "stop"); 0..7 are moves
@@ -173,7 +176,8 @@ class Navigate(base.Task):
                  seed: int = 0, preset: str = DEFAULT_PRESET, queries: int | None = None,
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate", force: bool = False, decision_s: float | None = None,
-                 physics: Any = None, reward: str = "paper", min_goal_distance: float = 0.0):
+                 physics: Any = None, reward: str = "paper", min_goal_distance: float = 0.0,
+                 gamma: float = DISCOUNT):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -212,9 +216,13 @@ class Navigate(base.Task):
         self.checked_action = None
         if reward not in REWARDS:
             raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {reward!r}")
-        #: the reward rule: ``paper`` (SPEC 6) or ``potential`` (:mod:`.reward`, no loops)
+        #: the reward rule: ``paper`` (SPEC 6), ``potential`` (:mod:`.reward`, no loops) or
+        #: ``route`` (:mod:`.route_reward`, the person's route its optimum)
         self.reward = reward
         self._phi: np.ndarray | None = None
+        #: the discount of the ``route`` reward's shaping (:mod:`.route_reward`)
+        self.gamma = check_number("gamma", gamma, 0.5, 1.0, integer=False)
+        self._route: RouteReward | None = None
         #: the shortest grid distance (cells) from the start to any goal candidate (0: the
         #: paper's draw, :func:`~pathpref.episode.instances.sample_instance`)
         self.min_goal_distance = check_number("min_goal_distance", min_goal_distance, 0.0,
@@ -273,8 +281,11 @@ class Navigate(base.Task):
         self._cells = self.world.cells.astype(np.float64)
         self._polytopes = self.world.cell_polytope.tolist()
         self._belief_key = self._belief_obs = None  # (_belief_observation)
-        self._phi = None if self.reward == "paper" else preference_potential(
+        self._phi = None if self.reward != "potential" else preference_potential(
             self.world, self.runner.instance.goal_cell, self.runner.pref)
+        self._route = None if self.reward != "route" else RouteReward(
+            self.world, self.runner.instance.goal_cell, self.runner.pref, self.gamma,
+            self.runner.spec.t_max, self.rewards.goal)
         #: what the robot felt since the last observation (the observations of the step)
         self.interaction = StepInteraction(self.base)
         physics.drawing = TaskDrawing(self)  # the task in every render
@@ -367,8 +378,12 @@ class Navigate(base.Task):
 
     def _step_reward(self, before: int, after: int, a: int) -> float:
         """The reward of the move with the human's true preference: the paper's (SPEC 6), or
-        the potential-shaped one (:func:`~.reward.potential_reward`)."""
+        the potential-shaped one (:func:`~.reward.potential_reward`) or the route's
+        (:class:`~.route_reward.RouteReward`; a violation is the runner's count rising, which
+        ends the episode: :meth:`get_termination`)."""
         r = self.runner
+        if self._route is not None:
+            return self._route(before, after, a, r.result.violations > 0)
         if self._phi is not None:
             return potential_reward(self.world, self._phi, before, after, a,
                                     r.instance.goal_cell, self.rewards.goal)
@@ -483,9 +498,12 @@ class Navigate(base.Task):
 
     def get_termination(self, physics: Physics):
         """0 (terminal) at the goal or at an unsafe contact (:meth:`contact_unsafe`: as in
-        every report, a contact-unsafe episode is no success), 1 (time limit) after
-        ``T_max`` decisions, else None."""
+        every report, a contact-unsafe episode is no success), with the ``route`` reward also
+        at the first violation (:mod:`.route_reward`), 1 (time limit) after ``T_max``
+        decisions, else None."""
         if self.runner.result.goal_reached or self.contact_unsafe():
+            return 0.0
+        if self._route is not None and self.runner.result.violations > 0:
             return 0.0
         if self.runner.t >= self.runner.spec.t_max:
             return 1.0

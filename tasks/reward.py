@@ -34,8 +34,9 @@ from pathpref.geometry.grid import STAY
 from pathpref.geometry.world import World
 from pathpref.inference.costs import build_cost_tables
 
-#: the reward rules a task accepts: the paper's (SPEC 6) and the potential above
-REWARDS = ("paper", "potential")
+#: the reward rules a task accepts: the paper's (SPEC 6), the potential above and the person's
+#: route (:mod:`.route_reward`, the ``-v1`` ids')
+REWARDS = ("paper", "potential", "route")
 #: ``c`` of a decision to stay (cells): the time cost of one decision, a straight move's cost
 STAY_COST = 1.0
 
