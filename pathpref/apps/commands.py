@@ -190,15 +190,24 @@ def cmd_db_salvage(args: argparse.Namespace) -> int:
 
 
 def cmd_db_merge(args: argparse.Namespace) -> int:
-    """``pathpref db merge``: join sweep databases (shards) into one, each episode once."""
-    from ..experiments.migrate import merge_databases
+    """``pathpref db merge``: join sweep databases (shards) into one, each episode once, all
+    or nothing (:mod:`pathpref.experiments.merge`)."""
+    from ..experiments.merge import merge_databases
 
     r = merge_databases(args.out, args.inputs)
     print(f"merged {len(args.inputs)} databases into {args.out}: {r['copied']} episodes "
           f"copied ({r['steps']} step rows), {r['replaced']} failed ones replaced by finished "
           f"ones, {r['duplicates']} already there left out ({r['conflicts']} with another "
           f"outcome); {args.out} holds {r['episodes']} episodes")
-    return 0 if r["conflicts"] == 0 else 2
+    if r["no_steps"] and r["with_steps"]:
+        named = "; ".join(r["no_steps_named"])
+        more = r["no_steps"] - len(r["no_steps_named"])
+        print(f"note: {r['no_steps']} of its {r['no_steps'] + r['with_steps']} finished "
+              "episodes have no step rows (run with --no-steps; from "
+              + ", ".join(f"{db}: {n}" for db, n in r["no_steps_from"].items())
+              + f"): {named}" + (f" and {more} more" if more > 0 else "")
+              + "; replay and step-based reports leave them out")
+    return 0
 
 
 # --- experiments ----------------------------------------------------------------------------
