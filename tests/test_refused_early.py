@@ -167,3 +167,4 @@ def test_any_other_switch_value_is_one_line_before_any_work(tmp_path, capsys, mo
         run_sweep(sweep_specs("simple", ["compliant"], [5], 1, 1), str(tmp_path / "x.sqlite"),
                   progress=False)
     assert not Path(tmp_path / "x.sqlite").exists()
+
