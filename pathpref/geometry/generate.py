@@ -52,7 +52,7 @@ MIN_ROUTE_CELLS = 11
 #: the most polytopes a plan of :func:`floor_plan` may have (the bound of
 #: :func:`~.arrangement.arrangement_size`, checked on the drawn obstacles before anything is
 #: built): with at most 200 x 200 cells (``pathpref map generate``), a plan then builds in
-#: seconds (docs/limits.md, "map generate")
+#: seconds (docs/errors.md, "Limits")
 MAX_PLAN_POLYTOPES = 5000
 #: draws of a rotated rectangle's size per rectangle before :func:`random_floor_plan` gives up
 #: (a size that does not fit the map is drawn again)
