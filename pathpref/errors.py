@@ -7,6 +7,11 @@ the fix.
 
 from __future__ import annotations
 
+import errno
+
+#: errors of a full disk or quota (:func:`is_disk_full`)
+DISK_FULL = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
+
 
 class PathprefError(ValueError):
     """Base class of every error caused by bad user input (a ValueError: the Python API
@@ -38,3 +43,11 @@ def did_you_mean(value: object, choices) -> str:
     if not close:
         close = [c for c in names if c.startswith(value)][:1]
     return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def is_disk_full(e: BaseException) -> bool:
+    """True for an error of a full disk or quota (OSError ENOSPC/EDQUOT, SQLite's "database or
+    disk is full")."""
+    if isinstance(e, OSError):
+        return e.errno in DISK_FULL
+    return "database or disk is full" in str(e)

@@ -21,9 +21,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 #: layer rank of each room; a module may import ranks <= its own (sim and viz: not each other)
-RANK = {"errors": 0, "geometry": 1, "maps": 1, "mjcf": 1, "inference": 2, "planning": 3,
-        "episode": 4, "experiments": 5, "sim": 6, "viz": 6, "tasks": 7, "study": 7, "apps": 8,
-        "ros": 8}
+RANK = {"errors": 0, "switches": 0, "geometry": 1, "maps": 1, "mjcf": 1, "inference": 2,
+        "planning": 3, "episode": 4, "experiments": 5, "sim": 6, "viz": 6, "tasks": 7,
+        "study": 7, "apps": 8, "ros": 8}
 
 
 def room_of(module: str) -> str | None:

@@ -82,8 +82,10 @@ def test_merge_replaces_failed_rows_counts_conflicts_and_refuses_bad_inputs(tmp_
     r = merge_databases(out, [a])
     assert (r["copied"], r["replaced"], r["duplicates"]) == (3, 1, 0)
     assert rows(out) == rows(a)
-    assert main(["db", "merge", out, b]) == 2  # the disagreeing run is reported
-    assert "4 already there left out (1 with another outcome)" in capsys.readouterr().out
+    assert main(["db", "merge", out, b]) == 2  # the disagreeing run is refused, named
+    err = capsys.readouterr().err
+    assert f"{out} and {b} disagree on episode goal_only ΔT=1 instance 0 run 0" in err
+    assert "inputs = " in err and len(err.splitlines()) == 1
     assert rows(out) == rows(a)  # the output's rows kept
     with pytest.raises(ConfigError, match="is the output database"):
         merge_databases(out, [out])

@@ -12,7 +12,6 @@ removed on any failure (a full disk included).
 from __future__ import annotations
 
 import argparse
-import errno
 import os
 import stat
 import sys
@@ -23,11 +22,10 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ..episode.spec import LIMITS, MAX_EPISODES, ZERO_OK, check_number, range_error
-from ..errors import ConfigError, did_you_mean
+from ..errors import DISK_FULL, ConfigError, did_you_mean, is_disk_full  # noqa: F401
+from ..experiments.store import new_file_mode
 
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
-#: errors of a full disk or quota
-DISK_FULL = (errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC))
 
 
 # --- numbers --------------------------------------------------------------------------------
@@ -176,13 +174,6 @@ def check_output_folder(out: str | Path, option: str = "--out") -> Path:
     return out
 
 
-def is_disk_full(e: BaseException) -> bool:
-    """True for an error of a full disk or quota (OSError ENOSPC/EDQUOT, SQLite 'full')."""
-    if isinstance(e, OSError):
-        return e.errno in DISK_FULL
-    return "database or disk is full" in str(e)
-
-
 def write_error(out: Path | str, e: BaseException) -> ConfigError:
     """A one-line ConfigError for a failed write of ``out`` (nothing was left behind)."""
     if is_disk_full(e):
@@ -190,14 +181,6 @@ def write_error(out: Path | str, e: BaseException) -> ConfigError:
                            "run again (no partial file was kept)")
     reason = e.strerror if isinstance(e, OSError) and e.strerror else str(e)
     return ConfigError(f"cannot write {out}: {reason} (no partial file was kept)")
-
-
-def new_file_mode() -> int:
-    """The mode a new file gets from ``open()``: ``0o666`` less the process's umask (read
-    without changing it, through ``os.umask`` twice)."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return 0o666 & ~mask
 
 
 def _temp_beside(out: Path) -> Path:

@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from ..errors import PathprefError, did_you_mean
 from ..inference.priors import PRIORS
 from ..planning.pomdp import DEFAULT_PRESET, PRESETS
+from ..switches import check_switches
 from . import commands as c
 from .checks import RangeAction, atomic_output, check_writable, is_disk_full, write_error
 from .physics_args import physics_options
@@ -109,18 +110,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     mg = msub.add_parser("generate", help="write a random floor plan with a preferred route "
                          "(JSON) from a seed")
-    mg.add_argument("--seed", type=int, default=0, help="the plan's seed (default 0)")
-    mg.add_argument("--width", type=int, default=PLAN_DEFAULTS["width"],
+    mg.add_argument("--seed", action=RangeAction, limits="seed", default=0,
+                    help="the plan's seed (default 0)")
+    mg.add_argument("--width", action=RangeAction, limits="plan_side",
+                    default=PLAN_DEFAULTS["width"],
                     help=f"cells across (default {PLAN_DEFAULTS['width']})")
-    mg.add_argument("--height", type=int, default=PLAN_DEFAULTS["height"],
+    mg.add_argument("--height", action=RangeAction, limits="plan_side",
+                    default=PLAN_DEFAULTS["height"],
                     help=f"cells up (default {PLAN_DEFAULTS['height']})")
-    mg.add_argument("--rotated", type=int, default=PLAN_DEFAULTS["rotated"],
+    mg.add_argument("--rotated", action=RangeAction, limits="plan_obstacles",
+                    default=PLAN_DEFAULTS["rotated"],
                     help=f"rectangles at random angles (default {PLAN_DEFAULTS['rotated']})")
-    mg.add_argument("--boxes", type=int, default=PLAN_DEFAULTS["boxes"],
+    mg.add_argument("--boxes", action=RangeAction, limits="plan_obstacles",
+                    default=PLAN_DEFAULTS["boxes"],
                     help=f"cell-aligned boxes (default {PLAN_DEFAULTS['boxes']})")
-    mg.add_argument("--sizes", type=float, nargs=2, metavar=("LO", "HI"),
-                    default=list(PLAN_DEFAULTS["size_range"]),
-                    help="obstacle sides are drawn in LO..HI cells (default "
+    mg.add_argument("--sizes", action=RangeAction, limits="plan_obstacle_size", nargs=2,
+                    metavar=("LO", "HI"), default=list(PLAN_DEFAULTS["size_range"]),
+                    help="obstacle sides are drawn in LO..HI cells, HI below min(width, "
+                    "height) / sqrt 2 with rotated rectangles (default "
                     f"{PLAN_DEFAULTS['size_range'][0]:g} {PLAN_DEFAULTS['size_range'][1]:g})")
     mg.add_argument("--route", choices=ROUTE_KINDS, default="open",
                     help="open: through four waypoints of the largest free area; loop: a "
@@ -338,7 +345,7 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument("--ui", choices=["browser", "viewer"], default="browser",
                     help="browser (default: serves a page, prints its URL) or the MuJoCo "
                     "viewer (needs a display)")
-    sr.add_argument("--port", type=int, default=8765,
+    sr.add_argument("--port", action=RangeAction, limits="port", default=8765,
                     help="browser: TCP port (0: any free port; default 8765)")
     sr.add_argument("--host", default="127.0.0.1",
                     help="browser: address to bind (default 127.0.0.1; any other serves "
@@ -376,7 +383,8 @@ def build_parser() -> argparse.ArgumentParser:
     rpl = sub.add_parser("replay", help="render a recorded study trial to a video")
     rpl.add_argument("db", help="results database holding study trials")
     rpl.add_argument("--participant", required=True, help="the participant's id")
-    rpl.add_argument("--trial", type=int, required=True, help="the trial's position (1, 2, ...)")
+    rpl.add_argument("--trial", action=RangeAction, limits="trial", required=True,
+                     help="the trial's position (1, 2, ...)")
     rpl.add_argument("--out", required=True, help="video file (.mp4)")
     rpl.add_argument("--width", action=RangeAction, limits="frame_size", default=960,
                      help="video width in pixels (default: %(default)s)")
@@ -508,6 +516,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         leaf = getattr(args, "_parser", parser)
         leaf.error(unrecognized(leaf, extra))
     try:
+        check_switches()  # a PATHPREF_* switch of another value: one line, before any work
         return int(args.func(args) or 0)
     except PathprefError as e:  # one line, whatever text a library put in the message
         text = " ".join(" ".join(part.split()) for part in str(e).splitlines() if part.strip())

@@ -102,16 +102,11 @@ def cmd_map_generate(args: argparse.Namespace) -> int:
     """``pathpref map generate``: a random floor plan with a preferred route, checked (it
     loads, and an instance's start and goal candidates can be drawn on it), as JSON."""
     from ..episode.instances import sample_instance
-    from ..geometry.generate import floor_plan
+    from ..geometry.generate import check_plan_request, floor_plan
     from ..geometry.world import load_world
 
-    for flag, value, low in (("--width", args.width, 4), ("--height", args.height, 4),
-                             ("--rotated", args.rotated, 0), ("--boxes", args.boxes, 0)):
-        if not low <= value <= 1000:
-            raise ConfigError(f"{flag} must be an integer in {low}..1000, got {value}")
-    lo, hi = args.sizes
-    if not 0 < lo <= hi:
-        raise ConfigError(f"--sizes LO HI must satisfy 0 < LO <= HI, got {lo:g} {hi:g}")
+    lo, hi = args.sizes  # each in range at parse time, the pair here (one line, no work)
+    check_plan_request(args.width, args.height, args.rotated, (lo, hi))
     out = check_writable(args.out, "--out", (".json",)) if args.out else None
     plan = floor_plan(args.seed, args.route, args.width, args.height, args.rotated, args.boxes,
                       (lo, hi), name=args.name,
@@ -190,15 +185,24 @@ def cmd_db_salvage(args: argparse.Namespace) -> int:
 
 
 def cmd_db_merge(args: argparse.Namespace) -> int:
-    """``pathpref db merge``: join sweep databases (shards) into one, each episode once."""
-    from ..experiments.migrate import merge_databases
+    """``pathpref db merge``: join sweep databases (shards) into one, each episode once, all
+    or nothing (:mod:`pathpref.experiments.merge`)."""
+    from ..experiments.merge import merge_databases
 
     r = merge_databases(args.out, args.inputs)
     print(f"merged {len(args.inputs)} databases into {args.out}: {r['copied']} episodes "
           f"copied ({r['steps']} step rows), {r['replaced']} failed ones replaced by finished "
           f"ones, {r['duplicates']} already there left out ({r['conflicts']} with another "
           f"outcome); {args.out} holds {r['episodes']} episodes")
-    return 0 if r["conflicts"] == 0 else 2
+    if r["no_steps"] and r["with_steps"]:
+        named = "; ".join(r["no_steps_named"])
+        more = r["no_steps"] - len(r["no_steps_named"])
+        print(f"note: {r['no_steps']} of its {r['no_steps'] + r['with_steps']} finished "
+              "episodes have no step rows (run with --no-steps; from "
+              + ", ".join(f"{db}: {n}" for db, n in r["no_steps_from"].items())
+              + f"): {named}" + (f" and {more} more" if more > 0 else "")
+              + "; replay and step-based reports leave them out")
+    return 0
 
 
 # --- experiments ----------------------------------------------------------------------------
@@ -236,7 +240,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     """``pathpref evaluate``: run (or resume) a sweep into ``--db`` and print its tables."""
     from ..experiments.report import load_records, markdown_tables
     from ..experiments.sweep import parse_shard, run_sweep, shard_specs, sweep_specs
-    if args.shard:
+    if args.shard is not None:
         parse_shard(args.shard)  # a malformed --shard before any work
     check_database(args.db)
     check_episode_count([args.instances, args.runs, len(args.delta_t),
@@ -249,7 +253,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
                         seed=args.seed, n_goals=args.goals, sim=args.sim, robot=args.task,
                         physics=physics_json(args, args.sim), record_path_hz=args.record_path,
                         **_common_episode_args(args, args.map))
-    if args.shard:
+    if args.shard is not None:
         specs = shard_specs(specs, *parse_shard(args.shard))
     cleanup = _new_database_guard(args.db)
     try:
@@ -265,7 +269,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     print(f"{counts['ran']} episodes run ({counts['failed']} failed), {counts['skipped']} already "
           f"in {args.db}" + (f" ({elsewhere} of them run by another sweep)" if elsewhere else "")
           + f", {counts['seconds']} s ({counts['episodes_per_s']:g} episodes/s)"
-          + (f"; shard {args.shard} of the sweep" if args.shard else ""))
+          + (f"; shard {args.shard} of the sweep" if args.shard is not None else ""))
     from ..episode import cached_map
 
     recs = [r for r in load_records(args.db) if r["map_hash"] == cached_map(args.map).content_hash]
@@ -416,6 +420,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out is not None and rerun is not None and out.resolve() == rerun.resolve():
         raise ConfigError("--out and --rerun name the same file")
     from ..episode import EpisodeSpec
+    from ..episode.body import check_runnable
     from ..planning.policies import METHODS
     from .rollout import (
         DEFAULT_SIZE,
@@ -443,7 +448,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     spec = EpisodeSpec.single(args.map, args.method, args.delta_t, seed=args.seed,
                               sim="mujoco", robot=args.task,
                               physics=physics_json(args, "mujoco"), **common)
-    spec.validate()
+    check_runnable(spec)
     # temporary files made exclusively (mkstemp) beside the outputs, moved on success
     with staged_outputs([out, rerun]) as (tmp_video, tmp_rerun):
         rec = record_rollout(spec, video=tmp_video, rerun=tmp_rerun, width=width,
@@ -524,8 +529,6 @@ def cmd_study_run(args: argparse.Namespace) -> int:
     study = load_study(args.study)
     check_participant(args.participant)
     check_database(args.db)
-    if not 0 <= args.port <= 65535:
-        raise ConfigError(f"--port must be an integer in 0..65535, got {args.port}")
     script = None
     if args.script:
         from ..study.script import PushScript

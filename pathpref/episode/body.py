@@ -69,6 +69,9 @@ class Body(ABC):
     """
 
     tasks: tuple[str, ...] = ("navigate",)
+    #: the most samples per simulated second :meth:`record_path` takes (its physics rate);
+    #: 0: the body has no continuous path (:func:`check_runnable`)
+    record_rate_hz: float = 0.0
     #: the episode runner's door (:meth:`connect`): every cue the robot feels goes there
     observe: Callable[[Felt], None] = staticmethod(lambda felt: None)
 
@@ -179,6 +182,28 @@ def body_class(sim: str, task: str = "navigate") -> type[Body]:
         need = [n for n, b in BODIES.items() if task in b.tasks]
         raise ConfigError(f"the '{sim}' body cannot run the task '{task}'"
                           + (f": use --sim {need[0]}" if need else ""))
+    return body
+
+
+def check_runnable(spec: EpisodeSpec) -> type[Body]:
+    """The body of ``spec``, refused (one ConfigError line naming the fix) unless it can
+    honour every option of the episode: it exists and offers the task (:func:`body_class`),
+    it records a continuous path at ``record_path_hz`` (at most its
+    :attr:`Body.record_rate_hz`), and the physical parameters fit the body (parsed by
+    :attr:`EpisodeSpec.physical`, :class:`~.physics.Physics`: the drive a body has, the
+    guided base). The one check every command that runs episodes calls before any work."""
+    body = body_class(spec.sim, spec.robot)
+    hz = spec.record_path_hz
+    if hz:
+        rate = body.record_rate_hz or (math.inf if body.record_path is not Body.record_path
+                                       else 0.0)
+        if not rate:
+            raise ConfigError(f"--record-path: the '{spec.sim}' body has no continuous path to "
+                              "record (use --sim mujoco)")
+        if hz > rate * (1 + 1e-9):
+            raise ConfigError(f"--record-path {hz:g}: at most the '{spec.sim}' body's physics "
+                              f"rate, {rate:g} Hz; give a lower rate (e.g. 100)")
+    spec.validate()
     return body
 
 

@@ -101,6 +101,8 @@ class RobotModel:
     #: the plan radius (m) from the base's centre: what the scale is chosen for
     footprint_m: float
     drive: dict = field(default_factory=dict)
+    #: the drives (:data:`BASES`) the body has
+    bases: tuple[str, ...] = BASES
 
 
 #: the bodies (the flat field ``robot_model``; ``disk`` is the original 12 kg cylinder whose
@@ -112,8 +114,21 @@ class RobotModel:
 ROBOT_MODELS: dict[str, RobotModel] = {
     "disk": RobotModel(cell_size_m=0.5, footprint_m=0.15),
     "tidybot": RobotModel(cell_size_m=1.0, footprint_m=0.284,
-                          drive={"mass_kg": 69.29, "v_max": 0.5, "a_max": 0.5}),
+                          drive={"mass_kg": 69.29, "v_max": 0.5, "a_max": 0.5},
+                          bases=("holonomic",)),
 }
+
+
+def check_body_drive(robot_model: str, base: str) -> None:
+    """The one rule of which drive a body has (:attr:`RobotModel.bases`): a ConfigError
+    naming the fix otherwise (the TidyBot's base is holonomic). Checked by :class:`Physics`,
+    so every command refuses the pair before any work, and by the scene that builds the
+    body."""
+    model = ROBOT_MODELS.get(robot_model)
+    if model is not None and base not in model.bases:
+        raise ConfigError(f"--robot-model {robot_model} has a {' or '.join(model.bases)} "
+                          f"base, not --base {base}: use --base {model.bases[0]} (or another "
+                          "--robot-model)")
 #: the simulated person under ``guidance`` timing: ``closed``, who pushes toward their route
 #: and lets go when the robot heads the right way (the simulator's ``guiding_human``), or
 #: ``open``, who holds one drawn heading for the whole push
@@ -389,6 +404,7 @@ class Physics:
             if not isinstance(getattr(self, name), cls):
                 raise ConfigError(f"physics {name} must be a {cls.__name__}, got "
                                   f"{type(getattr(self, name)).__name__}")
+        check_body_drive(self.drive.robot_model, self.drive.kind)
         if self.human.timing == "guidance" and self.drive.kind != "holonomic":
             raise ConfigError("physics timing guidance needs base holonomic (the guided base "
                               "yields in every direction); use --base holonomic")

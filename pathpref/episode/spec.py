@@ -37,6 +37,11 @@ LIMITS: dict[str, tuple[float, float, bool]] = {
     "time_budget_ms": (1e-3, 1e7, False),
     "episode_timeout": (1, 1e6, False),  # or 0: none (the API takes any 0..1e6)
     "record_path": (50, 1e4, False),  # or 0: no path recorded
+    "trial": (1, 100_000, True),  # a study trial's position (replay)
+    "port": (0, 65535, True),  # a TCP port (0: any free one)
+    "plan_side": (4, 200, True),  # map generate --width, --height
+    "plan_obstacles": (0, 200, True),  # map generate --rotated, --boxes
+    "plan_obstacle_size": (1e-3, 1e3, False),  # map generate --sizes LO HI (cells)
 }
 #: the limits whose option also takes 0 (none)
 ZERO_OK = ("episode_timeout", "record_path")

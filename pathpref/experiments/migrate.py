@@ -52,16 +52,9 @@ trials stay), with its NASA-TLX answers; the participant's gamepad calibrations 
 read back. The study rows are read into memory as the episodes are (a salvage is a one-off
 repair).
 
-**merge** (:func:`merge_databases`) joins sweep databases (the shards of a sweep, one per node)
-into one, keyed as every results database is by the episode's key, so each episode is stored
-once: an episode new to the output is copied with its step rows (and recorded path); one the
-output holds already is kept as it is, except that a finished (``ok``) row replaces a failed
-one. Two ``ok`` rows of one key whose outcomes differ (status, success, goal, steps, inputs,
-violations) are counted as ``conflicts`` (the output's row kept): the episodes are
-deterministic, so a conflict means the shards ran different code. Claims (``running`` rows) are
-not copied. Inputs are read only (each checked as a sweep checks its database) and copied a
-batch of episodes per transaction; a database holding study trials is refused (merge joins
-sweeps). """
+**merge** (:func:`merge_databases`, :mod:`.merge`) joins sweep databases (the shards of a
+sweep) into one, each episode once, all or nothing: written into a temporary database beside
+the output and moved onto it only when every input has been checked and copied. """
 
 from __future__ import annotations
 
@@ -587,95 +580,4 @@ def _plain(v: Any) -> Any:
     return int(v) if isinstance(v, bool) else v
 
 
-#: the columns whose values two runs of one episode must share (:func:`merge_databases`)
-OUTCOME = ("status", "success", "goal_reached", "steps", "inputs", "violations")
-#: episodes copied per write transaction by :func:`merge_databases`
-MERGE_BATCH = 500
-
-
-def merge_databases(out: str | Path, inputs: list[str | Path]) -> dict[str, int]:
-    """Copy the episodes of each of ``inputs`` into ``out`` (created when missing), each key
-    once (module docstring, **merge**); returns the counts ``copied``, ``replaced`` (a failed
-    row replaced by an ``ok`` one), ``duplicates`` (left out: the output had the key),
-    ``conflicts`` (duplicates whose outcome differs), ``steps`` (rows copied) and
-    ``episodes`` (in ``out`` afterwards)."""
-    out = Path(out)
-    ids = set()
-    for src in inputs:
-        if not require_sqlite_file(src):
-            raise ConfigError(f"{src} is empty: it holds no results")
-        if out.exists() and os.path.samefile(src, out):
-            raise ConfigError(f"{src} is the output database; give it once, as OUT")
-        ids.add(os.stat(src).st_ino)
-    if len(ids) < len(inputs):
-        raise ConfigError("an input database is given twice")
-    counts = dict.fromkeys(("copied", "replaced", "duplicates", "conflicts", "steps",
-                            "path_rows"), 0)
-    with ResultStore(out, check_rows=True) as store:
-        for src in inputs:
-            _merge_one(store, Path(src), counts)
-        counts["episodes"] = store.conn.execute(
-            "SELECT COUNT(*) FROM episodes WHERE status != 'running'").fetchone()[0]
-    return counts
-
-
-def _merge_one(store: ResultStore, src: Path, counts: dict[str, int]) -> None:
-    """Copy the episodes of ``src`` into ``store`` (:func:`merge_databases`)."""
-    ResultStore(src, create=False, check_rows=True).close()  # pathpref's, intact, rows sane
-    cols, step_cols = list(EPISODE_COLUMNS), list(STEP_COLUMNS)
-    try:
-        ro = open_readonly(src)
-        try:
-            if has_study_tables(ro) and ro.execute("SELECT COUNT(*) FROM trials").fetchone()[0]:
-                raise ConfigError(f"{src} holds study trials; 'db merge' joins sweep "
-                                  "databases (copy a study with 'pathpref study export')")
-            have = {r[1] for r in ro.execute("PRAGMA table_xinfo(episodes)")}
-            have_steps = [c for c in step_cols if c in
-                          {r[1] for r in ro.execute("PRAGMA table_xinfo(steps)")}]
-            cur = ro.execute(f"SELECT {', '.join(c for c in cols if c in have)} FROM episodes "
-                             "WHERE status != 'running' ORDER BY key")
-            names = [d[0] for d in cur.description]
-            while rows := cur.fetchmany(MERGE_BATCH):
-                batch = [dict(zip(names, r, strict=True)) for r in rows]
-                with store.conn:
-                    for row in batch:
-                        _merge_row(store.conn, ro, row, cols, have_steps, counts)
-        finally:
-            ro.close()
-    except sqlite3.DatabaseError as e:
-        raise damaged(src, e) from None
-
-
-def _merge_row(conn: sqlite3.Connection, ro: sqlite3.Connection, row: dict[str, Any],
-               cols: list[str], step_cols: list[str], counts: dict[str, int]) -> None:
-    """Copy one episode row (and its steps) from ``ro`` into ``conn`` unless the output's row
-    of its key stays (counted)."""
-    key = row["key"]
-    have = conn.execute(f"SELECT {', '.join(OUTCOME)} FROM episodes WHERE key = ?",
-                        (key,)).fetchone()
-    if have is not None:
-        stored = dict(zip(OUTCOME, have, strict=True))
-        if stored["status"] == "ok" or row["status"] != "ok":
-            counts["duplicates"] += 1
-            if stored["status"] == "ok" and row["status"] == "ok" and any(
-                    stored[c] != row.get(c) for c in OUTCOME):
-                counts["conflicts"] += 1
-            return
-        counts["replaced"] += 1
-        conn.execute("DELETE FROM steps WHERE key = ?", (key,))
-        conn.execute("DELETE FROM episode_path WHERE key = ?", (key,))
-    conn.execute(f"INSERT OR REPLACE INTO episodes ({', '.join(cols)}) "
-                 f"VALUES ({', '.join('?' * len(cols))})", [row.get(c) for c in cols])
-    steps = ro.execute(f"SELECT {', '.join(step_cols)} FROM steps WHERE key = ? ORDER BY t",
-                       (key,)).fetchall()
-    width = len(STEP_COLUMNS)  # an older file's steps lack the last columns: NULL
-    conn.executemany(f"INSERT INTO steps VALUES ({', '.join('?' * width)})",
-                     [(*r, *(None,) * (width - len(r))) for r in steps])
-    counts["steps"] += len(steps)
-    if not missing_base_tables(ro):  # the recorded path, when the input has the table
-        path = ro.execute("SELECT * FROM episode_path WHERE key = ? ORDER BY k",
-                          (key,)).fetchall()
-        conn.executemany(f"INSERT INTO episode_path VALUES "
-                         f"({', '.join('?' * len(PATH_COLUMNS))})", path)
-        counts["path_rows"] += len(path)
-    counts["copied"] += have is None
+from .merge import OUTCOME, merge_databases  # noqa: E402, F401 - its older home

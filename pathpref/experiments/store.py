@@ -157,6 +157,14 @@ def damaged(path: str | Path, err: BaseException | str) -> ConfigError:
         f"'pathpref db salvage {path} NEW.sqlite' copies the intact episodes")
 
 
+def new_file_mode() -> int:
+    """The mode a new file gets from ``open()``: ``0o666`` less the process's umask (read
+    without changing it, through ``os.umask`` twice)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def require_regular_file(path: str | Path, missing_ok: bool = False) -> bool:
     """True when ``path`` is a regular file, False when it is missing and ``missing_ok``;
     a directory, device, FIFO or socket is refused (by ``os.stat``, without opening it)."""
@@ -384,7 +392,7 @@ def check_results_file(path: str | Path, create: bool = True) -> bool:
 
 #: the episode columns reports and resumes read, and what pathpref writes in each: ``text`` a
 #: string, ``count`` an integer >= 1, ``seed`` an integer >= 0, ``number`` a finite number,
-#: ``flag`` 0 or 1
+#: ``flag`` 0 or 1, ``tally`` an integer >= 0
 ROW_RULES = {
     "key": "text", "map": "text", "map_hash": "text", "sim": "text", "task": "text",
     "method": "text", "preset": "text", "status": "text",
@@ -392,25 +400,137 @@ ROW_RULES = {
     "ucb_c": "number",
     "normalize": "flag", "coupling": "flag", "success": "flag", "goal_reached": "flag",
     "pref_followed": "flag", "homotopy_success": "flag or NULL", "slack": "integer or NULL",
+    "steps": "tally", "inputs": "tally", "violations": "tally",
+}
+#: the other episode columns, checked where a command reads or copies them (``db merge``,
+#: ``dataset``: :func:`check_copied_rows`); columns added by a later schema may be NULL in
+#: older rows
+COPY_RULES = {
+    "instance": "tally", "run": "tally", "run_seed": "seed", "n_goals": "count",
+    "fixed": "text", "start": "text", "goals": "text", "true_goal": "integer",
+    "reason": "text or NULL", "wall_s": "number", "metrics": "text or NULL",
+    "time_budget_ms": "number or NULL", "human": "text or NULL",
+    "back_crossings": "integer or NULL", "physics": "text or NULL", "prior": "text or NULL",
+    "push_rule": "text or NULL",
+}
+#: what each column of a step row (:data:`STEP_COLUMNS`) holds: the step ``t >= 0``, the
+#: cell, the action (-1: stay) and the observed heading (-1: none, 0..7), the belief's
+#: probability of the true goal and its entropy (nats), and whether the human pushed
+#: (NULL in rows written before the column)
+STEP_RULES = {
+    "key": "text", "t": "tally", "x": "integer", "y": "integer", "action": "action",
+    "heading": "heading", "p_true_goal": "probability", "goal_entropy": "number",
+    "is_intervention": "flag or NULL",
+}
+#: what each column of a recorded path row (:data:`PATH_COLUMNS`) holds (the end effector
+#: is NULL for a base without an arm)
+PATH_RULES = {
+    "key": "text", "k": "tally", "time_s": "time", "x": "number", "y": "number",
+    "yaw": "number", "ee_x": "number or NULL", "ee_y": "number or NULL",
+    "ee_z": "number or NULL", "fx": "number", "fy": "number",
 }
 _RULE_TEXT = {"text": "a string", "count": "an integer >= 1", "seed": "an integer >= 0",
               "number": "a finite number", "flag": "0 or 1",
               "flag or NULL": "0, 1 or NULL (not measured)",
-              "integer or NULL": "an integer or NULL (not measured)"}
+              "integer or NULL": "an integer or NULL (not measured)",
+              "tally": "an integer >= 0", "integer": "an integer",
+              "text or NULL": "a string or NULL", "number or NULL": "a finite number or NULL",
+              "action": "an action -1..7", "heading": "a heading -1..7",
+              "probability": "a probability in 0..1", "time": "a time >= 0 s"}
+#: the largest magnitude of a stored number (larger is not pathpref's: positions are metres or
+#: cells, forces newtons, times seconds)
+MAX_STORED = 1e12
 
 
 def _breaks_rule(value: Any, rule: str) -> bool:
+    """Whether ``value`` is not what ``rule`` (a key of :data:`_RULE_TEXT`) allows."""
+    if rule.endswith(" or NULL"):
+        return value is not None and _breaks_rule(value, rule[:-len(" or NULL")])
     if rule == "text":
         return not isinstance(value, str)
-    if rule == "flag or NULL":
-        return value is not None and _breaks_rule(value, "flag")
-    if rule == "integer or NULL":
-        return value is not None and (not isinstance(value, int) or isinstance(value, bool))
-    if rule == "number":
-        return not (isinstance(value, int | float) and math.isfinite(value))
-    if not isinstance(value, int):
+    if rule in ("number", "probability", "time"):
+        if not (isinstance(value, int | float) and not isinstance(value, bool)):
+            return True
+        try:
+            v = float(value)
+        except OverflowError:
+            return True
+        return not (math.isfinite(v) and abs(v) <= MAX_STORED) or \
+            (rule == "probability" and not 0.0 <= v <= 1.0) or (rule == "time" and v < 0)
+    if not isinstance(value, int) or isinstance(value, bool):
         return True
-    return {"count": value < 1, "seed": value < 0, "flag": value not in (0, 1)}[rule]
+    return {"count": value < 1, "seed": not 0 <= value <= 2**63 - 1,
+            "flag": value not in (0, 1), "tally": value < 0, "integer": False,
+            "action": not -1 <= value <= 7, "heading": not -1 <= value <= 7}[rule]
+
+
+def stored_value_error(path: str | Path, where: str, col: str, value: Any, rule: str,
+                       fix: str) -> ConfigError:
+    """The one line of a stored value that breaks its ``rule``: the file, the row
+    (``where``), the column, the value (cut at 40 characters) and what it must be."""
+    shown = "NULL" if value is None else repr(value)
+    shown = shown if len(shown) <= 40 else shown[:37] + "..."
+    return ConfigError(f"{path}: {where} has {col} = {shown}, not {_RULE_TEXT[rule]}; {fix}")
+
+
+#: the fix of a stored row pathpref cannot have written
+CHANGED = "the file was changed outside pathpref"
+
+
+def check_rows_of(table: str, rows: Iterable[dict[str, Any]], path: str | Path,
+                  rules: dict[str, str]) -> Iterator[dict[str, Any]]:
+    """``rows`` of ``table`` (each with its ``rowid``, when selected), each checked against
+    ``rules`` as it passes: a value that breaks its rule is one ConfigError naming the file,
+    the table's row (by rowid) and the column."""
+    for i, row in enumerate(rows):
+        for col, rule in rules.items():
+            if col in row and _breaks_rule(row[col], rule):
+                rowid = row.get("rowid")
+                where = f"{table} row {rowid if isinstance(rowid, int) else i + 1}"
+                if table != "episodes" and isinstance(row.get("t", row.get("k")), int):
+                    where += f" ({'t' if 't' in row else 'k'} = {row.get('t', row.get('k'))})"
+                fix = (f"{CHANGED}: delete that row (DELETE FROM {table} WHERE rowid = "
+                       f"{rowid}) or use another database" if isinstance(rowid, int) else
+                       f"{CHANGED}: use another database")
+                raise stored_value_error(path, where, col, row[col], rule, fix)
+        yield row
+
+
+def check_copied_rows(rows: Iterable[dict[str, Any]], path: str | Path
+                      ) -> Iterator[dict[str, Any]]:
+    """Episode rows checked by :func:`check_episode_rows` and :data:`COPY_RULES`, and, for a
+    row that ran (``ok``), its instance: ``start`` a JSON cell ``[x, y]``, ``goals`` a JSON
+    list of cells and ``true_goal`` an index into it. Each row passes on once checked."""
+    for row in check_rows_of("episodes", rows, path, COPY_RULES):
+        check_episode_rows([row], path)
+        if row.get("status") == "ok" and {"start", "goals", "true_goal"} <= set(row):
+            goals = _json_or_none(row["goals"])
+            where = f"episodes row {row.get('rowid', '?')}"
+            fix = f"{CHANGED}: use another database"
+            if not _is_cell(_json_or_none(row["start"])):
+                raise stored_value_error(path, where, "start", row["start"], "cell", fix)
+            if not (isinstance(goals, list) and goals and all(_is_cell(g) for g in goals)):
+                raise stored_value_error(path, where, "goals", row["goals"], "cells", fix)
+            if not 0 <= row["true_goal"] < len(goals):
+                raise stored_value_error(path, where, "true_goal", row["true_goal"], "goal",
+                                         fix)
+        yield row
+
+
+_RULE_TEXT.update({"cell": "a JSON cell [x, y]", "cells": "a JSON list of cells [x, y]",
+                   "goal": "an index into its goals"})
+
+
+def _json_or_none(text: Any) -> Any:
+    try:
+        return json.loads(text)
+    except (TypeError, ValueError, RecursionError):
+        return None
+
+
+def _is_cell(v: Any) -> bool:
+    return isinstance(v, list) and len(v) == 2 and all(
+        isinstance(c, int) and not isinstance(c, bool) and abs(c) <= 10**6 for c in v)
 
 
 def check_episode_rows(rows: Iterable[dict[str, Any]], path: str | Path) -> None:
@@ -422,16 +542,18 @@ def check_episode_rows(rows: Iterable[dict[str, Any]], path: str | Path) -> None
     for i, row in enumerate(rows):
         key = row.get("key")
         plain = isinstance(key, str) and re.fullmatch(r"[\w.-]{1,80}", key, re.ASCII)
-        where = f"episode {key}" if plain else f"episode row {i + 1}"
-        fix = (f"the file was changed outside pathpref: delete that row (DELETE FROM episodes "
-               f"WHERE key = '{key}') and run the sweep again to recompute it"
-               if plain else "the file was changed outside pathpref: use another --db")
+        rowid = row.get("rowid")
+        numbered = isinstance(rowid, int) and not isinstance(rowid, bool)
+        where = f"episode {key}" if plain else (f"episodes row {rowid}" if numbered
+                                                else f"episode row {i + 1}")
+        fix = (f"{CHANGED}: delete that row (DELETE FROM episodes WHERE key = '{key}') and "
+               "run the sweep again to recompute it" if plain else
+               f"{CHANGED}: delete that row (DELETE FROM episodes WHERE rowid = {rowid}) and "
+               "run the sweep again to recompute it" if numbered else
+               f"{CHANGED}: use another --db")
         for col, rule in ROW_RULES.items():
             if col in row and _breaks_rule(row[col], rule):
-                shown = "NULL" if row[col] is None else repr(row[col])
-                shown = shown if len(shown) <= 40 else shown[:37] + "..."
-                raise ConfigError(f"{path}: {where} has {col} = {shown}, not "
-                                  f"{_RULE_TEXT[rule]}; {fix}")
+                raise stored_value_error(path, where, col, row[col], rule, fix)
         if row.get("status") == "ok" and "success" in row and "goal_reached" in row and \
                 row["success"] != (row["goal_reached"] and row.get("pref_followed", 1)
                                    and contact_safe(row.get("metrics"))):
@@ -448,7 +570,7 @@ def check_stored_rows(conn: sqlite3.Connection, path: str | Path) -> None:
     """:func:`check_episode_rows` on the :data:`ROW_RULES` columns of every episode of
     ``conn``."""
     have = [r[1] for r in conn.execute("PRAGMA table_xinfo(episodes)")]
-    cols = [c for c in ROW_RULES if c in have]
+    cols = ["rowid", *(c for c in ROW_RULES if c in have)]
     cur = conn.execute(f"SELECT {', '.join(cols)} FROM episodes")
     check_episode_rows((dict(zip(cols, r, strict=True)) for r in cur), path)
 

@@ -34,10 +34,12 @@ from dataclasses import replace
 
 from tqdm import tqdm
 
-from ..episode import Body, EpisodeSpec, body_class, cached_world
+from ..episode import EpisodeSpec, cached_world
+from ..episode.body import check_runnable
 from ..episode.instances import episode_instance
 from ..errors import ConfigError
 from ..planning.policies import resolve_methods
+from ..switches import check_switches
 from .backends import check_backend, failed, iter_results, max_workers, wall_limit
 from .store import ResultStore, this_owner
 
@@ -64,15 +66,17 @@ def sweep_specs(map_name: str, methods: list[str], delta_ts: list[int], instance
                     s.validate()
                     specs.append(s)
     if specs:
-        body_class(specs[0].sim, specs[0].robot)  # the body exists and offers the task
+        check_runnable(specs[0])  # the body exists and honours every option
     return specs
 
 
 def parse_shard(text: str) -> tuple[int, int]:
     """``"I/N"`` (shard ``I`` of ``N``, 0 <= I < N) as ``(I, N)``; ConfigError otherwise."""
     index, sep, count = text.partition("/")
-    if not (sep and index.isdigit() and count.isdigit() and int(index) < int(count)):
-        raise ConfigError(f"--shard {text!r}: write it as I/N with 0 <= I < N (e.g. 0/4)")
+    if not (sep and index.isascii() and index.isdigit() and count.isascii()
+            and count.isdigit() and len(text) <= 40 and int(index) < int(count)):
+        shown = text if len(text) <= 40 else text[:37] + "..."
+        raise ConfigError(f"--shard {shown!r}: write it as I/N with 0 <= I < N (e.g. 0/4)")
     return int(index), int(count)
 
 
@@ -90,11 +94,11 @@ def check_specs(specs: list[EpisodeSpec]) -> None:
     """Fail fast (before any work) on a bad body, map, preference or instance in the sweep,
     or a path to record (``record_path_hz``) that the body cannot."""
     seen: set[tuple] = set()
+    runnable: set[tuple] = set()
     for s in specs:
-        body = body_class(s.sim, s.robot)
-        if s.record_path_hz and body.record_path is Body.record_path:
-            raise ConfigError(f"--record-path: the '{s.sim}' body has no continuous path to "
-                              "record (use --sim mujoco)")
+        if (s.sim, s.robot, s.record_path_hz, s.physics) not in runnable:
+            check_runnable(s)
+            runnable.add((s.sim, s.robot, s.record_path_hz, s.physics))
         sig = (s.map, s.instance_seed, s.n_goals, s.fixed)
         if sig in seen:
             continue
@@ -155,6 +159,7 @@ def run_sweep(specs: list[EpisodeSpec], db: str, workers: int = 1, progress: boo
         raise ConfigError(f"--workers {workers} is too many for {os.cpu_count()} CPUs (at most "
                           f"{max_workers()}; one per CPU is fastest)")
     check_backend(backend, address)  # before the database is created or opened
+    check_switches()  # the workers read them
     check_specs(specs)
     # a tampered row is refused before the file is opened for writing or any episode runs
     with _sigterm_exits(), ResultStore(db, check_rows=True, steps=steps) as store:

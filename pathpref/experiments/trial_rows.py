@@ -27,11 +27,13 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+from ..episode.spec import LIMITS
 from ..errors import ConfigError
 from .trials import STUDY_TABLES
 
-#: a trial's position is at most this (a study file holds far fewer trials)
-MAX_TRIAL = 100_000
+#: a trial's position is at most this (a study file holds far fewer trials; ``replay
+#: --trial``'s range)
+MAX_TRIAL = LIMITS["trial"][1]
 #: seconds: the largest time a study row may hold (115 days; a trial is bounded by its limit)
 MAX_TIME_S = 1e7
 #: the largest magnitude of any other REAL column (forces, impulses, efforts)

@@ -25,7 +25,11 @@ components are the 4-connected ones); some of them need passages the default rob
 
 A plan whose largest free area has fewer than :data:`MIN_ROUTE_CELLS` cells is refused
 (:class:`~pathpref.errors.MapError`, one line): its free space is too fragmented to place a
-route and draw the instances' start and goal candidates.
+route and draw the instances' start and goal candidates. So is, before anything is built, a
+request it cannot honour (:func:`check_plan_request`: sides that are not ``0 < LO <= HI`` or
+rotated rectangles that cannot fit the map) and a drawn plan whose arrangement may exceed
+:data:`MAX_PLAN_POLYTOPES` (:func:`check_plan_size`); the rectangles' rejection draws are
+bounded (:data:`DRAWS_PER_RECTANGLE`), so a plan is made in bounded time.
 """
 
 from __future__ import annotations
@@ -45,6 +49,43 @@ ROUTE_KINDS = ("open", "loop")
 #: the fewest cells the largest free area of a generated plan may have: the waypoints of an
 #: open route (4) and an instance's start and 10 goal candidates
 MIN_ROUTE_CELLS = 11
+#: the most polytopes a plan of :func:`floor_plan` may have (the bound of
+#: :func:`~.arrangement.arrangement_size`, checked on the drawn obstacles before anything is
+#: built): with at most 200 x 200 cells (``pathpref map generate``), a plan then builds in
+#: seconds (docs/errors.md, "Limits")
+MAX_PLAN_POLYTOPES = 5000
+#: draws of a rotated rectangle's size per rectangle before :func:`random_floor_plan` gives up
+#: (a size that does not fit the map is drawn again)
+DRAWS_PER_RECTANGLE = 100
+
+
+def check_plan_request(width: int, height: int, rotated: int,
+                       size_range: tuple[float, float]) -> None:
+    """Refuse (one MapError line) obstacle sides that cannot be honoured: ``0 < LO <= HI``,
+    finite, and, with rotated rectangles, ``HI * sqrt(2) < min(width, height)`` (a rectangle of
+    any drawn size fits the map at any angle, so every draw is kept)."""
+    lo, hi = size_range
+    if not (np.isfinite(lo) and np.isfinite(hi) and 0 < lo <= hi):
+        raise MapError(f"--sizes LO HI must be finite with 0 < LO <= HI, got {lo:g} {hi:g}")
+    side = min(width, height)
+    if rotated and not float(np.hypot(hi, hi)) < side:
+        raise MapError(f"--sizes HI = {hi:g}: a rotated rectangle of side {hi:g} does not fit a "
+                       f"{width} x {height} map at every angle; give HI below "
+                       f"{side / np.sqrt(2):.4g} (min(width, height) / sqrt 2) or a larger map")
+
+
+def check_plan_size(raw: dict[str, Any]) -> None:
+    """Refuse (one MapError line) a drawn plan whose arrangement may have more than
+    :data:`MAX_PLAN_POLYTOPES` polytopes, before it is built."""
+    from .arrangement import arrangement_size
+    from .maps import parse_map
+
+    m, n, bound = arrangement_size(parse_map({k: v for k, v in raw.items()
+                                              if k != "preference"}))
+    if bound > MAX_PLAN_POLYTOPES:
+        raise MapError(f"the plan may have up to {bound:,} polytopes ({m} distinct obstacle "
+                       f"lines, {n:,} free cells), above the limit {MAX_PLAN_POLYTOPES:,} of a "
+                       "generated plan; use fewer or larger obstacles, or a smaller map")
 
 
 def rotated_rectangle(centre: np.ndarray, size: np.ndarray, angle: float) -> np.ndarray:
@@ -67,7 +108,12 @@ def random_floor_plan(
     rng = np.random.default_rng(seed)
     lo, hi = size_range
     obstacles: list[dict[str, Any]] = []
+    draws = 0
     while len(obstacles) < n_rotated:
+        draws += 1
+        if draws > DRAWS_PER_RECTANGLE * n_rotated:
+            raise MapError(f"no rotated rectangle of sides {lo:g}..{hi:g} fits a {width} x "
+                           f"{height} map in {draws - 1} draws; give smaller sizes")
         size = rng.uniform(lo, hi, size=2)
         r = 0.5 * float(np.hypot(*size))
         if 2 * r >= min(width, height):
@@ -143,8 +189,10 @@ def floor_plan(seed: int, route: str = "open", width: int = PLAN_DEFAULTS["width
     plan too fragmented for a route and ValueError for an unknown ``route``."""
     if route not in ROUTE_KINDS:
         raise ValueError(f"route must be one of {ROUTE_KINDS}, got {route!r}")
+    check_plan_request(width, height, rotated, size_range)
     raw = random_floor_plan(width, height, rotated, n_boxes=boxes, seed=seed,
                             size_range=size_range, name=name)
+    check_plan_size(raw)
     xs, ys = largest_free_area(raw, footprint)
     cells = len(xs)
     if cells < MIN_ROUTE_CELLS:

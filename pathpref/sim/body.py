@@ -66,6 +66,8 @@ class MujocoBody(Body):
     their physics' data, with their own controller at control rate)."""
 
     tasks = ("navigate", "carry")
+    #: its physics rate: ``navigate.xml``'s 2 ms timestep (``<option timestep>``)
+    record_rate_hz = 500.0
 
     def __init__(self, world: World, spec, rng: np.random.Generator,
                  profile: PushProfile | None = None, cell_size: float | None = None,

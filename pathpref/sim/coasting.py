@@ -36,19 +36,19 @@ push), no ``on_substep`` hook but the path's crossing hook and quiet ones, a sce
 contact sensor it reads (:data:`CONTACT_SENSOR`). A control-rate task's drive runs on it too
 (:meth:`Coaster.drive`: the agent's velocity held, :class:`~.controller.HeldVelocity`, no move
 to end; :meth:`Coaster.push` through a push phase), and a timed move (guidance: its drive,
-then the hold). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` turns it
-off (read when a base is built).
+then the hold). Every other step takes the Python path. ``PATHPREF_COMPILED_STEPS=0`` (or
+``false``, ``off``: :mod:`pathpref.switches`) turns it off (read when a base is built).
 """
 
 from __future__ import annotations
 
 import math
-import os
 
 import mujoco
 import numba as nb
 import numpy as np
 
+from ..switches import switch
 from . import native
 from .arm_step import arm_step, tilt_from
 from .controller import HeldVelocity, profiled_goal, ramp_step, settled_at
@@ -310,8 +310,9 @@ def compiled_entry(args: tuple):
 
 
 def enabled() -> bool:
-    """Compiled steps are on (``PATHPREF_COMPILED_STEPS`` is not ``0``) and available."""
-    return os.environ.get("PATHPREF_COMPILED_STEPS", "1") != "0" and native.ready()
+    """Compiled steps are on (the switch ``PATHPREF_COMPILED_STEPS``, :mod:`pathpref.switches`:
+    on unless ``0``, ``false`` or ``off``) and available."""
+    return switch("PATHPREF_COMPILED_STEPS") and native.ready()
 
 
 class Coaster:

@@ -37,7 +37,7 @@ from functools import lru_cache
 import mujoco
 import numpy as np
 
-from ..episode.physics import ROBOT_MODELS
+from ..episode.physics import ROBOT_MODELS, check_body_drive
 from ..errors import ConfigError
 from .arm import ArmModel
 from .scene import BaseParams, RobotBody, floor_friction, holonomic_servos, mjcf_path, yaw_servo
@@ -100,9 +100,7 @@ def navigation_spec(base: BaseParams | None) -> mujoco.MjSpec:
     drive's defaults)."""
     if base is None:
         base = BaseParams(mass_kg=navigation_mass_kg())
-    if base.kind != "holonomic":
-        raise ConfigError(f"the TidyBot's base is holonomic; got --base {base.kind} (use "
-                          "--base holonomic)")
+    check_body_drive("tidybot", base.kind)
     try:
         spec = mujoco.MjSpec.from_file(str(mjcf_path("navigate.xml")))
     except ValueError as e:

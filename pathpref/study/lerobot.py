@@ -69,8 +69,15 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from ..errors import ConfigError
-from ..experiments.store import ResultStore, missing_base_tables
+from ..errors import ConfigError, is_disk_full
+from ..experiments.store import (
+    PATH_RULES,
+    STEP_RULES,
+    ResultStore,
+    check_copied_rows,
+    check_rows_of,
+    missing_base_tables,
+)
 from ..experiments.trial_rows import checked
 from ..experiments.trials import has_study_tables
 from .record import PUSH_ON_N
@@ -343,14 +350,27 @@ def _episode_frames(steps: Iterator[dict]) -> Iterator[dict]:
         cur = nxt
 
 
+#: the episode columns a dataset reads (each checked: :func:`_episodes`)
+EPISODE_READ = ("rowid, key, map, status, start, goals, true_goal, success, goal_reached, "
+                "pref_followed, metrics")
+
+
+def _episodes(conn, db, where: str) -> list[dict]:
+    """The ``ok`` ``--sim mujoco`` episode rows ``where`` selects, each checked
+    (:func:`~pathpref.experiments.store.check_copied_rows`: a tampered value is one line)."""
+    return list(check_copied_rows(_iter(
+        conn, f"SELECT {EPISODE_READ} FROM episodes WHERE sim = 'mujoco' AND status = 'ok' "
+        f"{where} ORDER BY key", ()), db))
+
+
 def _write_episodes(conn, db, root: Path) -> dict:
     w = LeRobotWriter(root, 1, EPISODE_FEATURES, "pathpref_mobile_base")
-    eps = list(_iter(conn, "SELECT key, map, goals, true_goal, success FROM episodes WHERE "
-                     "sim = 'mujoco' AND status = 'ok' ORDER BY key", ()))
+    eps = _episodes(conn, db, "")
     for e in eps:
         goal = json.loads(e["goals"])[e["true_goal"]]
-        frames = _episode_frames(_iter(conn, "SELECT x, y, action, heading, is_intervention "
-                                       "FROM steps WHERE key = ? ORDER BY t", (e["key"],)))
+        frames = _episode_frames(check_rows_of("steps", _iter(
+            conn, "SELECT rowid, t, x, y, action, heading, is_intervention FROM steps WHERE "
+            "key = ? ORDER BY t", (e["key"],)), db, STEP_RULES))
         w.add_episode(task_text(goal, e["map"]), frames,
                       {"source_key": e["key"], "success": int(e["success"] or 0)})
     if not w.episodes:
@@ -364,8 +384,9 @@ def _path_fps(conn, db, keys: list[str]) -> int:
     - t_0)`` of each path; ConfigError when they differ or are not whole."""
     rates = set()
     for key in keys:
-        t = [r[0] for r in conn.execute("SELECT time_s FROM episode_path WHERE key = ? AND "
-                                        "k < 2 ORDER BY k", (key,))]
+        t = [r["time_s"] for r in check_rows_of("episode_path", _iter(
+            conn, "SELECT rowid, k, time_s FROM episode_path WHERE key = ? AND k < 2 ORDER BY "
+            "k", (key,)), db, PATH_RULES)]
         if len(t) == 2 and t[1] > t[0]:
             rates.add(round(1.0 / (t[1] - t[0]), 6))
     if len(rates) != 1 or not float(next(iter(rates))).is_integer():
@@ -396,9 +417,7 @@ def _path_frames(rows: Iterator[dict], fps: int, end_effector: bool) -> Iterator
 def _write_paths(conn, db, root: Path) -> dict:
     if missing_base_tables(conn):
         raise ConfigError(f"{db} holds no recorded paths (run the sweep with --record-path)")
-    eps = list(_iter(conn, "SELECT key, map, goals, true_goal, success FROM episodes WHERE "
-                     "sim = 'mujoco' AND status = 'ok' AND key IN (SELECT DISTINCT key FROM "
-                     "episode_path) ORDER BY key", ()))
+    eps = _episodes(conn, db, "AND key IN (SELECT DISTINCT key FROM episode_path)")
     if not eps:
         raise ConfigError(f"{db} holds no --sim mujoco episodes with a recorded path (run the "
                           "sweep with --record-path 100)")
@@ -408,8 +427,9 @@ def _write_paths(conn, db, root: Path) -> dict:
                       "pathpref_mobile_manipulator" if ee else "pathpref_mobile_base")
     for e in eps:
         goal = json.loads(e["goals"])[e["true_goal"]]
-        frames = _path_frames(_iter(conn, "SELECT * FROM episode_path WHERE key = ? ORDER BY k",
-                                    (e["key"],)), fps, ee)
+        frames = _path_frames(check_rows_of("episode_path", _iter(
+            conn, "SELECT rowid, * FROM episode_path WHERE key = ? ORDER BY k", (e["key"],)),
+            db, PATH_RULES), fps, ee)
         w.add_episode(task_text(goal, e["map"]), frames,
                       {"source_key": e["key"], "success": int(e["success"] or 0)})
     return w.finish()
@@ -431,17 +451,25 @@ def export_dataset(db: str | Path, out: str | Path, source: str) -> dict:
         raise ConfigError("a LeRobot dataset needs pyarrow and pandas: pip install "
                           "'pathpref[dataset]'") from None
     out = Path(out)
-    if out.exists():
+    if os.path.lexists(out):
         raise ConfigError(f"--out {out} exists; give a new folder")
     parent = out.parent if str(out.parent) else Path(".")
     if not parent.is_dir():
         raise ConfigError(f"cannot write --out {out}: folder {parent} does not exist")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError(f"cannot write --out {out}: folder {parent} is not writable")
     with ResultStore(db, create=False) as store:
-        tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}."))
+        tmp: Path | None = None
         try:
+            tmp = Path(tempfile.mkdtemp(dir=parent, prefix=f".{out.name}."))
             info = WRITERS[source](store.conn, db, tmp)
             os.rename(tmp, out)
+        except OSError as e:  # a read-only or full file system: one line, nothing kept
+            why = ("no space left on device; free some space and run again" if is_disk_full(e)
+                   else e.strerror or str(e))
+            raise ConfigError(f"cannot write --out {out}: {why} (no partial dataset was kept)"
+                              ) from None
         finally:
-            if tmp.exists():
+            if tmp is not None and tmp.exists():
                 shutil.rmtree(tmp, ignore_errors=True)
     return info

@@ -19,16 +19,30 @@ Entities (metres; the map's y axis points up on screen, so 2-D points are logged
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
-import rerun as rr
-import rerun.blueprint as rrb
 
-from ..episode.physics import CELL_SIZE_M
-from ..geometry.world import World
-from .mapdraw import polytope_centres
-from .video import belief_rgba
+#: rerun's own (Rust) logger is off: an error it meets while pathpref writes a recording (a
+#: full disk) reaches pathpref as an exception, which the command reports in its own one line,
+#: and rerun's lines would only repeat it. ``RUST_LOG`` is read once, when rerun's bindings
+#: load: it is set to ``off`` for that import only (child processes do not inherit it), unless
+#: the user set it (then rerun logs as asked)
+_GIVEN_RUST_LOG = os.environ.get("RUST_LOG")
+if _GIVEN_RUST_LOG is None:
+    os.environ["RUST_LOG"] = "off"
+try:
+    import rerun as rr
+    import rerun.blueprint as rrb
+finally:
+    if _GIVEN_RUST_LOG is None:
+        os.environ.pop("RUST_LOG", None)
+
+from ..episode.physics import CELL_SIZE_M  # noqa: E402
+from ..geometry.world import World  # noqa: E402
+from .mapdraw import polytope_centres  # noqa: E402
+from .video import belief_rgba  # noqa: E402
 
 FLIP = np.array([1.0, -1.0])  # map y up -> rerun 2-D y down
 
