@@ -288,7 +288,13 @@ def test_version(capsys):
         main(["--version"])
     assert e.value.code == 0
     assert capsys.readouterr().out.strip() == f"pathpref {pathpref.__version__}"
-    assert pathpref.__version__ == "0.2.0"
+    import tomllib
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    wanted = tomllib.loads(pyproject.read_text())["project"]["version"]
+    assert pathpref.__version__ == wanted, \
+        "the installed metadata is older than pyproject.toml: run make install again"
 
 
 def test_examples_are_copied_out_and_never_overwritten(tmp_path, capsys):
