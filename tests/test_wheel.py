@@ -185,7 +185,9 @@ def test_installed_wheel_runs_the_whole_demo(wheel, tmp_path):
                     "Over n = 6 grid runs per method, corrective human, preset",
                     "The filmed setting (simple, path_preference, the map's human, push rule "
                     f"'corrective delay=1 miss=0.2' (ΔT = 1), preset {p}) succeeds in ",
-                    "Rendered episodes (grid; instance ", "| path_preference | "):
+                    "Path preference and goal only differ in ",
+                    f"Rendered episodes (grid; preset {p}; instance ", "| path_preference | ",
+                    "| goal_only | "):
         assert section in out, section
     assert "missing" not in out and "NOTE" not in out  # the sweep is here, made by this preset
     assert len([ln for ln in out.splitlines() if ln.startswith("- ") and " -> " in ln]) == 6
