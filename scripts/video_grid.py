@@ -81,11 +81,15 @@ def main() -> None:
                 break
             if tried >= args.tries:
                 sys.exit(f"no strict success in MuJoCo among the first {tried} accepted seeds")
-        reader = iio.get_reader(str(video))
-        n = reader.count_frames()
+        # one sequential pass (no seeking: ffmpeg restarted per frame timed out under load)
+        n = rec.frames
         picks = [4, 20, *(int(i) for i in np.linspace(40, n - 1, 4))]
-        frames = [reader.get_data(int(i)) for i in picks]
-        reader.close()
+        frames = {}
+        with iio.get_reader(str(video)) as reader:
+            for i, frame in enumerate(reader):
+                if i in picks:
+                    frames[i] = frame
+        frames = [frames[i] for i in picks]
     iio.imwrite(args.out, frame_grid(frames, cols=3, scale=0.5))
     print(f"wrote {args.out} from {n} frames: {picks} (seed {seed})")
     if args.readme:

@@ -74,7 +74,7 @@ def test_every_shipped_folder_is_a_package_and_every_file_is_declared():
                 unowned.append(d.relative_to(ROOT).as_posix())
     for pkg, folder in folders.items():
         for f in sorted(folder.rglob("*")):
-            if not f.is_file() or f.suffix in (".py", ".pyc"):
+            if not f.is_file() or f.suffix in (".py", ".pyc") or "__pycache__" in f.parts:
                 continue
             owner = f.parent
             while owner not in by_folder:  # a folder that is no identifier (2f85): its parent's
