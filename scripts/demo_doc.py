@@ -1,7 +1,7 @@
 """Write the numbers of docs/demo.md (the block between its ``demo-numbers`` markers): the stored
 sweep's verdicts, the demo's grid rates under the planner's default preset, the filmed
-setting's success rate with its 95% Wilson interval and the filmed MuJoCo episodes (run
-without video). About 1 minute on 2 cores.
+setting's success rate with its 95% Wilson interval, how often the filmed pair differs and
+the filmed MuJoCo pair (run without video). About 1 minute on 2 cores.
 
     MUJOCO_GL=egl python scripts/demo_doc.py                 # rewrites docs/demo.md's block
 """
@@ -14,16 +14,7 @@ from pathlib import Path
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
-from pathpref.apps.demo import (  # noqa: E402
-    DOC_BEGIN,
-    DOC_END,
-    METHODS,
-    REFERENCE_METHODS,
-    doc_block,
-    film_spec,
-    grid_rates,
-)
-from pathpref.episode import run_episode  # noqa: E402
+from pathpref.apps.demo import DOC_BEGIN, DOC_END, doc_block, grid_rates  # noqa: E402
 from pathpref.planning.pomdp import DEFAULT_PRESET  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -37,14 +28,12 @@ def main() -> None:
     import pathpref.sim  # noqa: F401  (registers the MuJoCo body)
 
     rates = grid_rates(preset=DEFAULT_PRESET)
-    k = rates.film_index()
-    film = [run_episode(film_spec(rates.specs[m][k], "mujoco"))
-            for m in METHODS if m not in REFERENCE_METHODS]
+    k, film, tried = rates.film("mujoco")
     doc = Path(args.doc)
     text = doc.read_text()
     head, rest = text.split(DOC_BEGIN, 1)
     _, tail = rest.split(DOC_END, 1)
-    doc.write_text(head + "\n".join(doc_block(rates, film)) + tail)
+    doc.write_text(head + "\n".join(doc_block(rates, k, film, tried)) + tail)
     print(f"wrote the numbers of {doc} (preset {DEFAULT_PRESET})")
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -294,7 +295,13 @@ def test_version(capsys):
         main(["--version"])
     assert e.value.code == 0
     assert capsys.readouterr().out.strip() == f"pathpref {pathpref.__version__}"
-    assert pathpref.__version__ == "0.2.0"
+    import tomllib
+    from pathlib import Path
+
+    pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+    wanted = tomllib.loads(pyproject.read_text())["project"]["version"]
+    assert pathpref.__version__ == wanted, \
+        "the installed metadata is older than pyproject.toml: run make install again"
 
 
 def test_examples_are_copied_out_and_never_overwritten(tmp_path, capsys):
@@ -352,3 +359,49 @@ def test_map_generate_writes_a_plan_that_loads_and_refuses_a_fragmented_one(tmp_
     assert "too fragmented to place a route: its largest free area has 7 cells" in p.stderr
     p = run("map", "generate", "--width", "2")
     assert p.returncode == 2 and "--width must be an integer in 4..200, got 2" in p.stderr
+
+
+def test_study_run_refuses_the_tidybot_with_the_study_files_reason(capsys, tmp_path):
+    """``study run --robot-model tidybot`` is one line giving the reason a study file's
+    ``robot_model`` gets (one message, :func:`pathpref.study.plan.disk_only`), exit 2, nothing
+    created; the simulated human's flags get the study file's reason too."""
+    import pytest
+
+    from pathpref.apps.cli import main
+    from pathpref.errors import ConfigError
+    from pathpref.study.plan import NOT_THE_PARTICIPANT, disk_only, parse_study
+
+    db = tmp_path / "s.sqlite"
+    base = ["study", "run", "examples/study_demo.json", "--participant", "p", "--db", str(db)]
+    with pytest.raises(SystemExit) as e:
+        main([*base, "--robot-model", "tidybot"])
+    err = capsys.readouterr().err
+    assert e.value.code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert disk_only("tidybot") in err and "episodes, the tasks and the videos" in err
+    t = {"name": "a", "map": "simple", "start": [5, 2], "goal": [5, 9],
+         "candidates": [[2, 9], [5, 9], [9, 9]], "route": [[5, 2], [5, 9]],
+         "physics": {"robot_model": "tidybot"}}
+    with pytest.raises(ConfigError) as f:
+        parse_study({"trials": [t]})
+    assert str(f.value).endswith(disk_only("tidybot"))
+    for extra, says in ((["--gamma-h", "2"], NOT_THE_PARTICIPANT),
+                        (["--sensor", "ideal"], '"physics": {"sensor": ...}'),
+                        (["--use-strength"], '"physics": {"use_strength": ...}')):
+        with pytest.raises(SystemExit) as e:
+            main([*base, *extra])
+        err = capsys.readouterr().err
+        assert e.value.code == 2 and err.count("\n") == 1 and says in err, (extra, err)
+    assert not db.exists()
+
+
+def test_a_sensor_override_states_its_default_as_the_presets():
+    """The sensor's fault overrides are stored as -1 ("the --sensor preset's"); their help says
+    that, never "default -1"."""
+    from pathpref.apps.cli import build_parser
+
+    sub = build_parser()._subparsers._group_actions[0].choices["evaluate"]
+    text = " ".join(sub.format_help().split())
+    for name in ("--sensor-noise-n", "--sensor-bias-n", "--sensor-drift-n"):
+        assert re.search(re.escape(name) + r" X \d+\.\.\d+, default: the --sensor preset's",
+                         text), name
+    assert "default -1" not in text

@@ -12,13 +12,13 @@ from pathpref.apps.demo import (
     FILM_MIN_CROSSINGS,
     FILM_MIN_SLACK,
     FILM_MIN_STEPS,
-    demo_specs,
+    differ_counts,
+    film_candidates,
     film_index,
     route_crossings,
     sweep_header,
     sweep_statement,
 )
-from pathpref.episode import run_episode
 from pathpref.viz.video import outcome_card, outcome_lines
 
 
@@ -73,14 +73,22 @@ def test_film_index_reads_the_route_only():
     assert film_index(specs[:4], oracle[:4]) == 0  # none qualifies: the first
 
 
-def test_the_demo_films_instance_1():
-    """On the demo's own instances (grid oracle, seed 0) the rule picks instance 1, run 0
-    (its route: 13 steps, 6 crossings; instance 0's takes 2 steps)."""
-    specs = [s for s in demo_specs("oracle") if s.run == 0]
-    oracle = [run_episode(s) for s in specs]
-    k = film_index(specs, oracle)
-    assert specs[k].instance == 1
-    assert (oracle[k].steps, route_crossings(oracle[k])) == (13, 6)
+def test_film_candidates_are_where_path_preference_alone_succeeds():
+    """The film rule's candidates: episodes where path preference is a strict success and goal
+    only is not, those with a route worth filming first; none when they never so differ."""
+    ok = SimpleNamespace(success=True)
+    no = SimpleNamespace(success=False)
+    along_south = [(x, 1) for x in range(1, 11)]
+    inside = [(1, 1), (1, 2)] * 4 + [(1, 1)]
+    specs = [SimpleNamespace(run=0, t_max=30)] * 5
+    oracle = [_route(along_south), _route(inside), _route(along_south), _route(inside),
+              _route(along_south)]
+    pp = [ok, ok, no, ok, ok]
+    go = [ok, no, no, no, no]
+    # 0: both succeed; 2: both fail; 1 and 3 differ, route not worth filming; 4 differs, worth it
+    assert film_candidates(specs, oracle, pp, go) == [4, 1, 3]
+    assert film_candidates(specs, oracle, pp, pp) == []
+    assert differ_counts(pp, go) == (3, 0) and differ_counts(go, pp) == (0, 3)
 
 
 def _cell(setting, method, k, lo, hi):

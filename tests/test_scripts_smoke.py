@@ -13,9 +13,10 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: scripts with an argument parser that no other test runs
-SCRIPTS = ["bench", "budget_figure", "contact_eval", "episode_speed", "forced_moves",
-           "gamma_sweep", "guidance_eval", "merge_cost", "physics_study", "pool_by_plan_size",
-           "pushes_figure", "robust_scale", "root_values", "tidybot_frame"]
+SCRIPTS = ["bench", "budget_figure", "contact_eval", "doc_figures", "episode_speed",
+           "errors_doc", "forced_moves", "gamma_sweep", "guidance_eval", "merge_cost",
+           "physics_study", "pool_by_plan_size", "pushes_figure", "robust_scale", "root_values",
+           "tidybot_frame"]
 
 
 @pytest.mark.parametrize("name", SCRIPTS)

@@ -85,3 +85,35 @@ def test_report_writes_csv_and_figure_for_a_study_database(tmp_path, capsys):
     viol = [v for (v,) in sqlite3.connect(db).execute("SELECT violations FROM trials")]
     assert float(recs[0]["on_route"]) == sum(v == 0 for v in viol) / 2
     assert fig.stat().st_size > 5000 and fig.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_the_study_figure_keeps_every_point_off_its_frame():
+    """``report --figure`` on a study: the top effort point (here a bare point, n < 3, above
+    every interval) and rates of 0 and 1 lie inside their panels, at least 5% of the panel's
+    height from its top and bottom edges."""
+    from pathpref.viz.plots import study_axes
+
+    nan = math.nan
+    recs = [{"by": "condition", "group": g, "n": n, "success_rate": s, "ci_low": s - 0.1 * (s > 0),
+             "ci_high": min(1.0, s + 0.1), "on_route": o, "on_route_low": max(0.0, o - 0.2),
+             "on_route_high": min(1.0, o + 0.2), "effort_ns": e, "effort_ns_low": lo,
+             "effort_ns_high": hi}
+            for g, n, s, o, e, lo, hi in (("a", 5, 1.0, 0.0, 80.0, 60.0, 95.0),
+                                          ("b", 2, 0.0, 1.0, 140.0, nan, nan))]
+    fig = study_axes(recs)
+    try:
+        for ax, (col, hi_key, lo_key) in zip(fig.axes, (
+                ("success_rate", "ci_high", "ci_low"), ("on_route", "on_route_high",
+                                                        "on_route_low"),
+                ("effort_ns", "effort_ns_high", "effort_ns_low")), strict=True):
+            bottom, top = ax.get_ylim()
+            room = 0.05 * (top - bottom)
+            values = [v for r in recs for v in (r[col], r[hi_key], r[lo_key])
+                      if not math.isnan(v)]
+            assert max(values) <= top - room, (col, max(values), top)
+            if col != "effort_ns":  # effort's axis starts at 0 N s, below every point here
+                assert min(values) >= bottom + room, (col, min(values), bottom)
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)

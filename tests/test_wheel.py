@@ -16,16 +16,77 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
-def wheel(tmp_path_factory) -> Path:
+def wheel_build(tmp_path_factory) -> tuple[Path, str]:
+    """The wheel built from the source tree, and the build's whole log (``pip -v``)."""
     out = tmp_path_factory.mktemp("wheel")
     r = subprocess.run([sys.executable, "-m", "pip", "wheel", str(ROOT), "--no-deps",
-                        "--no-build-isolation", "-q", "-w", str(out)],
+                        "--no-build-isolation", "-v", "-w", str(out)],
                        capture_output=True, text=True, timeout=300)
     if r.returncode != 0 and "setuptools" in r.stderr:
         pytest.skip(f"this environment's setuptools cannot build the wheel: {r.stderr[-300:]}")
     assert r.returncode == 0, r.stderr
     (whl,) = out.glob("pathpref-*.whl")
-    return whl
+    return whl, r.stdout + r.stderr
+
+
+@pytest.fixture(scope="module")
+def wheel(wheel_build) -> Path:
+    return wheel_build[0]
+
+
+def test_the_build_warns_of_no_ignored_package(wheel_build):
+    """Package data is declared as such: no setuptools "Package would be ignored" banner (a
+    data folder Python could import that the ``packages`` list lacks), no other build warning
+    of setuptools'."""
+    _, log = wheel_build
+    assert "would be ignored" not in log
+    assert "BuildBackendWarning" not in log and "SetuptoolsDeprecationWarning" not in log
+
+
+def _declared() -> tuple[dict[str, Path], dict[str, list[str]]]:
+    """pyproject's packages, each with its folder (``package-dir`` applied), and package data."""
+    import tomllib
+
+    st = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    remap = st["package-dir"]
+    folders = {}
+    for pkg in st["packages"]:
+        base = max((k for k in remap if pkg == k or pkg.startswith(k + ".")), key=len,
+                   default=None)
+        rel = (remap[base] + pkg[len(base):] if base else pkg).replace(".", "/")
+        folders[pkg] = ROOT / rel
+    return folders, st["package-data"]
+
+
+def test_every_shipped_folder_is_a_package_and_every_file_is_declared():
+    """Each folder under the shipped trees whose name Python could import is in ``packages``
+    (else setuptools warns and may drop it), and every file in them that is not Python is
+    matched by its own package's ``package-data`` (else the wheel lacks it)."""
+    folders, data = _declared()
+    assert all(f.is_dir() for f in folders.values()), folders
+    by_folder = {f: pkg for pkg, f in folders.items()}
+    unowned, undeclared = [], []
+    for top in ("pathpref", "mjcf", "examples", "tasks"):
+        for d in [ROOT / top, *sorted(p for p in (ROOT / top).rglob("*") if p.is_dir())]:
+            if "__pycache__" in d.parts:
+                continue
+            if d.name.isidentifier() and d not in by_folder:
+                unowned.append(d.relative_to(ROOT).as_posix())
+    for pkg, folder in folders.items():
+        for f in sorted(folder.rglob("*")):
+            if not f.is_file() or f.suffix in (".py", ".pyc") or "__pycache__" in f.parts:
+                continue
+            owner = f.parent
+            while owner not in by_folder:  # a folder that is no identifier (2f85): its parent's
+                owner = owner.parent
+            if by_folder[owner] != pkg:
+                continue
+            rel = f.relative_to(folder)
+            if not any(rel.match(pat) and len(rel.parts) == len(Path(pat).parts)
+                       for pat in data.get(pkg, [])):
+                undeclared.append(f.relative_to(ROOT).as_posix())
+    assert not unowned, unowned
+    assert not undeclared, undeclared
 
 
 def test_wheel_contents(wheel):
@@ -124,7 +185,9 @@ def test_installed_wheel_runs_the_whole_demo(wheel, tmp_path):
                     "Over n = 6 grid runs per method, corrective human, preset",
                     "The filmed setting (simple, path_preference, the map's human, push rule "
                     f"'corrective delay=1 miss=0.2' (ΔT = 1), preset {p}) succeeds in ",
-                    "Rendered episodes (grid; instance ", "| path_preference | "):
+                    "Path preference and goal only differ in ",
+                    f"Rendered episodes (grid; preset {p}; instance ", "| path_preference | ",
+                    "| goal_only | "):
         assert section in out, section
     assert "missing" not in out and "NOTE" not in out  # the sweep is here, made by this preset
     assert len([ln for ln in out.splitlines() if ln.startswith("- ") and " -> " in ln]) == 6

@@ -73,6 +73,45 @@ class OneLineParser(argparse.ArgumentParser):
         self.exit(2, f"pathpref: error: {message} (see '{self.prog} --help')\n")
 
 
+class RefusedOption(argparse.Action):
+    """An option a subcommand refuses with a reason (``why(value)``: one line naming the fix)
+    instead of argparse's bare "unrecognized arguments"; hidden from the help."""
+
+    def __init__(self, option_strings, dest, why, **kwargs):
+        kwargs.setdefault("help", argparse.SUPPRESS)
+        super().__init__(option_strings, dest, **kwargs)
+        self.why = why
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        """Refuse the option: a usage error (one line, exit status 2)."""
+        parser.error(self.why(values))
+
+
+def study_physics_refusals(sr: argparse.ArgumentParser) -> None:
+    """``study run`` takes no physics flag: a trial's physics is set in the study file
+    (``robot_model`` is refused there too, with the same reason, :func:`~pathpref.study.plan.
+    disk_only`)."""
+    from ..episode.physics import FIELDS, flag
+    from ..study.plan import NOT_THE_PARTICIPANT, STUDY_TIMINGS, disk_only
+
+    sr.add_argument("--robot-model", action=RefusedOption, dest="_refused",
+                    why=lambda v: f"study run has no --robot-model: the trial's physics "
+                    f"robot_model {disk_only(v)}")
+    for name, (group, _) in FIELDS.items():
+        if name == "robot_model":
+            continue
+        if group == "human" and name != "timing":
+            why = f"{flag(name)} {NOT_THE_PARTICIPANT}"
+        else:
+            value = f"one of {', '.join(STUDY_TIMINGS)}" if name == "timing" else "..."
+            why = (f"set it per trial in the study file: \"physics\": {{\"{name}\": "
+                   f"{value}}} (docs/study.md)")
+        sr.add_argument(flag(name), action=RefusedOption, dest="_refused",
+                        nargs=0 if name == "use_strength" else None,
+                        why=lambda v, name=name, why=why: f"study run has no {flag(name)}: "
+                        f"{why}")
+
+
 #: what each preset is (docs/robust.md); the default is named from the planner's own
 PRESET_HELP = ("the planner's settings: paper (the paper's POMCP), original (the authors' "
                "code), robust (route prior, guided search), robust-wait (robust whose search "
@@ -358,6 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
     sr.add_argument("--lsl", action="store_true",
                     help="stream force, pose and events as Lab Streaming Layer outlets "
                     "(needs pylsl: pip install 'pathpref[lsl]'; docs/study_export.md)")
+    study_physics_refusals(sr)
     sr.set_defaults(func=c.cmd_study_run)
     se = stsub.add_parser("export", help="a participant's trials as a tidy CSV/Parquet folder "
                           "and one MCAP file per trial (docs/study_export.md)")

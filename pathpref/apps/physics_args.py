@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..episode.physics import CHOICES, FIELDS, RANGES, Physics, flag
+from ..episode.physics import CHOICES, FIELDS, PRESET_DEFAULT, RANGES, Physics, flag
 from ..errors import ConfigError
 
 
@@ -33,6 +33,11 @@ def physics_options(sp: argparse.ArgumentParser) -> None:
         elif name in CHOICES:
             g.add_argument(flag(name), choices=CHOICES[name], default=None,
                            help=f"default {default}")
+        elif name in PRESET_DEFAULT:  # stored -1: the --sensor preset's own value
+            lo, hi = RANGES[name]
+            g.add_argument(flag(name), type=float, default=None, metavar="X",
+                           help=f"{lo:g}..{hi:g}, default: the --sensor preset's "
+                           "(docs/sensing.md)")
         else:
             lo, hi = RANGES[name]
             g.add_argument(flag(name), type=float, default=None, metavar="X",

@@ -290,6 +290,17 @@ def _trial(i: int, raw: Any, defaults: dict[str, Any], folder: Path) -> Trial:
     return trial
 
 
+#: why a trial refuses the simulated human's physics fields (the study file's and ``study run``'s)
+NOT_THE_PARTICIPANT = "is the simulated human's; a trial's human is the participant: leave it out"
+
+
+def disk_only(got: str) -> str:
+    """Why a study's trials run on the disk robot only, for a request of robot model ``got``:
+    the one message of the study file's ``robot_model`` and of ``study run --robot-model``."""
+    return (f"must be disk: a study's exports place its cells at the disk's 0.5 m; got "
+            f"{got!r} (the TidyBot runs in --sim mujoco episodes, the tasks and the videos)")
+
+
 def _physics(value: Any, where: str) -> str:
     """The canonical ``physics`` of a trial field (module docstring)."""
     if value is None or value == "legacy":
@@ -304,13 +315,10 @@ def _physics(value: Any, where: str) -> str:
                           "base also complies to them), got "
                           f"{str(value.get('timing'))[:40]!r}")
     if human:
-        raise ConfigError(f"{where}.physics.{human[0]} is the simulated human's; a trial's "
-                          "human is the participant: leave it out")
+        raise ConfigError(f"{where}.physics.{human[0]} {NOT_THE_PARTICIPANT}")
     if value.get("robot_model", "disk") != "disk":
-        raise ConfigError(f"{where}.physics.robot_model must be disk: a study's exports place "
-                          f"its cells at the disk's 0.5 m; got "
-                          f"{str(value.get('robot_model'))[:40]!r} (the TidyBot runs in --sim "
-                          "mujoco episodes, the tasks and the videos)")
+        raise ConfigError(f"{where}.physics.robot_model "
+                          f"{disk_only(str(value.get('robot_model'))[:40])}")
     try:
         return Physics.coerce(value)
     except PathprefError as e:

@@ -31,7 +31,7 @@ def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
             ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=m, color=COLORS.get(m))
         ax.set_xlabel("ΔT (steps between human inputs)")
         ax.set_ylabel("success rate")
-        ax.set_ylim(0, 1)
+        ax.set_ylim(*RATE_LIMITS)
         ax.set_title(f"{g[0]} ({g[1]})\n{g[2]}", fontsize=8)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8)
@@ -40,11 +40,35 @@ def success_figure(records: list[dict[str, Any]], out: str | Path) -> None:
     plt.close(fig)
 
 
+#: the share of a panel's data range left free above and below its points (a point at the
+#: panel's limit would sit on the frame, half hidden)
+MARGIN = 0.06
+#: the limits of a panel of rates in [0, 1], with :data:`MARGIN`
+RATE_LIMITS = (-MARGIN, 1.0 + MARGIN)
+
+
+def headroom(values: list[float], margin: float = MARGIN) -> tuple[float, float]:
+    """Limits from 0 to the largest finite value (point or interval end) plus ``margin`` of
+    it, so the top point stays off the frame: ``(0, v_max (1 + margin))``; ``(0, 1)`` when
+    no value is above 0."""
+    import math
+
+    top = max((v for v in values if math.isfinite(v)), default=0.0)
+    return (0.0, top * (1.0 + margin)) if top > 0 else (0.0, 1.0)
+
+
 def study_figure(records: list[dict[str, Any]], out: str | Path) -> None:
     """Per condition (the ``condition`` records of
     :func:`pathpref.experiments.report.study_records`): success rate and the share on route
     with 95% Wilson intervals, and mean effort with its range-clipped 95% t interval (a bare
-    point where ``n < 3`` gives none)."""
+    point where ``n < 3`` gives none); every point and interval inside its panel's frame."""
+    fig = study_axes(records)
+    fig.savefig(out, dpi=130)
+    plt.close(fig)
+
+
+def study_axes(records: list[dict[str, Any]]):
+    """The figure of :func:`study_figure`, not yet written (its three panels)."""
     import math
 
     recs = [r for r in records if r["by"] == "condition"]
@@ -62,13 +86,12 @@ def study_figure(records: list[dict[str, Any]], out: str | Path) -> None:
         ax.set_xticks(x, [f"{r['group']}\n(n = {r['n']})" for r in recs], fontsize=7)
         ax.set_ylabel(label)
         if col != "effort_ns":
-            ax.set_ylim(0, 1.02)
+            ax.set_ylim(*RATE_LIMITS)
         else:
-            ax.set_ylim(bottom=0)
+            ax.set_ylim(*headroom([v for r in recs for v in (r[col], r[hi_key])]))
         ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(out, dpi=130)
-    plt.close(fig)
+    return fig
 
 
 def budget_figure(points: list[dict[str, Any]], out: str | Path) -> None:
