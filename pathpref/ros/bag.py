@@ -65,11 +65,10 @@ def _deps(pkg: str, text: str) -> list[str]:
     return out
 
 
-def definition(name: str) -> str:
-    """The ``ros2msg`` schema of ``pkg/msg/Type``: its text, then each type it uses
-    (depth first, once) after a separator and ``MSG: pkg/Type``."""
-    top = _msg_text(name)
-    seen, order, todo = {name}, [], _deps(name.split("/")[0], top)
+def _with_deps(top: str, pkg: str, seen: set) -> str:
+    """``top`` followed by each message type it uses (depth first, once, skipping ``seen``),
+    each after a separator and ``MSG: pkg/Type``: the ``ros2msg`` schema's layout."""
+    order, todo = [], _deps(pkg, top)
     while todo:
         dep = todo.pop(0)
         if dep in seen:
@@ -80,6 +79,11 @@ def definition(name: str) -> str:
         todo = _deps(dep.split("/")[0], text) + todo
     return top + "".join(f"{SEP}\nMSG: {d.split('/')[0]}/{d.split('/')[2]}\n{t}"
                          for d, t in order)
+
+
+def definition(name: str) -> str:
+    """The ``ros2msg`` schema of ``pkg/msg/Type``: its text, then each type it uses."""
+    return _with_deps(_msg_text(name), name.split("/")[0], {name})
 
 
 #: ``tf2_msgs/msg/TFMessage``: its one field (the rest from geometry_msgs' installed files)
@@ -88,18 +92,7 @@ TF_MESSAGE = "tf2_msgs/msg/TFMessage"
 
 def tf_definition() -> str:
     """The ``ros2msg`` schema of ``tf2_msgs/msg/TFMessage``."""
-    top = "geometry_msgs/TransformStamped[] transforms\n"
-    seen, order, todo = set(), [], _deps("tf2_msgs", top)
-    while todo:
-        dep = todo.pop(0)
-        if dep in seen:
-            continue
-        seen.add(dep)
-        text = _msg_text(dep)
-        order.append((dep, text))
-        todo = _deps(dep.split("/")[0], text) + todo
-    return top + "".join(f"{SEP}\nMSG: {d.split('/')[0]}/{d.split('/')[2]}\n{t}"
-                         for d, t in order)
+    return _with_deps("geometry_msgs/TransformStamped[] transforms\n", "tf2_msgs", set())
 
 
 def type_name(msg) -> str:
