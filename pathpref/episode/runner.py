@@ -147,7 +147,7 @@ class EpisodeRunner:
     def _heading_at(self, cell: int) -> int:
         """The human's heading at ``cell`` drawn from the run's human stream (what a body
         that pushes at its own times asks for; a bound method, not a closure, so a copy of
-        the episode, ``pathpref_tasks.snapshot``, draws from the copy's stream)."""
+        the episode (a task's snapshot) draws from the copy's stream)."""
         return self.human.sample(cell, self.human_rng)
 
     def _preference(self, free_goal: bool) -> np.ndarray:

@@ -134,6 +134,8 @@ class RouteBelief(PreferenceBelief):
         self._splits: dict[tuple, _Split] = {}
         self._last_split: dict[int, _Split] = {}  # per root: the split asked for last
         self._cache: list | None = None
+        #: preference_given_goal per polytope, dropped with _cache at every update
+        self._given: dict[int, np.ndarray] = {}
         # log det ~L_g(1): the number of arborescences, the prior's normaliser
         self._log_trees = np.array([self._split(int(r), ()).logdet_u
                                     for r in self.goal_polytope])
@@ -141,6 +143,7 @@ class RouteBelief(PreferenceBelief):
     def _multiply(self, v: int, factor: np.ndarray) -> None:
         super()._multiply(v, factor)
         self._cache = None
+        self._given = {}
 
     def _split(self, r: int, S: tuple) -> _Split:
         """The unobserved block of ``r``'s minor for observed set ``S`` (cached, one per goal
@@ -214,7 +217,16 @@ class RouteBelief(PreferenceBelief):
         """``(G, deg v)`` exact ``P(p_v = N(v)[k] | g, o_1:t)`` under the route prior (uniform
         outside the goal's component; the goal's own polytope has no preferred exit, shown as
         uniform): ``W(v, u) q_u`` normalised, ``q_u = P_u(reach r before v)`` computed without
-        cancellation (:func:`.chains.exit_probabilities`)."""
+        cancellation (:func:`.chains.exit_probabilities`). Kept until the next update (the
+        wait budget, the crossing check and the policy ask for one polytope several times per
+        decision)."""
+        kept = self._given.get(v)
+        if kept is None:
+            kept = self._given[v] = self._preference_given_goal(v)
+        return kept.copy()
+
+    def _preference_given_goal(self, v: int) -> np.ndarray:
+        """:meth:`preference_given_goal`, computed."""
         nb = self.neighbors[v]
         deg = len(nb)
         out = np.full((len(self.log_prior), self.degree[v]), 1.0 / self.degree[v])
