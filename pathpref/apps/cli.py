@@ -116,9 +116,10 @@ def study_physics_refusals(sr: argparse.ArgumentParser) -> None:
 PRESET_HELP = ("the planner's settings: paper (the paper's POMCP), original (the authors' "
                "code), robust (route prior, guided search), robust-wait (robust whose search "
                "can wait for the next push), robust-check (robust-wait that checks each "
-               "crossing against waiting for the next pushes) or robust-slack (robust-check "
+               "crossing against waiting for the next pushes), robust-slack (robust-check "
                "that budgets its waits over the route and arrives first when time runs "
-               "out)")
+               "out) or robust-value (robust-slack that judges arriving per goal inside "
+               "one search and waits for a second push before an unsure crossing)")
 
 
 def build_parser() -> argparse.ArgumentParser:
