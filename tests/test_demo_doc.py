@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from pathpref.apps.demo import (
+    DEMO_METHODS,
     DEMO_RUNS,
     DOC_BEGIN,
     DOC_END,
@@ -31,7 +32,6 @@ from pathpref.apps.demo import (
 )
 from pathpref.episode import run_episode
 from pathpref.experiments.report import wilson
-from pathpref.planning.policies import METHODS
 from pathpref.planning.pomdp import DEFAULT_PRESET
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
@@ -88,11 +88,11 @@ def test_the_reruns_counts_are_the_sweeps_cell(block, sweep):
     """With the sweep's preset and 30 runs the demo's episodes are the sweep's: the same
     keys, so the same counts (the block's lines equal the cell's). The sweep's keys are read
     from the database's text export: per cell their number and digest."""
-    want = [cell_rate_line(sweep_cell(sweep, m)) for m in METHODS]
+    want = [cell_rate_line(sweep_cell(sweep, m)) for m in DEMO_METHODS]
     assert [ln for ln in block if ln.startswith("- ") and "runs (" in ln] == want
     preset = sweep_preset(sweep)
     cells = read_export(KEYS)
-    for m in METHODS:
+    for m in DEMO_METHODS:
         keys = {s.key() for s in demo_specs(m, DEMO_RUNS, 0, preset)}
         cell = ("simple", m, "1", "corrective delay=1 miss=0.2", preset)
         assert cells[cell] == (len(keys), keys_digest(keys)), m

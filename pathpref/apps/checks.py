@@ -144,7 +144,7 @@ def check_database(db: str | Path, option: str = "--db", must_exist: bool = Fals
 
 
 def check_methods(names: Sequence[str]) -> list[str]:
-    """The methods of ``names`` (``all`` and ``reference`` expanded,
+    """The methods of ``names`` (``all``, ``reference`` and ``baselines`` expanded,
     :func:`~pathpref.planning.policies.resolve_methods`); an unknown one is refused naming
     the closest known name."""
     from ..planning.policies import METHODS, resolve_methods
@@ -152,8 +152,9 @@ def check_methods(names: Sequence[str]) -> list[str]:
     try:
         return resolve_methods(list(names))
     except ConfigError as e:
-        bad = next((n for n in names if n not in (*METHODS, "all", "reference")), None)
-        hint = did_you_mean(bad, [*METHODS, "all", "reference"])
+        known = [*METHODS, "all", "reference", "baselines"]
+        bad = next((n for n in names if n not in known), None)
+        hint = did_you_mean(bad, known)
         if not hint:
             raise
         raise ConfigError(str(e).replace(f"'{bad}'", f"'{bad}'{hint}", 1)) from None

@@ -52,8 +52,12 @@ from typing import Any
 from ..episode import EpisodeResult, EpisodeSpec, Physics, cached_world, run_episode
 from ..experiments.report import wilson
 from ..experiments.sweep import sweep_specs
-from ..planning.policies import METHODS
+from ..planning.policies import resolve_methods
 from ..planning.pomdp import DEFAULT_PRESET
+
+#: the demo's methods, the stored sweep's (``--methods all reference``, scripts/demo_sweep.sh):
+#: the paper's four and the two reference methods
+DEMO_METHODS = tuple(resolve_methods(["all", "reference"]))
 
 DEMO_MAP = "simple"
 #: the corrective human of the demo's setting (:mod:`pathpref.episode.corrective`), in the
@@ -318,7 +322,7 @@ def grid_rates(runs: int = DEMO_RUNS, seed: int = 0, preset: str = DEFAULT_PRESE
     """Run ``runs`` grid episodes per method in the demo's setting (:func:`demo_specs`) and
     count their outcomes; ``log(line)`` hears one line per method."""
     specs_of, res_of, rows = {}, {}, []
-    for m in METHODS:
+    for m in DEMO_METHODS:
         specs = demo_specs(m, runs, seed, preset)
         res = [run_episode(s) for s in specs]
         specs_of[m], res_of[m] = specs, res
