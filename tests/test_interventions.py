@@ -174,7 +174,8 @@ def _schema4_file(path) -> None:
             "key": "k1", "map": "simple", "map_hash": "h", "sim": "grid", "task": "navigate",
             "method": "compliant", "delta_t": 1, "preset": "paper", "queries": 10, "t_max": 30,
             "instance_seed": 1, "ucb_c": 1.0, "normalize": 1, "coupling": 1, "status": "ok",
-            "success": 1, "goal_reached": 1, "pref_followed": 1, "inputs": 3, "steps": 0}
+            "success": 1, "goal_reached": 1, "pref_followed": 1, "inputs": 3, "steps": 0,
+            "violations": 0}
         c.execute(f"INSERT INTO episodes ({', '.join(old)}) VALUES ({', '.join('?' * len(old))})",
                   [row[k] for k in old])
         c.execute("INSERT INTO steps VALUES ('k1', 0, 1, 1, -1, -1, 0.1, 2.3)")
