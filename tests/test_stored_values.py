@@ -120,3 +120,14 @@ def test_a_read_only_file_system_is_one_line(physical, tmp_path):
     assert r.stderr.splitlines() == [f"pathpref: error: cannot write --out {ro}/ds: folder {ro} "
                                      "is not writable"]
     assert os.listdir(ro) == []
+
+
+def test_report_names_a_tampered_row_by_its_rowid(physical, tmp_path, capsys):
+    """A row whose key is not pathpref's is named by its rowid, not by its position among the
+    rows read (row 1 deleted, so the tampered rowid 3 is the second row read)."""
+    _change(physical, "DELETE FROM episodes WHERE rowid = 1",
+            "UPDATE episodes SET key = 'not a key!', success = 'x' WHERE rowid = 3")
+    rc, err, _ = _run(tmp_path, ["report", physical], capsys)
+    assert rc == 2 and len(err) == 1, err
+    assert "episodes row 3 has success = 'x'" in err[0], err[0]
+    assert "WHERE rowid = 3" in err[0], err[0]

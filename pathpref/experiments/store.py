@@ -889,8 +889,10 @@ class ResultStore:
     def episodes(self, where: str = "", params: Iterable[Any] = ()) -> list[dict[str, Any]]:
         """Episode rows (as dicts), optionally filtered by an SQL ``where`` with ``params``;
         a row pathpref cannot have written is refused (:func:`check_episode_rows`)."""
-        rows = self._rows(f"SELECT * FROM episodes {where}", params)
-        check_episode_rows(rows, self.path)
+        rows = self._rows(f"SELECT rowid, * FROM episodes {where}", params)
+        check_episode_rows(rows, self.path)  # a refused row is named by its rowid
+        for row in rows:
+            del row["rowid"]
         return rows
 
     def check_rows(self) -> None:
