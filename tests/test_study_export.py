@@ -81,15 +81,18 @@ def test_mcap_holds_every_recorded_force_sample_and_the_events(demo_db, tmp_path
         gaps = {b[0] - a[0] for a, b in zip(applied[:-1], applied[1:])}
         assert gaps <= {1_999_999, 2_000_000, 2_000_001}  # 2 ms (rounded to the nanosecond)
         for topic, table in (("/pushes", "trial_pushes"), ("/cues", "trial_cues"),
-                             ("/belief", "trial_beliefs"), ("/pose", "trial_steps")):
+                             ("/belief", "trial_beliefs"), ("/pose", "trial_path")):
             n = rows(demo_db, f"SELECT count(*) FROM {table} WHERE trial = ?", k)[0][0]
             assert len(topics.get(topic, [])) == n, topic
         peaks = [r[0] for r in rows(demo_db, "SELECT peak_n FROM trial_pushes WHERE trial = ? "
                                     "ORDER BY k", k)]
         assert [m["peak_n"] for _, m in topics["/pushes"]] == peaks
-        x, y = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = ? AND t = 0", k)[0]
-        pos = topics["/pose"][0][1]["pose"]["position"]
-        assert (pos["x"], pos["y"]) == ((x - 0.5) * 0.5, (y - 0.5) * 0.5)  # 0.5 m cells
+        path = rows(demo_db, "SELECT time_s, x, y FROM trial_path WHERE trial = ? ORDER BY k", k)
+        assert [(m["pose"]["position"]["x"], m["pose"]["position"]["y"])
+                for _, m in topics["/pose"]] == [(x, y) for _, x, y in path]
+        poses = [t for t, _ in topics["/pose"]]
+        assert len(poses) > 100 and max(b - a for a, b in zip(poses, poses[1:])) <= 20_000_000
+        # the base's recorded pose at the path's rate (100 Hz; at least 50 Hz asked)
 
 
 
@@ -115,11 +118,11 @@ def test_mcap_ros2_messages_decode_typed(demo_db, tmp_path):
         assert all(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec == t
                    for _, t, m in msgs)
         assert {m.header.frame_id for _, _, m in msgs} == {"world"}
-    steps = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    path = rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = 1 ORDER BY k")
     poses = got["/ros/pose"]
     assert {name for name, _, _ in poses} == {"geometry_msgs/msg/PoseStamped"}
     assert [(m.pose.position.x, m.pose.position.y, m.pose.orientation.w)
-            for _, _, m in poses] == [((x - 0.5) * 0.5, (y - 0.5) * 0.5, 1.0) for x, y in steps]
+            for _, _, m in poses] == [(x, y, 1.0) for x, y in path]
 
 
 
@@ -156,10 +159,37 @@ def test_mcap_scene_belief_and_transforms_decode_as_foxglove(demo_db, tmp_path):
             ((x - 0.5) * 0.5, (y - 0.5) * 0.5) for x, y in cands]
         assert [s.color.a for s in spheres] == pytest.approx([0.15 + 0.85 * q for q in p],
                                                               abs=1e-12)
-    steps = rows(demo_db, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    path = rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = 1 ORDER BY k")
     assert [(m.parent_frame_id, m.child_frame_id, m.translation.x, m.translation.y)
-            for m in tfs] == [("world", "base", (x - 0.5) * 0.5, (y - 0.5) * 0.5)
-                              for x, y in steps]
+            for m in tfs] == [("world", "base", x, y) for x, y in path]
+
+
+def test_a_trial_without_a_recorded_path_has_its_poses_at_the_decision_steps(demo_db,
+                                                                             tmp_path):
+    """A file written before ``trial_path`` existed: /pose, /ros/pose and /tf fall back to one
+    per decision step, at the centre of the stored cell (0.5 m cells)."""
+    import shutil
+
+    from mcap.reader import make_reader
+
+    old = tmp_path / "old.sqlite"
+    shutil.copy(demo_db, old)
+    c = sqlite3.connect(old)
+    c.execute("DELETE FROM trial_path")
+    c.commit()
+    c.close()
+    out = tmp_path / "out"
+    assert main(["study", "export", str(old), "--participant", "demo", "--out", str(out)]) == 0
+    with open(out / "demo" / "trial-01.mcap", "rb") as f:
+        msgs = [(ch.topic, m) for _, ch, m in make_reader(f).iter_messages(
+            topics=["/pose", "/ros/pose", "/tf"])]
+    steps = rows(old, "SELECT x, y FROM trial_steps WHERE trial = 1 ORDER BY t")
+    for topic in ("/pose", "/ros/pose", "/tf"):
+        assert sum(t == topic for t, _ in msgs) == len(steps) > 1, topic
+    first = json.loads(next(m.data for t, m in msgs if t == "/pose"))
+    x, y = steps[0]
+    assert (first["pose"]["position"]["x"], first["pose"]["position"]["y"]) == (
+        (x - 0.5) * 0.5, (y - 0.5) * 0.5)
 
 
 

@@ -22,14 +22,17 @@ Into ``OUT/PARTICIPANT/``:
     step, at the recorded rate (every row of ``trial_forces``);
   - ``/pushes``, ``/cues``: one message per push and per cue (their rows' fields);
   - ``/belief``: the goal probabilities after every update, with the candidates' cells;
-  - ``/pose``: ``foxglove.PoseInFrame`` of the base at every decision step: the centre of the
-    cell it stood on, ``(cell - 0.5) * cell_size`` m with the scene's default cell size
-    (:data:`pathpref.sim.scene.CELL_SIZE_M`; the continuous pose is not stored);
+  - ``/pose``: ``foxglove.PoseInFrame`` of the base at the recorded path's rate (every
+    ``trial_path`` row, 100 Hz), and ``/tf`` (``foxglove.FrameTransform`` ``world -> base``) at
+    the same times, so the 3-D view moves as the base did; a trial with no recorded path (a
+    file written before ``trial_path``) has them at every decision step instead, at the centre
+    of the cell the base stood on, ``(cell - 0.5) * cell_size`` m with the scene's default
+    cell size (:data:`pathpref.sim.scene.CELL_SIZE_M`);
   - the same forces and poses as ROS 2 messages (CDR encoding, ``ros2msg`` schemas, through
     ``mcap-ros2-support``; :mod:`.ros2_msgs`), which Foxglove and rerun's MCAP import decode as
     typed data: ``/ros/force/applied`` and ``/ros/force/sensed`` (``geometry_msgs/msg/
     WrenchStamped``, one per ``trial_forces`` row) and ``/ros/pose`` (``geometry_msgs/msg/
-    PoseStamped``, one per decision step); ``/ros/path`` (``PoseStamped``, the base's
+    PoseStamped``, one per ``/pose``); ``/ros/path`` (``PoseStamped``, the base's
     recorded position, every ``trial_path`` row, 100 Hz) and ``/ros/end_effector`` (the same
     for the end effector, when the robot has one).
 
@@ -251,12 +254,26 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
                                                                "torque": zero}}, ros[1])
         event_topics(channel, fx_channel, put, conn, participant, k, t0, db)
         path = ros_channel("/ros/path", ros2_msgs.POSE_STAMPED)
+        pose_ch = channel("/pose", POSE_SCHEMA)
+        ros_pose = ros_channel("/ros/pose", ros2_msgs.POSE_STAMPED)
+        tf = fx_channel("/tf", mcap_scene.fx_type("FrameTransform"))
+
+        def base_pose(time_s: float, x: float, y: float) -> None:
+            """/pose, /ros/pose and /tf of the base at ``(x, y)`` m at ``time_s``."""
+            ns, ts = _stamp(t0, time_s)
+            pose = {"position": {"x": x, "y": y, "z": 0.0}, "orientation": IDENTITY}
+            put(pose_ch, "/pose", time_s, {"timestamp": ts, "frame_id": "world", "pose": pose})
+            put(ros_pose[0], "/ros/pose", time_s, {"header": ros2_msgs.header(ns),
+                                                    "pose": pose}, ros_pose[1])
+            put(tf, "/tf", time_s, mcap_scene.base_transform(ns, x, y))
+
         hand = None
         for r in checked("trial_path", _rows(conn, "trial_path", participant, k, "k"), db):
             ns, _ = _stamp(t0, r["time_s"])
             put(path[0], "/ros/path", r["time_s"], {"header": ros2_msgs.header(ns), "pose": {
                 "position": {"x": r["x"], "y": r["y"], "z": 0.0}, "orientation": IDENTITY}},
                 path[1])
+            base_pose(r["time_s"], r["x"], r["y"])
             if r["ee_x"] is not None:
                 hand = hand or ros_channel("/ros/end_effector", ros2_msgs.POSE_STAMPED)
                 put(hand[0], "/ros/end_effector", r["time_s"], {
@@ -275,20 +292,11 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
                                               "candidates": cands})
             put(belief_goals, "/scene/belief", r["time_s"],
                 mcap_scene.belief_update(_stamp(t0, r["time_s"])[0], cands, p))
-        cid = channel("/pose", POSE_SCHEMA)
-        ros_pose = ros_channel("/ros/pose", ros2_msgs.POSE_STAMPED)
-        tf = fx_channel("/tf", mcap_scene.fx_type("FrameTransform"))
-        for r in checked("trial_steps", _rows(conn, "trial_steps", participant, k, "t"), db):
-            ns, ts = _stamp(t0, r["time_s"])
-            pose = {"position": {"x": (r["x"] - 0.5) * CELL_SIZE_M,
-                                 "y": (r["y"] - 0.5) * CELL_SIZE_M, "z": 0.0},
-                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}
-            put(cid, "/pose", r["time_s"], {"timestamp": ts, "frame_id": "world",
-                                            "pose": pose})
-            put(ros_pose[0], "/ros/pose", r["time_s"], {"header": ros2_msgs.header(ns),
-                                                        "pose": pose}, ros_pose[1])
-            put(tf, "/tf", r["time_s"], mcap_scene.base_transform(
-                ns, pose["position"]["x"], pose["position"]["y"]))
+        if counts["/pose"] == 0:  # no recorded path (older files): the decision steps' cells
+            for r in checked("trial_steps", _rows(conn, "trial_steps", participant, k, "t"),
+                             db):
+                base_pose(r["time_s"], (r["x"] - 0.5) * CELL_SIZE_M,
+                          (r["y"] - 0.5) * CELL_SIZE_M)
         w.finish()
     return counts
 
