@@ -22,8 +22,10 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# two worker processes (pytest-xdist), each taking whole test files (module fixtures built
+# once, the wheel built by one process): the suite is CPU-bound, single-threaded per test
 test: $(STAMP)
-	MUJOCO_GL=egl $(BIN)/python -m pytest
+	MUJOCO_GL=egl $(BIN)/python -m pytest -n 2 --dist loadfile
 
 # The replays and pinned decisions (marker cross_cpu) once more under another CPU feature set:
 # NumPy at its x86-64-v2 baseline (no AVX2/AVX-512 kernels), OpenBLAS's Sandy Bridge kernels

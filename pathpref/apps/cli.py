@@ -395,6 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "person pushes)")
     sr.add_argument("--resume", action="store_true",
                     help="continue a participant's trials (the unfinished one runs again)")
+    sr.add_argument("--live-port", type=int, default=None, metavar="PORT",
+                    help="serve a Foxglove live view of the trials on ws://127.0.0.1:PORT "
+                    "(scene, goal belief, /tf and /pose at 100 Hz; needs foxglove-sdk: pip "
+                    "install 'pathpref[export]'; default: none; docs/study_export.md)")
     sr.add_argument("--lsl", action="store_true",
                     help="stream force, pose and events as Lab Streaming Layer outlets "
                     "(needs pylsl: pip install 'pathpref[lsl]'; docs/study_export.md)")

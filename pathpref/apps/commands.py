@@ -523,7 +523,7 @@ def cmd_interact(args: argparse.Namespace) -> int:
 def cmd_study_run(args: argparse.Namespace) -> int:
     """``pathpref study run``: a participant's trials through the browser, the viewer or a
     push script, recorded in ``--db`` (:mod:`pathpref.study`)."""
-    from ..study.conduct import Session, check_participant
+    from ..study.conduct import check_participant
     from ..study.plan import load_study
 
     study = load_study(args.study)
@@ -541,7 +541,29 @@ def cmd_study_run(args: argparse.Namespace) -> int:
         from ..study.lsl import LslOutlets
 
         lsl = LslOutlets(args.participant)
-    session = Session(study, args.participant, args.db, resume=args.resume, lsl=lsl)
+    live = None
+    if args.live_port is not None:
+        if args.live_port == args.port:
+            raise ConfigError(f"--live-port {args.live_port} is the study server's --port; "
+                              "choose another")
+        from ..study.live import LiveView
+
+        live = LiveView(args.live_port)
+    try:
+        return _study_session(args, study, script, lsl, live)
+    finally:
+        if live is not None:
+            live.close()
+
+
+def _study_session(args: argparse.Namespace, study, script, lsl, live) -> int:
+    """The locked session of ``study run`` through its front end (:func:`cmd_study_run`)."""
+    from ..study.conduct import Session
+
+    session = Session(study, args.participant, args.db, resume=args.resume, lsl=lsl,
+                      live=live)
+    if live is not None:
+        print(f"live view: connect Foxglove to ws://127.0.0.1:{live.port}", flush=True)
     try:
         if script is not None:
             from ..study.script import ScriptedFrontEnd

@@ -225,9 +225,13 @@ def run_planner(spec: EpisodeSpec, topics: dict | None = None, timeout_s: float 
         recorder = Recorder(record, spec)
     live = None
     if live_port is not None:
-        from .live import LiveView
+        from ..study.live import LiveView
 
-        live = LiveView(core.world, core.runner.instance, core.scene.cell_size, live_port)
+        inst = core.runner.instance
+        live = LiveView(live_port)
+        w = core.world
+        live.show(time.time_ns(), w, w.cells[inst.start], w.cells[list(inst.goals)],
+                  w.cells[inst.goal_cell])
     rclpy.init(args=ros_args)
     try:
         node = rclpy.create_node("pathpref_planner")

@@ -218,12 +218,14 @@ def run_sim(spec: EpisodeSpec, topics: dict, path_hz: float = 100.0, realtime: f
         if live_port is not None:
             from ..episode.cache import cached_world
             from ..episode.instances import episode_instance
-            from .live import LiveView
+            from ..study.live import LiveView
 
             world = cached_world(spec.map)
             inst, _ = episode_instance(world, spec.fixed, spec.instance_seed, spec.n_goals,
                                        spec.human, spec.t_max)
-            live = LiveView(world, inst, 1.0, live_port)
+            live = LiveView(live_port)
+            live.show(time.time_ns(), world, world.cells[inst.start], world.cells[list(inst.goals)],
+                      world.cells[inst.goal_cell])
 
         def emit(kind, *a):
             if kind == "wrench":

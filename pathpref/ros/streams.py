@@ -13,6 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from ..study.mcap_scene import quaternion_z  # noqa: F401  (the messages' rotation)
+
 #: the default topics (each one a ROS parameter of the nodes)
 TOPICS = {
     "wrench": "/pathpref/handle/wrench",   # geometry_msgs/WrenchStamped, in: the handle's F/T
@@ -148,6 +150,3 @@ def read_step(msg, topic: str = TOPICS["step"]) -> StepMark:
     return StepMark(step, t, n_w, n_o, bool(closed))
 
 
-def quaternion_z(yaw: float) -> tuple[float, float]:
-    """``(qz, qw)`` of the rotation by ``yaw`` about z."""
-    return math.sin(0.5 * yaw), math.cos(0.5 * yaw)

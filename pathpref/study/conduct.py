@@ -148,9 +148,10 @@ class Session:
     :meth:`run` runs it, :meth:`close` releases the lock (``run`` does, at its end)."""
 
     def __init__(self, study: Study, participant: str, db: str | Path, resume: bool = False,
-                 lsl=None):
+                 lsl=None, live=None):
         check_participant(participant)
         self.lsl = lsl  # LslOutlets (:mod:`.lsl`) streaming the trials, or None
+        self.live = live  # a Foxglove LiveView (:mod:`.live`) of the trials, or None
         self.study, self.participant, self.db, self.resume = study, participant, Path(db), resume
         self.path = lock_path(db, participant)
         self.fd: int | None = None
@@ -282,7 +283,7 @@ class Session:
                     self._flush(writer)
                     run_trial(study, trial, position, len(order), participant, db, writer,
                               front, log, between=lambda: self._flush(writer),
-                              lsl=self.lsl)
+                              lsl=self.lsl, live=self.live)
                     self._flush(writer)
                 return writer.trials()
             except Exception as e:
@@ -322,7 +323,7 @@ def run_study(study: Study, participant: str, db: str | Path, front: FrontEnd,
 
 def run_trial(study: Study, trial: Trial, position: int, total: int, participant: str,
               db: str | Path, writer: TrialWriter, front: FrontEnd, log=print,
-              between=None, lsl=None) -> dict:
+              between=None, lsl=None, live=None) -> dict:
     """Run one trial through ``front`` and record it (row written first as ``running``);
     ``between()`` (when given) runs after every decision step."""
     runner = TrialRunner(trial, study.seed, front.source())
@@ -344,7 +345,7 @@ def run_trial(study: Study, trial: Trial, position: int, total: int, participant
     recorder: TrialRecorder | None = None
     wall = time.perf_counter()
     try:
-        recorder = TrialRecorder(writer, position, runner, rerun, lsl)
+        recorder = TrialRecorder(writer, position, runner, rerun, lsl, live)
         while not runner.done:
             runner.decide()
             recorder.after_decision()

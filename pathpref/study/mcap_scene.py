@@ -46,6 +46,11 @@ def schema(message_type):
     return s.name, s.encoding, bytes(s.data)
 
 
+def quaternion_z(yaw: float) -> tuple[float, float]:
+    """``(qz, qw)`` of the rotation by ``yaw`` about z."""
+    return math.sin(0.5 * yaw), math.cos(0.5 * yaw)
+
+
 def _stamp(fx, ns: int):
     return fx.Timestamp(sec=ns // 1_000_000_000, nsec=ns % 1_000_000_000)
 

@@ -13,6 +13,7 @@ database in one transaction after every decision step.
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +33,10 @@ class TrialRecorder:
     ``rerun`` is the trial's ``.rrd`` path (None: no rerun file)."""
 
     def __init__(self, writer: TrialWriter, trial: int, runner: TrialRunner,
-                 rerun: Path | None = None, lsl=None):
+                 rerun: Path | None = None, lsl=None, live=None):
         self.writer, self.trial, self.runner = writer, trial, runner
         self.lsl = lsl  # LslOutlets (:mod:`.lsl`) or None
+        self.live = live  # LiveView (:mod:`.live`) or None
         self.rows: dict[str, list[tuple]] = {t: [] for t in (
             "trial_steps", "trial_forces", "trial_pushes", "trial_cues", "trial_beliefs",
             "trial_path")}
@@ -53,6 +55,10 @@ class TrialRecorder:
         runner.on_belief.append(self._belief)
         if self.lsl:
             self.lsl.event("trial_start", trial)
+        if self.live:
+            t = runner.trial
+            self.live.show(time.time_ns(), runner.world, t.start, t.candidates,
+                           t.candidates[t.goal_index], t.route)
         self._belief("start")
         self._step_row()
 
@@ -88,6 +94,8 @@ class TrialRecorder:
         self.rows["trial_path"].append((self.k_path, t, x, y, *e))
         if self.lsl:
             self.lsl.pose(x, y, e)
+        if self.live:
+            self.live.pose(time.time_ns(), x, y, float(base.data.qpos[base.yaw]))
         self.k_path += 1
 
     def _end_push(self, t: float) -> None:
@@ -116,6 +124,8 @@ class TrialRecorder:
         if self.lsl:
             self.lsl.event("belief", self.trial, k=self.k_belief, cause=cause,
                            p=[round(float(v), 6) for v in p])
+        if self.live:
+            self.live.belief(time.time_ns(), p)
         self.k_belief += 1
 
     def _step_row(self) -> None:
