@@ -19,7 +19,10 @@ Entities (metres; the map's y axis points up on screen, so 2-D points are logged
 
 from __future__ import annotations
 
+import errno
 import os
+import shutil
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -75,6 +78,33 @@ def blueprint() -> rrb.Blueprint:
     )
 
 
+#: the longest (s) closing a recording waits for rerun to write out its file: rerun's flush and
+#: disconnect wait without end when the disk is full
+CLOSE_TIMEOUT_S = 20.0
+
+
+def _within(fn, timeout_s: float) -> bool:
+    """Call ``fn()`` on a daemon thread; True when it returned within ``timeout_s`` (its error,
+    if any, raised here), False when it is still running (it is left to the process's end)."""
+    error: list[BaseException] = []
+
+    def call() -> None:
+        try:
+            fn()
+        except BaseException as e:  # noqa: BLE001 - handed to the caller's thread
+            error.append(e)
+
+    t = threading.Thread(target=call, daemon=True, name="rerun-close")
+    t.start()
+    t.join(timeout_s)
+    if t.is_alive():  # and rerun's own shutdown at exit would wait on that stream again
+        rr.unregister_shutdown()
+        return False
+    if error:
+        raise error[0]
+    return True
+
+
 class RerunLogger:
     """Writes an episode to an offline rerun file (entities in the module docstring)."""
 
@@ -82,6 +112,7 @@ class RerunLogger:
                  cell_size: float = CELL_SIZE_M, app: str = "pathpref",
                  preference: np.ndarray | None = None):
         self.rec = rr.RecordingStream(app)
+        self.out = Path(out)
         self.rec.save(str(out), default_blueprint=blueprint())
         self.cs = cell_size
         self.path: list[np.ndarray] = []
@@ -178,19 +209,33 @@ class RerunLogger:
         rec.log("belief/p_true_goal", rr.Scalars(float(p_true)))
         rec.log("belief/entropy", rr.Scalars(float(entropy)))
 
-    def close(self) -> None:
-        """Flush and close the recording."""
-        self.rec.flush()
-        self.rec.disconnect()
+    def close(self, timeout_s: float = CLOSE_TIMEOUT_S) -> None:
+        """Flush and close the recording, waiting at most ``timeout_s`` for each; a file that
+        cannot be written out in that time is an OSError (ENOSPC when its file system has no
+        room left), never a wait without end."""
+        try:
+            self.rec.flush(timeout_sec=timeout_s)
+            done = _within(self.rec.disconnect, timeout_s)
+        except RuntimeError as e:  # rerun's error: a failed write, or the flush's timeout
+            raise self._unwritten(str(e)) from None
+        if not done:
+            raise self._unwritten(f"not closed within {timeout_s:g} s")
+
+    def _unwritten(self, why: str) -> OSError:
+        folder = self.out.parent
+        full = shutil.disk_usage(folder).free < 1 << 20 if folder.is_dir() else False
+        code = errno.ENOSPC if full else errno.EIO
+        return OSError(code, f"{os.strerror(code)}: rerun could not write {self.out} ({why})")
 
     def abandon(self, timeout_s: float = 1.0) -> None:
-        """Close the recording after a failure (its file is to be removed): the flush waits
-        at most ``timeout_s`` (a full disk never holds the caller), errors are dropped."""
+        """Close the recording after a failure (its file is to be removed): the flush and the
+        disconnect wait at most ``timeout_s`` each (rerun's wait without end on a full disk
+        never holds the caller), errors are dropped."""
         try:
             self.rec.flush(timeout_sec=timeout_s)
         except Exception:  # noqa: BLE001, S110 - the failure that led here is the one to tell
             pass
         try:
-            self.rec.disconnect()
+            _within(self.rec.disconnect, timeout_s)
         except Exception:  # noqa: BLE001, S110
             pass
