@@ -41,7 +41,7 @@ import numpy as np
 
 from ..episode.physics import HumanModel
 from ..geometry.grid import ACTION_ANGLES
-from .force_cue import HumanPush, PushProfile
+from .force_cue import CONTACT_N, HumanPush, PushProfile
 from .pushing_human import PushingHuman
 
 #: the speed at which the person wants the base to go their way (m/s; the default admittance
@@ -66,6 +66,22 @@ class GuidingPush(HumanPush):
         super().__init__(angle, t0, profile, intended_heading)
         self.now = np.zeros(3)
         self.released_at: float | None = None
+        #: the force the person applied, step by step: ``[sum |F| dt, max |F|, contact s]``
+        self.felt = np.zeros(3)
+
+    def applied(self, t: float, dt: float) -> None:
+        """The force :attr:`now` acts for the physics step at ``t`` (of ``dt``): counted into
+        :attr:`felt` when the push acts then."""
+        if self.active(t):
+            f = math.hypot(float(self.now[0]), float(self.now[1]))
+            self.felt[0] += f * dt
+            self.felt[1] = max(self.felt[1], f)
+            self.felt[2] += dt if f >= CONTACT_N else 0.0
+
+    def effort(self, dt: float, t_end: float) -> tuple[float, float, float]:
+        """The force the person set, as applied step by step (:attr:`felt`; ``dt`` and
+        ``t_end`` are the steps' own)."""
+        return float(self.felt[0]), float(self.felt[1]), float(self.felt[2])
 
     def force(self, t: float) -> np.ndarray:
         """The force the person applies now (set by :class:`GuidingHuman` before the step)."""
@@ -140,6 +156,7 @@ class GuidingHuman(PushingHuman):
                 self.push = None
                 return
             push.now[:2] = self._last_xy * _ramp(left / RAMP_S)
+            push.applied(t, base.dt)
             return
         cell = base.cell
         if cell != self._aim_cell:  # re-aim at the new cell's best heading
@@ -166,3 +183,4 @@ class GuidingHuman(PushingHuman):
         self._last_xy = np.array([f * ux, f * uy])
         push.now[:2] = self._last_xy
         push.now[2] = 0.0
+        push.applied(t, base.dt)
