@@ -329,6 +329,11 @@ class CueDetector:
         return int(self.st[RELEASED])
 
     @property
+    def left(self) -> int:
+        """Leans whose hand left (read at the settle: :class:`FilteredCueDetector`)."""
+        return int(self.st[LEFT])
+
+    @property
     def dropped(self) -> int:
         """Cues dropped at their release because their peak stayed under the onset level the
         noise floor rose to while they were open (:class:`FilteredCueDetector`)."""
@@ -463,18 +468,38 @@ class FilteredCueDetector(CueDetector):
       only if its peak stood out of that level by more than ``on`` (a push followed by a
       resting hand), else dropped (a hand arriving at 6 N plus noise). A cue thus ends either
       back at the baseline (below ``off`` for ``off_s``) or at a new one;
-    * **leaning** (a hand resting above ``on``: a person leaning on the handle at 10-15 N for
+    * **leaning** (a hand resting above ``on``: a person leaning on the handle at 10-40 N for
       20 s, which no ``settle_s`` window below ``on`` absorbs, would hold one cue active and
       blind the detector to the next push): an active cue whose ``e`` has stayed within ``off``
       of its mean for ``lean_s`` (3 s, longer than a deliberate correction is held steady),
-      that mean's magnitude below ``lean_n`` (20 N), ends there the same way, the mean added to
-      the baseline and remembered as the lean ``L`` (:attr:`leaned` counts them: a condition
-      to report); a push on top of the lean is then felt as any push. When the hand leaves,
-      ``e`` jumps toward ``-L``: a would-be onset within ``LEAVE_DEG`` (25 degrees: the
-      realistic sensor's 2 N noise turns an 8 N onset by 14 degrees) of ``-L`` and no
-      stronger than ``|L| + off`` is the lean ending, the baseline gives ``L`` back and no cue
-      is given (a push straight against the lean reads the same way at its onset and is
-      missed: ``cue_recall_after_leaning_hand`` 0.875, the misses are those pushes);
+      that mean's magnitude below ``lean_n`` (45 N: leans up to 40 N with noise to spare),
+      ends there the same way, the mean added to the baseline and remembered as the lean ``L``
+      (:attr:`leaned` counts them: a condition to report); a push on top of the lean, across
+      it or against it is then felt as any push, in its own direction. **The hand leaving**
+      is read at the settle, not at the onset: ``e`` falls to ``-L`` and stays there, so a cue
+      whose settle window's mean ``m`` lies within ``max(off, |L| / 4)`` of ``-L`` is the lean
+      ending: the baseline gives ``L`` back, the lean is forgotten (:attr:`left` counts it)
+      and no cue is given unless the peak stood out of ``|m|`` by more than ``on``. A push
+      against the lean returns to the lean and ends by the release rule, read its own way.
+      (Judged at the onset, a push against the lean pointed where the hand leaving does and
+      was read as the lean ending, then as a cue along the lean: 180 degrees wrong.) A
+      guiding push held within ``off`` of its mean for ``lean_s`` on a base that does not
+      follow (into a wall) is taken for a lean the same way;
+    * **noise larger than the thresholds** (the open-noise rule): the noise level is learnt
+      at rest with no cue under way, so a noise whose peaks cross ``on`` opens a cue that no
+      release (below ``off`` for ``off_s``) ends and the detector never rests again. Over
+      each :data:`NOISE_S` (1 s) of a cue open, the mean ``m`` and mean square ``s`` of ``e``
+      tell noise from a hand: a push, a lean or a guiding hold points one way (``|m|^2 /
+      s`` 0.8 to 1), white noise does not (``|m|^2 / s`` about ``tau / T``, a few hundredths);
+      below :data:`NOISE_COHERENCE` squared (0.25) the per-axis variance ``(s - |m|^2) / 2``
+      becomes the noise level when larger (thresholds ``on_k sigma``, ``off_k sigma``) and
+      the low-pass slows to ``noisy_tau_s`` (50 ms: the filtered noise falls by half, at
+      some latency, and stays so: the same device). The cue then ends below the new ``off``
+      and is dropped, not given, its peak being under the new ``on`` (:attr:`dropped`).
+      Pushes under 1 s never reach the rule and the realistic sensor's noise never fires it;
+    * **a bound on a cue's time open** (:data:`OPEN_MAX_S`, 12 s, both detectors): a cue no
+      rule has ended by then (a steady force above ``lean_n``) is released, not given, and
+      counted (:attr:`released`);
     * the impulse sums ``e`` only while ``|e| > off``, so the release tail (pure noise) does
       not turn the cue's direction.
 
