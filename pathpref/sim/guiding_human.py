@@ -2,17 +2,25 @@
 closed-loop, pushing while the robot goes the wrong way and letting go once it behaves
 (``docs/physics.md``, section 9; ``../shared/PHRI_NOTES.md`` section 4).
 
-**When.** The person takes the handle on the ``interval`` clock of
-:class:`~.pushing_human.PushingHuman` (the first grasp ``reaction_s`` after the start, then
-every ``I (1 + j u)`` seconds, ``u ~ U[-1, 1]``; a grasp that falls due while the person still
-holds the handle waits for the release), so guidance and taps get the same number of
-interventions.
+**When** (``push_rule``). ``interval``: the person takes the handle on the ``interval``
+clock of :class:`~.pushing_human.PushingHuman` (the first grasp ``reaction_s`` after the
+start, then every ``I (1 + j u)`` seconds, ``u ~ U[-1, 1]``; a grasp that falls due while the
+person still holds the handle waits for the release), so guidance and taps get the same
+number of interventions. ``corrective``: when the robot starts a move off the person's route
+(its heading less than half as likely as their most likely one), with the chances and the
+reaction delay ``reaction_s (1 + 0.25 z)`` (0.4 s median: a visual reaction of 0.2-0.25 s and
+the force's build-up, ``PHRI_NOTES`` section 5) of the ``corrective`` tapping person, the
+same rule for both; the person then holds until the robot heads their way again (below).
 
-**Where to.** At every physics step the person aims at where their own route wants the robot:
-the most likely heading ``h*(c) = argmax_h P(h | c, g, p)`` of the human model at the base's
-cell ``c`` (SPEC 4: the first move of the shortest way to the true goal that keeps the
-preference), re-aimed whenever the base enters another cell, plus a motor noise ``eps ~ N(0,
-noise_deg)`` drawn once per push: ``u = (cos(a(h*) + eps), sin(a(h*) + eps))``.
+**Where to.** The person aims where their own route wants the robot, chosen as the tapping
+person chooses a tap's heading: a heading ``h(c) ~ P(h | c, g, p)`` drawn from the human
+model at the base's cell ``c`` with its rationality ``gamma_h`` (SPEC 4: Boltzmann over the
+extra length of the way to the true goal that keeps the preference; ``heading_at``, the
+tapping person's own draw), at the grasp and again whenever the base enters another cell,
+plus a motor noise ``eps ~ N(0, noise_deg)`` drawn once per push: ``u = (cos(a(h) + eps),
+sin(a(h) + eps))``. So guidance and taps compare at one rationality: ``gamma_h`` 100 is the
+person who always takes the best heading (the guiding person's only choice before, whatever
+``gamma_h`` said), the default 1.5 the paper's.
 
 **How hard.** ``F = F_p (S + (1 - S) e)`` along ``u``, with ``F_p`` the push's strength
 (log-normal, median ``peak_n``, spread ``peak_spread``, clipped to ``[peak_min_n,
@@ -103,8 +111,8 @@ class GuidingHuman(PushingHuman):
     """The closed-loop person of the module docstring, a ``pre_substep`` hook on the base (the
     grasp times and the stream are :class:`~.pushing_human.PushingHuman`'s).
 
-    ``probs(cell)`` is the human model's heading distribution at a cell (the person's aim is
-    its most likely heading); ``heading_at`` is not used (the aim is not a fresh draw)."""
+    ``heading_at(cell)`` draws the person's heading at a cell (their aim, the tapping
+    person's draw); ``probs(cell)`` is the human model's heading distribution there."""
 
     def __init__(self, human: HumanModel, rng: np.random.Generator, delta_t: int,
                  heading_at: Callable[[int], int],
@@ -119,8 +127,9 @@ class GuidingHuman(PushingHuman):
         return -math.inf if self.push is not None else super().quiet_until()
 
     def _aim(self, cell: int) -> int:
-        """The person's heading at ``cell``: the model's most likely one (module docstring)."""
-        return int(np.argmax(self.probs(cell)))
+        """The person's heading at ``cell``: drawn from the human model at its ``gamma_h``
+        (module docstring)."""
+        return int(self.heading_at(cell))
 
     def _grasp(self, base, t: float) -> None:
         """Take the handle now: the push's strength, longest hold, aim noise and release
@@ -138,7 +147,7 @@ class GuidingHuman(PushingHuman):
         self.push, self._aim_cell, self._right_since = push, base.cell, None
         base.pushes.append(push)
         self.given.append(push)
-        self.next_t = t + self._gap()
+        self.next_t = None if self.corrective else t + self._gap()
 
     def __call__(self, base) -> None:
         """Before a physics step: grasp when due, then set the push's force for this step."""

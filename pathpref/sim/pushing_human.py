@@ -21,6 +21,8 @@ robot heads the wrong way (:class:`~pathpref.episode.physics.HumanModel` holds t
   to fail and add needless ones to one that seems to work): with ``r`` the share of right
   moves among the last 5, ``p_correct r`` and ``p_needless r``.
   The heading is drawn from the Boltzmann model at the cell where the push begins.
+  The guiding person (:mod:`.guiding_human`) takes the handle by the same rule under
+  ``push_rule = corrective`` (:attr:`PushingHuman.corrective`).
 """
 
 from __future__ import annotations
@@ -74,13 +76,17 @@ class PushingHuman:
         self.next_t: float | None = None
         self.given: list[HumanPush] = []
         self.recent: deque[bool] = deque(maxlen=5)
+        #: the person intervenes when the robot errs (``corrective`` taps, or the guiding
+        #: person's ``push_rule``), not on a clock
+        self.corrective = human.timing == "corrective" or (
+            human.timing == "guidance" and human.push_rule == "corrective")
 
     def attach(self, base) -> None:
         """Push ``base`` from now on (a ``pre_substep`` hook)."""
         self.base = base
         base.pre_substep.append(self)
         t = float(base.data.time)
-        if self.model.timing in ("interval", "rate", "guidance"):
+        if self.model.timing in ("interval", "rate", "guidance") and not self.corrective:
             # the first push when the mission starts (after a reaction time), as the paper's
             # protocol gives an input before the first move; then at the human's own times
             self.next_t = t + self.model.reaction_s
@@ -95,7 +101,7 @@ class PushingHuman:
         """The robot starts a move from ``cell`` toward ``heading`` (None: it stays). In
         ``corrective`` timing the human may react (module docstring)."""
         p = self.model
-        if p.timing != "corrective" or heading is None or self.probs is None:
+        if not self.corrective or heading is None or self.probs is None:
             return
         q = self.probs(cell)
         right = bool(q[heading] >= 0.5 * q.max())
@@ -123,4 +129,4 @@ class PushingHuman:
                                 self.rng)
         base.pushes.append(push)
         self.given.append(push)
-        self.next_t = None if self.model.timing == "corrective" else t + self._gap()
+        self.next_t = None if self.corrective else t + self._gap()
