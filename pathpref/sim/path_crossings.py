@@ -53,12 +53,15 @@ class PathCrossings:
         self.pending = None
 
     def depth(self, xy: np.ndarray, v: int) -> float:
-        """The distance (m) from ``xy`` to the nearest cell of polytope ``v``."""
+        """The distance (m) from ``xy`` to the nearest cell of polytope ``v`` (infinity when
+        it has none: ``v`` -1, a hook never reset)."""
         size = float(self.base.scene.cell_size)
         c = self._centres.get(v)
         if c is None:
             c = (self.world.cells[self.world.cell_polytope == v] - 0.5) * size
             self._centres[v] = c
+        if len(c) == 0:
+            return np.inf
         gap = np.maximum(np.abs(c - np.asarray(xy, float)[:2]) - 0.5 * size, 0.0)
         return float(np.sqrt((gap * gap).sum(axis=1)).min())
 
