@@ -28,10 +28,9 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   corrections, at the ``interval`` times the human holds the handle (at most a log-normal
   time of median ``hold_s``) while the base drives, the base complies and the belief is
   updated online from the deformation, below; ``guide``: the guiding person, ``closed`` or
-  ``open``; ``push_rule``: when the guiding person takes the handle, on the ``interval``
-  clock or ``corrective``, when the robot starts a move off their route, with the tapping
-  ``corrective`` person's rule, chances and reaction delay); ``interval_s`` 0 means
-  ``delta_t``
+  ``open``; with the episode's ``--push-rule corrective ...`` the guiding person takes the
+  handle when the robot starts a move off their route instead of on the clock,
+  :mod:`pathpref.sim.guiding_human`); ``interval_s`` 0 means ``delta_t``
   decision steps of :meth:`Physics.step_s` seconds (the one rule); push strength log-normal with
   median ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n,
   peak_max_n]``; duration log-normal with median ``duration_s`` and spread ``duration_spread``,
@@ -136,10 +135,6 @@ def check_body_drive(robot_model: str, base: str) -> None:
 #: and lets go when the robot heads the right way (the simulator's ``guiding_human``), or
 #: ``open``, who holds one drawn heading for the whole push
 GUIDES = ("closed", "open")
-#: when the guiding person takes the handle (``push_rule``, ``guidance`` timing): on the
-#: ``interval`` clock, or ``corrective``: when the robot starts a move off their route, by the
-#: rule and reaction delay of the ``corrective`` tapping person
-PUSH_RULES = ("interval", "corrective")
 
 #: allowed range of each number: name -> (lowest, highest); the CLI flag is ``--`` + the name
 #: with dashes
@@ -162,7 +157,6 @@ RANGES: dict[str, tuple[float, float]] = {
 PRESET_DEFAULT = ("sensor_noise_n", "sensor_bias_n", "sensor_drift_n")
 CHOICES: dict[str, tuple[str, ...]] = {"sensor": SENSORS, "timing": TIMINGS, "shape": SHAPES,
                                        "base": BASES, "guide": GUIDES,
-                                       "push_rule": PUSH_RULES,
                                        "robot_model": tuple(ROBOT_MODELS)}
 
 
@@ -187,10 +181,10 @@ DRIVE_V_MAX = 1.5
 #: the keys of stored episodes are unchanged
 QUIET_DEFAULTS = {"mass_kg": 135.0, "friction_n": 0.0, "hold_s": 2.0, "admittance_m": 20.0,
                   "arm_stiffness": 1000.0, "sensor_thermal_n": 0.0, "guide": "closed",
-                  "robot_model": "disk", "push_rule": "interval"}
+                  "robot_model": "disk"}
 #: quiet fields written whatever their value under a timing (a guided episode names its
 #: person, so rows of the earlier open-loop person never share a key with it)
-NAMED_UNDER = {"guide": "guidance", "push_rule": "guidance"}
+NAMED_UNDER = {"guide": "guidance"}
 
 
 def _canonical(flat: dict) -> str:
@@ -307,15 +301,9 @@ class HumanModel:
     hold_s: float = QUIET_DEFAULTS["hold_s"]
     #: ``guidance`` timing: the person (:data:`GUIDES`)
     guide: str = QUIET_DEFAULTS["guide"]
-    #: ``guidance`` timing: when the person takes the handle (:data:`PUSH_RULES`)
-    push_rule: str = QUIET_DEFAULTS["push_rule"]
 
     def __post_init__(self) -> None:
         _check(self)
-        if self.push_rule != "interval" and self.timing != "guidance":
-            raise ConfigError(f"physics push_rule (--push-rule) {self.push_rule} is the guiding "
-                              f"person's rule: it needs --timing guidance (taps that correct "
-                              f"are --timing corrective), got --timing {self.timing}")
         if self.peak_min_n > self.peak_max_n:
             raise ConfigError(f"physics peak_min_n must be at most peak_max_n "
                               f"({self.peak_max_n:g} N), got {self.peak_min_n:g}")

@@ -121,9 +121,12 @@ class MujocoBody(Body):
         person-led or not (:mod:`.path_crossings`); else None."""
         return None if self.path is None else self.path.take()
 
-    def attach_human(self, heading_at, probs) -> bool:
+    def attach_human(self, heading_at, probs, watch=None) -> bool:
         """Take the human over when the physics' timing is not ``decision`` (pushes at any
-        time, :mod:`.pushing_human`); the human's own stream is a child of the body's."""
+        time, :mod:`.pushing_human`); the human's own stream is a child of the body's. A
+        guided episode's person takes the handle when ``watch`` (the episode's corrective
+        rule, :class:`~pathpref.episode.corrective.CorrectiveHuman`) says the robot errs, else
+        on the clock."""
         self.probs = probs
         if self.physics is None or self.physics.human.timing == "decision":
             return False
@@ -135,7 +138,8 @@ class MujocoBody(Body):
         else:
             self.base.enable_pushes_any_time(drive.admittance_b)
         self.human = person(human, self.rng.spawn(1)[0], self.delta_t, heading_at, probs,
-                            self.physics.step_s(self.scene.cell_size))
+                            self.physics.step_s(self.scene.cell_size),
+                            watch=watch if human.timing == "guidance" else None)
         self.human.attach(self.base)
         return True
 

@@ -2,15 +2,17 @@
 closed-loop, pushing while the robot goes the wrong way and letting go once it behaves
 (``docs/physics.md``, section 9; ``../shared/PHRI_NOTES.md`` section 4).
 
-**When** (``push_rule``). ``interval``: the person takes the handle on the ``interval``
+**When.** By default the person takes the handle on the ``interval``
 clock of :class:`~.pushing_human.PushingHuman` (the first grasp ``reaction_s`` after the
 start, then every ``I (1 + j u)`` seconds, ``u ~ U[-1, 1]``; a grasp that falls due while the
 person still holds the handle waits for the release), so guidance and taps get the same
-number of interventions. ``corrective``: when the robot starts a move off the person's route
-(its heading less than half as likely as their most likely one), with the chances and the
-reaction delay ``reaction_s (1 + 0.25 z)`` (0.4 s median: a visual reaction of 0.2-0.25 s and
-the force's build-up, ``PHRI_NOTES`` section 5) of the ``corrective`` tapping person, the
-same rule for both; the person then holds until the robot heads their way again (below).
+number of interventions. Corrective (the episode's ``--push-rule corrective delay=D
+miss=M``, the rule the tapping corrective person follows): when the robot starts a move that
+would leave the person's route (or is about to, or heads away from the goal along it), after
+the reaction delay ``reaction_s (1 + 0.25 z)`` (0.4 s median: a visual reaction of 0.2-0.25 s
+and the force's build-up, ``PHRI_NOTES`` section 5) plus ``D`` steps
+(:class:`~.pushing_human.PushingHuman`); the person then holds until the robot heads their
+way again and lets go (below).
 
 **Where to.** The person aims where their own route wants the robot, chosen as the tapping
 person chooses a tap's heading: a heading ``h(c) ~ P(h | c, g, p)`` drawn from the human
@@ -116,8 +118,8 @@ class GuidingHuman(PushingHuman):
 
     def __init__(self, human: HumanModel, rng: np.random.Generator, delta_t: int,
                  heading_at: Callable[[int], int],
-                 probs: Callable[[int], np.ndarray], step_s: float = 1.0):
-        super().__init__(human, rng, delta_t, heading_at, probs, step_s)
+                 probs: Callable[[int], np.ndarray], step_s: float = 1.0, watch=None):
+        super().__init__(human, rng, delta_t, heading_at, probs, step_s, watch)
         self.push: GuidingPush | None = None
         self._aim_cell = -1
         self._right_since: float | None = None
