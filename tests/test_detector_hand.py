@@ -6,6 +6,7 @@ counted. Pure detector, no physics: the force is the test's own."""
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -117,3 +118,16 @@ def test_a_cue_open_longer_than_the_bound_is_released_and_counted():
             longest, open_since = max(longest, t - open_since), None
     assert det.released == 2
     assert longest == pytest.approx(OPEN_MAX_S, abs=0.05)
+
+
+def test_the_bench_keys_on_the_physical_base():
+    """The physics bench's probes on a physical base with the realistic sensor
+    (``pathpref.apps.benchmarks.physics``): a 40 N lean, then pushes the same way, across
+    and against it: all 3 read (``lean_40n_probes_read``); 10 pushes of 30 N under 10 N of
+    noise per axis: at least 8 read, none stuck (the bench's 40: 0.975, 0 stuck)."""
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    from pathpref.apps.benchmarks.physics import lean_probes, noisy_pushes
+
+    assert lean_probes(40.0) == {"lean_40n_probes_read": 3}
+    out = noisy_pushes(10.0, n=10)
+    assert out["recall"] >= 0.8 and out["stuck"] == 0
