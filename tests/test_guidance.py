@@ -234,11 +234,22 @@ def test_a_guided_step_is_the_same_in_the_cli_and_the_task():
 
 
 class _FakeBase:
-    def __init__(self):
+    """A base whose cell and position the test sets (``xy`` None: the cell's centre)."""
+
+    def __init__(self, world=None):
         self.data = type("D", (), {"time": 0.0})()
         self.pushes = []
         self.cell = 0
+        self.xy = None
+        self.world = world
+        self.scene = type("S", (), {"cell_size": 0.5})()
         self.guidance = type("G", (), {"mass": 20.0, "damping": 80.0})()
+
+    @property
+    def position(self):
+        if self.xy is not None:
+            return np.array(self.xy, float)
+        return (self.world.cells[self.cell] - 0.5) * self.scene.cell_size
 
 
 def test_crossings_along_the_path_are_labelled_with_who_made_them():
@@ -248,7 +259,7 @@ def test_crossings_along_the_path_are_labelled_with_who_made_them():
 
     world = cached_world("simple")
     a, b = 0, int(np.flatnonzero(world.cell_polytope != world.cell_polytope[0])[0])
-    base, path = _FakeBase(), None
+    base, path = _FakeBase(world), None
     path = PathCrossings(base, world)
     path.reset(a)
     base.pushes.append(HumanPush(0.0, 1.0, PushProfile(20.0, 1.0, 0.0, "plateau"), EAST))
@@ -260,6 +271,49 @@ def test_crossings_along_the_path_are_labelled_with_who_made_them():
     pa, pb = int(world.cell_polytope[a]), int(world.cell_polytope[b])
     assert path.take() == [(pa, pb, False), (pb, pa, True), (pa, pb, True), (pb, pa, False)]
     assert path.take() == []
+
+
+def _face_pair(world):
+    """Two side-adjacent cells ``a``, ``b = a + (1, 0)`` in different polytopes."""
+    index = {(int(x), int(y)): i for i, (x, y) in enumerate(world.cells)}
+    for (x, y), a in index.items():
+        b = index.get((x + 1, y), -1)
+        if b >= 0 and world.cell_polytope[a] != world.cell_polytope[b]:
+            return a, b
+    raise AssertionError("no face on the map")
+
+
+def test_chatter_on_a_face_counts_no_crossing_and_a_real_one_counts_once():
+    """The worked chatter case (``docs/physics.md``, hysteresis): a push leaves the base on
+    the face between ``a`` (polytope 4 in the report) and ``b`` (6), 1 mm either side of it,
+    so the cell under it flips a, b, a, b, a: the base is never 0.25 cell = 0.125 m inside
+    ``b``, so no crossing counts (it counted four). Then the base goes to ``b``'s centre, 0.25
+    m past the face: one crossing, the person's (a push acted)."""
+    from pathpref.sim.force_cue import HumanPush, PushProfile
+    from pathpref.sim.path_crossings import HYSTERESIS_CELLS
+
+    assert HYSTERESIS_CELLS == 0.25
+    world = cached_world("simple")
+    a, b = _face_pair(world)
+    face_x = float(world.cells[a][0]) * 0.5  # the right side of a (cells 0.5 m wide)
+    y = (float(world.cells[a][1]) - 0.5) * 0.5
+    base = _FakeBase(world)
+    path = PathCrossings(base, world)
+    path.reset(a)
+    base.pushes.append(HumanPush(0.0, 0.0, PushProfile(20.0, 10.0, 0.0, "plateau"), EAST))
+    k = 0
+    for cell, dx in [(a, -0.001), (b, 0.001), (a, -0.001), (b, 0.001), (a, -0.001)] * 3:
+        k += 1
+        base.data.time, base.cell, base.xy = 0.002 * k, cell, (face_x + dx, y)
+        path(base)
+    assert path.take() == [] and path.pending is None
+    for dx in (0.001, 0.1, 0.124, 0.126, 0.25):  # commits past 0.125 m
+        k += 1
+        base.data.time, base.cell, base.xy = 0.002 * k, b, (face_x + dx, y)
+        path(base)
+        assert (path.pending is None) == (dx > 0.125)
+    pa, pb = int(world.cell_polytope[a]), int(world.cell_polytope[b])
+    assert path.take() == [(pa, pb, True)]
 
 
 class _LedBody(GridBody):

@@ -100,11 +100,13 @@ class Body(ABC):
         return {}
 
     def attach_human(self, heading_at: Callable[[int], int],
-                     probs: Callable[[int], np.ndarray]) -> bool:
+                     probs: Callable[[int], np.ndarray], watch=None) -> bool:
         """Offer to give the human's inputs at times of the body's own (pushes at any time):
         ``heading_at(cell)`` draws the human's heading at a cell, ``probs(cell)`` is its
-        distribution. True when the body took them over; then the runner gives no inputs at
-        decision steps. False by default."""
+        distribution; ``watch`` the episode's corrective rule (a
+        :class:`~.corrective.CorrectiveHuman`, guided episodes: the guiding person takes the
+        handle when it says the robot errs; None: on the clock). True when the body took them
+        over; then the runner gives no inputs at decision steps. False by default."""
         return False
 
     def inputs_given(self) -> int:

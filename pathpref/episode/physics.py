@@ -28,7 +28,9 @@ Groups (the flat field names are the JSON keys and the ``--`` flags):
   corrections, at the ``interval`` times the human holds the handle (at most a log-normal
   time of median ``hold_s``) while the base drives, the base complies and the belief is
   updated online from the deformation, below; ``guide``: the guiding person, ``closed`` or
-  ``open``); ``interval_s`` 0 means ``delta_t``
+  ``open``; with the episode's ``--push-rule corrective ...`` the guiding person takes the
+  handle when the robot starts a move off their route instead of on the clock,
+  the simulator's ``guiding_human``); ``interval_s`` 0 means ``delta_t``
   decision steps of :meth:`Physics.step_s` seconds (the one rule); push strength log-normal with
   median ``peak_n`` and geometric spread ``peak_spread``, clipped to ``[peak_min_n,
   peak_max_n]``; duration log-normal with median ``duration_s`` and spread ``duration_spread``,

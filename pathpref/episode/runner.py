@@ -41,8 +41,9 @@ from .spec import EpisodeSpec
 
 #: the corrective human watches decision steps: a body pushing at times of its own cannot
 #: take it
-_ANY_TIME = ("push_rule {rule!r} pushes at decision steps, but {where} pushes at times of its "
-             "own; use --timing decision (the default) or the periodic human (push_rule '')")
+_ANY_TIME = ("push_rule {rule!r} pushes at decision steps (or takes a guiding person's "
+             "handle: --timing guidance), but {where} pushes at times of its own; use --timing "
+             "decision (the default), --timing guidance or the periodic human (push_rule '')")
 
 
 def _quiet_numerics(method):
@@ -111,7 +112,9 @@ class EpisodeRunner:
                                     hold=spec.human == "consistent")
         rule = parse_push_rule(spec.push_rule)
         physical = spec.physical
-        if rule is not None and physical is not None and physical.human.timing != "decision":
+        guided = physical is not None and physical.human.timing == "guidance"
+        if rule is not None and physical is not None and \
+                physical.human.timing not in ("decision", "guidance"):
             raise ConfigError(_ANY_TIME.format(rule=spec.push_rule, where=(
                 f"--timing {physical.human.timing}")))
         #: the corrective human (None: the periodic one)
@@ -120,8 +123,9 @@ class EpisodeRunner:
         self.body = body if body is not None else make_body(spec, world)
         self.body.connect(self.observe)  # the one door of what the robot feels
         #: the body gives the human's inputs at times of its own (pushes at any time)
-        self.continuous = self.body.attach_human(self._heading_at, self.human.probs)
-        if self.corrective is not None and self.continuous:
+        self.continuous = self.body.attach_human(
+            self._heading_at, self.human.probs, watch=self.corrective if guided else None)
+        if self.corrective is not None and self.continuous and not guided:
             raise ConfigError(_ANY_TIME.format(rule=spec.push_rule, where="this body"))
         self.result = EpisodeResult(spec=spec, instance=inst, instance_cells={
             "start": world.cells[inst.start].tolist(),

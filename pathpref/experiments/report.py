@@ -189,17 +189,25 @@ def push_summary(ok: list[dict[str, Any]]) -> dict[str, Any]:
 
 #: per-episode metrics of a physical body that a cell sums (:func:`physical_summary`)
 PUSH_COUNTS = ("pushes", "pushes_missed", "pushes_misread", "collisions")
+#: the person's effort per episode (:meth:`pathpref.sim.body.MujocoBody.effort_metrics`), a
+#: cell's mean of each (the peak: its largest)
+EFFORT = ("person_impulse_ns", "person_contact_s", "person_peak_n")
 
 
 def physical_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
     """What a cell's physical episodes measured (rows whose ``metrics`` hold them: episodes
     with physical parameters): the pushes made, missed and misread, the collisions (contacts
     with an obstacle or a wall begun), summed over the episodes, and the mean cue latency (ms,
-    over the episodes with a cue). ``None`` for each when no row measured it."""
+    over the episodes with a cue); the person's effort (:data:`EFFORT`): the mean impulse
+    ``integral |F| dt`` (N s) and contact time (s) per episode, the largest peak force (N),
+    and the impulse per success (``person_impulse_per_success_ns``: the impulse of all the
+    episodes over the successes; None without one). ``None`` for each when no row measured
+    it."""
     import json
 
-    out: dict[str, Any] = {k: None for k in (*PUSH_COUNTS, "cue_latency_ms")}
-    lat = []
+    out: dict[str, Any] = {k: None for k in (*PUSH_COUNTS, "cue_latency_ms", *EFFORT,
+                                             "person_impulse_per_success_ns")}
+    lat, effort, wins = [], {k: [] for k in EFFORT}, 0
     for r in rows:
         try:
             m = json.loads(r.get("metrics") or "{}")
@@ -213,15 +221,26 @@ def physical_summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
         if isinstance(m.get("cue_latency_ms"), int | float) and math.isfinite(
                 m["cue_latency_ms"]):
             lat.append(float(m["cue_latency_ms"]))
+        if all(isinstance(m.get(k), int | float) for k in EFFORT):
+            for k in EFFORT:
+                effort[k].append(float(m[k]))
+            wins += bool(r.get("success"))
     if lat:
         out["cue_latency_ms"] = sum(lat) / len(lat)
+    if effort["person_peak_n"]:
+        for k in ("person_impulse_ns", "person_contact_s"):
+            out[k] = sum(effort[k]) / len(effort[k])
+        out["person_peak_n"] = max(effort["person_peak_n"])
+        if wins:
+            out["person_impulse_per_success_ns"] = sum(effort["person_impulse_ns"]) / wins
     return out
 
 
 def physical_tables(records: list[dict[str, Any]]) -> str:
     """Markdown: for every (map, sim, variant) whose episodes measured how the robot read the
     pushes, methods x Delta_T cells ``missed m / misread r of n pushes, latency L ms, c
-    collisions`` (sums over the cell's episodes; latency: the mean over episodes)."""
+    collisions, effort J N s / episode`` (sums over the cell's episodes; latency and the
+    person's impulse: the means over episodes; no effort for rows that did not measure it)."""
     blocks = []
     keys = sorted({(r["map"], r["sim"], r["variant"]) for r in records
                    if r.get("pushes") is not None})
@@ -230,9 +249,11 @@ def physical_tables(records: list[dict[str, Any]]) -> str:
         if r is None or r.get("pushes") is None:
             return "–"
         lat = r.get("cue_latency_ms")
+        effort = "" if r.get("person_impulse_ns") is None else \
+            f", effort {r['person_impulse_ns']:.1f} N s / episode"
         return (f"missed {r['pushes_missed']} / misread {r['pushes_misread']} of "
                 f"{r['pushes']}, " + ("no cue" if lat is None else f"latency {lat:.0f} ms")
-                + f", {r['collisions']} collisions")
+                + f", {r['collisions']} collisions" + effort)
 
     for m, sim, var in keys:
         recs = [r for r in records if (r["map"], r["sim"], r["variant"]) == (m, sim, var)]

@@ -91,6 +91,8 @@ class MujocoBody(Body):
         self.path: PathCrossings | None = None
         #: decision-timing pushes: (intended heading, detected heading or -1, latency s)
         self.readings: list[tuple[int, int, float]] = []
+        #: decision-timing pushes as drawn (:meth:`effort_metrics`)
+        self.pushes_given: list[HumanPush] = []
         #: the continuous path's sampler (:meth:`record_path`; None: not recorded)
         self.path_recorder: PathRecorder | None = None
 
@@ -119,9 +121,12 @@ class MujocoBody(Body):
         person-led or not (:mod:`.path_crossings`); else None."""
         return None if self.path is None else self.path.take()
 
-    def attach_human(self, heading_at, probs) -> bool:
+    def attach_human(self, heading_at, probs, watch=None) -> bool:
         """Take the human over when the physics' timing is not ``decision`` (pushes at any
-        time, :mod:`.pushing_human`); the human's own stream is a child of the body's."""
+        time, :mod:`.pushing_human`); the human's own stream is a child of the body's. A
+        guided episode's person takes the handle when ``watch`` (the episode's corrective
+        rule, :class:`~pathpref.episode.corrective.CorrectiveHuman`) says the robot errs, else
+        on the clock."""
         self.probs = probs
         if self.physics is None or self.physics.human.timing == "decision":
             return False
@@ -133,7 +138,8 @@ class MujocoBody(Body):
         else:
             self.base.enable_pushes_any_time(drive.admittance_b)
         self.human = person(human, self.rng.spawn(1)[0], self.delta_t, heading_at, probs,
-                            self.physics.step_s(self.scene.cell_size))
+                            self.physics.step_s(self.scene.cell_size),
+                            watch=watch if human.timing == "guidance" else None)
         self.human.attach(self.base)
         return True
 
@@ -192,6 +198,7 @@ class MujocoBody(Body):
         """Push toward ``heading`` (:meth:`draw_push`) while the base holds its cell (the push
         phase run to completion); its cue reaches the runner's door when it is read."""
         push = self.draw_push(heading)
+        self.pushes_given.append(push)
         cue = self.base.receive_push(push)
         self.cell = self.base.cell
         self.readings.append((heading, -1 if cue is None else cue.heading,
@@ -204,7 +211,24 @@ class MujocoBody(Body):
         if self.physics is not None:
             out.update(self.base.physical_metrics())
             out.update(self.cue_metrics())
+            out.update(self.effort_metrics())
         return out
+
+    def effort_metrics(self) -> dict[str, float]:
+        """What the person's pushes cost them (the effort measures of pHRI studies), summed
+        over every push of the episode on the physics steps it acted at
+        (:meth:`~.force_cue.HumanPush.effort`; a guiding push as the person set it, step by
+        step): ``person_impulse_ns`` (``integral |F| dt``, N s), ``person_peak_n`` (the
+        largest ``|F|``, N) and ``person_contact_s`` (the time a hand pushed, s; two pushes
+        that overlap count their overlap twice)."""
+        given = self.pushes_given if self.human is None else self.human.given
+        t_end, dt = float(self.base.data.time), float(self.base.dt)
+        impulse = peak = contact = 0.0
+        for p in given:
+            j, top, c = p.effort(dt, t_end)
+            impulse, peak, contact = impulse + j, max(peak, top), contact + c
+        return {"person_impulse_ns": impulse, "person_peak_n": peak,
+                "person_contact_s": contact}
 
     def cue_metrics(self) -> dict[str, float]:
         """How the robot read the human's pushes (episodes with physical parameters):

@@ -379,14 +379,15 @@ class Coaster:
 
     def _hooks_mirrored(self) -> bool:
         """Every ``on_substep`` hook is one the kernel runs without: at most one
-        :class:`~.path_crossings.PathCrossings` (reset: its polytope known), whose polytope
-        check the kernel makes, and path recorders (:class:`~.path_record.PathRecorder`),
-        which say how many steps they stay quiet (``quiet_steps()``, ``skip(n)``)."""
+        :class:`~.path_crossings.PathCrossings` (reset: its polytope known, no crossing
+        pending: its hysteresis is Python's), whose polytope check the kernel makes, and
+        path recorders (:class:`~.path_record.PathRecorder`), which say how many steps they
+        stay quiet (``quiet_steps()``, ``skip(n)``)."""
         crossings = 0
         for hook in self.base.on_substep:
             if type(hook) is PathCrossings:
                 crossings += 1
-                if hook.v < 0:
+                if hook.v < 0 or hook.pending is not None:
                     return False
             elif type(hook) is not PathRecorder:
                 return False

@@ -36,9 +36,16 @@ from ..geometry.grid import heading_to_action
 from .kernel_parts import Slot
 from .native import _ddot
 
-#: how far from the lean's opposite a would-be onset may point and still be the resting hand
-#: leaving (degrees; :class:`FilteredCueDetector`)
-LEAVE_DEG = 25.0
+#: how long a cue may stay open before it is released and counted (s; ``released``): longer
+#: than the guiding person's longest hold (10 s, :mod:`.guiding_human`) and the lean rule's
+#: window (``lean_s``), so only a cue no rule can end reaches it
+OPEN_MAX_S = 12.0
+#: the open-noise rule (:class:`FilteredCueDetector`): after ``NOISE_S`` of a cue open, a cue
+#: whose mean force is below ``NOISE_COHERENCE`` of its root-mean-square is noise (a push, a
+#: lean or a guiding hold points one way: their ratio is 0.9 to 1; white noise's falls as
+#: ``sqrt(tau / T)``, 0.1 to 0.2 after 1 s)
+NOISE_S = 1.0
+NOISE_COHERENCE = 0.5
 
 
 @dataclass(frozen=True)
@@ -64,13 +71,13 @@ class Cue:
 #: counters and the last cue given (:func:`decide_step`'s output)
 (ACTIVE, ABOVE, BELOW, IMP_X, IMP_Y, PEAK, DURATION, DIPPED, TURN, TURN_X, TURN_Y, SETTLE,
  SUM_X, SUM_Y, SIMP_X, SIMP_Y, LEAN_X, LEAN_Y, LEANED, SETTLED, SPLITS, CUE_X, CUE_Y,
- CUE_PEAK, CUE_DUR, N_ST) = range(26)
+ CUE_PEAK, CUE_DUR, RELEASED, DROPPED, LEFT, N_ST) = range(29)
 #: :func:`decide_step`'s constants (:attr:`CueDetector.rule`): the step, ``on_s``, ``off_s``,
 #: the turn's cosine, the split switch, the filtered detector's rules switch (the settle and
 #: lean rules, the impulse summed above ``off`` only), ``settle_s``, ``lean_s``, ``lean_n`` and
-#: the cosine of :data:`LEAVE_DEG`
+#: the bound on a cue's time open (:data:`OPEN_MAX_S`)
 (R_DT, R_ON_S, R_OFF_S, R_COS_TURN, R_SPLIT, R_FILTERED, R_SETTLE_S, R_LEAN_S, R_LEAN_N,
- R_COS_LEAVE, N_RULE) = range(11)
+ R_OPEN_MAX_S, N_RULE) = range(11)
 
 
 @nb.njit(cache=True)
@@ -166,25 +173,17 @@ def _active(st, fx, fy, mag, accumulate, on_n, off_n, rule, buf):
     st[DURATION] += dt
     st[BELOW] = st[BELOW] + dt if mag < off_n else 0.0
     if st[BELOW] >= rule[R_OFF_S] - 1e-12:
+        if st[PEAK] <= on_n:  # the onset level rose under the cue (the open-noise rule)
+            st[DROPPED] += 1.0
+            clear_state(st)
+            return 0
         _give(st, st[IMP_X], st[IMP_Y], st[PEAK], st[DURATION])
         clear_state(st)
         return 1
+    if st[DURATION] >= rule[R_OPEN_MAX_S] - 1e-12:  # no rule ended it: released, counted
+        st[RELEASED] += 1.0
+        clear_state(st)
     return 0
-
-
-@nb.njit(cache=True)
-def _lean_ends(st, ex, ey, mag, baseline, off_n, rule, buf):
-    """Whether a would-be onset ``e`` is the remembered lean leaving (the filtered
-    detector's docstring): then the baseline gives the lean back."""
-    lx, ly = st[LEAN_X], st[LEAN_Y]
-    size = math.hypot(lx, ly)
-    if size == 0.0 or mag > size + off_n or \
-            -_dot2(buf, ex, ey, lx, ly) < rule[R_COS_LEAVE] * mag * size:
-        return False
-    baseline[0], baseline[1] = baseline[0] - lx, baseline[1] - ly
-    st[LEAN_X], st[LEAN_Y] = 0.0, 0.0
-    clear_state(st)
-    return True
 
 
 @nb.njit(cache=True)
@@ -209,7 +208,12 @@ def _settling(st, ex, ey, mag, baseline, on_n, off_n, rule):
         return -1
     lx, ly = st[SUM_X] / st[SETTLE], st[SUM_Y] / st[SETTLE]
     lift = math.hypot(lx, ly)
-    if lift >= on_n:
+    qx, qy = st[LEAN_X], st[LEAN_Y]
+    size = math.hypot(qx, qy)
+    if size > 0.0 and math.hypot(lx + qx, ly + qy) <= max(off_n, 0.25 * size):
+        st[LEAN_X], st[LEAN_Y] = 0.0, 0.0  # the leaning hand left: the baseline gives it back
+        st[LEFT] += 1.0
+    elif lift >= on_n:
         if lift < rule[R_LEAN_N] and st[SETTLE] < rule[R_LEAN_S] - 1e-12:
             return -1  # perhaps a lean: keep the window
         if lift >= rule[R_LEAN_N]:
@@ -250,8 +254,6 @@ def decide_step(fx, fy, st, baseline, queue, on_n, off_n, rule, buf):
             return 0
         return _active(st, fx, fy, mag, True, on_n, off_n, rule, buf)
     if st[ACTIVE] == 0.0:
-        if _lean_ends(st, fx, fy, mag, baseline, off_n, rule, buf):
-            return 0
         _onset(st, fx, fy, mag, on_n, rule)
         if st[ACTIVE] != 0.0:
             queue[0], queue[1] = 0, 0  # the push's rising edge never calibrates
@@ -273,14 +275,16 @@ class CueDetector:
     def __init__(self, dt: float, on_n: float = DETECTOR["on_n"],
                  on_s: float = DETECTOR["on_s"], off_n: float = DETECTOR["off_n"],
                  off_s: float = DETECTOR["off_s"], split: bool = False,
-                 turn_deg: float = 45.0):
+                 turn_deg: float = 45.0, open_max_s: float = OPEN_MAX_S):
         self.dt, self.on_n, self.on_s, self.off_n, self.off_s = dt, on_n, on_s, off_n, off_s
         self.cos_turn = float(np.cos(np.deg2rad(turn_deg)))
+        if not (math.isfinite(open_max_s) and open_max_s > 0):
+            raise ConfigError(f"detector open_max_s must be a finite number > 0, got "
+                              f"{open_max_s}")
         #: :func:`decide_step`'s constants
         self.rule = np.zeros(N_RULE)
-        self.rule[[R_DT, R_ON_S, R_OFF_S, R_COS_TURN, R_FILTERED, R_COS_LEAVE]] = (
-            dt, on_s, off_s, self.cos_turn, float(self.filtered),
-            math.cos(math.radians(LEAVE_DEG)))
+        self.rule[[R_DT, R_ON_S, R_OFF_S, R_COS_TURN, R_FILTERED, R_OPEN_MAX_S]] = (
+            dt, on_s, off_s, self.cos_turn, float(self.filtered), open_max_s)
         self.split = split
         self._buf = np.zeros(4)
         #: the state (cue under way, lean, counters, last cue: slots ``ACTIVE`` ...)
@@ -318,6 +322,23 @@ class CueDetector:
         """Cues that ended at a new baseline (:class:`FilteredCueDetector`'s settle rule)."""
         return int(self.st[SETTLED])
 
+    @property
+    def released(self) -> int:
+        """Cues released, not given, after ``open_max_s`` open (:data:`OPEN_MAX_S`): no rule
+        could end them (a condition to report)."""
+        return int(self.st[RELEASED])
+
+    @property
+    def left(self) -> int:
+        """Leans whose hand left (read at the settle: :class:`FilteredCueDetector`)."""
+        return int(self.st[LEFT])
+
+    @property
+    def dropped(self) -> int:
+        """Cues dropped at their release because their peak stayed under the onset level the
+        noise floor rose to while they were open (:class:`FilteredCueDetector`)."""
+        return int(self.st[DROPPED])
+
     def reset(self) -> None:
         """Forget any cue in progress (the counters stay)."""
         clear_state(self.st)
@@ -337,7 +358,12 @@ class CueDetector:
 
 
 #: :func:`filter_step`'s constants, in this order in :attr:`FilteredCueDetector.params`
-ALPHA, BETA, GAMMA, ON_K, OFF_K, BASE_ON, BASE_OFF = range(7)
+#: (the open-noise rule's: its window in samples and :data:`NOISE_COHERENCE`,
+#: and the low-pass's gain once it has fired, for ``noisy_tau_s``)
+ALPHA, BETA, GAMMA, ON_K, OFF_K, BASE_ON, BASE_OFF, NOISE_K, COHERENCE, NOISY_ALPHA = range(10)
+#: slots of :attr:`FilteredCueDetector.f`: the low-pass's output, then the open-noise rule's
+#: sums over the cue open (``e``, ``|e|^2``, samples)
+F_X, F_Y, O_SX, O_SY, O_SQ, O_N, N_F = range(7)
 #: slots of :attr:`FilteredCueDetector.rec`, its calibration's scalars (the variance at rest
 #: in N^2 and the thresholds it sets, N), which both drivers read and write in place
 D_VAR, D_ON, D_OFF, N_DREC = range(4)
@@ -351,14 +377,18 @@ def filter_step(x, y, idle, at_rest, f, baseline, ring, queue, var, on, off, par
     at rest, else the queue dropped; samples older than ``hold_n`` committed to ``baseline``
     (``b += gamma (f - b)``) and, with ``|e| < off``, to the noise level
     (``var += beta (|e|^2 / 2 - var)``), then ``on = max(base_on, on_k sqrt(var))`` and
-    ``off = max(base_off, off_k sqrt(var))`` if it changed. Returns ``(var, on, off, ex, ey,
-    quiet)``: ``e = f - b`` and whether the onset rule has nothing to do (idle and ``|e|^2 <
-    0.98 on^2``; ``np.hypot`` is within an ulp of the true norm, the sum of squares within a
+    ``off = max(base_off, off_k sqrt(var))`` if it changed; when not idle, the open-noise
+    rule: over each ``noise_k`` samples of a cue open, with mean ``m`` and mean square ``s``
+    of ``e``, ``|m|^2 < c^2 s`` (``c`` the coherence, :data:`NOISE_COHERENCE`) raises ``var``
+    to ``(s - |m|^2) / 2`` when larger (and the thresholds with it) and slows the low-pass
+    to ``params[NOISY_ALPHA]`` (in place). Returns ``(var, on, off, ex, ey, quiet)``:
+    ``e = f - b`` and whether the onset rule has nothing to do (idle and ``|e|^2 < 0.98
+    on^2``; ``np.hypot`` is within an ulp of the true norm, the sum of squares within a
     few). The one arithmetic of the Python step and the compiled move (:mod:`.coasting`)."""
-    fx, fy = f[0], f[1]
+    fx, fy = f[F_X], f[F_Y]
     a = params[ALPHA]
     fx, fy = fx + a * (x - fx), fy + a * (y - fy)
-    f[0], f[1] = fx, fy
+    f[F_X], f[F_Y] = fx, fy
     if idle:
         cap = ring.shape[0]
         if not at_rest:
@@ -386,6 +416,28 @@ def filter_step(x, y, idle, at_rest, f, baseline, ring, queue, var, on, off, par
                 off = params[OFF_K] * sigma
                 off = off if off > params[BASE_OFF] else params[BASE_OFF]
     ex, ey = fx - baseline[0], fy - baseline[1]
+    if idle:
+        f[O_SX], f[O_SY], f[O_SQ], f[O_N] = 0.0, 0.0, 0.0, 0.0
+    else:  # the open-noise rule (FilteredCueDetector's docstring)
+        f[O_SX] += ex
+        f[O_SY] += ey
+        f[O_SQ] += ex * ex + ey * ey
+        f[O_N] += 1.0
+        if f[O_N] >= params[NOISE_K]:
+            n = f[O_N]
+            mx, my, ms = f[O_SX] / n, f[O_SY] / n, f[O_SQ] / n
+            c = params[COHERENCE]
+            if mx * mx + my * my < c * c * ms:
+                v = 0.5 * (ms - mx * mx - my * my)
+                if v > var:
+                    var = v
+                    params[ALPHA] = params[NOISY_ALPHA]
+                    sigma = math.sqrt(var)
+                    on = params[ON_K] * sigma
+                    on = on if on > params[BASE_ON] else params[BASE_ON]
+                    off = params[OFF_K] * sigma
+                    off = off if off > params[BASE_OFF] else params[BASE_OFF]
+            f[O_SX], f[O_SY], f[O_SQ], f[O_N] = 0.0, 0.0, 0.0, 0.0
     return var, on, off, ex, ey, idle and ex * ex + ey * ey < 0.98 * on * on
 
 
@@ -416,18 +468,38 @@ class FilteredCueDetector(CueDetector):
       only if its peak stood out of that level by more than ``on`` (a push followed by a
       resting hand), else dropped (a hand arriving at 6 N plus noise). A cue thus ends either
       back at the baseline (below ``off`` for ``off_s``) or at a new one;
-    * **leaning** (a hand resting above ``on``: a person leaning on the handle at 10-15 N for
+    * **leaning** (a hand resting above ``on``: a person leaning on the handle at 10-40 N for
       20 s, which no ``settle_s`` window below ``on`` absorbs, would hold one cue active and
       blind the detector to the next push): an active cue whose ``e`` has stayed within ``off``
       of its mean for ``lean_s`` (3 s, longer than a deliberate correction is held steady),
-      that mean's magnitude below ``lean_n`` (20 N), ends there the same way, the mean added to
-      the baseline and remembered as the lean ``L`` (:attr:`leaned` counts them: a condition
-      to report); a push on top of the lean is then felt as any push. When the hand leaves,
-      ``e`` jumps toward ``-L``: a would-be onset within ``LEAVE_DEG`` (25 degrees: the
-      realistic sensor's 2 N noise turns an 8 N onset by 14 degrees) of ``-L`` and no
-      stronger than ``|L| + off`` is the lean ending, the baseline gives ``L`` back and no cue
-      is given (a push straight against the lean reads the same way at its onset and is
-      missed: ``cue_recall_after_leaning_hand`` 0.875, the misses are those pushes);
+      that mean's magnitude below ``lean_n`` (45 N: leans up to 40 N with noise to spare),
+      ends there the same way, the mean added to the baseline and remembered as the lean ``L``
+      (:attr:`leaned` counts them: a condition to report); a push on top of the lean, across
+      it or against it is then felt as any push, in its own direction. **The hand leaving**
+      is read at the settle, not at the onset: ``e`` falls to ``-L`` and stays there, so a cue
+      whose settle window's mean ``m`` lies within ``max(off, |L| / 4)`` of ``-L`` is the lean
+      ending: the baseline gives ``L`` back, the lean is forgotten (:attr:`left` counts it)
+      and no cue is given unless the peak stood out of ``|m|`` by more than ``on``. A push
+      against the lean returns to the lean and ends by the release rule, read its own way.
+      (Judged at the onset, a push against the lean pointed where the hand leaving does and
+      was read as the lean ending, then as a cue along the lean: 180 degrees wrong.) A
+      guiding push held within ``off`` of its mean for ``lean_s`` on a base that does not
+      follow (into a wall) is taken for a lean the same way;
+    * **noise larger than the thresholds** (the open-noise rule): the noise level is learnt
+      at rest with no cue under way, so a noise whose peaks cross ``on`` opens a cue that no
+      release (below ``off`` for ``off_s``) ends and the detector never rests again. Over
+      each :data:`NOISE_S` (1 s) of a cue open, the mean ``m`` and mean square ``s`` of ``e``
+      tell noise from a hand: a push, a lean or a guiding hold points one way (``|m|^2 /
+      s`` 0.8 to 1), white noise does not (``|m|^2 / s`` about ``tau / T``, a few hundredths);
+      below :data:`NOISE_COHERENCE` squared (0.25) the per-axis variance ``(s - |m|^2) / 2``
+      becomes the noise level when larger (thresholds ``on_k sigma``, ``off_k sigma``) and
+      the low-pass slows to ``noisy_tau_s`` (50 ms: the filtered noise falls by half, at
+      some latency, and stays so: the same device). The cue then ends below the new ``off``
+      and is dropped, not given, its peak being under the new ``on`` (:attr:`dropped`).
+      Pushes under 1 s never reach the rule and the realistic sensor's noise never fires it;
+    * **a bound on a cue's time open** (:data:`OPEN_MAX_S`, 12 s, both detectors): a cue no
+      rule has ended by then (a steady force above ``lean_n``) is released, not given, and
+      counted (:attr:`released`);
     * the impulse sums ``e`` only while ``|e| > off``, so the release tail (pure noise) does
       not turn the cue's direction.
 
@@ -441,12 +513,14 @@ class FilteredCueDetector(CueDetector):
                  off_s: float = DETECTOR["off_s"], on_k: float = 6.0, off_k: float = 3.0,
                  floor_tau_s: float = 2.0, split: bool = False, turn_deg: float = 45.0,
                  baseline_tau_s: float = 1.0, hold_s: float = 0.15, settle_s: float = 0.5,
-                 lean_s: float = 3.0, lean_n: float = 20.0):
+                 lean_s: float = 3.0, lean_n: float = 45.0, open_max_s: float = OPEN_MAX_S,
+                 noisy_tau_s: float = 0.05):
         #: the calibration's scalars (slots ``D_*``: :attr:`var`, :attr:`on_n`, :attr:`off_n`)
         self.rec = np.zeros(N_DREC)
         for name, v in (("tau_s", tau_s), ("floor_tau_s", floor_tau_s),
                         ("baseline_tau_s", baseline_tau_s), ("hold_s", hold_s),
-                        ("settle_s", settle_s), ("lean_s", lean_s), ("lean_n", lean_n)):
+                        ("settle_s", settle_s), ("lean_s", lean_s), ("lean_n", lean_n),
+                        ("noisy_tau_s", noisy_tau_s)):
             if not (math.isfinite(v) and v >= 0) or (name == "settle_s" and v <= on_s):
                 raise ConfigError(f"detector {name} must be a finite number >= 0"
                                   f"{' and > on_s' if name == 'settle_s' else ''}, got {v}")
@@ -459,10 +533,12 @@ class FilteredCueDetector(CueDetector):
         self._gamma = dt / (baseline_tau_s + dt)
         self._hold_n = int(round(hold_s / dt))
         #: :func:`filter_step`'s constants (its ``params``)
-        self.params = np.array([self._alpha, self._beta, self._gamma, on_k, off_k, on_n, off_n])
+        self.params = np.array([self._alpha, self._beta, self._gamma, on_k, off_k, on_n, off_n,
+                                max(1.0, round(NOISE_S / dt)), NOISE_COHERENCE,
+                                dt / (max(noisy_tau_s, tau_s) + dt)])
         self.var = 0.0
         self.baseline = np.zeros(2)  # N, world x-y
-        super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg)
+        super().__init__(dt, on_n, on_s, off_n, off_s, split, turn_deg, open_max_s)
 
     #: the per-axis variance of the filtered force at rest (N^2) and the thresholds it sets
     #: (N), in :attr:`rec`
@@ -485,7 +561,7 @@ class FilteredCueDetector(CueDetector):
         self.rule[[R_SETTLE_S, R_LEAN_S, R_LEAN_N]] = self.settle_s, self.lean_s, self.lean_n
         clear_state(self.st)
         self.st[LEAN_X], self.st[LEAN_Y] = 0.0, 0.0
-        self.f = np.zeros(2)
+        self.f = np.zeros(N_F)
         self.baseline = np.zeros(2)
         # the calibration queue: a ring of (fx, fy) rows and its (head, length)
         self._ring = np.zeros((self._hold_n + 4, 2))

@@ -44,6 +44,27 @@ def push_magnitude(shape, peak, duration, t):
     return peak * math.sin(math.pi * t / duration)
 
 
+#: the force above which a hand counts as pushing (N; the contact time of the effort measures)
+CONTACT_N = 0.1
+
+
+@nb.njit(cache=True)
+def push_effort(shape, peak, duration, until, dt):
+    """``(sum |F| dt, max |F|, dt * #{|F| >= CONTACT_N})`` over ``t = k dt`` in ``[0,
+    until]`` of a push of :func:`push_magnitude` (the person's effort measures: impulse N s,
+    peak N, contact s; the half-sine's impulse tends to ``2 peak duration / pi``)."""
+    impulse, top, contact = 0.0, 0.0, 0.0
+    n = int(math.floor(until / dt + 1e-9)) if until >= 0 else -1
+    for k in range(n + 1):
+        f = push_magnitude(shape, peak, duration, k * dt)
+        impulse += f * dt
+        if f > top:
+            top = f
+        if f >= CONTACT_N:
+            contact += dt
+    return impulse, top, contact
+
+
 @nb.njit(cache=True)
 def push_force(shape, peak, duration, angle, t, out):
     """The world-frame force (N) ``t`` s into a push along ``angle`` (radians) into ``out``
@@ -112,6 +133,14 @@ class HumanPush:
     def active(self, t: float) -> bool:
         """Whether the push acts at simulation time ``t``."""
         return self.t0 <= t <= self.t0 + self.profile.duration_s
+
+    def effort(self, dt: float, t_end: float) -> tuple[float, float, float]:
+        """What the push cost the person up to ``t_end``, on the physics steps ``t0 + k dt``
+        it acts at: the impulse ``sum |F| dt`` (N s), the peak ``|F|`` (N) and the contact
+        time (s, the steps with ``|F| >= CONTACT_N`` times ``dt``) (:func:`push_effort`)."""
+        p = self.profile
+        return push_effort(p.shape_code, p.peak_n, p.duration_s,
+                           min(p.duration_s, t_end - self.t0), dt)
 
     def apply(self, data, body_id: int) -> None:
         """Write this substep's force on ``body_id`` (:func:`apply_force`)."""

@@ -2,17 +2,27 @@
 closed-loop, pushing while the robot goes the wrong way and letting go once it behaves
 (``docs/physics.md``, section 9; ``../shared/PHRI_NOTES.md`` section 4).
 
-**When.** The person takes the handle on the ``interval`` clock of
-:class:`~.pushing_human.PushingHuman` (the first grasp ``reaction_s`` after the start, then
-every ``I (1 + j u)`` seconds, ``u ~ U[-1, 1]``; a grasp that falls due while the person still
-holds the handle waits for the release), so guidance and taps get the same number of
-interventions.
+**When.** By default the person takes the handle on the ``interval``
+clock of :class:`~.pushing_human.PushingHuman` (the first grasp ``reaction_s`` after the
+start, then every ``I (1 + j u)`` seconds, ``u ~ U[-1, 1]``; a grasp that falls due while the
+person still holds the handle waits for the release), so guidance and taps get the same
+number of interventions. Corrective (the episode's ``--push-rule corrective delay=D
+miss=M``, the rule the tapping corrective person follows): when the robot starts a move that
+would leave the person's route (or is about to, or heads away from the goal along it), after
+the reaction delay ``reaction_s (1 + 0.25 z)`` (0.4 s median: a visual reaction of 0.2-0.25 s
+and the force's build-up, ``PHRI_NOTES`` section 5) plus ``D`` steps
+(:class:`~.pushing_human.PushingHuman`); the person then holds until the robot heads their
+way again and lets go (below).
 
-**Where to.** At every physics step the person aims at where their own route wants the robot:
-the most likely heading ``h*(c) = argmax_h P(h | c, g, p)`` of the human model at the base's
-cell ``c`` (SPEC 4: the first move of the shortest way to the true goal that keeps the
-preference), re-aimed whenever the base enters another cell, plus a motor noise ``eps ~ N(0,
-noise_deg)`` drawn once per push: ``u = (cos(a(h*) + eps), sin(a(h*) + eps))``.
+**Where to.** The person aims where their own route wants the robot, chosen as the tapping
+person chooses a tap's heading: a heading ``h(c) ~ P(h | c, g, p)`` drawn from the human
+model at the base's cell ``c`` with its rationality ``gamma_h`` (SPEC 4: Boltzmann over the
+extra length of the way to the true goal that keeps the preference; ``heading_at``, the
+tapping person's own draw), at the grasp and again whenever the base enters another cell,
+plus a motor noise ``eps ~ N(0, noise_deg)`` drawn once per push: ``u = (cos(a(h) + eps),
+sin(a(h) + eps))``. So guidance and taps compare at one rationality: ``gamma_h`` 100 is the
+person who always takes the best heading (the guiding person's only choice before, whatever
+``gamma_h`` said), the default 1.5 the paper's.
 
 **How hard.** ``F = F_p (S + (1 - S) e)`` along ``u``, with ``F_p`` the push's strength
 (log-normal, median ``peak_n``, spread ``peak_spread``, clipped to ``[peak_min_n,
@@ -41,7 +51,7 @@ import numpy as np
 
 from ..episode.physics import HumanModel
 from ..geometry.grid import ACTION_ANGLES
-from .force_cue import HumanPush, PushProfile
+from .force_cue import CONTACT_N, HumanPush, PushProfile
 from .pushing_human import PushingHuman
 
 #: the speed at which the person wants the base to go their way (m/s; the default admittance
@@ -66,6 +76,22 @@ class GuidingPush(HumanPush):
         super().__init__(angle, t0, profile, intended_heading)
         self.now = np.zeros(3)
         self.released_at: float | None = None
+        #: the force the person applied, step by step: ``[sum |F| dt, max |F|, contact s]``
+        self.felt = np.zeros(3)
+
+    def applied(self, t: float, dt: float) -> None:
+        """The force :attr:`now` acts for the physics step at ``t`` (of ``dt``): counted into
+        :attr:`felt` when the push acts then."""
+        if self.active(t):
+            f = math.hypot(float(self.now[0]), float(self.now[1]))
+            self.felt[0] += f * dt
+            self.felt[1] = max(self.felt[1], f)
+            self.felt[2] += dt if f >= CONTACT_N else 0.0
+
+    def effort(self, dt: float, t_end: float) -> tuple[float, float, float]:
+        """The force the person set, as applied step by step (:attr:`felt`; ``dt`` and
+        ``t_end`` are the steps' own)."""
+        return float(self.felt[0]), float(self.felt[1]), float(self.felt[2])
 
     def force(self, t: float) -> np.ndarray:
         """The force the person applies now (set by :class:`GuidingHuman` before the step)."""
@@ -87,13 +113,13 @@ class GuidingHuman(PushingHuman):
     """The closed-loop person of the module docstring, a ``pre_substep`` hook on the base (the
     grasp times and the stream are :class:`~.pushing_human.PushingHuman`'s).
 
-    ``probs(cell)`` is the human model's heading distribution at a cell (the person's aim is
-    its most likely heading); ``heading_at`` is not used (the aim is not a fresh draw)."""
+    ``heading_at(cell)`` draws the person's heading at a cell (their aim, the tapping
+    person's draw); ``probs(cell)`` is the human model's heading distribution there."""
 
     def __init__(self, human: HumanModel, rng: np.random.Generator, delta_t: int,
                  heading_at: Callable[[int], int],
-                 probs: Callable[[int], np.ndarray], step_s: float = 1.0):
-        super().__init__(human, rng, delta_t, heading_at, probs, step_s)
+                 probs: Callable[[int], np.ndarray], step_s: float = 1.0, watch=None):
+        super().__init__(human, rng, delta_t, heading_at, probs, step_s, watch)
         self.push: GuidingPush | None = None
         self._aim_cell = -1
         self._right_since: float | None = None
@@ -103,8 +129,9 @@ class GuidingHuman(PushingHuman):
         return -math.inf if self.push is not None else super().quiet_until()
 
     def _aim(self, cell: int) -> int:
-        """The person's heading at ``cell``: the model's most likely one (module docstring)."""
-        return int(np.argmax(self.probs(cell)))
+        """The person's heading at ``cell``: drawn from the human model at its ``gamma_h``
+        (module docstring)."""
+        return int(self.heading_at(cell))
 
     def _grasp(self, base, t: float) -> None:
         """Take the handle now: the push's strength, longest hold, aim noise and release
@@ -122,7 +149,7 @@ class GuidingHuman(PushingHuman):
         self.push, self._aim_cell, self._right_since = push, base.cell, None
         base.pushes.append(push)
         self.given.append(push)
-        self.next_t = t + self._gap()
+        self.next_t = None if self.corrective else t + self._gap()
 
     def __call__(self, base) -> None:
         """Before a physics step: grasp when due, then set the push's force for this step."""
@@ -140,6 +167,7 @@ class GuidingHuman(PushingHuman):
                 self.push = None
                 return
             push.now[:2] = self._last_xy * _ramp(left / RAMP_S)
+            push.applied(t, base.dt)
             return
         cell = base.cell
         if cell != self._aim_cell:  # re-aim at the new cell's best heading
@@ -166,3 +194,4 @@ class GuidingHuman(PushingHuman):
         self._last_xy = np.array([f * ux, f * uy])
         push.now[:2] = self._last_xy
         push.now[2] = 0.0
+        push.applied(t, base.dt)

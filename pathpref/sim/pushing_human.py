@@ -21,6 +21,14 @@ robot heads the wrong way (:class:`~pathpref.episode.physics.HumanModel` holds t
   to fail and add needless ones to one that seems to work): with ``r`` the share of right
   moves among the last 5, ``p_correct r`` and ``p_needless r``.
   The heading is drawn from the Boltzmann model at the cell where the push begins.
+  **A guided episode's corrective person** (``--timing guidance`` with the episode's
+  ``--push-rule corrective delay=D miss=M``, :mod:`pathpref.episode.corrective`: ``watch``):
+  when the robot starts a move the rule finds wrong (the move would leave the person's route
+  or head away from the goal along it: ``CorrectiveHuman.needs_push`` on the move's start and
+  target cells), the person takes the handle after the reaction delay ``reaction_s (1 + 0.25
+  z)`` (at least 0.05 s; 0.4 s median: a visual reaction of 0.2-0.25 s and the force's
+  build-up, ``PHRI_NOTES`` section 5) plus ``D`` decision steps, unless the need is missed
+  (probability ``M``, drawn from the rule's stream); no need is noticed while a grasp is due.
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ..episode.physics import HumanModel
+from ..geometry.grid import STAY
 from .force_cue import HumanPush, PushProfile
 
 
@@ -67,20 +76,27 @@ class PushingHuman:
 
     def __init__(self, human: HumanModel, rng: np.random.Generator, delta_t: int,
                  heading_at: Callable[[int], int],
-                 probs: Callable[[int], np.ndarray] | None = None, step_s: float = 1.0):
+                 probs: Callable[[int], np.ndarray] | None = None, step_s: float = 1.0,
+                 watch=None):
         self.model, self.rng = human, rng
         self.heading_at, self.probs = heading_at, probs
         self.interval = human.interval_s if human.interval_s > 0 else delta_t * step_s
+        self.step_s = step_s
+        #: the episode's corrective rule (guided episodes; module docstring), or None
+        self.watch = watch
         self.next_t: float | None = None
         self.given: list[HumanPush] = []
         self.recent: deque[bool] = deque(maxlen=5)
+        #: the person intervenes when the robot errs (``corrective`` taps, or a guided
+        #: episode's corrective rule), not on a clock
+        self.corrective = human.timing == "corrective" or watch is not None
 
     def attach(self, base) -> None:
         """Push ``base`` from now on (a ``pre_substep`` hook)."""
         self.base = base
         base.pre_substep.append(self)
         t = float(base.data.time)
-        if self.model.timing in ("interval", "rate", "guidance"):
+        if self.model.timing in ("interval", "rate", "guidance") and not self.corrective:
             # the first push when the mission starts (after a reaction time), as the paper's
             # protocol gives an input before the first move; then at the human's own times
             self.next_t = t + self.model.reaction_s
@@ -95,7 +111,10 @@ class PushingHuman:
         """The robot starts a move from ``cell`` toward ``heading`` (None: it stays). In
         ``corrective`` timing the human may react (module docstring)."""
         p = self.model
-        if p.timing != "corrective" or heading is None or self.probs is None:
+        if self.watch is not None:
+            self._watch_move(cell, heading)
+            return
+        if not self.corrective or heading is None or self.probs is None:
             return
         q = self.probs(cell)
         right = bool(q[heading] >= 0.5 * q.max())
@@ -105,6 +124,19 @@ class PushingHuman:
         if self.rng.random() < chance and self.next_t is None:
             delay = max(0.05, p.reaction_s * (1.0 + 0.25 * self.rng.standard_normal()))
             self.next_t = float(self.base.data.time) + delay
+
+    def _watch_move(self, cell: int, action: int | None) -> None:
+        """A guided episode's corrective person sees the robot start ``action`` from ``cell``
+        (module docstring)."""
+        w = self.watch
+        move = STAY if action is None else int(action)
+        m = w.world.motion
+        target = cell if move == STAY or m.blocked[cell, move] else int(m.next_cell[cell, move])
+        if self.next_t is not None or not w.needs_push(cell, move, target) or \
+                w.rng.random() < w.rule.miss:
+            return
+        delay = max(0.05, self.model.reaction_s * (1.0 + 0.25 * self.rng.standard_normal()))
+        self.next_t = float(self.base.data.time) + delay + w.rule.delay * self.step_s
 
     def quiet_until(self) -> float:
         """The simulated time before which :meth:`__call__` does nothing (the next push's
@@ -123,4 +155,4 @@ class PushingHuman:
                                 self.rng)
         base.pushes.append(push)
         self.given.append(push)
-        self.next_t = None if self.model.timing == "corrective" else t + self._gap()
+        self.next_t = None if self.corrective else t + self._gap()

@@ -78,7 +78,7 @@ class StudyBody(MujocoBody):
             return self.applied
         return self.base.data.xfrc_applied[self.base.pushed_body, :2].copy()
 
-    def attach_human(self, heading_at, probs) -> bool:
+    def attach_human(self, heading_at, probs, watch=None) -> bool:
         """No simulated human: the participant pushes. With ``timing`` ``guidance`` the base
         complies to the participant's push (Bajcsy-style guidance, :mod:`pathpref.sim.guidance`)
         and the trial is judged along its path."""

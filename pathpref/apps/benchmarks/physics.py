@@ -210,6 +210,65 @@ def cue_calibration(quick: bool = False) -> dict[str, Any]:
             "cue_recall_after_leaning_hand": lean / len(trials)}
 
 
+def lean_probes(hand_n: float = 40.0, seed: int = 0) -> dict[str, Any]:
+    """A ``hand_n`` lean held 10 s (:func:`resting_hand_push`), then a 25 N push east with the
+    lean toward the same direction, 90 degrees off and opposite: the probes read as one cue
+    east (``lean_40n_probes_read``, of 3)."""
+    read = sum(resting_hand_push(hand_n=hand_n, hand_s=10.0, heading=2,
+                                 hand_heading=(2 + r) % 8, seed=seed) == [2] for r in (0, 2, 4))
+    return {f"lean_{hand_n:g}n_probes_read": read}
+
+
+def noisy_pushes(noise_n: float, n: int = 40, peak_n: float = 30.0, seed: int = 0
+                 ) -> dict[str, Any]:
+    """``n`` pushes of ``peak_n`` (0.3 s half-sine, no heading noise, a random sector each,
+    0.5 s of rest before each) on a standing physical base whose realistic sensor has
+    ``noise_n`` of noise per axis: the recall (a cue in the intended sector within 1.3 s of
+    the onset), the other cues felt, and the stuck cues: released by the detector's bound
+    (``released``) or open since before a push at the end of its 1.3 s window."""
+    from ...geometry.grid import ACTION_ANGLES
+    from ...sim.cue_detector import DURATION
+    from ...sim.force_cue import HumanPush, PushProfile
+
+    world = cached_world("simple")
+    base = physical_base(world, seed=seed, sensor_noise_n=noise_n)
+    base.reset(world.cell((3, 3)))
+    base.hold(1.0)
+    det, rng = base.sensing.detector, np.random.default_rng(seed)
+    hits = other = stuck = 0
+    for _ in range(n):
+        t_rest = float(base.data.time) + 0.5
+        while base.data.time < t_rest:
+            other += base.substep() is not None
+        h = int(rng.integers(8))
+        t0 = float(base.data.time)
+        base.pushes = [HumanPush(float(ACTION_ANGLES[h]), t0,
+                                 PushProfile(peak_n=peak_n, duration_s=0.3, noise_deg=0.0), h)]
+        got = []
+        while base.data.time < t0 + 1.3:
+            cue = base.substep()
+            if cue is not None:
+                got.append(cue.heading)
+        hits += h in got
+        other += len(got) - (h in got)
+        stuck += det.active and det.st[DURATION] > 1.3
+        base.pushes = []
+    return {"recall": hits / n, "other_cues": other, "stuck": stuck + det.released,
+            "on_n": float(det.on_n)}
+
+
+def noise_sweep(levels: tuple = (2.0, 5.0, 10.0, 20.0, 50.0), n: int = 40) -> dict[str, Any]:
+    """:func:`noisy_pushes` at each noise level (N per axis): ``noise_10n_recall``, the
+    recall at every level, the other cues and the stuck cues summed over the sweep
+    (``noise_stuck_cues``, target 0)."""
+    rows = {lv: noisy_pushes(lv, n) for lv in levels}
+    out: dict[str, Any] = {f"noise_{lv:g}n_recall": r["recall"] for lv, r in rows.items()}
+    out["noise_stuck_cues"] = int(sum(r["stuck"] for r in rows.values()))
+    out["noise_other_cues"] = sum(r["other_cues"] for r in rows.values())
+    out["noise_sweep_pushes"] = n
+    return out
+
+
 def pushes_while_driving(pushes: list[tuple], sensor_model=None, seed: int = 0) -> dict:
     """Pushes at random moments of motion: for each push of :func:`realistic_pushes` the base
     (pushes at any time: splitting detector, admittance, stop on a cue) starts driving to the
@@ -292,15 +351,16 @@ def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
 
 
 def physical_base(world, task: str = "navigate", sensor: str = "realistic",
-                  kind: str = "holonomic", seed: int = 0):
+                  kind: str = "holonomic", seed: int = 0, **fields):
     """A base as a physical episode builds it (``Physics()`` defaults, the sensor preset
-    ``sensor``, base ``kind``): the body's own construction, not a copy of it."""
+    ``sensor``, base ``kind``, other flat fields ``fields``, e.g. ``sensor_noise_n``): the
+    body's own construction, not a copy of it."""
     import dataclasses
 
     from ...episode import Physics
     from ...sim.body import MujocoBody
 
-    ph = Physics.of(sensor=sensor, base=kind)
+    ph = Physics.of(sensor=sensor, base=kind, **fields)
     spec = EpisodeSpec.single(world.name, "path_preference", 5, sim="mujoco", robot=task,
                               physics=ph.to_json())
     spec = dataclasses.replace(spec, map=world.name)
@@ -794,6 +854,8 @@ def bench_physics(quick: bool = False) -> dict[str, Any]:
         **cue_accuracy_while_driving(60 if quick else 200),
         **two_pushes(),
         **cue_calibration(quick),
+        **lean_probes(40.0),
+        **noise_sweep(n=20 if quick else 40),
         "false_cues_per_hour_realistic": n_real / real_s * 3600.0,
         "false_cue_drive_realistic_s": real_s,
         "force_estimate_peak_driving_n": real_peak,
