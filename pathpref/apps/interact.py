@@ -30,7 +30,7 @@ class ViewerBody(MujocoBody):
         super().__init__(*args, **kwargs)
         self.base.external_forces = True
 
-    def attach_human(self, heading_at, probs) -> bool:
+    def attach_human(self, heading_at, probs, watch=None) -> bool:
         """The person at the viewer gives every input: the runner gives none at decision
         steps."""
         return True

@@ -78,7 +78,7 @@ class RemoteBody(Body):
         """Never called: the robot's base moves to the published waypoint."""
         raise EpisodeError("a remote robot moves itself (the planner publishes waypoints)")
 
-    def attach_human(self, heading_at, probs) -> bool:
+    def attach_human(self, heading_at, probs, watch=None) -> bool:
         """The person gives their inputs at times of their own."""
         return True
 
