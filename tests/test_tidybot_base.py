@@ -74,6 +74,16 @@ def test_the_scene_carries_menageries_robot(scene):
     for a in ("vx", "vy", "wz"):
         assert m.actuator(a).biastype == mujoco.mjtBias.mjBIAS_AFFINE  # velocity servos
     assert m.actuator("vx").gainprm[0] == pytest.approx(69.29 / 0.045, rel=1e-3)
+    # the yaw servo's 20 ms on the robot's own yaw inertia at rest: the joint-space inertia's
+    # yaw entry of the compiled scene (1.98 kg m^2: the base link's mesh 1.90, the arm 0.08)
+    d0 = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d0, m.key("rest").id)
+    mujoco.mj_forward(m, d0)
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d0, full)
+    spin = full[m.joint("yaw").dofadr[0], m.joint("yaw").dofadr[0]]
+    assert spin == pytest.approx(1.98, abs=0.01)
+    assert m.actuator("wz").gainprm[0] == pytest.approx(spin / 0.02, rel=1e-3)
     assert m.sensor("handle_force").objid == m.site("handle_site").id
     body = MujocoBody(load_world("simple"), EpisodeSpec.single(
         "simple", "path_preference", 5, seed=0, sim="mujoco",
@@ -114,6 +124,9 @@ def test_the_mass_flag_sets_the_robots_mass(world):
     p = Physics.of(mass_kg=100.0, **TIDY)
     m = scene_for(world, 1.0, "navigate", base_params(p), "tidybot").model
     assert m.body_subtreemass[m.body("tidybot/base_link").id] == pytest.approx(100.0)
+    # the base link's mesh inertia scales with its mass: 1.903 (100 - 9.29) / 60 + 0.080
+    assert m.actuator("wz").gainprm[0] * 0.02 == pytest.approx(
+        1.903 * (100.0 - 9.29) / 60.0 + 0.080, abs=0.01)
 
 
 def test_what_the_tidybot_cannot_be_is_one_line(world):

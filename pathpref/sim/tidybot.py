@@ -11,7 +11,8 @@ fingers through the plate carry part of the push past the sensor: 22.8 N of 25 N
 arm, gripper and tray are gravity compensated (``gravcomp`` 1, as the Gen3's own controller
 compensates gravity), so the servos hold no static load. Its figures,
 all read from the model (:func:`physical_figures`): the base's mass 60 kg (Menagerie's
-``base_link`` inertial), the whole robot 69.29 kg with the tray; the base's position servos
+``base_link``, its inertia from its body mesh as Menagerie derives it since its
+pull request #281), the whole robot 69.29 kg with the tray; the base's position servos
 ``kp`` 1e6 N/m, ``kv`` 5e4 N s/m (yaw 5e4 N m/rad, 1e3), the arm's ``kp`` 2000/500 N m/rad
 (joints 1-4 / 5-7) within 105/52 N m; the physics step 2 ms (``option timestep`` default).
 The base's footprint is a 0.482 m square bumper (0.284 m from the centre to its farthest point,
