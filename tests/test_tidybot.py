@@ -119,6 +119,10 @@ def test_a_push_on_the_tray_deflects_it_by_the_arms_joint_compliance(model, body
         out = tidybot.tray_push(body, 30.0, 3.0, after_s=1.0, headings=(heading,))
         assert out["deviation_mm"] == pytest.approx(static_mm, rel=0.15)
         assert out["recovery_s"] < 1.0
+        # the peak stays under 10 mm, so "back within 10 mm" is the first sample after the
+        # release (two steps: the release takes effect at the next step); within 1 mm later
+        assert out["recovery_s"] <= 2 * body.dt + 1e-9
+        assert out["recovery_1mm_s"] > out["recovery_s"]
 
 
 def test_under_guidance_the_tidybot_follows_a_push_on_its_tray(body):

@@ -236,3 +236,16 @@ def test_the_dm_control_task_runs_the_tidybot():
     assert np.allclose(ts.observation["position"], cell - 0.5, atol=0.05)  # metres, 1 m cells
     ts = env.step(8)  # the task's stay action
     assert np.allclose(ts.observation["cell"], cell)
+
+
+def test_the_tray_keys_measure_the_episode_body():
+    """``tidybot.tray_*`` are measured on the body ``--robot carry --robot-model tidybot``
+    runs: a steady 30 N push north for 3 s deflects the tray at least ``F / K`` = 30 mm (the
+    arm's tray impedance, 1000 N/m; the stand-alone whole-body model gives 9.7) and at most
+    that plus 8 mm (the base's velocity servo yields about 5 mm and its yaw 0.02 rad, which
+    the controller takes back); back within 10 mm in under 1 s, within 1 mm no sooner."""
+    from pathpref.apps.benchmarks.physics import tray_push
+
+    r = tray_push(30.0, 3.0, headings=(0,), after_s=1.5, robot_model="tidybot")
+    assert 30.0 <= r["deviation_mm"] <= 38.0
+    assert r["recovery_s"] <= 1.0 and r["recovery_1mm_s"] >= r["recovery_s"]
