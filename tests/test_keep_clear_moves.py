@@ -88,8 +88,9 @@ def test_the_filter_caps_the_approach_to_a_wall(kind):
 @pytest.mark.skipif(not native.ready(), reason=f"no compiled path: {native.WHY}")
 def test_a_filtered_move_is_the_same_in_the_compiled_move(monkeypatch):
     """A move started 4.5 cm off its cell's centre toward the wall (its edge 5.5 cm from it)
-    and moving at 0.15 m/s toward it (13 mm to stop at the drive's 120 N on 135 kg): the same state, to the bit, with the compiled steps off and on; the compiled move took
-    it; no contact."""
+    and moving at 0.15 m/s toward it (13 mm to stop at the drive's 120 N on 135 kg): the same
+    state, to the bit, with the compiled steps off and on; the compiled move took it; no
+    contact."""
     import pickle
 
     from pathpref.sim import coasting
