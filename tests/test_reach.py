@@ -55,3 +55,5 @@ def test_the_tidybot_carrying_stays_within_its_bumper():
     assert plan_reach_m(scene.model, base.data, root) == pytest.approx(bumper, abs=1e-6)
     assert carry_reach_m(base, samples=16) == pytest.approx(bumper, abs=1e-6)
     assert bumper <= scene.radius_m
+    # the scene check takes the carrying body's radius
+    assert tidybot_base.TIDYBOT_CARRY.radius_m(scene.model) == pytest.approx(bumper, abs=1e-6)

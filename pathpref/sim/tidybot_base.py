@@ -45,6 +45,7 @@ import numpy as np
 from ..episode.physics import ROBOT_MODELS, check_body_drive
 from ..errors import ConfigError
 from .arm import ArmModel
+from .reach import plan_reach_m
 from .scene import BaseParams, RobotBody, floor_friction, holonomic_servos, mjcf_path, yaw_servo
 from .tidybot import ARM_JOINTS, ARM_SPEED, BASE_JOINTS, below, tidybot_xml
 
@@ -267,6 +268,21 @@ TIDYBOT_ARM = ArmModel(joints=tuple(PREFIX + j for j in ARM_JOINTS),
                        base_body=PREFIX + "base_link", prefixes=(PREFIX, "tool/"),
                        support_m=SUPPORT_M, ik_period_s=0.1)
 
-#: the TidyBot carrying the tray, as a scene's robot (:func:`~.scene.build_scene`)
-TIDYBOT_CARRY = RobotBody(name="tidybot", spec=carry_spec, radius_m=navigation_radius_m,
+def carry_radius_m(model: mujoco.MjModel) -> float:
+    """The carrying TidyBot's plan radius (m): the larger of :func:`navigation_radius_m` (the
+    robot at ``rest``, every height) and its plan reach below the obstacles' height with the
+    arm at its carrying posture :data:`CARRY_HOME` (:func:`~.reach.plan_reach_m`: the Gen3
+    and the tray's plate there stay within the bumper, so it is the bumper's 0.284 m)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("rest").id)
+    for j, q in zip(ARM_JOINTS, CARRY_HOME, strict=True):
+        data.qpos[model.joint(PREFIX + j).qposadr[0]] = q
+    mujoco.mj_forward(model, data)
+    return max(navigation_radius_m(model),
+               plan_reach_m(model, data, model.body(PREFIX + "base_link").id))
+
+
+#: the TidyBot carrying the tray, as a scene's robot (:func:`~.scene.build_scene`): its
+#: footprint is the carrying body's (:func:`carry_radius_m`)
+TIDYBOT_CARRY = RobotBody(name="tidybot", spec=carry_spec, radius_m=carry_radius_m,
                           finish=add_rest)
