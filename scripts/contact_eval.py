@@ -16,6 +16,14 @@ rule was designed and never used to tune it.
 largest impact speed and peak contact force, and success (contact-unsafe episodes are failures,
 :mod:`pathpref.episode.safety`).
 
+**Bodies** (``--bodies``, :data:`BODIES`): the disk (``navigate``), the TidyBot
+(``navigate --robot-model tidybot``), the Jaco carrying the tray on the disk (``carry``) and
+the Gen3 carrying it on the TidyBot (``carry --robot-model tidybot``); ``--clocks`` adds
+``decision`` to the default ``interval`` and ``guidance``; ``--maps`` built-in maps (e.g.
+``office``) beside the plans; ``--preset`` the policy preset (e.g. ``robust``). The table
+counts **unsafe** episodes, those with a contact above :data:`~pathpref.episode.safety.
+CONTACT_LIMITS` (0.05 m/s or 20 N), per body, map and clock.
+
 **Grid.** ``--grid`` adds, per plan, the grid world's strict and goal-reached success of path
 preference (robust-slack) and goal-only over the same instances: run once with this code (the
 robot's footprint) and once with ``PYTHONPATH`` pointing at a checkout from before the rule, to
@@ -34,6 +42,7 @@ from pathlib import Path
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 import pathpref.sim  # noqa: E402, F401  (registers the MuJoCo body)
+from pathpref.episode.safety import contact_safe  # noqa: E402
 from pathpref.experiments.report import wilson  # noqa: E402
 from pathpref.experiments.store import ResultStore  # noqa: E402
 from pathpref.experiments.sweep import run_sweep, sweep_specs  # noqa: E402
@@ -45,6 +54,16 @@ KINDS = (
     dict(width=12, height=9, rotated=3, boxes=0, size_range=(1.5, 3.5)),
     dict(width=22, height=14, rotated=3, boxes=17, size_range=(1.0, 3.0)),
 )
+
+
+#: the bodies of the sweep: name -> the episode's ``robot`` (task) and ``robot_model``
+BODIES = {"disk": ("navigate", "disk"), "tidybot": ("navigate", "tidybot"),
+          "jaco_carry": ("carry", "disk"), "gen3_carry": ("carry", "tidybot")}
+
+
+def unsafe(metrics: dict) -> bool:
+    """Whether an episode's contact measurements break a limit of ``CONTACT_LIMITS``."""
+    return not contact_safe(metrics)
 
 
 def rate(k: int, n: int) -> str:
@@ -71,7 +90,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", nargs="+", type=int, required=True)
     ap.add_argument("--plans", type=Path, default=Path("contact_plans"))
-    ap.add_argument("--timings", nargs="+", default=["interval", "guidance"])
+    ap.add_argument("--timings", "--clocks", nargs="+", default=["interval", "guidance"])
+    ap.add_argument("--bodies", nargs="+", default=["disk"], choices=sorted(BODIES))
+    ap.add_argument("--maps", nargs="*", default=[], help="built-in maps beside the plans")
+    ap.add_argument("--preset", default=None, help="the policy preset (default: the default)")
+    ap.add_argument("--methods", nargs="+", default=["path_preference", "compliant"])
     ap.add_argument("--instances", type=int, default=4)
     ap.add_argument("--runs", type=int, default=4)
     ap.add_argument("--grid", action="store_true", help="add the grid world's success")
@@ -80,14 +103,20 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--db", default="contact.sqlite")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
-    maps = plan_files(args.seeds, args.plans)
+    maps = [*args.maps, *plan_files(args.seeds, args.plans)]
     specs, lines = [], []
+    extra = {} if args.preset is None else {"preset": args.preset}
     if not args.grid_only:
         for m in maps:
-            for timing in args.timings:
-                physics = json.dumps({"timing": timing})
-                specs += sweep_specs(m, ["path_preference", "compliant"], [5], args.instances,
-                                     args.runs, sim="mujoco", physics=physics)
+            for body in args.bodies:
+                task, model = BODIES[body]
+                for timing in args.timings:
+                    physics = {"timing": timing}
+                    if model != "disk":
+                        physics["robot_model"] = model
+                    specs += sweep_specs(m, args.methods, [5], args.instances, args.runs,
+                                         sim="mujoco", robot=task,
+                                         physics=json.dumps(physics), **extra)
     if args.grid or args.grid_only:
         for m in maps:
             specs += sweep_specs(m, ["path_preference", "goal_only"], [5], args.instances,
@@ -98,26 +127,36 @@ def main(argv: list[str] | None = None) -> int:
     with ResultStore(args.db, create=False) as store:
         for r in store.episodes():
             if r["key"] in wanted:
-                timing = json.loads(r["physics"]).get("timing", "?") if r["sim"] == "mujoco" \
-                    else "grid"
-                cells[(r["map"], timing, r["method"])].append(dict(r))
-    lines = [f"{len(maps)} plans (seeds {' '.join(map(str, args.seeds))}), ΔT 5, "
-             f"{args.instances} instances x {args.runs} runs per method; 95% Wilson intervals",
-             "", "| plan | clock | method | episodes | contacts per episode | max impact speed "
-             "(m/s) | max peak contact force (N) | success (strict) | goal reached |",
-             "|---|---|---|---|---|---|---|---|---|"]
-    for (name, timing, method), rows in sorted(cells.items()):
+                ph = json.loads(r["physics"] or "{}") if r["sim"] == "mujoco" else {}
+                timing = ph.get("timing", "?") if r["sim"] == "mujoco" else "grid"
+                body = "-" if timing == "grid" else next(
+                    k for k, (t, m) in BODIES.items()
+                    if t == r["task"] and m == ph.get("robot_model", "disk"))
+                cells[(body, r["map"], timing, r["method"])].append(dict(r))
+    n_all = sum(len(v) for k, v in cells.items() if k[0] != "-")
+    bad = sum(unsafe(json.loads(r["metrics"] or "{}")) for k, v in cells.items()
+              if k[0] != "-" for r in v)
+    lines = [f"{len(args.maps)} built-in maps ({' '.join(args.maps) or 'none'}) and "
+             f"{len(maps) - len(args.maps)} plans (seeds {' '.join(map(str, args.seeds))}), "
+             f"ΔT 5, {args.instances} instances x {args.runs} runs per method, preset "
+             f"{args.preset or 'default'}; 95% Wilson intervals", "",
+             f"**{bad} unsafe of {n_all} physical episodes** (a contact above 0.05 m/s or 20 N)",
+             "", "| body | map | clock | method | episodes | unsafe | contacts per episode | "
+             "max impact speed (m/s) | max peak contact force (N) | success (strict) | "
+             "goal reached |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for (body, name, timing, method), rows in sorted(cells.items()):
         n = len(rows)
         met = [json.loads(r["metrics"] or "{}") for r in rows]
         ok = [r for r in rows if r["status"] == "ok"]
         if timing == "grid":
-            contacts = speed = force = "-"
+            contacts = speed = force = n_bad = "-"
         else:
+            n_bad = str(sum(unsafe(x) for x in met))
             contacts = f"{sum(x.get('collisions', 0.0) for x in met) / n:.2f}"
             speed = f"{max(x.get('contact_impact_speed', 0.0) for x in met):.2f}"
             force = f"{max(x.get('contact_peak_force_n', 0.0) for x in met):.0f}"
-        lines.append(f"| {Path(name).stem} | {timing} | {method} | {n} | {contacts} | {speed} | "
-                     f"{force} | "
+        lines.append(f"| {body} | {Path(name).stem} | {timing} | {method} | {n} | {n_bad} | "
+                     f"{contacts} | {speed} | {force} | "
                      f"{rate(sum(r['success'] for r in ok), n)} | "
                      f"{rate(sum(r['goal_reached'] for r in ok), n)} |")
     text = "\n".join(lines) + "\n"

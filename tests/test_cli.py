@@ -204,6 +204,8 @@ def test_bench_json_keys():
     tb = res["tidybot"]
     assert tb["robot_model"] == "tidybot" and tb["whole_body_base_share"] >= 0.2
     assert tb["tray_deviation_30n_3s_mm"] <= 60.0 and tb["tray_recovery_s"] <= 1.0
+    assert tb["tray_recovery_1mm_s"] >= tb["tray_recovery_s"]
+    assert tb["whole_body_tray_deviation_30n_3s_mm"] < tb["tray_deviation_30n_3s_mm"]
     # the TidyBot as an episode body: its compiled move may beat a Python loop of mj_step
     # (below 1); its carry arm steps in Python (above 1)
     assert tb["navigate_episode_vs_bare"] > 0.3

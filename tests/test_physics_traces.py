@@ -4,7 +4,10 @@ control-rate task runs replay ``tests/data/physics_traces.json`` (written by
 ``scripts/physics_traces.py`` with the per-step code of 23bd330, before the step was cut;
 the carry row re-pinned when the physical arm's IK went from 100 to 20 Hz: the same steps,
 cues, cells and counts, ``ik_solves`` 922 -> 185, the tilt within 4e-4 and every other float
-within 5e-7 relative): decision steps, cue headings and cells, counts exactly; times, forces,
+within 5e-7 relative; the "navigate any time" row re-pinned when the safety filter came to
+act on every move that starts off its cell's centre, as moves after a yield do: the same
+steps, cues, cells and counts, no contact, the felt pushes' peaks within 1.3e-4 relative):
+decision steps, cue headings and cells, counts exactly; times, forces,
 impulses and the base's final ``qpos`` to ``tests/close.py``'s ``REL_PHYSICS``."""
 
 from __future__ import annotations

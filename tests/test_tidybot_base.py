@@ -74,6 +74,16 @@ def test_the_scene_carries_menageries_robot(scene):
     for a in ("vx", "vy", "wz"):
         assert m.actuator(a).biastype == mujoco.mjtBias.mjBIAS_AFFINE  # velocity servos
     assert m.actuator("vx").gainprm[0] == pytest.approx(69.29 / 0.045, rel=1e-3)
+    # the yaw servo's 20 ms on the robot's own yaw inertia at rest: the joint-space inertia's
+    # yaw entry of the compiled scene (1.98 kg m^2: the base link's mesh 1.90, the arm 0.08)
+    d0 = mujoco.MjData(m)
+    mujoco.mj_resetDataKeyframe(m, d0, m.key("rest").id)
+    mujoco.mj_forward(m, d0)
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d0, full)
+    spin = full[m.joint("yaw").dofadr[0], m.joint("yaw").dofadr[0]]
+    assert spin == pytest.approx(1.98, abs=0.01)
+    assert m.actuator("wz").gainprm[0] == pytest.approx(spin / 0.02, rel=1e-3)
     assert m.sensor("handle_force").objid == m.site("handle_site").id
     body = MujocoBody(load_world("simple"), EpisodeSpec.single(
         "simple", "path_preference", 5, seed=0, sim="mujoco",
@@ -114,6 +124,9 @@ def test_the_mass_flag_sets_the_robots_mass(world):
     p = Physics.of(mass_kg=100.0, **TIDY)
     m = scene_for(world, 1.0, "navigate", base_params(p), "tidybot").model
     assert m.body_subtreemass[m.body("tidybot/base_link").id] == pytest.approx(100.0)
+    # the base link's mesh inertia scales with its mass: 1.903 (100 - 9.29) / 60 + 0.080
+    assert m.actuator("wz").gainprm[0] * 0.02 == pytest.approx(
+        1.903 * (100.0 - 9.29) / 60.0 + 0.080, abs=0.01)
 
 
 def test_what_the_tidybot_cannot_be_is_one_line(world):
@@ -223,3 +236,16 @@ def test_the_dm_control_task_runs_the_tidybot():
     assert np.allclose(ts.observation["position"], cell - 0.5, atol=0.05)  # metres, 1 m cells
     ts = env.step(8)  # the task's stay action
     assert np.allclose(ts.observation["cell"], cell)
+
+
+def test_the_tray_keys_measure_the_episode_body():
+    """``tidybot.tray_*`` are measured on the body ``--robot carry --robot-model tidybot``
+    runs: a steady 30 N push north for 3 s deflects the tray at least ``F / K`` = 30 mm (the
+    arm's tray impedance, 1000 N/m; the stand-alone whole-body model gives 9.7) and at most
+    that plus 8 mm (the base's velocity servo yields about 5 mm and its yaw 0.02 rad, which
+    the controller takes back); back within 10 mm in under 1 s, within 1 mm no sooner."""
+    from pathpref.apps.benchmarks.physics import tray_push
+
+    r = tray_push(30.0, 3.0, headings=(0,), after_s=1.5, robot_model="tidybot")
+    assert 30.0 <= r["deviation_mm"] <= 38.0
+    assert r["recovery_s"] <= 1.0 and r["recovery_1mm_s"] >= r["recovery_s"]

@@ -149,7 +149,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, f
     :func:`~.cue_detector.filter_step`'s arrays and constants, then the detector's state,
     rule and scratch (:func:`~.cue_detector.decide_step`) and its record
     (:data:`~.cue_detector.D_VAR`, ...); ``guide`` the map for a guided
-    base at rest (``ns[GUIDED]``: the command through :func:`~.keep_clear.keep_clear_xy`, the
+    base at rest or a motion off the grid's clear moves (``ns[GUIDED]``: the command through
+    :func:`~.keep_clear.keep_clear_xy`, the
     map's ``Clearance.arrays`` and rows) and for its path's crossings (``ns[POLY] >= 0``: the
     polytope the base is in; the grid's ``cell_index`` and ``cell_polytope``), then the
     guidance's record (``[moving]``); ``arm`` the physical carry arm's record
@@ -557,6 +558,9 @@ class Coaster:
         fs = self._fs
         fs[CUE], fs[TIME] = 0.0, d.time
         cs, ns = self._constants(force_filter)
+        # the safety filter: under guidance, and on a motion off the grid's clear moves
+        # (MobileBase.keep_clear; no guidance's record: its admittance stays off)
+        ns[GUIDED] = int(g is not None or b.keep_clear)
         ns[PUSHING], ns[INTERACT] = push is not None, interaction is not None
         cs[T0], cs[MIN_S], cs[T_END] = t0, min_s, t_end
         cs[T_STOP] = self._quiet_until() if b.pre_substep else math.inf

@@ -89,12 +89,16 @@ class DecisionStep:
         its cells' centres (guidance, a yield) may stand where the straight way to that
         centre is not clear of obstacles (the footprint rule, :meth:`.scene.Scene.clear`):
         it then drives first to the centre of the cell it stands in (a clear waypoint: the
-        grid's moves start there) and on to the target from there (:attr:`final`).
+        grid's moves start there) and on to the target from there (:attr:`final`). A move
+        that starts off its cell's centre or still moving (:func:`off_the_grid`: a tap
+        stopped the last move, a yield, guidance) is not the grid's straight clear move: the
+        safety filter acts on all of it (:attr:`.mobile_base.MobileBase.keep_clear`).
         ``steps``: a timed move of exactly that many physics steps (module docstring)."""
         b = self.base
         target = b.scene.cell_centre(cell)
         pos = b.data.qpos[b.xy]
         self.final = None
+        b.keep_clear = off_the_grid(b, pos)
         if not b.scene.clear(pos, target):
             here = b.scene.cell_centre(b.scene.cell_at(pos))
             if b.scene.clear(pos, here):
@@ -221,3 +225,20 @@ class DecisionStep:
                     continue  # (none: the kernel left this step to Python, e.g. to refuse it)
             if self.advance():
                 return self
+
+
+#: how far from its cell's centre (m) and how fast (m/s) a base may stand for its next move to
+#: be the grid's own straight clear move (the controller's arrival tolerance, ``tol_m`` 0.02 m
+#: and ``still_mps`` 0.05 m/s, doubled)
+ON_GRID_M = 0.04
+ON_GRID_MPS = 0.1
+
+
+def off_the_grid(b, pos) -> bool:
+    """Whether base ``b`` at ``pos`` (m) stands more than :data:`ON_GRID_M` from the centre of
+    the cell it is in, or moves faster than :data:`ON_GRID_MPS`: its next move is then not the
+    grid's straight clear move from a cell's centre, and the safety filter acts on it."""
+    here = b.scene.cell_centre(b.scene.cell_at(pos))
+    v = b.data.qvel[b.vxy]
+    return bool(math.hypot(pos[0] - here[0], pos[1] - here[1]) > ON_GRID_M
+                or math.hypot(v[0], v[1]) > ON_GRID_MPS)

@@ -11,6 +11,9 @@ forward and reverse (``|e| > 90`` degrees drives backwards with ``e - 180``); tu
 ``near_m`` (5 cm) of the target the base no longer turns (the heading of a tiny error is
 meaningless) and closes the rest along its heading; a controller that does not track a target
 (``tracks_target`` False: an agent's velocity command at control rate) is followed everywhere.
+Where a person moves the base (a yield, guidance) and on a move off the grid's clear moves
+(:attr:`.mobile_base.MobileBase.keep_clear`), the forward speed passes the safety filter
+(:mod:`.keep_clear`) along the heading.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import math
 
 import numpy as np
 
+from .keep_clear import keep_clear_xy
 from .mobile_base import MobileBase
 
 
@@ -71,4 +75,21 @@ class DiffDriveBase(MobileBase):
                 fwd_goal = sign * speed * math.cos(e)
         step = c.a_max * self.dt
         self.forward += max(-step, min(step, fwd_goal - self.forward))
+        if self.keep_clear or self.guidance is not None or self.yielding():
+            self.forward = self._kept_clear(pos, yaw, c.a_max)
         return np.array([self.forward, 0.0, w])
+
+    def _kept_clear(self, pos, yaw: float, a_max: float) -> float:
+        """The forward speed the safety filter allows (:mod:`.keep_clear`, braking at half
+        ``a_max`` as the holonomic base): the planar velocity ``forward (cos yaw, sin yaw)``
+        filtered, then taken along the heading (the drive cannot move sideways); a speed the
+        filter did not lower is kept, one it lowered (or reversed, to back out) is the
+        filtered velocity's component along the heading."""
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        sc = self.scene
+        vx, vy = keep_clear_xy(float(pos[0]), float(pos[1]), self.forward * cy,
+                               self.forward * sy, sc.cell_size, sc.radius_m, 0.5 * a_max,
+                               sc.clearance.arrays, sc.clearance.near_rows)
+        along = vx * cy + vy * sy
+        return along if abs(along) < abs(self.forward) or along * self.forward < 0.0 \
+            else self.forward

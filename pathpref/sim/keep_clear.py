@@ -2,10 +2,13 @@
 base can stop before it.
 
 Where the base does not follow its own straight, clear moves (a guiding push deforms its path, a
-push at any time makes it yield), its velocity command ``v`` is filtered before it reaches the
-drive: for every obstacle or wall whose nearest point lies within reach, with ``n`` the unit
-vector from that point to the base's centre and ``gap`` the distance from the base's edge (the
-footprint's radius) to it, the approach speed ``-v . n`` is capped at
+push at any time makes it yield, and every move that starts off its cell's centre or still
+moving: after a tap stopped a move, a yield or guidance, :meth:`.decision.DecisionStep.move`),
+its velocity command ``v`` is filtered before it reaches the drive (the holonomic base's
+planar command; the differential drive's forward speed, :mod:`.diffdrive`): for every
+obstacle or wall whose nearest point lies within reach, with ``n`` the unit vector from that
+point to the base's centre and ``gap`` the distance from the base's edge (the footprint's
+radius) to it, the approach speed ``-v . n`` is capped at
 
     ``sqrt(2 a (gap - MARGIN_M))``   while ``gap >= MARGIN_M``,
 
@@ -44,10 +47,9 @@ def keep_clear(scene: Scene, pos: np.ndarray, v: np.ndarray, a_brake: float) -> 
     """``v`` (m/s, planar, modified in place and returned) with its approach to every nearby
     obstacle and wall capped (module docstring); ``pos`` the base's centre (m). The
     arithmetic is :func:`keep_clear_xy`'s, which the compiled steps call too."""
-    cell = scene.cell_size
     clearance = scene.clearance
-    v[0], v[1] = keep_clear_xy(float(pos[0]), float(pos[1]), float(v[0]), float(v[1]), cell,
-                               scene.world.footprint.radius * cell, a_brake, clearance.arrays,
+    v[0], v[1] = keep_clear_xy(float(pos[0]), float(pos[1]), float(v[0]), float(v[1]),
+                               scene.cell_size, scene.radius_m, a_brake, clearance.arrays,
                                clearance.near_rows)
     return v
 

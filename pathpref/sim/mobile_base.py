@@ -48,7 +48,7 @@ from .decision import DecisionStep
 from .estimator import EstimatorConfig
 from .force_cue import HumanPush, PushProfile, apply_force
 from .guidance import Guidance
-from .keep_clear import keep_clear
+from .keep_clear import keep_clear, keep_clear_xy
 from .measurements import Measurements
 from .scene import Scene
 from .sensing import SensorModel
@@ -124,6 +124,11 @@ class MobileBase:
         self.stop_on_cue = False
         #: the guidance admittance and its state (:meth:`enable_guidance`; None: off)
         self.guidance: Guidance | None = None
+        #: the safety filter on every command of the motion under way (:mod:`.keep_clear`):
+        #: set by :meth:`.decision.DecisionStep.move` for a move that starts off its cell's
+        #: centre or still moving (after a tap stopped a move, a yield, guidance), whose path
+        #: is not the grid's straight clear move; always on under guidance
+        self.keep_clear = False
         self._onset: tuple[float, int] | None = None
         self._anchor: np.ndarray | None = None
         #: measure the base (:mod:`.measurements`; episodes with physical parameters)
@@ -318,6 +323,11 @@ class MobileBase:
             q, (ix, iy, iyaw), (a0, a1, a2) = self._qpos, self._float_adr, self._float_act
             tx, ty = self.target.tolist()
             vx, vy = c.ramp_xy(*c.goal_xy(q.item(ix), q.item(iy), tx, ty), c.dt)
+            if self.keep_clear:  # a motion off the grid's clear moves: the safety filter
+                sc = self.scene
+                vx, vy = keep_clear_xy(q.item(ix), q.item(iy), vx, vy, sc.cell_size,
+                                       sc.radius_m, 0.5 * c.a_max, sc.clearance.arrays,
+                                       sc.clearance.near_rows)
             ctrl = self._ctrl_view
             ctrl[a0], ctrl[a1], ctrl[a2] = vx, vy, -c.k_yaw * q.item(iyaw)
             return
@@ -341,7 +351,8 @@ class MobileBase:
         acceleration limit. Where a
         person moves the base (guidance, or a yield), the command passes the safety filter
         :func:`.keep_clear.keep_clear` (braking at half ``a_max``: a push may oppose the
-        drive)."""
+        drive), and so does every command of a motion off the grid's clear moves
+        (:attr:`keep_clear`)."""
         d = self.data
         pos = self._qpos[self._xy].copy()
         a_brake = 0.5 * self.controller.a_max
@@ -355,6 +366,8 @@ class MobileBase:
                     if speed > self.controller.v_max:
                         command[:2] *= self.controller.v_max / speed
                 keep_clear(self.scene, pos, command, a_brake)  # a push may act unadmitted
+            elif self.keep_clear:  # a motion off the grid's clear moves (:attr:`keep_clear`)
+                keep_clear(self.scene, pos, command, a_brake)
             return command
         v = self.controller.ramp(keep_clear(self.scene, pos, self.admittance_velocity(),
                                             a_brake))
@@ -372,6 +385,7 @@ class MobileBase:
     def _reset_control(self) -> None:
         """A standing base: no yield under way, the controller's state cleared."""
         self._anchor = None
+        self.keep_clear = False
         if self.guidance is not None:
             self.guidance.reset()
         self.controller.reset()

@@ -59,13 +59,24 @@ class Scene:
         return self.clearance.clear_at(np.asarray(xy, float)[:2] / self.cell_size,
                                        self.world.footprint.reach)
 
+    @property
+    def radius_m(self) -> float:
+        """The body's plan radius (m): the world's footprint radius, which is the body's own
+        (a body whose reach is wider than the map's footprint is refused,
+        :func:`check_footprint`)."""
+        return self.world.footprint.radius * self.cell_size
+
     def clear(self, a: np.ndarray, b: np.ndarray) -> bool:
-        """Whether the footprint swept straight from ``a`` to ``b`` (m) keeps its radius
-        from every obstacle and wall (it may use up the clearance: a base a person moved
-        stands anywhere its radius fits)."""
+        """Whether the footprint swept straight from ``a`` to ``b`` (m) keeps its radius plus
+        the safety filter's margin (:data:`~.keep_clear.MARGIN_M`, the body's reach under a
+        person's hand) from every obstacle and wall (it may use up the rest of the clearance:
+        a base a person moved stands anywhere that fits)."""
+        from .keep_clear import MARGIN_M
+
         p = np.asarray(a, float)[:2].reshape(1, 2) / self.cell_size
         q = np.asarray(b, float)[:2].reshape(1, 2) / self.cell_size
-        return bool(self.clearance.clear(p, q, self.world.footprint.radius)[0])
+        return bool(self.clearance.clear(p, q, self.world.footprint.radius
+                                         + MARGIN_M / self.cell_size)[0])
 
     def cell_centre(self, cell: int) -> np.ndarray:
         """Metric position ``(x, y)`` of a free cell's centre."""

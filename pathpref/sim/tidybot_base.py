@@ -13,13 +13,18 @@ to a push; a position servo of 1e6 N/m would not). Added: a push handle (a 0.2 k
 sensor ``handle_force`` at ``handle_site`` where the hand is, as on the cylinder.
 
 * **mass**: Menagerie's (the 60 kg base, the Gen3 arm and gripper, the handle; 69.29 kg,
-  :func:`navigation_mass_kg`); the drive's ``mass_kg`` sets the base link's mass so the whole
-  robot weighs it (its default is Menagerie's, :data:`~pathpref.episode.physics.ROBOT_MODELS`);
+  :func:`navigation_mass_kg`); the drive's ``mass_kg`` sets the mass of the base link's
+  ``body`` mesh (the one base geom with mass, Menagerie's ``mass="60"``) so the whole robot
+  weighs it, its inertia scaled with it (its default is Menagerie's,
+  :data:`~pathpref.episode.physics.ROBOT_MODELS`);
 * **drive**: ``vx``, ``vy`` velocity servos of gain ``mass / DRIVE_TAU_S`` (the same 45 ms
   time constant as the Ridgeback's drive, ``BaseParams.kv``), force limited to the drive's
-  ``force_limit_n``; ``wz`` a 20 ms yaw servo for the yaw inertia of a solid cylinder of the
-  robot's mass and footprint radius (an estimate: Menagerie's base inertia, 0.001 kg m^2, is a
-  placeholder);
+  ``force_limit_n``; ``wz`` a 20 ms yaw servo for the robot's own yaw inertia at ``rest``,
+  read from the model (:func:`navigation_yaw_inertia`, 1.98 kg m^2 at Menagerie's mass: the
+  base link's 1.90 from its mesh, as Menagerie's pull request #281 derives it, and 0.08 of the
+  retracted arm, gripper and handle; with the placeholder 0.001 kg m^2 the file had before,
+  the whole robot had 0.08 kg m^2, so the servo was then sized on a solid cylinder of the
+  robot's mass and plan radius, 2.79 kg m^2);
 * **arm**: held at Menagerie's ``retract`` posture by its own position servos (the posture
   TidyBot++'s simulator resets the arm to), gravity compensated as the Gen3's controller does;
   the model's keyframe ``rest`` holds it, and a base's reset starts there
@@ -40,6 +45,7 @@ import numpy as np
 from ..episode.physics import ROBOT_MODELS, check_body_drive
 from ..errors import ConfigError
 from .arm import ArmModel
+from .reach import plan_reach_m
 from .scene import BaseParams, RobotBody, floor_friction, holonomic_servos, mjcf_path, yaw_servo
 from .tidybot import ARM_JOINTS, ARM_SPEED, BASE_JOINTS, below, tidybot_xml
 
@@ -89,6 +95,50 @@ def _masses() -> tuple[float, float]:
     return float(m.body_subtreemass[base]), float(m.body_subtreemass[base] - m.body_mass[base])
 
 
+def base_mass_geom(body: mujoco.MjsBody) -> mujoco.MjsGeom:
+    """The base link's one geom with mass (Menagerie's ``body`` mesh, ``mass="60"``; the other
+    base geoms have ``mass="0"`` from their class, pull request #281); a ConfigError of one line
+    when the file has not exactly one."""
+    heavy = [g for g in body.geoms if g.mass > 0.0]
+    if len(heavy) != 1:
+        raise ConfigError(f"the TidyBot's base_link in {tidybot_xml()} must have exactly one "
+                          f"geom with mass (Menagerie's body mesh), has {len(heavy)}; "
+                          "reinstall pathpref")
+    return heavy[0]
+
+
+@lru_cache(maxsize=1)
+def _yaw_inertias() -> tuple[float, float, float]:
+    """The yaw inertia (kg m^2) about the base's centre at ``rest`` (the arm at
+    :data:`RETRACT`) of the base link and of everything else (arm, gripper, handle), and the
+    base link's mass (kg), in Menagerie's model: the base link's share is its inertia rotated
+    to the world, ``(R I R^T)_zz``, plus ``m (x_c^2 + y_c^2)`` for its centre of mass; the
+    rest is the joint-space inertia ``M[yaw, yaw]`` less that."""
+    m = _robot_spec().compile()
+    d = mujoco.MjData(m)
+    for j, q in zip(ARM_JOINTS, RETRACT, strict=True):
+        d.qpos[m.joint(j).qposadr[0]] = q
+    mujoco.mj_forward(m, d)
+    full = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, full)
+    yaw = m.joint(NAV_JOINTS[2]).dofadr[0]
+    b = m.body("base_link").id
+    r = d.ximat[b].reshape(3, 3)
+    own = float((r @ np.diag(m.body_inertia[b]) @ r.T)[2, 2]
+                + m.body_mass[b] * np.sum((d.xipos[b, :2] - d.xpos[b, :2]) ** 2))
+    return own, float(full[yaw, yaw]) - own, float(m.body_mass[b])
+
+
+def navigation_yaw_inertia(mass_kg: float | None = None) -> float:
+    """The whole robot's yaw inertia about the base's centre at ``rest`` (kg m^2) when it weighs
+    ``mass_kg`` (None: Menagerie's): the base link's share scales with its mass (the drive's
+    ``mass_kg`` sets it, :func:`navigation_spec`), the arm's, gripper's and handle's do not."""
+    own, others, base_kg = _yaw_inertias()
+    if mass_kg is None:
+        return own + others
+    return own * (mass_kg - _masses()[1]) / base_kg + others
+
+
 def navigation_mass_kg() -> float:
     """The whole robot's mass in Menagerie's model (kg)."""
     return _masses()[0]
@@ -122,14 +172,13 @@ def navigation_spec(base: BaseParams | None) -> mujoco.MjSpec:
     if mass <= others:
         raise ConfigError(f"the TidyBot's mass_kg must exceed its arm's and handle's "
                           f"{others:.2f} kg, got {mass:g}")
-    spec.body(PREFIX + "base_link").mass = mass - others
+    base_mass_geom(spec.body(PREFIX + "base_link")).mass = mass - others
     floor_friction(spec, base.friction_n)
     for name, joint in zip(("vx", "vy", "wz"), NAV_JOINTS, strict=True):  # navigate.xml's
         spec.add_actuator(name=name, target=joint, trntype=mujoco.mjtTrn.mjTRN_JOINT)
     spec.actuator("wz").ctrlrange = [-2.0, 2.0]
     holonomic_servos(spec, mass / DRIVE_TAU_S, base.force_limit_n)
-    r = TIDYBOT_RADIUS_M
-    yaw_servo(spec, 0.5 * mass * r * r)  # a solid cylinder of its mass and plan radius
+    yaw_servo(spec, navigation_yaw_inertia(mass))  # the model's own, at ``rest``
     return spec
 
 
@@ -219,6 +268,21 @@ TIDYBOT_ARM = ArmModel(joints=tuple(PREFIX + j for j in ARM_JOINTS),
                        base_body=PREFIX + "base_link", prefixes=(PREFIX, "tool/"),
                        support_m=SUPPORT_M, ik_period_s=0.1)
 
-#: the TidyBot carrying the tray, as a scene's robot (:func:`~.scene.build_scene`)
-TIDYBOT_CARRY = RobotBody(name="tidybot", spec=carry_spec, radius_m=navigation_radius_m,
+def carry_radius_m(model: mujoco.MjModel) -> float:
+    """The carrying TidyBot's plan radius (m): the larger of :func:`navigation_radius_m` (the
+    robot at ``rest``, every height) and its plan reach below the obstacles' height with the
+    arm at its carrying posture :data:`CARRY_HOME` (:func:`~.reach.plan_reach_m`: the Gen3
+    and the tray's plate there stay within the bumper, so it is the bumper's 0.284 m)."""
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, model.key("rest").id)
+    for j, q in zip(ARM_JOINTS, CARRY_HOME, strict=True):
+        data.qpos[model.joint(PREFIX + j).qposadr[0]] = q
+    mujoco.mj_forward(model, data)
+    return max(navigation_radius_m(model),
+               plan_reach_m(model, data, model.body(PREFIX + "base_link").id))
+
+
+#: the TidyBot carrying the tray, as a scene's robot (:func:`~.scene.build_scene`): its
+#: footprint is the carrying body's (:func:`carry_radius_m`)
+TIDYBOT_CARRY = RobotBody(name="tidybot", spec=carry_spec, radius_m=carry_radius_m,
                           finish=add_rest)

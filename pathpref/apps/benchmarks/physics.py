@@ -353,7 +353,7 @@ def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
 def physical_base(world, task: str = "navigate", sensor: str = "realistic",
                   kind: str = "holonomic", seed: int = 0, **fields):
     """A base as a physical episode builds it (``Physics()`` defaults, the sensor preset
-    ``sensor``, base ``kind``, other flat fields ``fields``, e.g. ``sensor_noise_n``): the
+    ``sensor``, base ``kind``, other flat fields ``fields``, e.g. ``sensor_noise_n`` or ``robot_model``): the
     body's own construction, not a copy of it."""
     import dataclasses
 
@@ -443,24 +443,33 @@ def carry_drift(force_n: float = 30.0, seconds: float = 3.0, physical: bool = Tr
     return {"carry_drift_mm": max(against), "carry_yield_mm": max(along)}
 
 
+#: the distances (m) within which :func:`tray_push` times the tray's return: 10 mm (the
+#: ``recovery_s`` keys) and 1 mm (``recovery_1mm_s``; a push whose peak stays under 10 mm is
+#: "back" at the first step after the release by the first, never by the second)
+RECOVERY_M = (0.010, 0.001)
+
+
 def tray_push(force_n: float = 30.0, seconds: float = 3.0, shape: str = "steady",
               headings: tuple[int, ...] = (0, 4), after_s: float = 4.0,
-              stiffness: float | None = None) -> dict[str, float]:
-    """A push on the tray of the standing physical ``carry`` robot at ``simple``'s (3, 3)
-    (``steady``: a constant ``force_n`` for ``seconds``; ``half_sine``: the simulated human's
-    pulse of that peak and duration), toward each of ``headings`` (default north and south,
-    the arm's weak plane): the tray's largest distance from where it stood before the push
-    (mm), its largest tilt (degrees), and the time from the release until it is back within
-    10 mm of that place for good (s; ``after_s`` when it never is); the worst heading each.
-    ``stiffness``: the arm's tray stiffness (N/m; None: ``arm.TRAY_STIFFNESS``)."""
+              stiffness: float | None = None, robot_model: str = "disk"
+              ) -> dict[str, float]:
+    """A push on the tray of the standing physical ``carry`` robot ``robot_model`` (the body
+    ``--robot carry --robot-model`` runs in episodes) at ``simple``'s (3, 3) (``steady``: a
+    constant ``force_n`` for ``seconds``; ``half_sine``: the simulated human's pulse of that
+    peak and duration), toward each of ``headings`` (default north and south, the Jaco's weak
+    plane): the tray's largest distance from where it stood before the push (mm), its largest
+    tilt (degrees), and the time from the release until it is back within 10 mm
+    (``recovery_s``) and within 1 mm (``recovery_1mm_s``) of that place for good (s;
+    ``after_s`` when it never is); the worst heading each. ``stiffness``: the arm's tray
+    stiffness (N/m; None: ``arm.TRAY_STIFFNESS``)."""
     from ...geometry.grid import ACTION_ANGLES
     from ...sim.arm import tilt_deg
     from ...sim.force_cue import HumanPush, PushProfile
 
     world = cached_world("simple")
-    dev, tilt, rec = [], [], []
+    dev, tilt, rec = [], [], {r: [] for r in RECOVERY_M}
     for h in headings:
-        base = physical_base(world, task="carry")
+        base = physical_base(world, task="carry", robot_model=robot_model)
         if stiffness is not None:
             base.stiffness = float(stiffness)
         base.reset(world.cell((3, 3)))
@@ -472,20 +481,24 @@ def tray_push(force_n: float = 30.0, seconds: float = 3.0, shape: str = "steady"
         else:
             push = HumanPush(a, t0, PushProfile(peak_n=force_n, duration_s=seconds), h)
         base.pushes = [push]
-        worst, most, back = 0.0, 0.0, None
+        worst, most = 0.0, 0.0
+        back: dict[float, float | None] = dict.fromkeys(RECOVERY_M)
         while base.data.time < t0 + seconds + after_s:
             base.substep()
             e = float(np.linalg.norm(base.end_effector - p0))
             worst, most = max(worst, e), max(most, tilt_deg(base.data, base.tray))
             if base.data.time > t0 + seconds:
-                if e > 0.010:
-                    back = None
-                elif back is None:
-                    back = float(base.data.time) - t0 - seconds
+                for r in RECOVERY_M:
+                    if e > r:
+                        back[r] = None
+                    elif back[r] is None:
+                        back[r] = float(base.data.time) - t0 - seconds
         dev.append(1e3 * worst)
         tilt.append(most)
-        rec.append(after_s if back is None else back)
-    return {"deviation_mm": max(dev), "tilt_deg": max(tilt), "recovery_s": max(rec)}
+        for r in RECOVERY_M:
+            rec[r].append(after_s if back[r] is None else back[r])
+    return {"deviation_mm": max(dev), "tilt_deg": max(tilt),
+            "recovery_s": max(rec[RECOVERY_M[0]]), "recovery_1mm_s": max(rec[RECOVERY_M[1]])}
 
 
 def tray_compliance(quick: bool = False) -> dict[str, float]:
@@ -495,6 +508,7 @@ def tray_compliance(quick: bool = False) -> dict[str, float]:
     s60 = tray_push(60.0, 0.6, shape="half_sine")
     return {"tray_deviation_30n_3s_mm": s30["deviation_mm"],
             "tray_recovery_s": s30["recovery_s"],
+            "tray_recovery_1mm_s": s30["recovery_1mm_s"],
             "tray_tilt_30n_deg": s30["tilt_deg"],
             "tray_deviation_60n_mm": s60["deviation_mm"],
             "tray_recovery_60n_s": s60["recovery_s"],
