@@ -14,7 +14,8 @@ their directions, the expected goal direction, the occupancy around the base, th
 
 Training episodes are drawn round the :data:`TRAIN_PLANS` generated plans
 (:func:`pathpref.geometry.generate.floor_plan`, 24 x 16 cells, a preferred route through four
-waypoints; a random plan per episode), each plan's episodes from its own seed; training stops
+waypoints; a random plan per episode), each plan's episodes from its own seed, with the
+consistent person (``--human``: their route leads to the true goal); training stops
 after ``--steps`` environment steps (decisions), whatever the CPU time (``--cpu-minutes``,
 off by default, adds a CPU cap as the earlier example had). Then the saved agent,
 deterministic, is evaluated on ``--eval`` episodes of each of: held-out instances of the
