@@ -14,7 +14,8 @@ their directions, the expected goal direction, the occupancy around the base, th
 
 Training episodes are drawn round the :data:`TRAIN_PLANS` generated plans
 (:func:`pathpref.geometry.generate.floor_plan`, 24 x 16 cells, a preferred route through four
-waypoints; a random plan per episode), each plan's episodes from its own seed; training stops
+waypoints; a random plan per episode), each plan's episodes from its own seed, with the
+consistent person (``--human``: their route leads to the true goal); training stops
 after ``--steps`` environment steps (decisions), whatever the CPU time (``--cpu-minutes``,
 off by default, adds a CPU cap as the earlier example had). Then the saved agent,
 deterministic, is evaluated on ``--eval`` episodes of each of: held-out instances of the
@@ -60,8 +61,10 @@ from pathpref.geometry.generate import floor_plan  # noqa: E402
 
 ENV_ID = "pathpref/Navigate-v1"
 #: the task: the person pushes at every decision, the paper's method for the belief the agent
-#: observes (the map is each plan's)
-TASK = {"method": "path_preference", "delta_t": 1}
+#: observes (the map is each plan's), the consistent person (``--human``: the true goal is
+#: one their route leads to; with the map's person most generated-plan instances cannot be
+#: succeeded at all, so the agent would never see a success)
+TASK = {"method": "path_preference", "delta_t": 1, "human": "consistent"}
 #: the generated plans the agent trains on by default (seeds of ``floor_plan``, the first
 #: ``--plans`` of them; a seed whose plan is too fragmented is skipped)
 TRAIN_PLANS = tuple(range(16))
@@ -153,10 +156,11 @@ class PlanMix(gym.Env):
             e.close()
 
 
-def make_env(map_, seed: int) -> gym.Env:
-    """The agent's view of ``pathpref/Navigate-v1`` on ``map_``, its episodes those of the
-    task's ``seed`` (``reset`` without a seed moves to the next one)."""
-    return AgentView(gym.make(ENV_ID, map=map_, seed=seed, **TASK))
+def make_env(map_, seed: int, **changes) -> gym.Env:
+    """The agent's view of ``pathpref/Navigate-v1`` on ``map_`` (:data:`TASK` with
+    ``changes``), its episodes those of the task's ``seed`` (``reset`` without a seed moves to
+    the next one)."""
+    return AgentView(gym.make(ENV_ID, map=map_, seed=seed, **{**TASK, **changes}))
 
 
 class Progress(BaseCallback):
@@ -208,7 +212,10 @@ def summarise(eps: list[dict]) -> dict:
 
 def evaluate(model: PPO, plans: list[dict], maps: list[str], n: int) -> dict:
     """Held-out instances of the training plans (``n`` episodes round the plans, each plan's
-    from :data:`EVAL_SEED`) and ``n`` episodes of each unseen built-in map."""
+    from :data:`EVAL_SEED`) and ``n`` episodes of each unseen built-in map, with the
+    training person (``TASK["human"]``); when that is the consistent person, the maps also
+    with the map's person (``"<map>:map_human"``: the paper's protocol, where the person's
+    route may not lead to the true goal)."""
     envs = [make_env(p, EVAL_SEED) for p in plans]
     held = []
     for i in range(n):
@@ -220,6 +227,10 @@ def evaluate(model: PPO, plans: list[dict], maps: list[str], n: int) -> dict:
         env = make_env(m, EVAL_SEED)
         out[m] = summarise(run_episodes(model, env, n))
         env.close()
+        if TASK["human"] != "map":
+            env = make_env(m, EVAL_SEED, human="map")
+            out[f"{m}:map_human"] = summarise(run_episodes(model, env, n))
+            env.close()
     return out
 
 
@@ -284,6 +295,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument("--ent-coef", type=float, default=0.005, help="entropy bonus")
     ap.add_argument("--learning-rate", type=float, default=1e-3)
     ap.add_argument("--net", default="64,64", help="hidden layer sizes of policy and value")
+    ap.add_argument("--human", choices=("consistent", "map"), default="consistent",
+                    help="the person (as pathpref evaluate --human): consistent (pushes along "
+                    "one route to the true goal) or map (the map's route, the paper's protocol)")
     ap.add_argument("--eval", type=int, default=50, help="evaluation episodes per set")
     ap.add_argument("--maps", default="simple,office",
                     help="built-in maps (never trained on) to evaluate on")
@@ -302,6 +316,7 @@ def main(argv: list[str] | None = None) -> dict:
     plans = train_plans(args.plans)
     # the task's gamma is the training discount: the shaping is exact for the agent's return
     TASK["gamma"] = args.gamma
+    TASK["human"] = args.human
     env = PlanMix([make_env(p, 1000 * args.seed + i) for i, p in enumerate(plans)], args.seed)
     net = [int(v) for v in args.net.split(",")]
     model = PPO("MultiInputPolicy", env, n_steps=min(args.n_steps, args.steps),

@@ -213,13 +213,15 @@ class PathprefEnvV1(PathprefEnv):
     ``info["is_success"]``: goal reached without a violation.
 
     **Arguments.** Those of ``-v0`` (``map``, ``method``, ``delta_t``, ``seed``, ``n_goals``,
-    ``physics``, ...; :class:`~pathpref_tasks.gym.PathprefEnv`), ``gamma``, and
-    ``reward`` to select another rule.
+    ``physics``, ...; :class:`~pathpref_tasks.gym.PathprefEnv`), ``gamma``, ``human``
+    (``"map"``, the default, or ``"consistent"``: the person pushes along one route to the
+    true goal, as ``pathpref evaluate --human``) and ``reward`` to select another rule.
 
     **Version history.**
 
     * v1: the reward whose optimum is the person's route (violations end the episode), the
-      shaping discounted with ``gamma``; observations of fixed size on every map.
+      shaping discounted with ``gamma``; observations of fixed size on every map; the
+      ``human`` argument (also on v0).
     * v0: the potential-shaped reward (undiscounted; the first preferred exit only), the
       task's observations plus ``goal_vectors``, ``goal_direction`` and
       ``polytope_onehot``, whose sizes depend on the map.

@@ -52,6 +52,12 @@ other than ``decision`` the human pushes at any physics step
 physics step) and the base holds its cell for the rest of the step; a cue felt while holding is
 read at once too; there is no *push* phase then.
 
+``human`` is the person's preference, as ``pathpref evaluate --human``: ``"map"`` (the
+map's, the paper's protocol; on a generated plan its route often does not lead to the true
+goal, so no policy can succeed there) or ``"consistent"`` (the true goal is drawn among the
+candidates the map's preference leads to, and the person pushes along one route to it
+consistently: :func:`pathpref.episode.instances.sample_instance`).
+
 ``map`` is a built-in name, a JSON path, a map dictionary or a
 :class:`~pathpref.geometry.maps.MapSpec`; a map whose arrangement may exceed
 :data:`~pathpref.geometry.arrangement.MAX_POLYTOPES` is refused unless ``force=True``. Bad
@@ -177,7 +183,7 @@ class Navigate(base.Task):
                  t_max: int | None = None, coupling: bool | None = None, n_goals: int = 10,
                  task: str = "navigate", force: bool = False, decision_s: float | None = None,
                  physics: Any = None, reward: str = "paper", min_goal_distance: float = 0.0,
-                 gamma: float = DISCOUNT):
+                 gamma: float = DISCOUNT, human: str = "map"):
         super().__init__()  # episodes draw from seed_for(seed, k), not from the task's random
         self.seed = check_limit("seed", seed, "seed")
         if t_max is not None:
@@ -187,7 +193,7 @@ class Navigate(base.Task):
             map=map_name, method=method, delta_t=delta_t, instance=0, run=0, instance_seed=0,
             run_seed=0, preset=preset, queries=queries,
             t_max=t_max or self.world.spec.t_max, n_goals=n_goals, coupling=coupling,
-            sim="mujoco", robot=task, physics=PhysicalParameters.coerce(physics))
+            sim="mujoco", robot=task, physics=PhysicalParameters.coerce(physics), human=human)
         self.template.validate()
         #: the physical parameters (None: the legacy physics, asked for by name)
         self.physics = ph = self.template.physical

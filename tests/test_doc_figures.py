@@ -63,6 +63,19 @@ def bench(key: str) -> str:
     raise AssertionError(f"docs/benchmarks.md has no row of {key}")
 
 
+def ppo(key: str) -> str:
+    """``k/n`` successes of the stored PPO runs (docs/results/ppo_v1_seed*.json, both seeds
+    pooled) on the evaluation set ``key``, or ``steps`` (their step budget, the same in each)."""
+    runs = [json.loads(p.read_text()) for p in
+            sorted((ROOT / "docs" / "results").glob("ppo_v1_seed*.json"))]
+    assert len(runs) >= 2, "docs/results holds the PPO runs of two seeds"
+    if key == "steps":
+        assert len({r["steps"] for r in runs}) == 1
+        return str(runs[0]["steps"])
+    return f"{sum(r['eval'][key]['successes'] for r in runs)}/" \
+        f"{sum(r['eval'][key]['n'] for r in runs)}"
+
+
 def demo_episodes() -> int:
     return _sweep()["episodes"]
 
@@ -89,6 +102,9 @@ CHECKS: list[tuple[str, Callable[[], str]]] = [
     ("docs/study.md", lambda: f"the 2-trial demo: {stored('study_demo_simulated_s'):.1f} "
      "simulated seconds"),
     *(("README.md", lambda p=p: f"`{p}`") for p in sorted(PRESETS) if p != "original"),
+    ("README.md", lambda: f"{ppo('steps')} decisions per seed"),
+    ("README.md", lambda: f"held-out instances of the training plans {ppo('held_out_plans')}"),
+    ("README.md", lambda: f"`office`, never seen, {ppo('office')}"),
 ]
 
 
