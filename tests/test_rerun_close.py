@@ -60,3 +60,26 @@ def test_a_stuck_disconnect_alone_is_reported(stuck, tmp_path):
     stuck.rec.flush = lambda timeout_sec=1e38: None  # flushed; the disconnect never returns
     with pytest.raises(OSError, match="not closed within 0.2 s"):
         stuck.close(timeout_s=0.2)
+
+
+def test_render_abandons_its_recording_when_a_write_fails(tmp_path, capsys, monkeypatch):
+    """A full disk mid-episode (rerun's error at a log call): ``render --rerun`` abandons the
+    recording, so rerun's exit hook cannot wait on it (a render on a 450 KB tmpfs hung there),
+    and ends in one line naming the file, leaving none."""
+    from pathpref.apps.cli import main
+
+    abandoned = []
+
+    def full(self, *a, **k):
+        raise RuntimeError("Failed to write: No space left on device (os error 28)")
+
+    real_abandon = RerunLogger.abandon
+    monkeypatch.setattr(RerunLogger, "log_step", full)
+    monkeypatch.setattr(RerunLogger, "abandon",
+                        lambda self, *a, **k: (abandoned.append(self), real_abandon(self, 0.5)))
+    out = tmp_path / "e.rrd"
+    assert main(["render", "--rerun", str(out), "--map", "simple"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln]
+    assert len(err) == 1 and f"cannot write {out}: no space left on device" in err[0], err
+    assert len(abandoned) == 1 and not out.exists()
+    assert list(tmp_path.iterdir()) == []

@@ -219,13 +219,21 @@ def record_rollout(spec: EpisodeSpec, video: str | Path | None = None,
                         None if cue is None else cue.impulse, sim_time=float(base.data.time))
 
     started = time.perf_counter()
-    runner.begin()
-    log_step()
-    while not runner.done:
-        runner.step()
+    try:
+        runner.begin()
         log_step()
-        if progress is not None:
-            progress(runner, state["frames"], started)
+        while not runner.done:
+            runner.step()
+            log_step()
+            if progress is not None:
+                progress(runner, state["frames"], started)
+    except BaseException as e:  # the recording is to be removed: it must not hold the process
+        if logger is None:
+            raise
+        logger.abandon()
+        if isinstance(e, RuntimeError) and "(os error " in str(e):  # rerun's failed write
+            raise logger.unwritten(str(e)) from None
+        raise
     if writer is not None and maker is not None:
         # the final step's frame (the hook last drew the step before), then the outcome card
         # held for CARD_S seconds

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import errno
 import os
+import re
 import shutil
 import threading
 from pathlib import Path
@@ -217,20 +218,26 @@ class RerunLogger:
             self.rec.flush(timeout_sec=timeout_s)
             done = _within(self.rec.disconnect, timeout_s)
         except RuntimeError as e:  # rerun's error: a failed write, or the flush's timeout
-            raise self._unwritten(str(e)) from None
+            rr.unregister_shutdown()  # rerun's exit hook would wait on the failed file again
+            raise self.unwritten(str(e)) from None
         if not done:
-            raise self._unwritten(f"not closed within {timeout_s:g} s")
+            raise self.unwritten(f"not closed within {timeout_s:g} s")
 
-    def _unwritten(self, why: str) -> OSError:
+    def unwritten(self, why: str) -> OSError:
+        """The OSError of a recording rerun could not write (``why``: rerun's message): its
+        ``(os error N)`` when it names one, else ENOSPC when the file's folder has no room
+        left (under 1 MiB), else EIO."""
+        named = re.search(r"\(os error (\d+)\)", why)
         folder = self.out.parent
         full = shutil.disk_usage(folder).free < 1 << 20 if folder.is_dir() else False
-        code = errno.ENOSPC if full else errno.EIO
+        code = int(named.group(1)) if named else errno.ENOSPC if full else errno.EIO
         return OSError(code, f"{os.strerror(code)}: rerun could not write {self.out} ({why})")
 
     def abandon(self, timeout_s: float = 1.0) -> None:
         """Close the recording after a failure (its file is to be removed): the flush and the
         disconnect wait at most ``timeout_s`` each (rerun's wait without end on a full disk
-        never holds the caller), errors are dropped."""
+        never holds the caller), errors are dropped, and rerun's own flush at the process's
+        exit is dropped (the process is failing; every recording of ours is closed by hand)."""
         try:
             self.rec.flush(timeout_sec=timeout_s)
         except Exception:  # noqa: BLE001, S110 - the failure that led here is the one to tell
@@ -239,3 +246,4 @@ class RerunLogger:
             _within(self.rec.disconnect, timeout_s)
         except Exception:  # noqa: BLE001, S110
             pass
+        rr.unregister_shutdown()  # rerun's exit hook would wait on the failed file again

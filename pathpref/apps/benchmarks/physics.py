@@ -353,8 +353,8 @@ def two_pushes(gap_s: float = 0.02) -> dict[str, Any]:
 def physical_base(world, task: str = "navigate", sensor: str = "realistic",
                   kind: str = "holonomic", seed: int = 0, **fields):
     """A base as a physical episode builds it (``Physics()`` defaults, the sensor preset
-    ``sensor``, base ``kind``, other flat fields ``fields``, e.g. ``sensor_noise_n`` or ``robot_model``): the
-    body's own construction, not a copy of it."""
+    ``sensor``, base ``kind``, other flat fields ``fields``, e.g. ``sensor_noise_n`` or
+    ``robot_model``): the body's own construction, not a copy of it."""
     import dataclasses
 
     from ...episode import Physics
