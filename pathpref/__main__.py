@@ -2,6 +2,6 @@
 
 import sys
 
-from .apps.cli import main
+from .apps.cli import console_main
 
-sys.exit(main())
+sys.exit(console_main())

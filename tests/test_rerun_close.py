@@ -83,3 +83,24 @@ def test_render_abandons_its_recording_when_a_write_fails(tmp_path, capsys, monk
     assert len(err) == 1 and f"cannot write {out}: no space left on device" in err[0], err
     assert len(abandoned) == 1 and not out.exists()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_command_ends_at_once_when_it_holds_a_failed_recording():
+    """``console_main`` (the ``pathpref`` command) ends a process holding a failed recording
+    with its exit status at once, output flushed: nothing after it runs, no exit hook (rerun's
+    destructor of that stream would wait on a full disk without end)."""
+    import subprocess
+    import sys
+
+    code = ("import atexit, sys\n"
+            "from pathpref.viz import rerun_log\n"
+            "rerun_log._FAILED.append(object())\n"
+            "atexit.register(lambda: print('EXIT HOOK RAN'))\n"
+            "sys.argv = ['pathpref', 'map', 'info', 'simple', '--json']\n"
+            "from pathpref.apps.cli import console_main\n"
+            "console_main()\n"
+            "print('AFTER')\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert '"name": "simple"' in r.stdout
+    assert "AFTER" not in r.stdout and "EXIT HOOK RAN" not in r.stdout

@@ -553,6 +553,19 @@ def unrecognized(parser: argparse.ArgumentParser, extra: list[str]) -> str:
     return f"unrecognized arguments: {' '.join(extra)}{did_you_mean(first, options)}"
 
 
+def console_main() -> int:
+    """The ``pathpref`` command: :func:`main`; a process left holding a failed rerun recording
+    (:func:`pathpref.viz.rerun_log.holds_failed`: a full disk) then ends at once, its output
+    flushed, since rerun's destructor of that stream would wait on the file without end."""
+    rc = main()
+    recordings = sys.modules.get("pathpref.viz.rerun_log")
+    if recordings is not None and recordings.holds_failed():
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(rc)
+    return rc
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; a :class:`PathprefError` becomes one line and exit status 2."""
     parser = build_parser()

@@ -84,6 +84,17 @@ def blueprint() -> rrb.Blueprint:
 CLOSE_TIMEOUT_S = 20.0
 
 
+#: recordings that failed (abandoned, or not closed), kept referenced to the process's end: rerun's
+#: destructor of a stream disconnects it and waits without end on a full disk, so the command
+#: line ends such a process at once (:func:`pathpref.apps.cli.console_main`)
+_FAILED: list = []
+
+
+def holds_failed() -> bool:
+    """Whether this process holds a recording that failed (:data:`_FAILED`)."""
+    return bool(_FAILED)
+
+
 def _within(fn, timeout_s: float) -> bool:
     """Call ``fn()`` on a daemon thread; True when it returned within ``timeout_s`` (its error,
     if any, raised here), False when it is still running (it is left to the process's end)."""
@@ -219,8 +230,10 @@ class RerunLogger:
             done = _within(self.rec.disconnect, timeout_s)
         except RuntimeError as e:  # rerun's error: a failed write, or the flush's timeout
             rr.unregister_shutdown()  # rerun's exit hook would wait on the failed file again
+            _FAILED.append(self.rec)
             raise self.unwritten(str(e)) from None
         if not done:
+            _FAILED.append(self.rec)
             raise self.unwritten(f"not closed within {timeout_s:g} s")
 
     def unwritten(self, why: str) -> OSError:
@@ -247,3 +260,4 @@ class RerunLogger:
         except Exception:  # noqa: BLE001, S110
             pass
         rr.unregister_shutdown()  # rerun's exit hook would wait on the failed file again
+        _FAILED.append(self.rec)
