@@ -57,8 +57,7 @@ class TrialRecorder:
             self.lsl.event("trial_start", trial)
         if self.live:
             t = runner.trial
-            self.live.show(time.time_ns(), runner.world, t.start, t.candidates,
-                           t.candidates[t.goal_index], t.route)
+            self.live.show(time.time_ns(), runner.world, t.start, t.candidates, t.goal, t.route)
         self._belief("start")
         self._step_row()
 

@@ -95,6 +95,13 @@ def holds_failed() -> bool:
     return bool(_FAILED)
 
 
+def _give_up(rec) -> None:
+    """A recording that failed: rerun's exit hook (which would wait on its file again) is
+    dropped, and the stream is kept referenced to the process's end (:data:`_FAILED`)."""
+    rr.unregister_shutdown()
+    _FAILED.append(rec)
+
+
 def _within(fn, timeout_s: float) -> bool:
     """Call ``fn()`` on a daemon thread; True when it returned within ``timeout_s`` (its error,
     if any, raised here), False when it is still running (it is left to the process's end)."""
@@ -109,8 +116,7 @@ def _within(fn, timeout_s: float) -> bool:
     t = threading.Thread(target=call, daemon=True, name="rerun-close")
     t.start()
     t.join(timeout_s)
-    if t.is_alive():  # and rerun's own shutdown at exit would wait on that stream again
-        rr.unregister_shutdown()
+    if t.is_alive():
         return False
     if error:
         raise error[0]
@@ -229,11 +235,10 @@ class RerunLogger:
             self.rec.flush(timeout_sec=timeout_s)
             done = _within(self.rec.disconnect, timeout_s)
         except RuntimeError as e:  # rerun's error: a failed write, or the flush's timeout
-            rr.unregister_shutdown()  # rerun's exit hook would wait on the failed file again
-            _FAILED.append(self.rec)
+            _give_up(self.rec)
             raise self.unwritten(str(e)) from None
         if not done:
-            _FAILED.append(self.rec)
+            _give_up(self.rec)
             raise self.unwritten(f"not closed within {timeout_s:g} s")
 
     def unwritten(self, why: str) -> OSError:
@@ -259,5 +264,4 @@ class RerunLogger:
             _within(self.rec.disconnect, timeout_s)
         except Exception:  # noqa: BLE001, S110
             pass
-        rr.unregister_shutdown()  # rerun's exit hook would wait on the failed file again
-        _FAILED.append(self.rec)
+        _give_up(self.rec)
