@@ -136,9 +136,9 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, f
     sample receives each new sample, ``est`` (:func:`~.estimator.estimate_step`'s arrays) the
     estimator's acceleration and estimate, and the sensor's window and the estimator's record
     number them (:data:`~.sensing.W_SAMPLES`, :data:`~.estimator.E_ESTIMATES`). The records:
-    ``mj`` the ``MjModel``'s and
-    ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
-    sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
+    ``mj`` the ``MjModel``'s and ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel,
+    ctrl, sensordata)``, the sensor site's rotation and MuJoCo's warning counts
+    (``mjData.warning[i].number``);
     ``drive`` the controller's last command, the target, a scratch pair, the held goal
     velocity (``ns[HELD]``: :class:`~.controller.HeldVelocity`), the task's filtered force
     (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step), the push record
