@@ -138,7 +138,8 @@ def _ctypes_function(lib, ext):
 
 def check_mujoco_by_address() -> list[str]:
     """Each MuJoCo C function the kernels call by address, through ``ctypes`` with the
-    kernels' signature on ``_address``, equals the bindings' own call (exactly)."""
+    kernels' signature on the bindings' ``_address`` (read by
+    :func:`~pathpref.sim.native.addresses`), equals the bindings' own call (exactly)."""
     import ctypes
 
     import mujoco
@@ -151,7 +152,7 @@ def check_mujoco_by_address() -> list[str]:
     for d in (ours, theirs):
         d.qvel[:] = np.linspace(-0.5, 0.7, model.nv)
     try:
-        addr = (model._address, ours._address)
+        addr = native.addresses(model, ours)
     except AttributeError as e:
         return [f"mujoco {mujoco.__version__}: the bindings have no _address ({e}), which the "
                 f"compiled kernels pass to MuJoCo's C functions: use mujoco==3.17.0"]
