@@ -56,7 +56,13 @@ def cached_signatures(kernel) -> list[tuple]:
     if index is None:
         return []
     codegen = kernel.targetctx.codegen()
-    return [key[0] for key in index._load_index() if cache._index_key(key[0], codegen) == key]
+    try:
+        return [key[0] for key in index._load_index()
+                if cache._index_key(key[0], codegen) == key]
+    except (AttributeError, TypeError, ValueError, IndexError, OSError):
+        # numba's cache internals changed: nothing is loaded ahead (each kernel still loads
+        # at its first call); ``pathpref doctor`` names the cause (check_cache_index)
+        return []
 
 
 def load_cached() -> int:
