@@ -118,6 +118,15 @@ def test_mcap_ros2_messages_decode_typed(demo_db, tmp_path):
         assert all(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec == t
                    for _, t, m in msgs)
         assert {m.header.frame_id for _, _, m in msgs} == {"world"}
+        # the torque about the sensor of the force at the grip, 0.05 m below it on the disk
+        # (navigate.xml: the handle's centre of mass under handle_site): (0.05 F_y, -0.05 F_x, 0)
+        tq = np.array([(m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z)
+                       for _, _, m in msgs])
+        fxy = np.array([(f[cols[0]], f[cols[1]]) for f in forces])
+        assert np.allclose(tq, np.c_[0.05 * fxy[:, 1], -0.05 * fxy[:, 0], 0 * fxy[:, 0]],
+                           rtol=0, atol=1e-9)
+        pushed = np.hypot(*fxy.T) > 1.0
+        assert pushed.any() and (np.hypot(*tq[pushed, :2].T) > 0.05 * 1.0 - 1e-9).all()
     path = rows(demo_db, "SELECT x, y FROM trial_path WHERE trial = 1 ORDER BY k")
     poses = got["/ros/pose"]
     assert {name for name, _, _ in poses} == {"geometry_msgs/msg/PoseStamped"}

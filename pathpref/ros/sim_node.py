@@ -34,6 +34,7 @@ from ..episode.runner import EpisodeRunner
 from ..episode.spec import EpisodeSpec
 from ..errors import ConfigError
 from ..geometry.grid import STAY
+from ..sim.grip import grip_offset, torque
 from ..sim.path_record import sample_every
 from .streams import BadMessage, stamp_ns
 
@@ -65,10 +66,7 @@ class SimRobot:
         self.n_wrench = self.n_odom = 0
         self.step_index = 0
         self.mark_ns = 0
-        m, d = base.model, base.data
-        self._grip = int(m.body("handle").id)
-        self._site = int(m.site("handle_site").id)
-        self._d = d
+        self._m, self._d = base.model, base.data
         self._wall0: float | None = None
         self.cells = [self.runner.cell]
         base.on_substep.append(self._after_step)
@@ -106,10 +104,8 @@ class SimRobot:
 
     def torque(self, f: np.ndarray) -> np.ndarray:
         """The wrench's torque about the sensor's origin of a horizontal force ``f`` at the
-        grip (N m, ``map`` axes)."""
-        d = self._d
-        r = d.xipos[self._grip] - d.site_xpos[self._site]
-        return np.cross(r, np.array([f[0], f[1], 0.0]))
+        grip (N m, ``map`` axes; :mod:`pathpref.sim.grip`)."""
+        return torque(grip_offset(self._m, self._d), f)
 
     def publish_odom(self) -> None:
         """The base's odometry now."""

@@ -19,7 +19,11 @@ Into ``OUT/PARTICIPANT/``:
 
   - ``/force/applied`` and ``/force/sensed``: a wrench (``geometry_msgs/WrenchStamped``'s
     layout: ``force`` and ``torque`` vectors, N and N m, frame ``world``) per recorded control
-    step, at the recorded rate (every row of ``trial_forces``);
+    step, at the recorded rate (every row of ``trial_forces``); the torque is that of the
+    force at the grip about the sensor's origin, ``r x F`` with the trial's body's grip
+    offset (:mod:`pathpref.sim.grip`: the grip 0.05 m below the sensor on the disk, 0.3 m on
+    the TidyBot), for the sensed wrench too: what a six-axis sensor reads when the grip's
+    force is the handle's only load;
   - ``/pushes``, ``/cues``: one message per push and per cue (their rows' fields);
   - ``/belief``: the goal probabilities after every update, with the candidates' cells;
   - ``/pose``: ``foxglove.PoseInFrame`` of the base at the recorded path's rate (every
@@ -74,6 +78,7 @@ from ..experiments.trials import (
     has_study_tables,
     participants_hint,
 )
+from ..sim.grip import torque
 from ..sim.scene import CELL_SIZE_M
 from . import mcap_scene, ros2_msgs
 from .answers import load_answers
@@ -192,6 +197,18 @@ def event_topics(channel, fx_channel, put, conn, participant: str, k: int, t0: i
                     end - start if kind == "push" else 1.0, colour))
 
 
+def grip_arm(trial: dict) -> tuple[float, ...]:
+    """``r = p_grip - p_sensor`` (m) of the body a trial ran (its ``robot`` task and its
+    physics' ``robot_model``; NULL in an old row: ``navigate`` and ``Physics()``), at rest
+    (:func:`pathpref.sim.grip.rest_offset`): the wrench topics' torque is ``r x F``."""
+    from ..episode.physics import Physics
+    from ..sim.grip import rest_offset
+
+    physics = Physics.from_json(trial.get("physics")) if trial.get("physics") else None
+    model = (physics or Physics()).drive.robot_model
+    return rest_offset(trial.get("robot") or "navigate", model)
+
+
 def write_mcap(conn, participant: str, trial: dict, out: Path,
                db: str | Path = "database") -> dict[str, int]:
     """One trial (its ``trials`` row ``trial``, checked) as an MCAP file (module docstring);
@@ -239,7 +256,7 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
         sensed = channel("/force/sensed", WRENCH_SCHEMA)
         ros_applied = ros_channel("/ros/force/applied", ros2_msgs.WRENCH_STAMPED)
         ros_sensed = ros_channel("/ros/force/sensed", ros2_msgs.WRENCH_STAMPED)
-        zero = {"x": 0.0, "y": 0.0, "z": 0.0}
+        arm = grip_arm(trial)
         for r in checked("trial_forces", _rows(conn, "trial_forces", participant, k, "k"),
                          db):
             ns, ts = _stamp(t0, r["time_s"])
@@ -247,11 +264,13 @@ def write_mcap(conn, participant: str, trial: dict, out: Path,
                     (applied, ros_applied, "/force/applied", r["fx"], r["fy"]),
                     (sensed, ros_sensed, "/force/sensed", r["sensed_fx"], r["sensed_fy"])):
                 force = {"x": fx, "y": fy, "z": 0.0}
+                tx, ty, tz = (float(v) for v in torque(arm, (fx, fy)))
+                moment = {"x": tx, "y": ty, "z": tz}
                 put(cid, topic, r["time_s"], {"timestamp": ts, "frame_id": "world",
-                                              "force": force, "torque": zero})
+                                              "force": force, "torque": moment})
                 put(ros[0], "/ros" + topic, r["time_s"], {
                     "header": ros2_msgs.header(ns), "wrench": {"force": force,
-                                                               "torque": zero}}, ros[1])
+                                                               "torque": moment}}, ros[1])
         event_topics(channel, fx_channel, put, conn, participant, k, t0, db)
         path = ros_channel("/ros/path", ros2_msgs.POSE_STAMPED)
         pose_ch = channel("/pose", POSE_SCHEMA)
