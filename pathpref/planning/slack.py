@@ -110,8 +110,8 @@ def doubt(pool_theta: np.ndarray) -> np.ndarray:
     exit of ``x`` is ``e``); 0 where they all agree."""
     m, P = pool_theta.shape
     k = int(pool_theta.max()) + 2
-    counts = np.zeros((P, k), np.int64)
-    np.add.at(counts, (np.broadcast_to(np.arange(P), (m, P)), pool_theta + 1), 1)
+    counts = np.bincount((pool_theta + 1 + k * np.arange(P)).ravel(),
+                         minlength=P * k).reshape(P, k)
     return 1.0 - counts.max(axis=1) / m
 
 
