@@ -575,14 +575,9 @@ def _support(rows: np.ndarray, heads: np.ndarray, minor: _Minor, state: np.ndarr
     bits."""
     if not len(heads):
         return rows
-    src, dst = minor.src, minor.dst
-    m = rows.shape[1]
     in_u = (minor.index >= 0) & (state < 0)
-    comp = _u_components(src, dst, in_u)
-    edge = in_u[src] & (state[dst] >= 0)
-    allowed = np.unique(comp[src[edge]].astype(np.int64) * m + state[dst[edge]])
-    keys = comp[heads].astype(np.int64)[:, None] * m + np.arange(m)[None, :]
-    ok = np.isin(keys, allowed)
+    ok = _entry_allowed(minor.src, minor.dst, in_u, state, np.asarray(heads, np.int64),
+                        rows.shape[1])
     out = np.where(ok, rows, 0.0)
     cleared = ((~ok) & (rows != 0.0)).any(axis=1)
     if cleared.any():
@@ -590,6 +585,31 @@ def _support(rows: np.ndarray, heads: np.ndarray, minor: _Minor, state: np.ndarr
         out[cleared] = np.where(tot > 0, out[cleared] / np.where(tot > 0, tot, 1.0),
                                 out[cleared])
     return out
+
+
+@nb.njit(cache=True)
+def _entry_allowed(src, dst, in_u, state, heads, m):
+    """``(len(heads), m)`` whether the walk from ``heads[j]`` through the unobserved set
+    ``in_u`` can first enter state ``c`` (``state[x] = c``, :func:`_support`): some slot
+    ``(src[e], dst[e])`` leads from ``heads[j]``'s component of ``in_u``
+    (:func:`_u_components`) into a polytope of state ``c``. ``O(E + len(heads) m)``."""
+    comp = _u_components(src, dst, in_u)
+    row = -np.ones(in_u.shape[0], np.int64)  # a head's component -> its row of the table
+    n_rows = 0
+    for j in range(heads.shape[0]):
+        if row[comp[heads[j]]] < 0:
+            row[comp[heads[j]]] = n_rows
+            n_rows += 1
+    table = np.zeros((n_rows, m), np.bool_)
+    for e in range(src.shape[0]):
+        a, b = src[e], dst[e]
+        if in_u[a] and state[b] >= 0 and row[comp[a]] >= 0:
+            table[row[comp[a]], state[b]] = True
+    ok = np.empty((heads.shape[0], m), np.bool_)
+    for j in range(heads.shape[0]):
+        for c in range(m):
+            ok[j, c] = table[row[comp[heads[j]]], c]
+    return ok
 
 
 @nb.njit(cache=True)

@@ -70,6 +70,28 @@ def best_exit_after_pushes(joint: np.ndarray, likelihood: np.ndarray, k_max: int
     return out
 
 
+class ExitMemo:
+    """:func:`best_exit_after_pushes` that keeps its last answer with its inputs: asked again
+    for an equal ``joint`` (compared exactly), the same likelihood table and cell and at most
+    as many pushes, it returns the kept ``E_0..E_k_max`` (``E_j`` does not depend on
+    ``k_max``: the same operations compute it), so the crossing check and the wait budget of
+    one decision, and the decisions of a robot waiting at one cell between two pushes, compute
+    it once."""
+
+    def __init__(self) -> None:
+        self._last: tuple | None = None
+
+    def __call__(self, joint: np.ndarray, likelihood, cell: int, k_max: int) -> np.ndarray:
+        """``E_0..E_k_max`` of ``joint`` and the likelihood ``likelihood[cell]``."""
+        last = self._last
+        if last is not None and last[0] is likelihood and last[1] == cell \
+                and len(last[3]) > k_max and np.array_equal(last[2], joint):
+            return last[3][: k_max + 1].copy()
+        out = best_exit_after_pushes(joint, likelihood[cell], k_max)
+        self._last = (likelihood, int(cell), np.array(joint, dtype=np.float64), out.copy())
+        return out
+
+
 @nb.njit(cache=True)
 def route_walks(cell, depth, pool_g, pool_theta, goal_cells, cell_poly, next_cell, moves,
                 weight):
@@ -138,14 +160,15 @@ def wait_value(p_cross: float, best_exit: np.ndarray, feasible: np.ndarray,
 
 
 def check_crossing(planner, belief, likelihood, result, cell: int, depth: int,
-                   pushes: tuple[int, int]) -> int:
+                   pushes: tuple[int, int], exits: ExitMemo | None = None) -> int:
     """The move to make instead of ``result.action`` if waiting for pushes is worth more than
     crossing now (module docstring); ``result.action`` itself otherwise, and whenever the move
     stays in its polytope or the search had no root particles (the independent prior).
     ``planner``: the robust :class:`~.pomcp.POMCP` that produced ``result`` from ``cell``
     with ``depth`` steps left; ``likelihood``: the human model's
     :attr:`~pathpref.inference.human.ObservationModel.cell_likelihood`; ``pushes``:
-    ``(next, every)`` as the search was given them."""
+    ``(next, every)`` as the search was given them; ``exits``: an :class:`ExitMemo` shared
+    with the wait budget (None: computed here)."""
     a = int(result.action)
     if a == STAY:
         return a
@@ -157,7 +180,7 @@ def check_crossing(planner, belief, likelihood, result, cell: int, depth: int,
         return a
     joint = belief.joint(v)
     p_cross = float(joint[:, slots.index(u)].sum())
-    best_exit = best_exit_after_pushes(joint, likelihood[cell], LOOKAHEAD_PUSHES)
+    best_exit = (exits or ExitMemo())(joint, likelihood, cell, LOOKAHEAD_PUSHES)
     if best_exit[-1] <= p_cross:  # nothing a push could say would change the exit
         return a
     nxt, every = max(int(pushes[0]), 1), max(int(pushes[1]), 1)

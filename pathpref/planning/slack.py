@@ -84,7 +84,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.grid import STAY
-from .crossing import LOOKAHEAD_PUSHES, best_exit_after_pushes, route_walks
+from .crossing import LOOKAHEAD_PUSHES, ExitMemo, route_walks
 from .hindsight import shortest_walks
 
 #: the least expected gain in the probability of the best exit that one more push must offer
@@ -126,6 +126,9 @@ class WaitBudget:
         self.waited = 0
         self.felt = 0
         self._walks = None
+        #: :func:`~.crossing.best_exit_after_pushes` kept between calls (shared with the
+        #: crossing check: :class:`~.crossing.ExitMemo`)
+        self.exits = ExitMemo()
 
     def plan(self, planner, belief, cell: int, depth: int) -> bool:
         """Read the root particles' routes from ``cell`` with ``depth`` steps left (after the
@@ -204,7 +207,7 @@ class WaitBudget:
             if s2 != cell and u2 != v:
                 if self.per_goal and can_wait and self.felt < 2 and u2 in slots and float(
                         belief.joint(v)[:, slots.index(u2)].sum()) < CONFIDENT:
-                    gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
+                    gain = self.exits(belief.joint(v), likelihood, cell, 1)
                     if gain[1] - gain[0] >= MIN_GAIN:
                         self.waited += 1
                         return STAY
@@ -214,7 +217,7 @@ class WaitBudget:
                 return a
         if can_wait:
             if gain is None:
-                gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
+                gain = self.exits(belief.joint(v), likelihood, cell, 1)
             if gain[1] - gain[0] >= MIN_GAIN:
                 self.waited += 1
                 return STAY
