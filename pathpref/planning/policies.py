@@ -165,7 +165,7 @@ class PlannerPolicy(Policy):
                 and len(self.input_steps) >= 2:  # the pushes' interval is known (crossing)
             a = check_crossing(self.planner, self.belief, self.ctx.model.cell_likelihood,
                                res, cell, depth, pushes,
-                               None if self.waits is None else self.waits.exits)
+                               exits=None if self.waits is None else self.waits.exits)
         if self.waits is not None:
             a = self.waits.decide(self.planner, self.belief, self.ctx.model.cell_likelihood,
                                   a, cell, depth, pushes, heading is not None)
