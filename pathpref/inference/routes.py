@@ -64,7 +64,8 @@ import warnings
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
+from scipy.linalg import LinAlgError, LinAlgWarning, lu_factor
+from scipy.linalg.lapack import dgetrs, dpotrf, dpotrs
 from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
@@ -509,8 +510,8 @@ class _Block:
         raw = self.lu.solve(e)
         if self._chol is None:
             return raw, raw
-        return raw - self._C() @ cho_solve(self._chol, raw[self.removed],
-                                           check_finite=False), raw
+        return raw - self._C() @ _lapack(dpotrs(self._chol, raw[self.removed], lower=0,
+                                                overwrite_b=0), "potrs"), raw
 
     def without(self, i: int, raw: np.ndarray) -> _Block:
         """The block without its row and column ``i``, ``raw = G0 e_i``."""
@@ -527,8 +528,22 @@ class _Block:
             out.cols = [buf, m]
         out.cols[0][:, m] = raw
         out.cols[1] = m + 1
-        out._chol = cho_factor(out._C()[out.removed], check_finite=False)
+        c, info = dpotrf(out._C()[out.removed], lower=0, clean=0, overwrite_a=0)
+        if info > 0:
+            raise LinAlgError(f"{info}-th leading minor of the array is not positive definite")
+        out._chol = _lapack((c, info), "potrf")
         return out
+
+
+def _lapack(result: tuple, name: str) -> np.ndarray:
+    """The array of a LAPACK call's ``(array, info)`` (:mod:`scipy.linalg.lapack`: the
+    routines SciPy's ``lu_solve``, ``cho_factor`` and ``cho_solve`` call, called as they call
+    them, without their argument checks and batch wrappers, tens of microseconds a call
+    here); a negative ``info`` (an illegal argument) raises."""
+    x, info = result
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal {name}")
+    return x
 
 
 class _Minor:
@@ -807,5 +822,5 @@ class _DenseLU:
             self.lu, self.piv = lu_factor(a, check_finite=False)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """``A^-1 b``."""
-        return lu_solve((self.lu, self.piv), b, check_finite=False)
+        """``A^-1 b`` (LAPACK's ``getrs``, :func:`_lapack`)."""
+        return _lapack(dgetrs(self.lu, self.piv, b, trans=0, overwrite_b=0), "getrs")
