@@ -11,11 +11,13 @@ left, from the search's root particles ``(g_j, theta_j)`` (exact draws of the po
 their preferred routes from ``s`` (:func:`~.crossing.route_walks`: ``L_j`` steps, ``U_j`` the
 doubt summed over its crossings, first move ``m_j``).
 
-0. **Arrive first when the routes no longer fit** (:meth:`WaitBudget.plan`, right after the
-   search): when fewer than :data:`ON_TIME` of the particles' preferred routes arrive within
-   ``D`` steps (``mean_j [L_j <= D] < ON_TIME``), the policy takes its move from a search for
-   the goal alone (the preset's goal-only rewards on the same goal marginal): reaching the
-   goal by another route is then worth more than a preferred route that times out.
+0. **Arrive first when the routes no longer fit** (:meth:`WaitBudget.plan`, on the search's
+   root particles, drawn before the search: :meth:`~.pomcp.POMCP.particles`): when fewer
+   than :data:`ON_TIME` of the particles' preferred routes arrive within ``D`` steps
+   (``mean_j [L_j <= D] < ON_TIME``), the policy takes its move from a search for the goal
+   alone (the preset's goal-only rewards on the same goal marginal), and the
+   path-preference search, whose move would not be used, is not run: reaching the goal by
+   another route is then worth more than a preferred route that times out.
 
 Otherwise, on the move ``a`` the search and the check chose (:meth:`WaitBudget.decide`):
 
@@ -131,8 +133,9 @@ class WaitBudget:
         self.exits = ExitMemo()
 
     def plan(self, planner, belief, cell: int, depth: int) -> bool:
-        """Read the root particles' routes from ``cell`` with ``depth`` steps left (after the
-        search, before :meth:`decide`); True when the robot is out of time for the preferred
+        """Read the root particles' routes from ``cell`` with ``depth`` steps left (the pool
+        the search starts from, :meth:`~.pomcp.POMCP.particles`: before the search, and
+        before :meth:`decide`); True when the robot is out of time for the preferred
         routes: fewer than :data:`ON_TIME` of the particles' routes arrive in time (the
         policy then plans for arriving alone, module docstring)."""
         particles = planner.root_particles()
