@@ -1,10 +1,11 @@
 #!/bin/sh
 # The grid sweep behind `make demo`'s setting (pathpref/apps/demo_sweep.json, shipped in the
-# wheel; docs/results.md): the paper's four methods and the two reference methods (goal_known,
-# oracle) on simple and office, with a periodic human (a push every ΔT = 3 or 10 steps) and a
+# wheel; docs/results.md): the paper's four methods, the two reference methods (goal_known,
+# oracle) and hindsight optimisation (Javdani et al. 2018, the baseline from outside the paper)
+# on simple and office, with a periodic human (a push every ΔT = 3 or 10 steps) and a
 # corrective human (pushes only when the robot leaves the preferred route, reaction delay 1
-# step, misses 20% of needs). 2 maps x 6 methods x 3 human settings x 5 instances x 6 runs =
-# 1080 grid episodes.
+# step, misses 20% of needs). 2 maps x 7 methods x 3 human settings x 5 instances x 6 runs =
+# 1260 grid episodes.
 #
 #   sh scripts/demo_sweep.sh [DB [PRESET]]
 #
@@ -33,9 +34,9 @@ if other:
 CHECK
 fi
 for MAP in simple office; do
-  $PY -m pathpref evaluate --map "$MAP" --preset "$PRESET" --methods all reference \
+  $PY -m pathpref evaluate --map "$MAP" --preset "$PRESET" --methods all reference baselines \
     --delta-t 3 10 --instances 5 --runs 6 --db "$DB" --no-progress > /dev/null
-  $PY -m pathpref evaluate --map "$MAP" --preset "$PRESET" --methods all reference \
+  $PY -m pathpref evaluate --map "$MAP" --preset "$PRESET" --methods all reference baselines \
     --delta-t 1 --push-rule "corrective delay=1 miss=0.2" --instances 5 --runs 6 --db "$DB" \
     --no-progress > /dev/null
 done

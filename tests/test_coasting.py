@@ -66,7 +66,7 @@ def _state(base) -> bytes:
         s.force_estimate.tobytes(), s.estimator.bias.tobytes(), s.estimator.quiet,
         s.estimator.at_rest, s.estimator.pending().tobytes(),
         s.faulty.bias.tobytes(), s.faulty.win.tobytes(),
-        s.faulty._held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
+        s.faulty.held.tobytes(), s.detector.f.tobytes(), s.detector.baseline.tobytes(),
         s.detector.var, s.detector.on_n, s.detector.off_n, s.detector.pending().tobytes(),
         s.detector.active, s.faulty.rng.bit_generator.state["state"]))
 

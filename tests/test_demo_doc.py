@@ -63,7 +63,7 @@ def test_the_block_names_the_sweeps_preset_and_command(block, sweep):
         "`pathpref demo` computes every number below again when it runs, under its `--preset`)."
     assert sweep["command"] == f"sh scripts/demo_sweep.sh docs/results/demo_sweep.sqlite {preset}"
     assert {c["preset"] for c in sweep["cells"]} == {preset}
-    assert sum(c["n"] for c in sweep["cells"]) == sweep["episodes"] == 1080
+    assert sum(c["n"] for c in sweep["cells"]) == sweep["episodes"] == 1260  # 2 x 7 x 3 x 30
 
 
 def test_the_stored_sweep_is_the_default_presets():

@@ -90,6 +90,7 @@ CHECKS: list[tuple[str, Callable[[], str]]] = [
      f"the oracle's {frac('oracle')}"),
     ("README.md", lambda: f"goal only goes the same way round the table in "
      f"{frac('goal_only', 'homotopy')}"),
+    ("README.md", lambda: f"(Javdani et al., IJRR 2018), succeeds in {frac('hindsight')} there"),
     ("README.md", lambda: f"`{DEFAULT_PRESET}` (the default:"),
     ("README.md", lambda: f"The default preset, `{DEFAULT_PRESET}`,"),
     ("docs/robust.md", lambda: f"`{DEFAULT_PRESET}`, the default outside reproduction"),

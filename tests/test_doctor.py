@@ -27,7 +27,7 @@ def test_doctor_passes_here(capsys):
     assert main(["doctor"]) == 0
     out, err = capsys.readouterr()
     assert err == ""
-    assert re.fullmatch(r"pathpref doctor: all 6 checks passed \(numpy [\d.]+, numba [\d.]+, "
+    assert re.fullmatch(r"pathpref doctor: all 7 checks passed \(numpy [\d.]+, numba [\d.]+, "
                         r"llvmlite [\d.]+, mujoco 3\.17\.0, dm-control 1\.0\.50\)\n", out)
 
 
@@ -87,6 +87,22 @@ def test_a_changed_dispatcher_is_one_line(monkeypatch):
     monkeypatch.setattr(native, "entry_point", gone)
     (line,) = doctor.check_entry_point()
     assert "Dispatcher.overloads[sig].entry_point" in line and "KeyError" in line
+
+
+def test_a_changed_cache_index_is_one_line_and_loads_nothing(monkeypatch):
+    """numba's private cache index renamed: the kernels are not loaded ahead (no error: each
+    loads at its first call) and the doctor says why in one line."""
+    from numba.core.caching import IndexDataCacheFile
+
+    from pathpref import kernels
+    from pathpref.apps.doctor_probes import add_one
+
+    assert doctor.check_cache_index() == []
+    assert kernels.cached_signatures(add_one)  # the probe's overload, as the check found
+    monkeypatch.delattr(IndexDataCacheFile, "_load_index")
+    assert kernels.cached_signatures(add_one) == []
+    (line,) = doctor.check_cache_index()
+    assert "cache index" in line and "does not list" in line
 
 
 def test_a_changed_mujoco_signature_is_one_line(monkeypatch):

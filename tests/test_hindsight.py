@@ -131,3 +131,22 @@ def test_methods_and_presets(simple):
     assert 0 <= a < 8 and not simple.motion.blocked[simple.cell((4, 2)), a]
     planner, belief = _planner(simple, goals)
     assert hindsight_action(planner, belief, simple.cell((4, 2)), 30, 0, []) in range(8)
+
+
+def test_a_task_runs_hindsight_to_its_end():
+    """The tasks take the method like every other door: a navigate task loaded with
+    ``method="hindsight"`` holds the hindsight policy and, driven by its own choices
+    (``policy_action``), ends within ``T_max`` decisions."""
+    from pathpref_tasks import load
+
+    env = load("navigate", task_kwargs={"map": "simple", "method": "hindsight"})
+    ts = env.reset()
+    task = env.task
+    assert task.runner.policy.name == "hindsight"
+    t_max = task.runner.spec.t_max
+    for _ in range(t_max):
+        ts = env.step(task.policy_action())
+        if ts.last():
+            break
+    assert ts.last()
+    assert task.runner.done

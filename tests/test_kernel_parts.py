@@ -61,7 +61,7 @@ def test_an_undeclared_part_keeps_the_python_path():
     base.reset(world.cell((3, 3)))
     assert base.coaster is not None
     s = base.sensing
-    assert runs(s.faulty) is (s.faulty._held is not None)
+    assert runs(s.faulty) is (s.faulty.samples > 0)
     detector = s.detector
     s.detector = QuietDetector(base.dt)
     assert base.coaster is None
@@ -75,3 +75,30 @@ def test_an_undeclared_part_keeps_the_python_path():
     assert base.coaster is None
     base.controller = controller
     assert base.coaster is not None
+
+
+def _reach_ins(source: str) -> list[str]:
+    """The private names of other objects a module's source reads: ``x._name`` with ``x``
+    anything but ``self`` (dunders aside)."""
+    import ast
+
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_") \
+                and not node.attr.startswith("__") \
+                and not (isinstance(node.value, ast.Name) and node.value.id == "self"):
+            out.append(f"{ast.unparse(node.value)}.{node.attr}")
+    return out
+
+
+def test_the_coaster_reads_no_private_name_of_another_object():
+    """The compiled move's glue (:mod:`pathpref.sim.coasting`) reaches each part through the
+    part's own public interface (its record, ``kernel_*`` methods, properties), never a
+    private name of another object (MuJoCo's ``_address`` is read by
+    :func:`pathpref.sim.native.addresses` alone)."""
+    import inspect
+
+    from pathpref.sim import coasting
+
+    assert _reach_ins("a._b\nself._c\nx.y._z\nq.__len__\n") == ["a._b", "x.y._z"]
+    assert _reach_ins(inspect.getsource(coasting)) == []

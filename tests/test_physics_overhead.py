@@ -84,8 +84,10 @@ def test_overhead_keys():
 
     out = physics_overhead(1)
     assert set(out) == {"overhead_vs_bare_mujoco", "python_us_per_step", "bare_step_us",
-                        "overhead_vs_bare_mujoco_control", "navigate_control_vs_bare"}
+                        "overhead_vs_bare_mujoco_control", "navigate_control_vs_bare",
+                        "navigate_control_vs_bare_cpu"}
     assert out["overhead_vs_bare_mujoco"] > 0.9 and out["overhead_vs_bare_mujoco_control"] > 0.9
+    assert out["navigate_control_vs_bare_cpu"] > 0.9
     assert out["python_us_per_step"] > 0.0 and out["bare_step_us"] > 0.0
 
 

@@ -267,3 +267,59 @@ def test_sim_follows_the_velocity_command(tmp_path):
     assert sim["steps"] == planner["steps"] and sim["cells"] == planner["cells"]
     assert sim["felt"] == planner["felt"] and len(sim["felt"]) >= 1
     assert sim["cmd_vel"] > 100
+
+
+
+def _streams(core_cls, spec, lag: int):
+    """Feed a planner core 500 Hz map-frame wrenches (two 25 N, 0.3 s pushes) and 100 Hz
+    odometry of a base creeping along x, each odometry message delivered ``lag`` wrench
+    samples after its stamp (negative: before); returns the core and, per wrench delivered,
+    the number of cues felt so far."""
+    from pathpref.ros.streams import Odom, Wrench
+
+    core = core_cls(spec, warn=lambda line: None)
+    x0, y0 = core.pose[:2]
+    dt_ns, n = 2_000_000, 1500
+    odoms = [Odom((k + 1) * dt_ns, "map", "base_link", x0 + 1e-4 * k, y0, 0.0, 0.05, 0.0,
+                  0.0) for k in range(0, n, 5)]
+    felt_after = []
+    for k in range(n):
+        ns = (k + 1) * dt_ns
+        t = k * 0.002 - 0.5
+        f = 0.0
+        for start in (0.0, 1.5):
+            if 0.0 <= t - start < 0.3:
+                f = 25.0 * np.sin(np.pi * (t - start) / 0.3)
+        while odoms and odoms[0].stamp_ns <= ns - lag * dt_ns:
+            core.odom(odoms.pop(0))
+        a = 2.0 if t > 1.0 else 0.0
+        core.wrench(Wrench(ns, "map", (f * np.cos(a), f * np.sin(a), 0.0), (0.0, 0.0, 0.0)))
+        felt_after.append(len(core.cue_stamps))
+    for o in odoms:
+        core.odom(o)
+    return core, felt_after
+
+
+@pytest.mark.parametrize("physical", [False, True])
+def test_a_cue_ends_without_waiting_for_the_odometry(physical):
+    """A map-frame wrench while a cue is under way is taken before the odometry reaches its
+    stamp, with the outcome of stamp order: with the odometry 10 samples (20 ms) late, the
+    cues (cells, headings, times, peaks), the belief and the state the streams leave are
+    those of odometry delivered ahead of every wrench, and each cue is felt at the wrench
+    sample that ends it (it waited up to an odometry period before). ``physical``: the
+    default physics' filtered detector, whose rest rule reads the odometry; else the ideal
+    sensor's."""
+    from pathpref.ros.planner import PlannerCore
+
+    spec = _spec(0) if physical else EpisodeSpec.single("simple", "path_preference", 5, seed=0)
+    ahead, felt_a = _streams(PlannerCore, spec, lag=-5)
+    late, felt_b = _streams(PlannerCore, spec, lag=10)
+    assert len(ahead.felt) == 2  # both pushes read
+    assert ahead.n_ahead == 0 and late.n_ahead > 0
+    assert [(f.cell, f.heading, f.t_felt, f.t_cue, f.peak_n) for f in late.felt] == \
+        [(f.cell, f.heading, f.t_felt, f.t_cue, f.peak_n) for f in ahead.felt]
+    assert late.cue_stamps == ahead.cue_stamps
+    assert felt_b == felt_a  # each cue felt when its last sample arrived, not 20 ms later
+    assert np.array_equal(late.runner.policy.belief.goal_marginal(),
+                          ahead.runner.policy.belief.goal_marginal())
+    assert (late.cell, late.pose, late._quiet) == (ahead.cell, ahead.pose, ahead._quiet)

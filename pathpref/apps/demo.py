@@ -243,6 +243,7 @@ def sweep_statement(path: Path = SWEEP_JSON) -> list[str]:
             return f"{m} {c[m]['success']}/{c[m]['n']} [{lo:.2f}, {hi:.2f}]"
 
         refs = "".join(f"; {cell(m)} ({what})" for m, what in (
+            ("hindsight", "hindsight optimisation, from outside the paper"),
             ("goal_known", "told the goal"), ("oracle", "knows the preference")) if m in by)
         out.append(f"- {setting}: {cell('path_preference')}; {cell('goal_only')}; "
                    f"{cell('compliant')}{refs} -> {verdict}")

@@ -20,7 +20,11 @@ pathpref's compiled physics relies on things no version number promises (docs/ph
 * **entry points**: ``Dispatcher.overloads[sig].entry_point``
   (:func:`~pathpref.sim.native.entry_point`) is a compiled function that answers;
 * **no NRT**: ``njit(_nrt=False)`` (the search and coasting kernels') is accepted and compiles
-  without numba's reference counting.
+  without numba's reference counting;
+* **cache index**: numba's private cache index (``_cache._cache_file._load_index``,
+  ``_cache._index_key``), through which :func:`pathpref.kernels.load_cached` loads the
+  kernels before the first decision, lists the overload a cached probe kernel just compiled
+  (without it every kernel still loads at its first call: the first decision is slower).
 
 A check that needs an earlier one (the native module) is not run when that one failed: its
 line already names the cause.
@@ -138,7 +142,8 @@ def _ctypes_function(lib, ext):
 
 def check_mujoco_by_address() -> list[str]:
     """Each MuJoCo C function the kernels call by address, through ``ctypes`` with the
-    kernels' signature on ``_address``, equals the bindings' own call (exactly)."""
+    kernels' signature on the bindings' ``_address`` (read by
+    :func:`~pathpref.sim.native.addresses`), equals the bindings' own call (exactly)."""
     import ctypes
 
     import mujoco
@@ -151,7 +156,7 @@ def check_mujoco_by_address() -> list[str]:
     for d in (ours, theirs):
         d.qvel[:] = np.linspace(-0.5, 0.7, model.nv)
     try:
-        addr = (model._address, ours._address)
+        addr = native.addresses(model, ours)
     except AttributeError as e:
         return [f"mujoco {mujoco.__version__}: the bindings have no _address ({e}), which the "
                 f"compiled kernels pass to MuJoCo's C functions: use mujoco==3.17.0"]
@@ -259,6 +264,30 @@ def check_no_nrt() -> list[str]:
             f"coasting kernels {why}: use numba 0.68"]
 
 
+def check_cache_index() -> list[str]:
+    """:func:`pathpref.kernels.cached_signatures` finds, in numba's cache index, the overload
+    of the probe kernel ``add_one`` (``cache=True``) that its call just compiled or loaded."""
+    import numba
+    import numpy as np
+
+    from ..kernels import cached_signatures
+
+    try:
+        from .doctor_probes import add_one
+
+        add_one(np.zeros(3))
+        found = cached_signatures(add_one)
+        ok = any(tuple(sig) in add_one.overloads for sig in found)
+        why = "does not list the overload just compiled"
+    except Exception as e:  # noqa: BLE001 - any change of numba's internals is the finding
+        ok, why = False, f"fails ({type(e).__name__}: {e})"
+    if ok:
+        return []
+    return [f"numba {numba.__version__}: its private cache index, which pathpref reads to "
+            f"load the kernels before the first decision (pathpref.kernels.load_cached), {why}: "
+            "each kernel then loads at its first call; use numba 0.68"]
+
+
 #: the checks in order (name, function, whether it needs the native module)
 CHECKS: tuple[tuple[str, Callable[[], list[str]], bool], ...] = (
     ("versions", check_versions, False),
@@ -267,6 +296,7 @@ CHECKS: tuple[tuple[str, Callable[[], list[str]], bool], ...] = (
     ("numba BitGenerator", check_bit_generator, True),
     ("numba entry points", check_entry_point, True),
     ("numba _nrt=False", check_no_nrt, True),
+    ("numba cache index", check_cache_index, True),
 )
 
 

@@ -21,18 +21,21 @@ called with:
 
 :func:`unreached` names the kernels still without a compiled signature afterwards (helpers
 numba inlines into their callers, ``inline="always"``, have none of their own and are not
-counted); the command prints them, and the tests require there be none.
+counted); the command prints them, and the tests require there be none. A later process loads
+what the warm-up compiled when it builds a policy or an episode
+(:func:`pathpref.kernels.load_cached`), not at its first decision.
 """
 
 from __future__ import annotations
 
 import importlib
 import pkgutil
-import sys
 import time
 from collections.abc import Callable, Iterable
 
 import numpy as np
+
+from ..kernels import PACKAGES, dispatchers
 
 #: the maps whose decisions are warmed (the bundled ones)
 MAPS = ("simple", "office", "classroom")
@@ -40,8 +43,6 @@ MAPS = ("simple", "office", "classroom")
 T_MAX = 8
 #: search queries per decision of a warm-up episode (the kernels' types do not depend on it)
 QUERIES = 100
-#: the packages whose kernels are warmed
-PACKAGES = ("pathpref", "pathpref_tasks")
 
 
 def _import_all() -> None:
@@ -61,20 +62,11 @@ def _import_all() -> None:
 
 def kernels() -> dict[str, object]:
     """Every numba dispatcher defined in :data:`PACKAGES` that is compiled on its own
-    (``module.name`` -> dispatcher): the inlined helpers (``inline="always"``) are left out,
-    numba compiles them into each caller."""
-    from numba.core.dispatcher import Dispatcher
-
+    (``module.name`` -> dispatcher; :func:`pathpref.kernels.dispatchers` once every module is
+    imported): the inlined helpers (``inline="always"``) are left out, numba compiles them
+    into each caller."""
     _import_all()
-    out = {}
-    for mod_name, mod in list(sys.modules.items()):
-        if mod is None or not mod_name.startswith(PACKAGES):
-            continue
-        for attr, obj in vars(mod).items():
-            if (isinstance(obj, Dispatcher) and obj.py_func.__module__ == mod_name
-                    and obj.targetoptions.get("inline", "never") != "always"):
-                out[f"{mod_name}.{attr}"] = obj
-    return out
+    return dispatchers()
 
 
 def signatures() -> int:

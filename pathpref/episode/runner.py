@@ -30,6 +30,7 @@ from ..geometry.grid import STAY
 from ..geometry.homotopy import route_homotopic
 from ..geometry.world import World
 from ..inference.human import ObservationModel, SimulatedHuman
+from ..kernels import load_cached
 from ..planning.policies import PolicyContext, make_policy
 from .body import Body, Felt, make_body
 from .cache import cached_model, cached_world
@@ -121,6 +122,7 @@ class EpisodeRunner:
         self.corrective = None if rule is None else CorrectiveHuman(
             rule, world, self.pref, inst.goal_cell, miss_stream(spec.run_seed))
         self.body = body if body is not None else make_body(spec, world)
+        load_cached()  # the body's kernels too, from numba's cache (pathpref.kernels)
         self.body.connect(self.observe)  # the one door of what the robot feels
         #: the body gives the human's inputs at times of its own (pushes at any time)
         self.continuous = self.body.attach_human(

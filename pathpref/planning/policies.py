@@ -33,6 +33,7 @@ from ..geometry.world import World
 from ..inference.belief import Belief, GoalBelief
 from ..inference.human import ObservationModel
 from ..inference.priors import PriorInputs, make_belief
+from ..kernels import load_cached
 from .crossing import check_crossing
 from .hindsight import hindsight_action
 from .pomcp import POMCP
@@ -355,10 +356,13 @@ def _known(name: str) -> bool:
 
 def make_policy(name: str, ctx: PolicyContext) -> Policy:
     """The method ``name`` (a key of :data:`METHODS`, or another package's) built on
-    ``ctx``."""
+    ``ctx``, with the kernels of the modules imported so far loaded from numba's cache
+    (:func:`pathpref.kernels.load_cached`: its first decision loads none)."""
     if not _known(name):
         raise ConfigError(f"unknown method '{name}'; choose from {', '.join(METHODS)}")
-    return METHODS[name](ctx)
+    policy = METHODS[name](ctx)
+    load_cached()  # the kernels its decisions call, from numba's cache (pathpref.kernels)
+    return policy
 
 
 def resolve_methods(names: list[str]) -> list[str]:

@@ -26,7 +26,15 @@ robot feels comes from its messages:
 
 Messages are taken in stamp order (an odometry message before a wrench of the same stamp),
 each as soon as both streams have reached its stamp, so the outcome does not depend on how
-the two topics interleave in transport. A step mark (:class:`~.streams.StepMark`) ends a
+the two topics interleave in transport. One exception takes a wrench sooner, with the same
+outcome: a wrench in the ``map`` frame while a cue is under way is taken before the odometry
+reaches its stamp (:meth:`PlannerCore._ahead`), since its reading needs nothing the odometry
+could still change (no yaw for the ``map`` frame; the rest rule is off while a cue is under
+way; the cue's cell was fixed at its onset). So the cue's end, and the belief it changes, do
+not wait up to one odometry period. Where that sample ends the cue and opens the next, whose
+onset cell is the odometry's cell at the sample's stamp, that cell is set again by every
+odometry message up to the stamp, and no wrench is taken ahead until the odometry has passed
+it. A step mark (:class:`~.streams.StepMark`) ends a
 decision step: everything up to its stamp is taken, the detector is reset when a push window
 closed (the push phase's reset), the runner records the move (:meth:`EpisodeRunner.finish_step`)
 and chooses the next (:meth:`EpisodeRunner.start_step`): a :class:`Decision`.
@@ -145,6 +153,11 @@ class PlannerCore:
         self._wrenches: deque[Wrench] = deque()
         self._odoms: deque[Odom] = deque()
         self.n_wrench = self.n_odom = 0
+        #: wrenches taken ahead of the odometry (:meth:`_ahead`)
+        self.n_ahead = 0
+        #: the stamp of a wrench taken ahead whose sample opened a cue (its onset cell is the
+        #: odometry's at that stamp: set again by the odometry up to it); None: none
+        self._onset_due: int | None = None
         self.last_odom: Odom | None = None
         self._prev_odom: Odom | None = None
         self._quiet = 0.0
@@ -195,26 +208,43 @@ class PlannerCore:
 
     def _drain(self, until: int | None = None) -> None:
         """Take the waiting messages in stamp order up to ``until`` (None: as far as both
-        streams have come), odometry first at equal stamps."""
+        streams have come, and the wrenches that may go ahead of the odometry, :meth:`_ahead`),
+        odometry first at equal stamps."""
         w, o = self._wrenches, self._odoms
+        streaming = until is None  # (a step mark's drain takes nothing ahead: its stamp bounds it)
         if until is None:
-            if not w or not o:
-                return
-            until = min(w[-1].stamp_ns, o[-1].stamp_ns)
+            until = min(w[-1].stamp_ns, o[-1].stamp_ns) if w and o else -1
         while True:
             tw = w[0].stamp_ns if w else None
             to = o[0].stamp_ns if o else None
             if to is not None and to <= until and (tw is None or to <= tw):
                 self._take_odom(o.popleft())
             elif tw is not None and tw <= until:
+                self._onset_due = None  # the odometry has passed every earlier stamp
                 self._take_wrench(w.popleft())
+            elif streaming and tw is not None and self._ahead(w[0]):
+                self.n_ahead += 1
+                onset = self._onset
+                self._take_wrench(w.popleft())
+                if self._onset is not None and self._onset is not onset \
+                        and self._onset[0] == self.data.time:  # a cue opened at this sample
+                    self._onset_due = tw
             else:
                 return
+
+    def _ahead(self, w: Wrench) -> bool:
+        """Whether wrench ``w`` may be taken before the odometry reaches its stamp (module
+        docstring): in the ``map`` frame, while a cue is under way, and no cue opened by a
+        wrench taken ahead still waits for its cell."""
+        return w.frame == MAP_FRAME and self.under_way and self._onset_due is None
 
     def _take_odom(self, o: Odom) -> None:
         prev, self._prev_odom, self.last_odom = self.last_odom, self.last_odom, o
         self.cell = self.scene.cell_at(np.array([o.x, o.y]))
         self.pose = (o.x, o.y, o.yaw)
+        if self._onset_due is not None and o.stamp_ns <= self._onset_due \
+                and self._onset is not None:
+            self._onset = (self._onset[0], self.cell)  # the cell at the opening sample's stamp
         self._speed = math.hypot(o.vx, o.vy)
         if prev is not None and o.stamp_ns > prev.stamp_ns:
             dt = 1e-9 * (o.stamp_ns - prev.stamp_ns)

@@ -92,7 +92,7 @@ from ..errors import EpisodeError
 from ..geometry.world import World
 from .arm_step import arm_step, tilt_from
 from .mobile_base import MobileBase
-from .native import entry_point
+from .native import addresses, entry_point
 from .scene import BaseParams, Scene, build_spec, mjcf_path
 from .sensing import HandleSensor
 
@@ -372,7 +372,7 @@ class ArmBase(MobileBase):
         configuration every ``ik_period``; every physics step the impedance at the tray about
         the pose it gives, and the base's own command."""
         d = self.data
-        self.kernel_prepare()
+        self._ik_if_due()
         self._k += 1
         args = self.arm_args()
         if self._arm_entry is None:
@@ -386,7 +386,7 @@ class ArmBase(MobileBase):
         """:func:`arm_step`'s arguments now (the kinematic configuration's arm joints are a
         new array after each IK solve)."""
         d = self.data
-        return ((self.model._address, d._address), (d.xpos, d.xmat, d.qvel, d.qpos, d.ctrl),
+        return (addresses(self.model, d), (d.xpos, d.xmat, d.qvel, d.qpos, d.ctrl),
                 (self._bodies, self._rel, self._jac, self.arm_dofs, self.arm_qpos, self.q_kin,
                  self._gains, self._kp, self.arm_ctrl), (self._Rd, self._f3, self._m3, self._tau))
 
@@ -406,10 +406,22 @@ class ArmBase(MobileBase):
         return self.data.ncon == 0 and super().kernel_ready()
 
     def kernel_prepare(self) -> None:
+        """Before the compiled move's steps: the IK solve of the coming step when one is due
+        (:meth:`_ik_if_due`; each step hands back when the next one is due), then the base's
+        (:meth:`MobileBase.kernel_prepare`)."""
+        self._ik_if_due()
+        super().kernel_prepare()
+
+    def kernel_finish(self, steps: int) -> None:
+        """After the compiled move's ``steps`` steps: the arm's step count (the kernel's,
+        :meth:`compiled_arm`) and the tilts it recorded."""
+        self._k = int(self._ak[0])
+        self.record_tilts(self._tilt_deg[:steps])
+
+    def _ik_if_due(self) -> None:
         """The IK solve of the coming step when one is due and has not run (every
         ``ik_period``: the kinematic configuration integrated, the tray's pose relative to
-        the base in it), the first part of :meth:`_control_physical`; the compiled move runs
-        it before its steps (each hands back when the next one is due)."""
+        the base in it), the first part of :meth:`_control_physical`."""
         if self._k % self.ik_every == 0 and self._ik_at != self._k:
             v = self.solve_ik()
             self.cfg.integrate_inplace(v, self.ik_dt)

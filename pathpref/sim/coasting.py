@@ -54,12 +54,13 @@ from .arm_step import arm_step, tilt_from
 from .controller import HeldVelocity, profiled_goal, ramp_step, settled_at
 from .cue_detector import ABOVE, ACTIVE, D_OFF, D_ON, D_VAR, decide_step, filter_step
 from .decision import PUSH as PUSH_PHASE
-from .estimator import E_AT_REST, E_QUIET, estimate_step
+from .estimator import E_AT_REST, E_ESTIMATES, E_QUIET, estimate_step
 from .force_cue import push_force
 from .guidance import admit_step
 from .keep_clear import keep_clear_xy
 from .kernel_parts import declared, runs
 from .measurements import (
+    M_ESTIMATE,
     M_PEAK,
     M_PEAK_FORCE,
     M_PEAK_PUSHED,
@@ -86,9 +87,9 @@ CUE, VPX_OLD, VPY_OLD, TIME, N_FS = range(5)
 #: constants: controller, sensor, estimator, detector, the move
 (KP, V_MAX, BRAKE, A_MAX, C_DT, K_YAW, TOL, DT, PERIOD, DRIFT_STEP, NOISE, EXTRA_M, T0, MIN_S,
  T_END, STILL, T_STOP, H, ALPHA, CELL, RADIUS, A_BRAKE, N_CS) = range(23)
-#: integers (in and out): addresses, flags, the sensor's count and the two queues' extents
+#: integers: addresses, flags, the polytope the base is in and the step a quiet hook is due
 (IX, IY, IYAW, A0, A1, A2, VX, VY, SADR, BODY, HOLD_N, MEASURE, DRIFT, AUTORESET, CADR,
- HELD, FILTER, SAMPLES, GUIDED, POLY, HOOK_IN, PUSHING, INTERACT, N_IS) = range(24)
+ HELD, FILTER, GUIDED, POLY, HOOK_IN, PUSHING, INTERACT, N_IS) = range(23)
 #: the scene's sensor that counts the contacts of the last collision pass (``mjcf/navigate.xml``)
 CONTACT_SENSOR = "contact_count"
 #: mjtWarning's bad-state warnings: mj_step resets the data on one (unless autoreset is off)
@@ -131,11 +132,13 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, f
            max_steps):
     """Physics steps of the move phase, a push phase (``ns[PUSHING]``: :meth:`Coaster.push`)
     or a drive (:meth:`Coaster.drive`) until a hand-back (module docstring); returns
-    ``(reason, steps)``. ``held`` receives the last sample, ``est``
-    (:func:`~.estimator.estimate_step`'s arrays) the estimator's acceleration and estimate;
-    the state arrays are updated in place. The records: ``mj`` the ``MjModel``'s and
-    ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel, ctrl, sensordata)`` and the
-    sensor site's rotation and MuJoCo's warning counts (``mjData.warning[i].number``);
+    ``(reason, steps)``. Every array is the part's own, updated in place: the sensor's held
+    sample receives each new sample, ``est`` (:func:`~.estimator.estimate_step`'s arrays) the
+    estimator's acceleration and estimate, and the sensor's window and the estimator's record
+    number them (:data:`~.sensing.W_SAMPLES`, :data:`~.estimator.E_ESTIMATES`). The records:
+    ``mj`` the ``MjModel``'s and ``MjData``'s addresses; ``robot`` MuJoCo's ``(qpos, qvel,
+    ctrl, sensordata)``, the sensor site's rotation and MuJoCo's warning counts
+    (``mjData.warning[i].number``);
     ``drive`` the controller's last command, the target, a scratch pair, the held goal
     velocity (``ns[HELD]``: :class:`~.controller.HeldVelocity`), the task's filtered force
     (``ns[FILTER]``: low-passed by ``cs[ALPHA]`` at the end of every step), the push record
@@ -225,17 +228,15 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, f
         # --- FaultySensor.read: the window, with the extra mass's inertia
         a = ns[SADR]
         fresh = window_step(mp, dp, ns[BODY], sensordata[a:a + 3], R, cs[EXTRA_M], scratch, win,
-                            t, cs[DT], cs[PERIOD], False)
+                            t, cs[DT], cs[PERIOD])
         measured = False
         if fresh:
-            ns[SAMPLES] += 1
             # FaultySensor._emit (no thermal offset: Coaster.ready)
             emit_step(rng, win[W_MEAN:W_MEAN + 3], sbias, ns[DRIFT] != 0, cs[DRIFT_STEP],
                       cs[NOISE], held)
             # ForceEstimator.update (fresh; the bias tracked only with no cue under way)
-            q, rest = estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S],
-                                    not under_way, erec[E_QUIET], eparams, est)
-            erec[E_QUIET], erec[E_AT_REST] = q, 1.0 if rest else 0.0
+            estimate_step(mp, dp, ns[BODY], held, R, qvel, win[W_WINDOW_S], not under_way,
+                          eparams, erec, est)
             measured = True
         elif under_way:  # ForceEstimator.update between samples, a cue under way
             erec[E_QUIET], erec[E_AT_REST] = 0.0, 0.0
@@ -267,7 +268,8 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, f
             # (not while a push acts or within 0.1 s of its end: MobileBase._pushed_now)
             if acc > meas[M_PEAK] and not (ns[PUSHING] and pp[0] <= t <= pp[0] + pp[1] + 0.1):
                 meas[M_PEAK] = acc
-            if measured:
+            if measured:  # a new estimate (Measurements.update: by its number)
+                meas[M_ESTIMATE] = erec[E_ESTIMATES]
                 h = hypot(eforce[0], eforce[1])
                 if h > meas[M_PEAK_FORCE]:
                     meas[M_PEAK_FORCE] = h
@@ -282,7 +284,7 @@ def _coast(mj, robot, drive, sensor, rng, eparams, est, det, guide, arm, meas, f
                 return CROSS, step + 1
         if step + 1 >= ns[HOOK_IN]:  # a quiet on_substep hook is due (PathRecorder's sample)
             return CROSS, step + 1
-        # --- DecisionStep._move_ended: settled (TrackingController.settled; not yielding,
+        # --- DecisionStep.move_ended: settled (TrackingController.settled; not yielding,
         # as nothing pushes) or time up; the push phase's end (its time up: the detector's
         # reset is Python's, before the task's part of the step)
         if t - cs[T0] >= cs[MIN_S]:
@@ -367,7 +369,7 @@ class Coaster:
         if b.decision.phase == PUSH_PHASE:
             cues = b.admittance_b is None and b.guidance is None
         else:
-            cues = b._onset is None and not s.under_way
+            cues = not b.cue_open and not s.under_way
         return (cues and b.decision.final is None and not b.pushes and self._hooks_mirrored()
                 # (the base, detector, controller, measurements and guidance declare:
                 # applies, asked with the coaster; the sensor and estimator exist after a reset)
@@ -420,8 +422,9 @@ class Coaster:
         #: the kernel's temporaries (it allocates nothing: compiled without reference counts)
         self._err = np.zeros(2)
         self._data = d
-        self._mj = (b.model._address, d._address)
-        self._robot = (b._qpos, b._qvel, b._ctrl_view, d.sensordata, self._R, self._warnings)
+        self._mj = native.addresses(b.model, d)
+        # MjData's arrays (views of its buffers, which stay put)
+        self._robot = (d.qpos, d.qvel, d.ctrl, d.sensordata, self._R, self._warnings)
         self._key = None  # the objects the constants were built from (_constants)
         sc = b.scene
         self._guide = (sc.clearance.arrays, sc.clearance.near_rows,
@@ -439,22 +442,20 @@ class Coaster:
     def move(self, step) -> bool:
         """Steps of ``step``'s move phase (a :class:`~.decision.DecisionStep`) through the
         kernel and, after a hand-back within a step, the rest of that step in Python; True
-        when the phase ended. A timed move (``step._steps``) runs at most its steps left, its
-        drive with the move's end check, the hold after it without one."""
-        if step._steps is None:
-            reason, _, fs = self._run(step._t0, step._min_s, step._t_end, self.MAX_STEPS)
+        when the phase ended. A timed move runs at most its steps left, its drive with the
+        move's end check, the hold after it without one
+        (:meth:`~.decision.DecisionStep.kernel_bounds`)."""
+        t0, min_s, t_end, left = step.kernel_bounds()
+        if left is None:
+            reason, _, fs = self._run(t0, min_s, t_end, self.MAX_STEPS)
             return self._hand_back(reason, step, fs)
-        left = step._steps - step._n
-        if step._driving:
-            reason, k, fs = self._run(step._t0, step._min_s, step._t_end, left)
-        else:
-            reason, k, fs = self._run(0.0, math.inf, math.inf, left)
-        if reason in (READY, END):  # every step taken here (else the last is _move_ended's)
-            step._n += k
+        reason, k, fs = self._run(t0, min_s, t_end, left)
+        if reason in (READY, END):  # every step taken here (else the last is move_ended's)
+            step.add_steps(k)
             if reason == END:
                 step.hold_after_drive(None)
             return step.timed_out()
-        step._n += k - 1
+        step.add_steps(k - 1)
         return self._hand_back(reason, step, fs)
 
     def push(self, step, n: int = MAX_STEPS, force_filter=None, interaction=None
@@ -466,13 +467,14 @@ class Coaster:
         back within the step (its base part finished here, the caller's part of it still to
         do) and whether the phase ended with it (:meth:`~.decision.DecisionStep.push_ended`:
         a cue, or its time up)."""
-        reason, steps, fs = self._run(0.0, math.inf, step._t_end, n, force_filter,
-                                      step._push, interaction)
+        t0, min_s, t_end, _ = step.kernel_bounds()
+        push = step.current_push
+        reason, steps, fs = self._run(t0, min_s, t_end, n, force_filter, push, interaction)
         if reason == READY:
             return steps, False, False
         if reason == DIVERGED:
             self._hand_back(reason, step, fs)
-        cue = None if reason == END else self._finish(reason, fs, step._push)
+        cue = None if reason == END else self._finish(reason, fs, push)
         return steps, True, step.push_ended(cue)
 
     def drive(self, n: int, force_filter=None) -> tuple[int, bool]:
@@ -503,16 +505,14 @@ class Coaster:
                 k[3] != b.measure or k[4] is not force_filter or k[5] is not g:
             spec = f.spec
             self._cs = np.array([c.kp, c.v_max, c.brake, c.a_max, c.dt, c.k_yaw, c.tol_m, f.dt,
-                                 f.period, f._drift_step, spec.noise_n, f._extra_m, 0.0, 0.0,
+                                 f.period, f.drift_step, spec.noise_n, f.extra_m, 0.0, 0.0,
                                  0.0, c.still_mps, 0.0, b.model.opt.timestep, 0.0,
                                  b.scene.cell_size,
                                  b.scene.world.footprint.radius * b.scene.cell_size,
                                  0.5 * c.a_max])
-            ix, iy, iyaw = b._float_adr
-            a0, a1, a2 = b._float_act
             autoreset = not b.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET
-            self._ns = np.array([ix, iy, iyaw, a0, a1, a2, b._vxy_adr[0], b._vxy_adr[1],
-                                 s.sensor.adr, f.body, det._hold_n, int(b.measure),
+            self._ns = np.array([*b.kernel_addresses(),
+                                 s.sensor.adr, f.body, det.hold_n, int(b.measure),
                                  int(spec.drift_n_per_sqrt_s > 0), int(autoreset),
                                  b.model.sensor(CONTACT_SENSOR).adr[0],
                                  int(type(c) is HeldVelocity), 0, 0, int(b.guidance is not None),
@@ -524,7 +524,7 @@ class Coaster:
             self._arm = b.compiled_arm() is not None
         cs, ns = self._cs, self._ns
         cs[ALPHA] = 0.0 if force_filter is None else force_filter.alpha
-        ns[FILTER], ns[SAMPLES] = force_filter is not None, 0
+        ns[FILTER] = force_filter is not None
         ns[POLY], ns[HOOK_IN] = self._hook_state()
         return cs, ns
 
@@ -539,11 +539,13 @@ class Coaster:
     def _run(self, t0: float, min_s: float, t_end: float, max_steps: int, force_filter=None,
              push=None, interaction=None) -> tuple[int, int, list]:
         """One kernel call on the parts' own state: ``(reason, steps, fs)``, ``fs`` the
-        kernel's floats after it (a list, slots as :data:`CUE` ...). The parts' records (the
+        kernel's floats after it (a list, slots as :data:`CUE` ...). The parts' arrays (the
         estimator's, detector's, measurements', guidance's and interaction's ``rec``, the
-        sensor's window, the controller's ramp, the task's filter) are read and written in
-        place; only a new sample's held sample and estimate are new arrays (the Python path's
-        are, and a part tells a new estimate by its identity). The move's
+        sensor's window and held sample, the estimator's estimate, the controller's ramp, the
+        task's filter) are read and written in place, nothing copied: a new sample and a new
+        estimate are told by their numbers in the parts' records, as on the Python path
+        (:attr:`~.sensing.FaultySensor.samples`, :attr:`~.estimator.ForceEstimator.estimates`,
+        the measurements' :meth:`~.measurements.Measurements.holds`). The move's
         start ``t0``, shortest time ``min_s`` and end ``t_end`` (s); ``push`` the push phase's
         :class:`~.force_cue.HumanPush` (None: no push phase), ``interaction`` an object whose
         record ``rec[0]`` (its ``active_s``) gains the timestep at every step the detector is
@@ -564,12 +566,7 @@ class Coaster:
         ns[PUSHING], ns[INTERACT] = push is not None, interaction is not None
         cs[T0], cs[MIN_S], cs[T_END] = t0, min_s, t_end
         cs[T_STOP] = self._quiet_until() if b.pre_substep else math.inf
-        b._anchor = None
-        wrench = b._wrench()
-        if not b.external_forces:
-            wrench.fill(0.0)
-        # a sample gives a new held sample and estimate (new arrays, as the Python path's)
-        held, eacc, eforce = f._held.copy(), est.acc.copy(), est.force.copy()
+        wrench = b.pushed_wrench()
         filt = self._err if force_filter is None else force_filter.f
         arm = b.compiled_arm() if self._arm else None
         goal = c.u if type(c) is HeldVelocity else self._err
@@ -577,30 +574,19 @@ class Coaster:
                 (c.last, b.target, self._err, goal, filt,
                  self._no_push if push is None else push.record(), wrench,
                  self._no_rec if interaction is None else interaction.rec),
-                f.step_arrays(held), f.rng_pointers, (est.params, est.rec),
-                est.step_arrays(eacc, eforce), det.step_arrays(),
+                f.step_arrays(), f.rng_pointers, (est.params, est.rec),
+                est.step_arrays(), det.step_arrays(),
                 (*self._guide_args, self._no_rec if g is None else g.rec), arm, m.rec,
                 fs, cs, ns, max_steps)
         entry = self._entry
         if entry is None:
             entry = self._entry = compiled_entry(args)
         reason, steps = entry(*args)
-        if self._arm:  # the arm's steps (each kernel step ran the arm's part: module docstring)
-            b._k = int(arm[2][0])
-            b.record_tilts(arm[1][:steps])
+        b.kernel_finish(steps)  # an arm's steps (each ran the arm's part: module docstring)
         # the quiet hooks learn of the steps they were not called for (the last step's hooks
         # run in Python after a hand-back within it)
         if b.on_substep:
             self._skip_hooks(steps - (reason in (DETECT, CONTACTS, CROSS)))
-        new_estimate = ns.item(SAMPLES) > 0
-        if new_estimate:
-            f._held = held
-            est.acc, est.force = eacc, eforce
-            s.force_estimate = est.force
-        if b.measure and not (reason == DETECT and new_estimate and f.fresh):
-            # measured by the kernel (a step handed back at an onset is measured in Python,
-            # with a new estimate if its sample gave one)
-            m._f_measured = s.force_estimate
         fs = fs.tolist()
         if fs[TIME] != d.time:  # pragma: no cover - mj_step advances time by its timestep
             raise RuntimeError(f"the compiled move's time {fs[TIME]!r} is not MjData's "
@@ -621,7 +607,7 @@ class Coaster:
         if reason == END:
             step.phase = None
             return True
-        return step._move_ended(self._finish(reason, fs))
+        return step.move_ended(self._finish(reason, fs))
 
     def _finish(self, reason: int, fs: list, push=None):
         """The rest of the step the kernel handed back within (:data:`DETECT`: the cue stream,
@@ -631,8 +617,8 @@ class Coaster:
         b = self.base
         if reason == DETECT:
             det = b.sensing.detector
-            return b._after_read(det._cue() if fs[CUE] else None, push)
+            return b.after_read(det.given_cue() if fs[CUE] else None, push)
         if reason == CONTACTS:
-            b.measurements._contacts(b.data, (fs[VPX_OLD], fs[VPY_OLD]))
+            b.measurements.measure_contacts(b.data, (fs[VPX_OLD], fs[VPY_OLD]))
         b.run_hooks(push)
         return None

@@ -343,8 +343,9 @@ class CueDetector:
         """Forget any cue in progress (the counters stay)."""
         clear_state(self.st)
 
-    def _cue(self) -> Cue:
-        """The cue :func:`decide_step` gave."""
+    def given_cue(self) -> Cue:
+        """The cue :func:`decide_step` gave last (its record in :attr:`st`; the compiled move
+        reads it when its detector's step gave one, :mod:`.coasting`)."""
         st = self.st
         return Cue(np.array([st[CUE_X], st[CUE_Y]]), float(st[CUE_PEAK]), float(st[CUE_DUR]))
 
@@ -353,7 +354,7 @@ class CueDetector:
         the cue (integrated impulse) when it ends, else None."""
         if decide_step(float(f_xy[0]), float(f_xy[1]), self.st, self._baseline, self._queue,
                        self.on_n, self.off_n, self.rule, self._buf):
-            return self._cue()
+            return self.given_cue()
         return None
 
 
@@ -531,7 +532,8 @@ class FilteredCueDetector(CueDetector):
         self._alpha = dt / (tau_s + dt)
         self._beta = dt / (floor_tau_s + dt)
         self._gamma = dt / (baseline_tau_s + dt)
-        self._hold_n = int(round(hold_s / dt))
+        #: ``hold_s`` in samples (:func:`filter_step`'s ``hold_n``)
+        self.hold_n = int(round(hold_s / dt))
         #: :func:`filter_step`'s constants (its ``params``)
         self.params = np.array([self._alpha, self._beta, self._gamma, on_k, off_k, on_n, off_n,
                                 max(1.0, round(NOISE_S / dt)), NOISE_COHERENCE,
@@ -564,7 +566,7 @@ class FilteredCueDetector(CueDetector):
         self.f = np.zeros(N_F)
         self.baseline = np.zeros(2)
         # the calibration queue: a ring of (fx, fy) rows and its (head, length)
-        self._ring = np.zeros((self._hold_n + 4, 2))
+        self._ring = np.zeros((self.hold_n + 4, 2))
         self._queue = np.zeros(2, dtype=np.int64)
 
     def step_arrays(self) -> tuple:
@@ -609,7 +611,7 @@ class FilteredCueDetector(CueDetector):
         idle = not self.active and self._above == 0.0
         self.var, self.on_n, self.off_n, ex, ey, quiet = filter_step(
             x, y, idle, at_rest, self.f, self.baseline, self._ring, self._queue, self.var,
-            self.on_n, self.off_n, self.params, self._hold_n)
+            self.on_n, self.off_n, self.params, self.hold_n)
         if quiet:
             return None
         return self._decide(ex, ey)
@@ -620,5 +622,5 @@ class FilteredCueDetector(CueDetector):
         of an active cue."""
         if decide_step(ex, ey, self.st, self.baseline, self._queue, self.on_n, self.off_n,
                        self.rule, self._buf):
-            return self._cue()
+            return self.given_cue()
         return None

@@ -8,7 +8,8 @@ Under guidance (:mod:`.guidance`) a push is also read while it lasts: every
 evidence (to the listener, not to ``felt``); the cue's final record carries the rest.
 
 The base keeps ``_onset``: ``(time, cell)`` where the cue under way was first felt (None:
-none), which the compiled move also reads (:mod:`.coasting`: no cue under way).
+none), which the compiled move also asks after (``base.cue_open``; :mod:`.coasting`: no cue
+under way).
 """
 
 from __future__ import annotations

@@ -132,7 +132,7 @@ class DecisionStep:
         if phase == PUSH:
             return self.push_ended(b.substep(self._push))
         if phase == MOVE:
-            return self._move_ended(b.substep())
+            return self.move_ended(b.substep())
         if phase == HOLD:
             cue = b.substep()
             if not (cue is not None and self._until_cue) and b.data.time < self._t_end:
@@ -157,7 +157,7 @@ class DecisionStep:
         self.phase = None
         return True
 
-    def _move_ended(self, cue) -> bool:
+    def move_ended(self, cue) -> bool:
         """The move's end check after a physics step that gave ``cue`` (module docstring);
         True (and no phase under way) when the move ended; a timed move holds the cell the
         drive ended in until its last physics step."""
@@ -167,6 +167,33 @@ class DecisionStep:
         if self._driving and self._drive_ended(cue):
             self.hold_after_drive(cue)
         return self.timed_out()
+
+    @property
+    def current_push(self):
+        """The push of the push phase (a :class:`~.force_cue.HumanPush`; the last one after
+        it, None before the first)."""
+        return self._push
+
+    def kernel_bounds(self) -> tuple[float, float, float, int | None]:
+        """The phase under way as the compiled steps (:mod:`.coasting`) take it: ``(t0,
+        min_s, t_end, steps)``, the move's end check (settled after ``min_s`` s from ``t0``,
+        or ``t >= t_end``) and the physics steps left of a timed move (None: untimed). A
+        timed move holding after its drive and a push phase have no settle check
+        (``min_s`` infinite); the hold has no end by time either (``t_end`` infinite: its
+        steps end it)."""
+        if self.phase == PUSH:
+            return 0.0, math.inf, self._t_end, None
+        if self._steps is None:
+            return self._t0, self._min_s, self._t_end, None
+        left = self._steps - self._n
+        if self._driving:
+            return self._t0, self._min_s, self._t_end, left
+        return 0.0, math.inf, math.inf, left
+
+    def add_steps(self, n: int) -> None:
+        """``n`` physics steps of a timed move taken without :meth:`advance` (the compiled
+        steps, :mod:`.coasting`; their end checks were the kernel's)."""
+        self._n += n
 
     def hold_after_drive(self, cue) -> None:
         """A timed move's drive ended (with ``cue``, None: settled or out of time): the rest

@@ -35,20 +35,22 @@ import numpy as np
 
 from ..errors import ConfigError
 from .kernel_parts import Slot
-from .native import matTvec, matvec, mj_jacBodyCom, norm
+from .native import addresses, matTvec, matvec, mj_jacBodyCom, norm
 
 GRAVITY_UP = np.array([0.0, 0.0, 9.81])
 #: :func:`estimate_step`'s constants, in this order in :attr:`ForceEstimator.params`
 MASS, BIAS_TAU, STILL_MPS, STILL_MPS2, QUIET_S, COMPENSATE = range(6)
 #: slots of :attr:`ForceEstimator.rec`, the estimator's scalar state (the rest timer
-#: ``quiet`` in s and ``at_rest``, 1.0 or 0.0), which both drivers read and write in place
-E_QUIET, E_AT_REST, N_EREC = range(3)
+#: ``quiet`` in s, ``at_rest``, 1.0 or 0.0, and how many estimates it made: the sequence
+#: number of the estimate it holds, by which both drivers tell a new one), which both drivers
+#: read and write in place
+E_QUIET, E_AT_REST, E_ESTIMATES, N_EREC = range(4)
 #: the bias queue's rows beyond ``quiet_s / dt + 1`` (the most it holds)
 QUEUE_SLACK = 4
 
 
 @nb.njit(cache=True)
-def estimate_step(mp, dp, body, reading, R, qvel, window, cue_idle, quiet, params, st):
+def estimate_step(mp, dp, body, reading, R, qvel, window, cue_idle, params, rec, st):
     """One fresh sensor sample ``reading`` (averaged over ``window`` s) through
     :class:`ForceEstimator` (module docstring), on plain arrays: ``a = J_com (qvel - mark) /
     window`` (``mark`` then set to ``qvel``), the residual ``r = s - R^T m (a + g)`` (``a``
@@ -56,12 +58,14 @@ def estimate_step(mp, dp, body, reading, R, qvel, window, cue_idle, quiet, param
     ``|a| < still_mps2``) ``r`` queued and ``quiet += window``, else the queue dropped; queued
     residuals older than ``quiet_s`` enter ``bias += w (r - bias)``, ``w = min(1, window /
     (tau + window))``; the estimate ``-(R (r - bias))_xy``. ``mp``, ``dp``: the ``MjModel``'s
-    and ``MjData``'s addresses; ``st`` the arrays ``(mark, jac, dv, acc, bias, ring, queue,
-    force, tmp3, res, vel)``, updated in place (``acc``, ``force`` receive the acceleration
-    and the estimate). Returns ``(quiet, at_rest)``. The one arithmetic of the Python step
-    and the compiled move (:mod:`.coasting`): MuJoCo's ``mj_jacBodyCom`` and NumPy's BLAS
-    kernels (:mod:`.native`)."""
+    and ``MjData``'s addresses; ``rec`` the estimator's record (slots ``E_*``: ``quiet`` read
+    and written, ``at_rest`` written, the estimates counted, ``+1``); ``st`` the arrays
+    ``(mark, jac, dv, acc, bias, ring, queue, force, tmp3, res, vel)``, updated in place
+    (``acc``, ``force`` receive the acceleration and the estimate). The one arithmetic of
+    the Python step and the compiled move (:mod:`.coasting`): MuJoCo's ``mj_jacBodyCom``
+    and NumPy's BLAS kernels (:mod:`.native`)."""
     mark, jac, dv, acc, bias, ring, queue, force, tmp3, res, vel = st
+    quiet = rec[E_QUIET]
     nv = qvel.shape[0]
     mj_jacBodyCom(mp, dp, jac.ctypes.data, 0, body)
     for i in range(nv):
@@ -104,7 +108,8 @@ def estimate_step(mp, dp, body, reading, R, qvel, window, cue_idle, quiet, param
         tmp3[i] = res[i] - bias[i]
     matvec(R, tmp3, res)
     force[0], force[1] = -res[0], -res[1]
-    return quiet, at_rest
+    rec[E_QUIET], rec[E_AT_REST] = quiet, 1.0 if at_rest else 0.0
+    rec[E_ESTIMATES] += 1.0
 
 
 @dataclass(frozen=True)
@@ -134,8 +139,11 @@ class ForceEstimator:
     def __init__(self, model: mujoco.MjModel, body: int, mass_kg: float,
                  config: EstimatorConfig | None = None):
         self.model, self.body, self.mass = model, int(body), float(mass_kg)
-        #: the scalar state (slots ``E_*``: :attr:`quiet`, :attr:`at_rest`)
+        #: the scalar state (slots ``E_*``: :attr:`quiet`, :attr:`at_rest`, :attr:`estimates`)
         self.rec = np.zeros(N_EREC)
+        #: the body's acceleration and the push estimate of the last sample (:meth:`update`),
+        #: written in place at every sample (:attr:`estimates` numbers them)
+        self.acc, self.force = np.zeros(3), np.zeros(2)
         self.config = config or EstimatorConfig()
         self.dt = float(model.opt.timestep)
         self._jac = np.zeros((3, model.nv))
@@ -152,6 +160,13 @@ class ForceEstimator:
     quiet = Slot(E_QUIET)
     at_rest = Slot(E_AT_REST, boolean=True)
 
+    @property
+    def estimates(self) -> int:
+        """How many estimates the estimator has made since it was built (counted by
+        :func:`estimate_step` in both drivers): the number of the estimate :attr:`force`
+        holds; a new number is a new estimate."""
+        return int(self.rec.item(E_ESTIMATES))
+
     #: the compiled move runs this estimator's step (:mod:`.kernel_parts`)
     KERNEL_RUNS = True
 
@@ -165,8 +180,8 @@ class ForceEstimator:
         self.bias = np.zeros(3)
         self.quiet = 0.0
         self.at_rest = False
-        self.acc = np.zeros(3)
-        self.force = np.zeros(2)
+        self.acc[:] = 0.0
+        self.force[:] = 0.0
         self._qvel_mark: np.ndarray | None = None
         # the bias queue: a ring of residual rows and its (head, length)
         self._queue = np.zeros(2, dtype=np.int64)
@@ -197,7 +212,8 @@ class ForceEstimator:
         """The horizontal push estimate (N, world frame) after one physics step. On a
         ``fresh`` sensor sample (averaged over ``window_s``, one step by default) the estimate
         is recomputed and, at rest with ``cue_idle`` (the detector has nothing under way), the
-        bias tracked; between samples the last estimate is held."""
+        bias tracked; between samples the last estimate is held. The array returned is
+        :attr:`force`, written in place at every sample (:attr:`estimates` numbers it)."""
         if not fresh:
             if not cue_idle:
                 self.quiet, self.at_rest = 0.0, False
@@ -206,18 +222,17 @@ class ForceEstimator:
         window = self.dt if window_s is None else window_s
         if self._qvel_mark is None:
             self._qvel_mark = data.qvel.copy()
-        self.acc, self.force = np.zeros(3), np.zeros(2)  # new arrays: a new estimate
-        self.quiet, self.at_rest = estimate_step(
-            self.model._address, data._address, self.body, reading, R, data.qvel, window,
-            cue_idle, self.quiet, self.params, self.step_arrays(self.acc, self.force))
+        mp, dp = addresses(self.model, data)
+        estimate_step(mp, dp, self.body, reading, R, data.qvel, window, cue_idle, self.params,
+                      self.rec, self.step_arrays())
         return self.force
 
-    def step_arrays(self, acc: np.ndarray, force: np.ndarray) -> tuple:
-        """:func:`estimate_step`'s state arrays (its ``st``), with ``acc`` and ``force`` the
-        arrays the step writes its acceleration and estimate into: what :meth:`update` and
-        the compiled move (:mod:`.coasting`) both pass."""
-        return (self._qvel_mark, self._jac, self._dv, acc, self.bias, self._ring, self._queue,
-                force, *self._scratch)
+    def step_arrays(self) -> tuple:
+        """:func:`estimate_step`'s state arrays (its ``st``; :attr:`acc` and :attr:`force`
+        receive the acceleration and the estimate in place): what :meth:`update` and the
+        compiled move (:mod:`.coasting`) both pass."""
+        return (self._qvel_mark, self._jac, self._dv, self.acc, self.bias, self._ring,
+                self._queue, self.force, *self._scratch)
 
 
 class ResidualEstimator:

@@ -37,9 +37,10 @@ def planar_accel(vx, vy, vpx, vpy, t, t_prev, dt):
 
 
 #: slots of :attr:`Measurements.rec`, the scalars a step updates (the velocity and time of the
-#: step before, the peaks, whether the base touches the static world), which both drivers
-#: read and write in place
-M_VX, M_VY, M_T, M_PEAK, M_PEAK_PUSHED, M_PEAK_FORCE, M_TOUCHING, N_MREC = range(8)
+#: step before, the peaks, whether the base touches the static world, the sequence number of
+#: the push estimate measured last, -1: none), which both drivers read and write in place
+(M_VX, M_VY, M_T, M_PEAK, M_PEAK_PUSHED, M_PEAK_FORCE, M_TOUCHING, M_ESTIMATE,
+ N_MREC) = range(9)
 
 
 class Measurements:
@@ -70,10 +71,11 @@ class Measurements:
         """Every step (whether the estimate is the one measured is the base's: :meth:`holds`)."""
         return True
 
-    def holds(self, force: np.ndarray) -> bool:
-        """Whether ``force`` is the estimate measured last (the kernel measures a new
-        estimate only)."""
-        return self._f_measured is force
+    def holds(self, estimate: int) -> bool:
+        """Whether the push estimate numbered ``estimate`` (its sequence number,
+        :attr:`~.sensing_chain.SensingChain.estimates`) is the one measured last (the kernel
+        measures a new estimate only)."""
+        return self.rec.item(M_ESTIMATE) == estimate
 
     def reset(self, t: float) -> None:
         """Start measuring at simulated time ``t`` with the base at rest."""
@@ -81,7 +83,7 @@ class Measurements:
         self.peak_accel = 0.0
         self.peak_accel_pushed = 0.0
         self.peak_force = 0.0
-        self._f_measured: np.ndarray | None = None
+        self.rec[M_ESTIMATE] = -1.0
         self.collisions = 0
         self._touching = False
         self.impact_speed = 0.0
@@ -89,10 +91,12 @@ class Measurements:
         self.penetration = 0.0
 
     def update(self, data: mujoco.MjData, vxy_adr: tuple[int, int],
-               pushed: Callable[[], bool], force: np.ndarray) -> None:
+               pushed: Callable[[], bool], force: np.ndarray, estimate: int) -> None:
         """One physics step: the base's planar velocity at ``vxy_adr`` in ``qvel``, whether a
         push acts (or the base yields: its acceleration is then not the controller's; asked
-        only when the step's acceleration is a new peak) and the push estimate ``force``."""
+        only when the step's acceleration is a new peak) and the push estimate ``force``,
+        numbered ``estimate`` (measured when the number is new: the estimator holds its
+        estimate between samples)."""
         if data is not self._data:  # MjData's qvel, bound once (its buffer stays put)
             self._data, self._qvel = data, data.qvel
         t, qvel, rec = data.time, self._qvel, self.rec
@@ -104,14 +108,15 @@ class Measurements:
             self.peak_accel_pushed = a
         if a > self.peak_accel and not pushed():
             self.peak_accel = a
-        if force is not self._f_measured:  # the estimator holds its estimate between samples
-            self._f_measured = force
+        if estimate != rec.item(M_ESTIMATE):  # a new estimate (held between samples)
+            rec[M_ESTIMATE] = estimate
             self.peak_force = max(self.peak_force, math.hypot(force[0], force[1]))
-        self._contacts(data, v_prev)
+        self.measure_contacts(data, v_prev)
 
-    def _contacts(self, data: mujoco.MjData, v_prev: tuple[float, float]) -> None:
+    def measure_contacts(self, data: mujoco.MjData, v_prev: tuple[float, float]) -> None:
         """The contact part of :meth:`update`: contacts with the static world this step,
-        ``v_prev`` the base's velocity at the step before."""
+        ``v_prev`` the base's velocity at the step before (the compiled move hands a step
+        with a contact back here, :mod:`.coasting`)."""
         n = data.ncon
         touching = False
         if n > 0:

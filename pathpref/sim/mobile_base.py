@@ -162,11 +162,34 @@ class MobileBase:
         estimate held already measured (the kernel measures a new one only)."""
         return (self._float_for is self.controller and self._float_control
                 and (not self.measure
-                     or self.measurements.holds(self.sensing.force_estimate)))
+                     or self.measurements.holds(self.sensing.estimates)))
 
     def kernel_prepare(self) -> None:
-        """What this base does before the compiled move's steps (the plain base: nothing;
-        the physical carry arm: an IK solve that is due)."""
+        """What this base does before the compiled move's steps: no yield's anchor (its steps
+        do not yield, as :meth:`_control`'s float path) and, unless someone else owns it
+        (:attr:`external_forces`), the pushed body's wrench cleared (:meth:`pushed_wrench`;
+        the kernel writes a push phase's force into it); the physical carry arm first runs an
+        IK solve that is due."""
+        self._anchor = None
+        if not self.external_forces:
+            self.pushed_wrench().fill(0.0)
+
+    def kernel_finish(self, steps: int) -> None:
+        """What this base does after the compiled move took ``steps`` physics steps (the
+        plain base: nothing; the physical carry arm: its step count and tilt record)."""
+
+    def kernel_addresses(self) -> tuple[int, ...]:
+        """The addresses the compiled move (:mod:`.coasting`) reads and writes: ``x``, ``y``
+        and ``yaw`` in ``qpos`` and the three actuators in ``ctrl`` of :meth:`_control`'s
+        float path (once :meth:`kernel_ready`), then the planar velocity's ``x`` and ``y`` in
+        ``qvel``."""
+        return (*self._float_adr, *self._float_act, *self._vxy_adr)
+
+    @property
+    def cue_open(self) -> bool:
+        """Whether the cue stream (:mod:`.cue_stream`) holds a cue under way, felt and not yet
+        given (where and when it was first felt)."""
+        return self._onset is not None
 
     def compiled_arm(self) -> tuple | None:
         """The physical carry arm's arrays for the compiled move (None: no arm)."""
@@ -246,16 +269,17 @@ class MobileBase:
         elif push is not None and push.active(d.time):
             push.apply(d, self.pushed_body)
         elif not self.external_forces:
-            self._wrench().fill(0.0)
+            self.pushed_wrench().fill(0.0)
         mujoco.mj_step(self.model, d)
         # x . 0 is NaN exactly when x holds a NaN or an infinity, and so is the sum of two
         if not math.isfinite(self._qpos.dot(self._zero_q) + self._qvel.dot(self._zero_v)):
             raise EpisodeError(f"simulation diverged at t = {d.time:.3f} s (non-finite state)")
-        return self._after_read(self.sensing.read(d), push)
+        return self.after_read(self.sensing.read(d), push)
 
-    def _after_read(self, cue: Cue | None, push: HumanPush | None) -> Cue | None:
-        """The rest of :meth:`substep` once the sensing chain gave ``cue``: the cue stream,
-        the measurements and the ``on_substep`` hooks."""
+    def after_read(self, cue: Cue | None, push: HumanPush | None) -> Cue | None:
+        """The rest of :meth:`substep` once the sensing chain gave ``cue`` (``push``: the push
+        the step applied): the cue stream, the measurements and the ``on_substep`` hooks; the
+        compiled move hands a step back here after its detector's step (:mod:`.coasting`)."""
         d, sensing = self.data, self.sensing
         if cue is not None or self._onset is not None or self.guidance is not None or \
                 sensing.under_way:
@@ -263,7 +287,7 @@ class MobileBase:
         if self.measure:
             self._step_push = push
             self.measurements.update(d, self._vxy_adr, self._pushed_now,
-                                     sensing.force_estimate)
+                                     sensing.force_estimate, sensing.estimates)
         self.run_hooks(push)
         return cue
 
@@ -272,7 +296,7 @@ class MobileBase:
         for hook in self.on_substep:
             hook(self, push)
 
-    def _wrench(self) -> np.ndarray:
+    def pushed_wrench(self) -> np.ndarray:
         """A view of the pushed body's row of ``xfrc_applied`` (bound once per pushed body)."""
         if self._wrench_of != self.pushed_body:
             self._wrench_of = self.pushed_body

@@ -251,6 +251,13 @@ def hypot(x, y):
     return h / scale
 
 
+def addresses(model: mujoco.MjModel, data: mujoco.MjData) -> tuple[int, int]:
+    """The C addresses of ``model``'s ``mjModel`` and ``data``'s ``mjData``, which the
+    kernels pass to MuJoCo's C functions: the bindings' private ``_address``, read here only
+    (``pathpref doctor`` checks it, :func:`~pathpref.apps.doctor.check_mujoco_by_address`)."""
+    return model._address, data._address
+
+
 def entry_point(kernel, args: tuple):
     """The compiled overload of the numba function ``kernel`` for ``args``' types (compiled,
     or loaded from numba's cache, if it is not yet), to call directly: numba's dispatcher

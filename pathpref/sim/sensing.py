@@ -34,16 +34,24 @@ import numpy as np
 from numba.np.random.distributions import random_standard_normal
 
 from ..errors import ConfigError
-from .native import OBJ_BODY, bit_generator, bit_generator_pointers, matTvec, mj_objectAcceleration
+from .native import (
+    OBJ_BODY,
+    addresses,
+    bit_generator,
+    bit_generator_pointers,
+    matTvec,
+    mj_objectAcceleration,
+)
 
 #: the thermal warm-up's time constant (s; :class:`SensorModel` ``thermal_n``)
 THERMAL_S = 120.0
 INF = float("inf")
 #: :attr:`FaultySensor.win`'s slots: the window's sum (sensor frame), the physics steps in it,
 #: the next sample's time, the last sample's window (s), whether the last step gave a sample
-#: (1.0) and that sample's mean
-(W_S0, W_S1, W_S2, W_COUNT, W_NEXT_T, W_WINDOW_S, W_FRESH, W_MEAN, N_WIN) = (
-    0, 1, 2, 3, 4, 5, 6, 7, 10)
+#: (1.0), that sample's mean and how many samples the sensor gave since its restart (the
+#: sequence number of the held sample: both drivers tell a new sample by it)
+(W_S0, W_S1, W_S2, W_COUNT, W_NEXT_T, W_WINDOW_S, W_FRESH, W_MEAN, W_SAMPLES, N_WIN) = (
+    0, 1, 2, 3, 4, 5, 6, 7, 10, 11)
 
 
 @nb.njit(cache=True)
@@ -72,12 +80,13 @@ def physical_reading(mp, dp, body, reading, R, extra_m, scratch):
 
 
 @nb.njit(cache=True)
-def window_step(mp, dp, body, reading, R, extra_m, scratch, win, t, dt, period, first):
+def window_step(mp, dp, body, reading, R, extra_m, scratch, win, t, dt, period):
     """One physics step (time ``t``) into the sensor's averaging window ``win`` (slots
     ``W_*``): the :func:`physical_reading` added to the sum, one more step counted. A sample is
-    due when ``t >= next_t - 1e-9`` (``next_t`` starts at the first step's time) or ``first``:
-    then its mean (sum / steps) goes to ``win[W_MEAN:W_MEAN + 3]``, its window is ``steps dt``,
-    the sum restarts and ``next_t`` advances by ``period`` until it is past ``t``. Returns
+    due when ``t >= next_t - 1e-9`` (``next_t`` starts at the first step's time) or no sample
+    was given since the restart (``win[W_SAMPLES] == 0``): then its mean (sum / steps) goes to
+    ``win[W_MEAN:W_MEAN + 3]``, its window is ``steps dt``, ``win[W_SAMPLES]`` counts it, the
+    sum restarts and ``next_t`` advances by ``period`` until it is past ``t``. Returns
     whether a sample is due. The one arithmetic of :meth:`FaultySensor.read` and the compiled
     move (:mod:`.coasting`)."""
     x = physical_reading(mp, dp, body, reading, R, extra_m, scratch)
@@ -87,9 +96,10 @@ def window_step(mp, dp, body, reading, R, extra_m, scratch, win, t, dt, period, 
     win[W_COUNT] += 1.0
     if win[W_NEXT_T] == -math.inf:
         win[W_NEXT_T] = t
-    fresh = t >= win[W_NEXT_T] - 1e-9 or first
+    fresh = t >= win[W_NEXT_T] - 1e-9 or win[W_SAMPLES] == 0.0
     win[W_FRESH] = 1.0 if fresh else 0.0
     if fresh:
+        win[W_SAMPLES] += 1.0
         n = win[W_COUNT]
         win[W_WINDOW_S] = n * dt
         for i in range(3):
@@ -232,7 +242,7 @@ class FaultySensor:
         self.dt = float(model.opt.timestep)
         self.period = self.dt if sensor_model.rate_hz is None else 1.0 / sensor_model.rate_hz
         #: the drift's spread per sample, ``drift sqrt(period)`` (N)
-        self._drift_step = sensor_model.drift_n_per_sqrt_s * math.sqrt(self.period)
+        self.drift_step = sensor_model.drift_n_per_sqrt_s * math.sqrt(self.period)
         phi = rng.uniform(0.0, 2.0 * np.pi)
         #: the current bias (N, sensor frame); drifts as a random walk
         self.bias = sensor_model.bias_n * np.array([np.cos(phi), np.sin(phi), 0.0])
@@ -242,10 +252,13 @@ class FaultySensor:
             psi = rng.uniform(0.0, 2.0 * np.pi)
             self._thermal = sensor_model.thermal_n * np.array([np.cos(psi), np.sin(psi), 0.0])
         #: the mass whose inertia and weight the reading adds to MuJoCo's (kg; 0: none)
-        self._extra_m = 0.0 if sensor_model.extra_mass_kg == 0 and sensor_model.inertia else \
+        self.extra_m = 0.0 if sensor_model.extra_mass_kg == 0 and sensor_model.inertia else \
             sensor_model.extra_mass_kg - (0.0 if sensor_model.inertia else self.mass)
         #: :func:`window_step`'s state (slots ``W_*``) and :func:`physical_reading`'s scratch
         self.win = np.zeros(N_WIN)
+        #: the last output sample (N, sensor frame; :meth:`read`'s), written in place at every
+        #: sample (:attr:`samples` numbers it; zeros before the first)
+        self.held = np.zeros(3)
         self._scratch = np.zeros(15)
         self._data = None
         self.restart()
@@ -256,13 +269,21 @@ class FaultySensor:
     def kernel_ready(self) -> bool:
         """The compiled move runs the next sample: no thermal warm-up (its offset is
         Python's) and a sample held (the first one is taken in Python)."""
-        return self.spec.thermal_n == 0 and self._held is not None
+        return self.spec.thermal_n == 0 and self.samples > 0
 
-    def step_arrays(self, held: np.ndarray) -> tuple:
+    @property
+    def samples(self) -> int:
+        """How many samples the sensor gave since its :meth:`restart` (``win[W_SAMPLES]``,
+        counted by :func:`window_step` in both drivers): :attr:`held` is the sample of this
+        number, and a new number is a new sample (0: none held yet)."""
+        return int(self.win.item(W_SAMPLES))
+
+    def step_arrays(self) -> tuple:
         """The sensor's arrays as the compiled move (:mod:`.coasting`) takes them: the drift
-        bias, ``held`` (where a new sample goes), the window (:func:`window_step`'s ``win``)
-        and :func:`physical_reading`'s scratch; the arrays :meth:`read` passes."""
-        return self.bias, held, self.win, self._scratch
+        bias, :attr:`held` (where a new sample goes, in place), the window
+        (:func:`window_step`'s ``win``) and :func:`physical_reading`'s scratch; the arrays
+        :meth:`read` passes."""
+        return self.bias, self.held, self.win, self._scratch
 
     def __getstate__(self) -> dict:
         """The sensor's state for a copy (``copy.deepcopy``, a task's snapshot:
@@ -270,7 +291,7 @@ class FaultySensor:
         and address (bound again at the next read) and the Generator's pointers (taken again
         from the copy's own Generator, :meth:`__setstate__`)."""
         state = dict(self.__dict__)
-        for k in ("_dp", "_reading", "_R", "rng_pointers"):
+        for k in ("_mp", "_dp", "_reading", "_R", "rng_pointers"):
             state.pop(k, None)
         state["_data"] = None
         return state
@@ -292,20 +313,22 @@ class FaultySensor:
     def _bind(self, data) -> None:
         """Views into ``data``'s buffers (they stay put for the life of an ``MjData``): the
         sensor's reading and the site's rotation, read without a copy at every step."""
-        self._data, self._dp = data, data._address
+        self._data = data
+        self._mp, self._dp = addresses(self.model, data)
         a = self.sensor.adr
         self._reading = data.sensordata[a:a + 3]
         self._R = data.site_xmat[self.sensor.site].reshape(3, 3)
 
-    def _emit(self, mean: np.ndarray) -> np.ndarray:
-        """A new output sample from a window's ``mean`` (:func:`emit_step`, then the thermal
-        warm-up since the sensor was zeroed)."""
-        sm, out = self.spec, np.empty(3)
+    def _emit(self, mean: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """An output sample from a window's ``mean`` into ``out`` (:func:`emit_step`, then the
+        thermal warm-up since the sensor was zeroed, ``out += (1 - exp(-t / THERMAL_S))
+        thermal``); returns ``out``."""
+        sm = self.spec
         emit_step(self.rng_pointers, mean, self.bias, sm.drift_n_per_sqrt_s > 0,
-                  self._drift_step, float(sm.noise_n), out)
+                  self.drift_step, float(sm.noise_n), out)
         if sm.thermal_n > 0:
             self.warm_s += self.period
-            return out + (1.0 - np.exp(-self.warm_s / THERMAL_S)) * self._thermal
+            out += (1.0 - np.exp(-self.warm_s / THERMAL_S)) * self._thermal
         return out
 
     def read(self, data) -> np.ndarray:
@@ -313,27 +336,30 @@ class FaultySensor:
         ``1/rate_hz`` seconds a new sample: the mean of the physical readings since the last
         one (the electronics' anti-aliasing average, :func:`window_step`), plus bias and
         noise; held in between. :attr:`fresh` says whether this step gave a new sample,
-        :attr:`window_s` over how long it averaged."""
+        :attr:`window_s` over how long it averaged, :attr:`samples` which sample it is. The
+        array returned is :attr:`held`, written in place at every sample (a caller that keeps
+        a sample copies it)."""
         if data is not self._data:
             self._bind(data)
-        if window_step(self.model._address, self._dp, self.body, self._reading, self._R,
-                       self._extra_m, self._scratch, self.win, data.time, self.dt,
-                       self.period, self._held is None):
-            self._held = self._emit(self.win[W_MEAN:W_MEAN + 3])
-        return self._held  # a new array at every sample, never changed in place
+        if window_step(self._mp, self._dp, self.body, self._reading, self._R,
+                       self.extra_m, self._scratch, self.win, data.time, self.dt,
+                       self.period):
+            self._emit(self.win[W_MEAN:W_MEAN + 3], self.held)
+        return self.held
 
     def read_still(self, data) -> np.ndarray:
         """A fresh output sample of the current (still) state that advances the sensor's
         clock by one period without physics: what the robot reads while it waits at rest."""
         if data is not self._data:
             self._bind(data)
-        return self._emit(physical_reading(self.model._address, self._dp, self.body,
-                                           self._reading, self._R, self._extra_m,
-                                           self._scratch))
+        return self._emit(physical_reading(self._mp, self._dp, self.body,
+                                           self._reading, self._R, self.extra_m,
+                                           self._scratch), np.empty(3))
 
     def restart(self) -> None:
-        """Forget the held sample (after a physics reset); the bias stays (same device)."""
-        self._held: np.ndarray | None = None
+        """Forget the held sample (after a physics reset: :attr:`samples` back to 0); the bias
+        stays (same device)."""
+        self.held[:] = 0.0
         self.win[:] = 0.0
         self.win[W_NEXT_T], self.win[W_WINDOW_S] = -INF, self.dt
         self.warm_s = 0.0  # seconds of samples since the restart (the thermal warm-up)

@@ -67,8 +67,10 @@ class SensingChain:
         self.estimator_config = estimator or EstimatorConfig()
         self.faulty: FaultySensor | None = None
         self.estimator: ForceEstimator | None = None
-        #: the push estimate the detector was last fed (N, world frame)
+        #: the push estimate the detector was last fed (N, world frame; with faults the
+        #: estimator's :attr:`~.estimator.ForceEstimator.force`, written in place)
         self.force_estimate = np.zeros(2)
+        self._raw_estimates = 0  # the ideal sensor's estimates (one per physics step)
         self.pushed_body: int | None = None
         if self.sensor_model is not None:
             if not isinstance(rng, np.random.Generator):
@@ -87,6 +89,16 @@ class SensingChain:
     def under_way(self) -> bool:
         """A cue is under way: the detector is active or the force is above its onset."""
         return cue_under_way(self.detector)
+
+    @property
+    def estimates(self) -> int:
+        """The sequence number of :attr:`force_estimate`: a new number is a new estimate
+        (with faults the estimator's count, :attr:`~.estimator.ForceEstimator.estimates`, a
+        new one at each sensor sample; the ideal sensor's: one per :meth:`sense`). What a
+        reader that acts once per estimate compares (the measurements' peak estimate)."""
+        if self.sensor_model is None:
+            return self._raw_estimates
+        return 0 if self.estimator is None else self.estimator.estimates
 
     def reset(self, data: mujoco.MjData, pushed_body: int) -> None:
         """Reset the detector; with a faulty sensor, (re)build the faults and the estimator
@@ -119,6 +131,7 @@ class SensingChain:
         bias only while no cue is under way)."""
         if self.sensor_model is None:
             self.force_estimate = self.sensor.force_xy(data)
+            self._raw_estimates += 1
             return self.force_estimate
         if self.faulty is None:
             raise ConfigError("the sensing chain reads before its first reset: call the "
