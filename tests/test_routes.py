@@ -173,6 +173,36 @@ def test_unobserved_components_partition_as_scipys():
         assert len(pairs) == len(set(got.tolist())) == len(set(want.tolist()))
 
 
+def test_first_entry_support_by_hand():
+    """:func:`routes._entry_allowed`: a head may first enter state ``c`` exactly when some
+    slot leads from its component of the unobserved set into a polytope of state ``c``
+    (components by SciPy's ``connected_components``, the pairs by a set), on 200 random
+    graphs, sets and states."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        n = int(rng.integers(2, 50))
+        e = int(rng.integers(1, 3 * n))
+        a, b = rng.integers(0, n, e), rng.integers(0, n, e)
+        src, dst = np.concatenate([a, b]), np.concatenate([b, a])
+        m = int(rng.integers(1, 6))
+        state = np.where(rng.random(n) < 0.3, rng.integers(0, m, n), -1)
+        in_u = (state < 0) & (rng.random(n) < 0.9)
+        both = in_u[src] & in_u[dst]
+        g = sp.csr_matrix((np.ones(int(both.sum())), (src[both], dst[both])), shape=(n, n))
+        comp = connected_components(g, directed=False)[1]
+        pairs = {(comp[x], state[y]) for x, y in zip(src.tolist(), dst.tolist())
+                 if in_u[x] and state[y] >= 0}
+        heads = rng.integers(0, n, int(rng.integers(1, 8)))
+        want = np.array([[(comp[h], c) in pairs and bool(in_u[h]) for c in range(m)]
+                         for h in heads.tolist()])
+        got = routes._entry_allowed(src.astype(np.int64), dst.astype(np.int64), in_u,
+                                    state.astype(np.int64), heads.astype(np.int64), m)
+        assert np.array_equal(got, want)
+
+
 def test_route_prior_forbids_cycles(simple):
     """Every particle the search draws is a tree toward the goal's polytope: no mutual
     preference, no cycle, no exit at the root; an untouched 8-ring has exactly 8 trees."""

@@ -185,6 +185,33 @@ def test_an_episode_with_almost_no_pushes_does_not_stall():
     assert [(r.x, r.y) for r in again.log] == cells
 
 
+def test_a_decision_runs_one_search(monkeypatch):
+    """Every decision of a ``robust-slack`` episode runs exactly one search: the arrival
+    search alone when the routes no longer fit (rule 0 reads the root pool before the search,
+    so the path-preference search whose move it would discard is not run), the
+    path-preference search otherwise; both kinds occur in this short mission, and the episode
+    replays identically."""
+    from pathpref.planning.pomcp import POMCP
+
+    kinds = []
+    real = POMCP.search
+
+    def spy(self, *args, **kw):
+        kinds.append(self.rewards.use_preference)
+        return real(self, *args, **kw)
+
+    monkeypatch.setattr(POMCP, "search", spy)
+    spec = EpisodeSpec(map="simple", method="path_preference", delta_t=3, instance=1, run=1,
+                       instance_seed=12, run_seed=12, preset="robust-slack", queries=400,
+                       human="consistent", t_max=12)
+    res = run_episode(spec)
+    assert len(kinds) == res.steps
+    assert 0 < sum(kinds) < len(kinds)  # some decisions of each kind
+    kinds.clear()
+    again = run_episode(spec)
+    assert [(r.x, r.y, r.action) for r in again.log] == [(r.x, r.y, r.action) for r in res.log]
+
+
 def test_slack_preset_is_robust_check_plus_budget_and_arrival():
     """``robust-slack`` differs from ``robust-check`` in the wait budget and the arrival share
     only; the older presets keep the strict reward (arrival 0, their decisions unchanged)."""

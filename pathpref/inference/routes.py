@@ -64,13 +64,16 @@ import warnings
 import numba as nb
 import numpy as np
 import scipy.sparse as sp
-from scipy.linalg import LinAlgWarning, cho_factor, cho_solve, lu_factor, lu_solve
+from scipy.linalg import LinAlgError, LinAlgWarning, lu_factor
+from scipy.linalg.lapack import dgetrs, dpotrf, dpotrs
 from scipy.sparse.linalg import splu
 
 from .belief import PreferenceBelief
 from .chains import chain_rows, exit_probabilities, gth_logdet
 from .human import ObservationModel
 
+#: an empty column map: a dense split's ``hcol`` (:func:`_support`)
+_NO_COLUMNS = np.zeros(0, np.int64)
 #: unobserved blocks up to this many rows are factorised densely (:func:`_factor`)
 DENSE_MAX = 400
 #: a split's block is factorised afresh after this many polytopes were observed since its
@@ -337,7 +340,7 @@ class _Split:
         self.Ht = np.ascontiguousarray(H.T)  # (k + 1, rows held): a row per column of H
         K = max((len(nb) for nb in neighbors), default=1)
         self.K = max(K, 1)
-        self.heads, self.n_slots = self._heads(S, neighbors, state, self.Ht, self.hcol)
+        self.heads, self.n_slots = self._heads(S, state, self.Ht, self.hcol)
 
     @property
     def lean(self) -> bool:
@@ -353,24 +356,18 @@ class _Split:
         y = u_index[np.concatenate([np.asarray(neighbors[v], dtype=np.int64) for v in S])]
         return np.unique(y[y >= 0])
 
-    def _heads(self, S, neighbors, state: np.ndarray, Ht: np.ndarray, hcol):
+    def _heads(self, S, state: np.ndarray, Ht: np.ndarray, hcol):
         """``(heads (len(S), K, m), n_slots)``: for each slot of each state, where the walk
         first enters the states or ``r`` (``m`` columns, ``state[]`` numbering them) after
         stepping to its head: a unit vector for a state or ``r``, the head's row of ``H``
         otherwise (``Ht``: ``H`` transposed, factor row ``u`` at column ``hcol[u]``, or at
         ``u`` when ``hcol`` is None)."""
-        heads = np.zeros((len(S), self.K, Ht.shape[0]))
-        n_slots = np.array([len(neighbors[v]) for v in S], dtype=np.int64)
-        if not len(S):
-            return heads, n_slots
-        i = np.repeat(np.arange(len(S)), n_slots)  # every slot (i, s) and its head y
-        s = np.arange(len(i)) - np.repeat(np.cumsum(n_slots) - n_slots, n_slots)
-        y = np.concatenate([np.asarray(neighbors[v], dtype=np.int64) for v in S])
-        known = state[y] >= 0
-        heads[i[known], s[known], state[y[known]]] = 1.0
-        u = self.u_index[y[~known]]
-        rows = Ht[:, u if hcol is None else hcol[u]].T
-        heads[i[~known], s[~known]] = _support(rows, y[~known], self.minor, state)
+        minor = self.minor
+        heads, n_slots, cleared = _support(
+            np.asarray(S, dtype=np.int64), minor.src, minor.dst, minor.first, state,
+            self.u_index, Ht, _NO_COLUMNS if hcol is None else hcol, self.K,
+            (minor.index >= 0) & (state < 0))
+        _renormalise(heads, cleared)
         return heads, n_slots
 
     def _boundary(self, neighbors) -> tuple[np.ndarray, np.ndarray]:
@@ -445,7 +442,7 @@ class _Split:
         state = self.state.copy()
         state[self.state == k] = k + 1  # r moves one column on
         state[v] = k
-        return self._heads((*S, v), neighbors, state, H, hcol)
+        return self._heads((*S, v), state, H, hcol)
 
     def extend(self, v: int, neighbors: list[np.ndarray]) -> _Split:
         """The split of ``S + {v}`` (sorted) for an unobserved ``v``, without a factorisation:
@@ -472,7 +469,7 @@ class _Split:
         out.u_index[v] = -1
         out.logdet_u = self.logdet_u + float(np.log(g_vv))
         out.block = self.block.without(int(self.u_index[v]), raw)
-        out.heads, out.n_slots = out._heads(S, neighbors, state, H, hcol)
+        out.heads, out.n_slots = out._heads(S, state, H, hcol)
         return out
 
 
@@ -513,8 +510,8 @@ class _Block:
         raw = self.lu.solve(e)
         if self._chol is None:
             return raw, raw
-        return raw - self._C() @ cho_solve(self._chol, raw[self.removed],
-                                           check_finite=False), raw
+        return raw - self._C() @ _lapack(dpotrs(self._chol, raw[self.removed], lower=0,
+                                                overwrite_b=0), "potrs"), raw
 
     def without(self, i: int, raw: np.ndarray) -> _Block:
         """The block without its row and column ``i``, ``raw = G0 e_i``."""
@@ -531,8 +528,22 @@ class _Block:
             out.cols = [buf, m]
         out.cols[0][:, m] = raw
         out.cols[1] = m + 1
-        out._chol = cho_factor(out._C()[out.removed], check_finite=False)
+        c, info = dpotrf(out._C()[out.removed], lower=0, clean=0, overwrite_a=0)
+        if info > 0:
+            raise LinAlgError(f"{info}-th leading minor of the array is not positive definite")
+        out._chol = _lapack((c, info), "potrf")
         return out
+
+
+def _lapack(result: tuple, name: str) -> np.ndarray:
+    """The array of a LAPACK call's ``(array, info)`` (:mod:`scipy.linalg.lapack`: the
+    routines SciPy's ``lu_solve``, ``cho_factor`` and ``cho_solve`` call, called as they call
+    them, without their argument checks and batch wrappers, tens of microseconds a call
+    here); a negative ``info`` (an illegal argument) raises."""
+    x, info = result
+    if info < 0:
+        raise ValueError(f"illegal value in {-info}th argument of internal {name}")
+    return x
 
 
 class _Minor:
@@ -540,8 +551,9 @@ class _Minor:
 
     ``src``, ``dst``: every slot ``(v, N(v)[k])`` of the component's polytopes, ``r``'s own
     included (the pattern of ``~L`` once ``r``'s row is dropped, which :class:`_Split` does:
-    it reads the rows of unobserved polytopes only), as arrays shared through ``slots`` (a
-    dict keyed by component label) by every goal polytope of the component."""
+    it reads the rows of unobserved polytopes only), each polytope's slots in a run from
+    ``first[v]`` (-1 outside the component), as arrays shared through ``slots`` (a dict keyed
+    by component label) by every goal polytope of the component."""
 
     def __init__(self, neighbors: list[np.ndarray], component: np.ndarray, root: int,
                  slots: dict | None = None):
@@ -551,45 +563,111 @@ class _Minor:
         slots = {} if slots is None else slots
         if label not in slots:
             deg = np.array([len(neighbors[v]) for v in members.tolist()], dtype=np.int64)
+            first = -np.ones(len(neighbors), dtype=np.int64)
+            first[members] = np.cumsum(deg) - deg
             slots[label] = (np.repeat(members, deg),
                             np.concatenate([np.asarray(neighbors[v], dtype=np.int64)
-                                            for v in members.tolist()]))
-        self.src, self.dst = slots[label]
+                                            for v in members.tolist()]), first)
+        self.src, self.dst, self.first = slots[label]
         members = members[members != root]
         self.n = len(members)
         self.index = -np.ones(len(neighbors), dtype=np.int64)
         self.index[members] = np.arange(self.n)
 
 
-def _support(rows: np.ndarray, heads: np.ndarray, minor: _Minor, state: np.ndarray
-             ) -> np.ndarray:
-    """The first-entry rows ``rows[j]`` of the unobserved polytopes ``heads[j]`` with their
-    structural zeros restored: the walk from ``y`` through the unobserved set ``U`` can first
-    enter only a state (``S`` or ``r``, ``state >= 0``) next to ``y``'s component of ``U``,
-    so the other entries are exactly 0, and the row sums to 1 (every component of ``U``
-    reaches a state: ``r``'s component is connected). A solve or a rank-one update leaves
-    rounding (about 1e-16) there, which the chain's elimination would read as an exit: next to
-    a pocket that the walk leaves with probability 1e-8 (a dead-end branch of leaves between
-    observed polytopes), that is a relative error of 1e-8 in ``det``, growing with the
-    evidence. A row is renormalised only where an entry was cleared, so exact rows keep their
-    bits."""
-    if not len(heads):
-        return rows
-    src, dst = minor.src, minor.dst
-    m = rows.shape[1]
-    in_u = (minor.index >= 0) & (state < 0)
+@nb.njit(cache=True)
+def _support(S, src, dst, first, state, u_index, Ht, hcol, K, in_u):
+    """``(heads (len(S), K, m), n_slots, cleared (c, 2))`` of :meth:`_Split._heads`: for each
+    slot ``s`` of each state ``S[i]`` (its head ``y = dst[first[S[i]] + s]``), a unit vector
+    at ``state[y]`` when ``y`` is a state, else ``y``'s first-entry row ``H(y, .)`` (``Ht``'s
+    column ``u_index[y]``, or ``hcol[u_index[y]]`` when ``hcol`` is not empty) with its
+    structural zeros restored: the walk from ``y`` through the unobserved set ``U``
+    (``in_u``) can first enter only a state (``S`` or ``r``, ``state >= 0``) next to ``y``'s
+    component of ``U`` (:func:`_entry_allowed`), so the other entries are exactly 0, and the
+    row sums to 1 (every component of ``U`` reaches a state: ``r``'s component is
+    connected). A solve or a rank-one update leaves rounding (about 1e-16) there, which the
+    chain's elimination would read as an exit: next to a pocket that the walk leaves with
+    probability 1e-8 (a dead-end branch of leaves between observed polytopes), that is a
+    relative error of 1e-8 in ``det``, growing with the evidence. ``cleared`` lists the
+    slots ``(i, s)`` whose row lost a nonzero entry; only they are renormalised
+    (:func:`_renormalise`), so exact rows keep their bits. ``O(E + len(S) K m)``."""
+    k = S.shape[0]
+    m = Ht.shape[0]
+    heads = np.zeros((k, K, m))
+    n_slots = np.empty(k, np.int64)
+    n_unknown = 0
+    for i in range(k):
+        n_slots[i] = 0
+        for e in range(first[S[i]], src.shape[0]):
+            if src[e] != S[i]:
+                break
+            n_slots[i] += 1
+            if state[dst[e]] < 0:
+                n_unknown += 1
+    ys = np.empty(n_unknown, np.int64)  # the unobserved heads, slot by slot
+    at = np.empty((n_unknown, 2), np.int64)
+    j = 0
+    for i in range(k):
+        for s in range(n_slots[i]):
+            y = dst[first[S[i]] + s]
+            if state[y] >= 0:
+                heads[i, s, state[y]] = 1.0
+            else:
+                ys[j] = y
+                at[j, 0] = i
+                at[j, 1] = s
+                j += 1
+    ok = _entry_allowed(src, dst, in_u, state, ys, m)
+    cleared = np.empty((n_unknown, 2), np.int64)
+    n_cleared = 0
+    for j in range(n_unknown):
+        u = u_index[ys[j]]
+        c = u if hcol.shape[0] == 0 else hcol[u]
+        lost = False
+        for x in range(m):
+            if ok[j, x]:
+                heads[at[j, 0], at[j, 1], x] = Ht[x, c]
+            elif Ht[x, c] != 0.0:
+                lost = True
+        if lost:
+            cleared[n_cleared] = at[j]
+            n_cleared += 1
+    return heads, n_slots, cleared[:n_cleared]
+
+
+def _renormalise(heads: np.ndarray, cleared: np.ndarray) -> None:
+    """Rows ``heads[i, s]`` of the slots ``cleared`` (:func:`_support`) divided by their sums
+    (left as they are where the sum is 0), in place."""
+    if len(cleared):
+        i, s = cleared[:, 0], cleared[:, 1]
+        rows = heads[i, s]
+        tot = rows.sum(axis=1, keepdims=True)
+        heads[i, s] = np.where(tot > 0, rows / np.where(tot > 0, tot, 1.0), rows)
+
+
+@nb.njit(cache=True)
+def _entry_allowed(src, dst, in_u, state, heads, m):
+    """``(len(heads), m)`` whether the walk from ``heads[j]`` through the unobserved set
+    ``in_u`` can first enter state ``c`` (``state[x] = c``, :func:`_support`): some slot
+    ``(src[e], dst[e])`` leads from ``heads[j]``'s component of ``in_u``
+    (:func:`_u_components`) into a polytope of state ``c``. ``O(E + len(heads) m)``."""
     comp = _u_components(src, dst, in_u)
-    edge = in_u[src] & (state[dst] >= 0)
-    allowed = np.unique(comp[src[edge]].astype(np.int64) * m + state[dst[edge]])
-    keys = comp[heads].astype(np.int64)[:, None] * m + np.arange(m)[None, :]
-    ok = np.isin(keys, allowed)
-    out = np.where(ok, rows, 0.0)
-    cleared = ((~ok) & (rows != 0.0)).any(axis=1)
-    if cleared.any():
-        tot = out[cleared].sum(axis=1, keepdims=True)
-        out[cleared] = np.where(tot > 0, out[cleared] / np.where(tot > 0, tot, 1.0),
-                                out[cleared])
-    return out
+    row = -np.ones(in_u.shape[0], np.int64)  # a head's component -> its row of the table
+    n_rows = 0
+    for j in range(heads.shape[0]):
+        if row[comp[heads[j]]] < 0:
+            row[comp[heads[j]]] = n_rows
+            n_rows += 1
+    table = np.zeros((n_rows, m), np.bool_)
+    for e in range(src.shape[0]):
+        a, b = src[e], dst[e]
+        if in_u[a] and state[b] >= 0 and row[comp[a]] >= 0:
+            table[row[comp[a]], state[b]] = True
+    ok = np.empty((heads.shape[0], m), np.bool_)
+    for j in range(heads.shape[0]):
+        for c in range(m):
+            ok[j, c] = table[row[comp[heads[j]]], c]
+    return ok
 
 
 @nb.njit(cache=True)
@@ -744,5 +822,5 @@ class _DenseLU:
             self.lu, self.piv = lu_factor(a, check_finite=False)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """``A^-1 b``."""
-        return lu_solve((self.lu, self.piv), b, check_finite=False)
+        """``A^-1 b`` (LAPACK's ``getrs``, :func:`_lapack`)."""
+        return _lapack(dgetrs(self.lu, self.piv, b, trans=0, overwrite_b=0), "getrs")

@@ -64,10 +64,130 @@ def best_exit_after_pushes(joint: np.ndarray, likelihood: np.ndarray, k_max: int
     m = joint[None]  # (sequences, G, K): P(g, e, h_1..h_k | o)
     out[0] = float(m.sum(axis=1).max(axis=1).sum())
     for k in range(1, k_max + 1):
-        m = (m[:, None] * lik[None]).reshape(-1, *joint.shape)
-        m = m[m.any(axis=(1, 2))]  # sequences of probability zero add nothing
-        out[k] = float(m.sum(axis=1).max(axis=1).sum())
+        m, best = _one_more_push(m, lik)
+        out[k] = float(best.sum())
     return out
+
+
+@nb.njit(cache=True)
+def _one_more_push(m, lik):
+    """``(m', best)``: each sequence ``m[i]`` (``(G, K)``, ``P(g, e, h_1..h_k | o)``)
+    followed by each heading ``h``, ``m[i] * lik[h]``, in the order ``(i, h)``, without the
+    sequences of probability zero (they add nothing), and each kept sequence's ``max_e sum_g
+    m'[j, g, e]`` (the most probable exit's share; its sum over the sequences is ``E_k``,
+    :func:`best_exit_after_pushes`). The sum over ``g`` is NumPy's ``m'.sum(axis=1)`` term
+    for term: in order for ``K > 1``, pairwise (:func:`_pairwise`) for ``K = 1``, where
+    NumPy sums the contiguous goal axis so. At most ``8 n`` rows."""
+    n, G, K = m.shape
+    out = np.empty((8 * n, G, K))
+    best = np.empty(8 * n)
+    j = 0
+    for i in range(n):
+        for h in range(8):
+            nonzero = False
+            for g in range(G):
+                for e in range(K):
+                    x = m[i, g, e] * lik[h, g, e]
+                    out[j, g, e] = x
+                    nonzero = nonzero or x != 0.0
+            if not nonzero:
+                continue
+            top = 0.0
+            for e in range(K):
+                if K == 1:
+                    col = _pairwise(out[j, :, 0], 0, G)
+                else:
+                    col = out[j, 0, e]
+                    for g in range(1, G):
+                        col += out[j, g, e]
+                if e == 0 or col > top or col != col:
+                    top = col
+            best[j] = top
+            j += 1
+    return out[:j], best[:j]
+
+
+@nb.njit(cache=True)
+def _pairwise(a, lo, n):
+    """``sum(a[lo:lo + n])`` added as NumPy's pairwise summation adds a contiguous run: runs
+    of up to 128 terms by :func:`_pairwise_run`, longer ones as the sum of their two halves
+    (the first a multiple of 8 terms), halved again as needed (an explicit stack of at most
+    64 halves: numba's cache does not keep recursive functions)."""
+    seg_lo = np.empty(64, np.int64)
+    seg_n = np.empty(64, np.int64)
+    stage = np.zeros(64, np.int64)  # 0: split, 1: left half summed, 2: right half summed
+    left = np.empty(64)
+    seg_lo[0], seg_n[0] = lo, n
+    sp = 1
+    ret = 0.0
+    while sp > 0:
+        t = sp - 1
+        if seg_n[t] <= 128:
+            ret = _pairwise_run(a, seg_lo[t], seg_n[t])
+            sp -= 1
+            continue
+        n2 = seg_n[t] // 2
+        n2 -= n2 % 8
+        if stage[t] == 0:
+            stage[t] = 1
+            seg_lo[sp], seg_n[sp], stage[sp] = seg_lo[t], n2, 0
+            sp += 1
+        elif stage[t] == 1:
+            left[t] = ret
+            stage[t] = 2
+            seg_lo[sp], seg_n[sp], stage[sp] = seg_lo[t] + n2, seg_n[t] - n2, 0
+            sp += 1
+        else:
+            ret = left[t] + ret
+            sp -= 1
+    return ret
+
+
+@nb.njit(cache=True)
+def _pairwise_run(a, lo, n):
+    """NumPy's sum of a run of at most 128 terms: in order below 8, else eight interleaved
+    partial sums added as ``((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))`` and the
+    terms past the last multiple of 8 after them."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r = np.empty(8)
+    for t in range(8):
+        r[t] = a[lo + t]
+    i = 8
+    while i < n - n % 8:
+        for t in range(8):
+            r[t] += a[lo + i + t]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    while i < n:
+        res += a[lo + i]
+        i += 1
+    return res
+
+
+class ExitMemo:
+    """:func:`best_exit_after_pushes` that keeps its last answer with its inputs: asked again
+    for an equal ``joint`` (compared exactly), the same likelihood table and cell and at most
+    as many pushes, it returns the kept ``E_0..E_k_max`` (``E_j`` does not depend on
+    ``k_max``: the same operations compute it), so the crossing check and the wait budget of
+    one decision, and the decisions of a robot waiting at one cell between two pushes, compute
+    it once."""
+
+    def __init__(self) -> None:
+        self._last: tuple | None = None
+
+    def __call__(self, joint: np.ndarray, likelihood, cell: int, k_max: int) -> np.ndarray:
+        """``E_0..E_k_max`` of ``joint`` and the likelihood ``likelihood[cell]``."""
+        last = self._last
+        if last is not None and last[0] is likelihood and last[1] == cell \
+                and len(last[3]) > k_max and np.array_equal(last[2], joint):
+            return last[3][: k_max + 1].copy()
+        out = best_exit_after_pushes(joint, likelihood[cell], k_max)
+        self._last = (likelihood, int(cell), np.array(joint, dtype=np.float64), out.copy())
+        return out
 
 
 @nb.njit(cache=True)
@@ -138,14 +258,15 @@ def wait_value(p_cross: float, best_exit: np.ndarray, feasible: np.ndarray,
 
 
 def check_crossing(planner, belief, likelihood, result, cell: int, depth: int,
-                   pushes: tuple[int, int]) -> int:
+                   pushes: tuple[int, int], exits: ExitMemo | None = None) -> int:
     """The move to make instead of ``result.action`` if waiting for pushes is worth more than
     crossing now (module docstring); ``result.action`` itself otherwise, and whenever the move
     stays in its polytope or the search had no root particles (the independent prior).
     ``planner``: the robust :class:`~.pomcp.POMCP` that produced ``result`` from ``cell``
     with ``depth`` steps left; ``likelihood``: the human model's
     :attr:`~pathpref.inference.human.ObservationModel.cell_likelihood`; ``pushes``:
-    ``(next, every)`` as the search was given them."""
+    ``(next, every)`` as the search was given them; ``exits``: an :class:`ExitMemo` shared
+    with the wait budget (None: computed here)."""
     a = int(result.action)
     if a == STAY:
         return a
@@ -157,7 +278,7 @@ def check_crossing(planner, belief, likelihood, result, cell: int, depth: int,
         return a
     joint = belief.joint(v)
     p_cross = float(joint[:, slots.index(u)].sum())
-    best_exit = best_exit_after_pushes(joint, likelihood[cell], LOOKAHEAD_PUSHES)
+    best_exit = (exits or ExitMemo())(joint, likelihood, cell, LOOKAHEAD_PUSHES)
     if best_exit[-1] <= p_cross:  # nothing a push could say would change the exit
         return a
     nxt, every = max(int(pushes[0]), 1), max(int(pushes[1]), 1)

@@ -461,6 +461,14 @@ def _stay_move(s, blocked):
     return -1
 
 
+@nb.njit(cache=True, inline="always")
+def _hear(heard, i):
+    """Node ``i`` has no heading child yet (its row of ``heard`` -1): set when the node is
+    created, so the search allocates ``heard`` without filling it."""
+    for h in range(8):
+        heard[i, h] = -1
+
+
 @nb.njit(cache=True)
 def search_robust(world, belief, lik, settings, s0, seed):
     """PO-UCT of the module docstring from cell ``s0``; returns
@@ -480,7 +488,9 @@ def search_robust(world, belief, lik, settings, s0, seed):
     nbr, goal_cells, goal_cdf = world.nbr, world.goal_cells, belief.goal_cdf
     # a simulation adds at most one action node, and with waiting one heading node before it
     n_node, n_sa, q_sa, child = new_tree(2 * queries if wait else queries)
-    heard = -np.ones((n_node.shape[0] if wait else 1, 8), np.int64)  # node -> heading child
+    # node -> heading child (-1: none yet), a row set when its node is created (:func:`_hear`)
+    heard = np.empty((n_node.shape[0] if wait else 1, 8), np.int64)
+    _hear(heard, 0)
     P = nbr.shape[0]
     theta = -np.ones(P, np.int64)
     stamp = -np.ones(P, np.int64)
@@ -584,6 +594,7 @@ def _simulate(world, belief, lik, nodes, scratch, settings, s0, t0):
                     och = n_nodes
                     heard[node, h] = och
                     init_node(n_node, n_sa, q_sa, child, n_nodes)
+                    _hear(heard, n_nodes)
                     n_nodes += 1
                 node = och
             if in_tree:
@@ -614,6 +625,8 @@ def _simulate(world, belief, lik, nodes, scratch, settings, s0, t0):
                 if ch < 0:  # expand one node per simulation, then roll out
                     child[node, a] = n_nodes
                     init_node(n_node, n_sa, q_sa, child, n_nodes)
+                    if wait:
+                        _hear(heard, n_nodes)
                     n_nodes += 1
                     in_tree = False
                 else:

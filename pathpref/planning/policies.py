@@ -150,22 +150,23 @@ class PlannerPolicy(Policy):
         pushes = self.expected_pushes(t)
         seed = self._seed()
         late = None
-        if self.waits is not None and self.waits.per_goal \
-                and self.planner.rewards.use_preference \
+        if self.waits is not None and self.planner.rewards.use_preference \
                 and self.planner.particles(self.belief, seed) is not None:
-            self.waits.plan(self.planner, self.belief, cell, depth)  # the search's own pool
-            late = self.waits.late_goals(len(self.ctx.model.goals))
+            # the search's own root pool (the same seed; the search reuses it), read before
+            # the search: rule 0 needs nothing else, so a search whose move it would
+            # discard is not run
+            if self.waits.plan(self.planner, self.belief, cell, depth):  # rule 0
+                return self.arrival().search(cell, self.belief, depth, self._seed(),
+                                             self.history, pushes).action
+            if self.waits.per_goal:
+                late = self.waits.late_goals(len(self.ctx.model.goals))
         res = self.planner.search(cell, self.belief, depth, seed, self.history, pushes, late)
         a = res.action
-        if self.waits is not None and not self.waits.per_goal \
-                and self.planner.rewards.use_preference \
-                and self.waits.plan(self.planner, self.belief, cell, depth):
-            return self.arrival().search(cell, self.belief, depth, self._seed(), self.history,
-                                         pushes).action
         if self.ctx.preset.check_crossings and self.planner.tables is not None \
                 and len(self.input_steps) >= 2:  # the pushes' interval is known (crossing)
             a = check_crossing(self.planner, self.belief, self.ctx.model.cell_likelihood,
-                               res, cell, depth, pushes)
+                               res, cell, depth, pushes,
+                               exits=None if self.waits is None else self.waits.exits)
         if self.waits is not None:
             a = self.waits.decide(self.planner, self.belief, self.ctx.model.cell_likelihood,
                                   a, cell, depth, pushes, heading is not None)

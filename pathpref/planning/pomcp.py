@@ -458,10 +458,11 @@ class POMCP:
     def _history(self, history) -> tuple[np.ndarray, np.ndarray]:
         """``(hist_v, hist_k)``: each transition ``v -> w`` as ``v`` and the slot of ``w`` in
         ``N(v)``."""
-        hv = np.array([v for v, _ in history], dtype=np.int64)
-        hk = np.array([int(np.flatnonzero(self.nbr[v] == w)[0]) for v, w in history],
-                      dtype=np.int64)
-        return hv, hk
+        h = np.array(history, dtype=np.int64).reshape(-1, 2)
+        hit = self.nbr[h[:, 0]] == h[:, 1, None]
+        if not hit.any(axis=1).all():
+            raise IndexError("a transition of the history is not between neighbours")
+        return h[:, 0].copy(), hit.argmax(axis=1)
 
     def _dummy_cdf(self) -> np.ndarray:
         return np.ones((len(self.goal_cells), *self._uniform_cdf.shape))

@@ -11,11 +11,13 @@ left, from the search's root particles ``(g_j, theta_j)`` (exact draws of the po
 their preferred routes from ``s`` (:func:`~.crossing.route_walks`: ``L_j`` steps, ``U_j`` the
 doubt summed over its crossings, first move ``m_j``).
 
-0. **Arrive first when the routes no longer fit** (:meth:`WaitBudget.plan`, right after the
-   search): when fewer than :data:`ON_TIME` of the particles' preferred routes arrive within
-   ``D`` steps (``mean_j [L_j <= D] < ON_TIME``), the policy takes its move from a search for
-   the goal alone (the preset's goal-only rewards on the same goal marginal): reaching the
-   goal by another route is then worth more than a preferred route that times out.
+0. **Arrive first when the routes no longer fit** (:meth:`WaitBudget.plan`, on the search's
+   root particles, drawn before the search: :meth:`~.pomcp.POMCP.particles`): when fewer
+   than :data:`ON_TIME` of the particles' preferred routes arrive within ``D`` steps
+   (``mean_j [L_j <= D] < ON_TIME``), the policy takes its move from a search for the goal
+   alone (the preset's goal-only rewards on the same goal marginal), and the
+   path-preference search, whose move would not be used, is not run: reaching the goal by
+   another route is then worth more than a preferred route that times out.
 
 Otherwise, on the move ``a`` the search and the check chose (:meth:`WaitBudget.decide`):
 
@@ -84,7 +86,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.grid import STAY
-from .crossing import LOOKAHEAD_PUSHES, best_exit_after_pushes, route_walks
+from .crossing import LOOKAHEAD_PUSHES, ExitMemo, route_walks
 from .hindsight import shortest_walks
 
 #: the least expected gain in the probability of the best exit that one more push must offer
@@ -110,8 +112,8 @@ def doubt(pool_theta: np.ndarray) -> np.ndarray:
     exit of ``x`` is ``e``); 0 where they all agree."""
     m, P = pool_theta.shape
     k = int(pool_theta.max()) + 2
-    counts = np.zeros((P, k), np.int64)
-    np.add.at(counts, (np.broadcast_to(np.arange(P), (m, P)), pool_theta + 1), 1)
+    counts = np.bincount((pool_theta + 1 + k * np.arange(P)).ravel(),
+                         minlength=P * k).reshape(P, k)
     return 1.0 - counts.max(axis=1) / m
 
 
@@ -126,10 +128,14 @@ class WaitBudget:
         self.waited = 0
         self.felt = 0
         self._walks = None
+        #: :func:`~.crossing.best_exit_after_pushes` kept between calls (shared with the
+        #: crossing check: :class:`~.crossing.ExitMemo`)
+        self.exits = ExitMemo()
 
     def plan(self, planner, belief, cell: int, depth: int) -> bool:
-        """Read the root particles' routes from ``cell`` with ``depth`` steps left (after the
-        search, before :meth:`decide`); True when the robot is out of time for the preferred
+        """Read the root particles' routes from ``cell`` with ``depth`` steps left (the pool
+        the search starts from, :meth:`~.pomcp.POMCP.particles`: before the search, and
+        before :meth:`decide`); True when the robot is out of time for the preferred
         routes: fewer than :data:`ON_TIME` of the particles' routes arrive in time (the
         policy then plans for arriving alone, module docstring)."""
         particles = planner.root_particles()
@@ -204,7 +210,7 @@ class WaitBudget:
             if s2 != cell and u2 != v:
                 if self.per_goal and can_wait and self.felt < 2 and u2 in slots and float(
                         belief.joint(v)[:, slots.index(u2)].sum()) < CONFIDENT:
-                    gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
+                    gain = self.exits(belief.joint(v), likelihood, cell, 1)
                     if gain[1] - gain[0] >= MIN_GAIN:
                         self.waited += 1
                         return STAY
@@ -214,7 +220,7 @@ class WaitBudget:
                 return a
         if can_wait:
             if gain is None:
-                gain = best_exit_after_pushes(belief.joint(v), likelihood[cell], 1)
+                gain = self.exits(belief.joint(v), likelihood, cell, 1)
             if gain[1] - gain[0] >= MIN_GAIN:
                 self.waited += 1
                 return STAY
