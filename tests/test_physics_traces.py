@@ -6,7 +6,11 @@ the carry row re-pinned when the physical arm's IK went from 100 to 20 Hz: the s
 cues, cells and counts, ``ik_solves`` 922 -> 185, the tilt within 4e-4 and every other float
 within 5e-7 relative; the "navigate any time" row re-pinned when the safety filter came to
 act on every move that starts off its cell's centre, as moves after a yield do: the same
-steps, cues, cells and counts, no contact, the felt pushes' peaks within 1.3e-4 relative):
+steps, cues, cells and counts, no contact, the felt pushes' peaks within 1.3e-4 relative;
+the carry row re-pinned again when the Jaco's carrying posture moved within the disk's
+footprint, the tray 0.1 m ahead and 0.8 m up: the same steps, cues, cells and counts, the
+felt push's peak within 2e-4 relative, ``tip_force_n`` 240.3 -> 227.3 N (the tray 0.05 m
+higher), ``tilt_max_deg`` 1.01 -> 1.67, ``tilt_rms_deg`` 0.51 -> 0.40):
 decision steps, cue headings and cells, counts exactly; times, forces,
 impulses and the base's final ``qpos`` to ``tests/close.py``'s ``REL_PHYSICS``."""
 

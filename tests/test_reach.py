@@ -1,5 +1,6 @@
 """The plan reach of each body (pathpref/sim/reach.py): the disk's cylinder, the TidyBot's
-bumper, and the arm-on-base at its carrying posture and along the postures near it."""
+bumper, and the arm-on-base at its carrying posture and along the postures near it; the disk's
+carry scene refuses a carrying posture beyond its footprint."""
 
 from __future__ import annotations
 
@@ -32,17 +33,45 @@ def test_the_disk_reaches_its_cylinders_radius():
     assert plan_reach_m(scene.model, base.data, root) == pytest.approx(0.15, abs=1e-9)
 
 
-def test_the_jaco_carrying_reaches_past_the_disks_footprint():
-    """The Jaco at its carrying posture reaches 0.208 m from the base's centre below the
-    obstacles' 0.6 m (its lower links), beyond the disk's 0.15 m footprint the maps are made
-    for; within 0.1 rad of that posture on every joint up to 0.26 m."""
+def test_the_jaco_carrying_stays_within_the_disks_footprint():
+    """The Jaco at its carrying posture (``ARM_HOME``, the tray at ``TRAY_OFFSET``) and within
+    0.1 rad of it on every joint: nothing below the obstacles' 0.6 m beyond the disk's 0.15 m
+    cylinder, the footprint the maps are made for; the arm's own links reach 0.118 m (the
+    earlier posture, the tray at (0.05, 0, 0.75) m: 0.208 m, up to 0.26 m within 0.1 rad)."""
+    from pathpref.sim.arm import TRAY_OFFSET
+
     base, scene = _body("carry", "disk")
-    root = scene.model.body("base").id
-    at_home = plan_reach_m(scene.model, base.data, root)
-    assert at_home == pytest.approx(0.208, abs=0.002)
-    assert at_home > scene.radius_m
-    near = carry_reach_m(base, samples=16)
-    assert at_home <= near <= 0.30
+    m, root = scene.model, scene.model.body("base").id
+    assert plan_reach_m(m, base.data, root) == pytest.approx(0.15, abs=1e-9)
+    assert carry_reach_m(base) == pytest.approx(0.15, abs=1e-9)
+    assert scene.radius_m == pytest.approx(0.15, abs=1e-9)
+    # the arm and tray alone, the base's cylinder left out
+    arm = plan_reach_m(m, base.data, root, exclude=(m.geom("base_geom").id,))
+    assert arm == pytest.approx(0.118, abs=0.002)
+    tray = base.data.xpos[base.tray] - base.data.xpos[root]
+    assert np.abs(tray - TRAY_OFFSET).max() < 1e-3  # the posture holds the tray there
+    assert np.hypot(*TRAY_OFFSET[:2]) < scene.radius_m  # over the base
+
+
+def test_the_carry_scene_refuses_a_posture_beyond_the_footprint():
+    """The disk's carry scene checks the carrying body's reach (``posture_reach_m``, as
+    ``carry_reach_m``): the earlier posture (the tray at (0.05, 0, 0.75) m), whose lower links
+    reach 0.208 m and up to 0.26 m within 0.1 rad, is refused with one line naming the body
+    and the fix."""
+    from dataclasses import replace
+
+    from pathpref.errors import ConfigError
+    from pathpref.sim.arm import JACO, build_arm_scene
+
+    wide = replace(JACO, home=(-4.429, 3.997, 5.648, -0.675, 2.026, -2.53),
+                   tray_offset=(0.05, 0.0, 0.75))
+    with pytest.raises(ConfigError) as e:
+        build_arm_scene(load_world("simple"), 0.5, None, arm=wide)
+    msg = str(e.value)
+    assert "\n" not in msg
+    assert msg.startswith("the Jaco carrying the tray on the disk reaches 0.26")
+    assert "scripts/carry_posture.py" in msg and "footprint=Footprint(r, c)" in msg
+    build_arm_scene(load_world("simple"), 0.5, None)  # the carrying posture fits
 
 
 def test_the_tidybot_carrying_stays_within_its_bumper():

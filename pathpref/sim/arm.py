@@ -10,11 +10,13 @@ IK (mink, solver named explicitly: ``daqp``), every ``ik_period`` seconds (by de
 in legacy mode, 50 ms in physical mode: "IK rate" below), over all nine joints (base x, y,
 yaw + arm)::
 
-    tray task     FrameTask(tool/tray): a level pose at a fixed offset from the base, in the
-                  base's commanded heading (position cost 1, orientation cost 5)
+    tray task     FrameTask(tool/tray): a level pose at a fixed offset from the base
+                  (``TRAY_OFFSET``), in the base's commanded heading (position cost 1,
+                  orientation cost 5)
     base task     FrameTask(base): the planner's cell centre (cost 1, z ignored), yaw 0
                   (cost 10)
-    posture       PostureTask: the arm's home posture (cost 1e-2)
+    posture       PostureTask: the arm's home posture ``ARM_HOME``, the carrying posture
+                  within the disk's footprint (cost 1e-2)
     limits        ConfigurationLimit, VelocityLimit (base 0.8 m/s, 1 rad/s; shoulder and
                   elbow 2 rad/s, wrist 6 rad/s),
                   CollisionAvoidanceLimit (arm and base geoms vs obstacles and walls)
@@ -23,11 +25,11 @@ yaw + arm)::
 ``RelativeFrameTask`` (the tray relative to the base), so moving the base never serves the tray
 task. (The legacy task, a world-frame target re-anchored at the measured base every solve, drives
 the base *against* a sustained tray push without end: the pushed tray is ahead of its target,
-the IK moves the base back to pull it in, the target moves back with the base; 450 mm in 3 s at
-30 N.) The base follows the base's own profiled controller (:class:`.controller.
-ProfiledController`: speed and acceleration limits, braking margin, no overshoot) instead of
-the IK's base velocity, yields by admittance while a cue is under way, and the penetration is
-measured at every physics step.
+the IK moves the base back to pull it in, the target moves back with the base; 136 mm in 3 s at
+30 N, ``carry_drift_legacy_mm``.) The base follows the base's own profiled controller
+(:class:`.controller.ProfiledController`: speed and acceleration limits, braking margin, no
+overshoot) instead of the IK's base velocity, yields by admittance while a cue is under way,
+and the penetration is measured at every physics step.
 
 **Compliant arm** (physical mode). As in mink's mobile examples (``examples/mobile_tidybot.py``:
 ``configuration.integrate_inplace(vel, dt)``, the actuators get ``configuration.q``), the IK
@@ -62,8 +64,8 @@ carry episode's quiet steps run there as the plain base's do, the same numbers.
 **IK rate** (physical mode: ``PHYSICAL_IK_PERIOD_S``, 50 ms, 20 Hz). Here the IK never meets a
 push (the impedance does, at every physics step): it only keeps the kinematic tray at its
 constant offset from the base and the arm clear of obstacles, so its solution is nearly still
-(over two moves on ``simple``, joint speeds of median 2e-8 rad/s; 0.009 rad/s at the first
-solve, which settles the home posture). Between two solves the base moves at most
+(over two moves on ``simple``, the fastest joint's speed of median 4e-14 rad/s; 9e-4 rad/s at
+the first solve, which settles the home posture). Between two solves the base moves at most
 ``v_max`` x 50 ms = 50 mm (1 m/s), under half the 0.12 m band in which the collision limit acts
 (detection 0.15 m, kept 0.03 m). The tray's push figures, tilts, overshoot and penetration of
 ``pathpref bench``'s ``arm`` section are the same at 10 ms and 50 ms to four digits; each solve
@@ -93,16 +95,23 @@ from ..geometry.world import World
 from .arm_step import arm_step, tilt_from
 from .mobile_base import MobileBase
 from .native import addresses, entry_point
-from .scene import BaseParams, Scene, build_spec, mjcf_path
+from .reach import posture_reach_m
+from .scene import BaseParams, Scene, build_spec, check_footprint, mjcf_path
 from .sensing import HandleSensor
 
-#: the arm's home posture: the IK solution for TRAY_OFFSET with the widest margin from the
-#: joint limits (0.30 rad), found by random restarts
-ARM_HOME = np.array([-4.429, 3.997, 5.648, -0.675, 2.026, -2.53])
-#: tray position relative to the base body (m): nearly over the base, so that the arm stays
-#: within the base's footprint (a tray 0.25 m ahead reached over walls, where the collision
-#: limit made the target infeasible and the IK unstable)
-TRAY_OFFSET = np.array([0.05, 0.0, 0.75])
+#: the arm's home (carrying) posture: of the IK solutions holding the tray level at
+#: TRAY_OFFSET, the one with the widest margin from the joint limits (0.49 rad) among those
+#: whose plan reach below the obstacles stays within the disk's 0.15 m footprint at the
+#: posture and within 0.1 rad of it on every joint (:func:`~.reach.carry_reach_m`: the
+#: cylinder's 0.15 m; the arm's own 0.118 m), found by random restarts
+#: (``scripts/carry_posture.py``)
+ARM_HOME = np.array([0.4265, 3.6691, 5.4628, -0.8080, 2.2500, -1.2345])
+#: tray position relative to the base body (m): over the base (0.1 m ahead of its centre, within
+#: the cylinder's 0.15 m), 0.8 m up (0.9 m above the floor, above the obstacles' 0.6 m). At the
+#: earlier (0.05, 0, 0.75) no posture kept the arm's lower links within the footprint (0.16 m
+#: at best, 0.195 m within 0.1 rad); 0.1 m ahead does at the same height with 0.28 rad from the
+#: joint limits, 0.05 m higher with 0.49 rad (``scripts/carry_posture.py``)
+TRAY_OFFSET = np.array([0.10, 0.0, 0.80])
 ARM_JOINTS = [f"jaco/joint_{k}" for k in range(1, 7)]
 #: servo gains (kp, kv) per joint: a soft shoulder and elbow let the tray yield to a push, a
 #: stiff wrist keeps it level while it does
@@ -167,10 +176,13 @@ def jaco_xml() -> Path:
     return path
 
 
-def build_arm_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams | None = None
-                    ) -> Scene:
+def build_arm_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams | None = None,
+                    arm: ArmModel = JACO) -> Scene:
     """Compile the arm-on-base scene of ``world`` (see module docstring); ``base`` a
-    physical base."""
+    physical base. A ConfigError (:func:`~.scene.check_footprint`) when the carrying body
+    reaches farther than the footprint the world's moves were made for: the plan reach of
+    ``arm`` at its carrying posture and within 0.1 rad of it (:func:`~.reach.posture_reach_m`,
+    as :func:`~.reach.carry_reach_m` measures it)."""
     spec = build_spec(world, cell_size, base)
     mount = spec.body("base").add_site(name="arm_mount", pos=[0.0, 0.0, 0.08])
     spec.attach(mujoco.MjSpec.from_file(str(jaco_xml())), prefix="jaco/", site=mount)
@@ -186,7 +198,12 @@ def build_arm_scene(world: World, cell_size: float = CELL_SIZE_M, base: BasePara
         a.set_to_position(kp=kp, kv=kv)
         a.forcerange = [-60.0, 60.0]
         a.forcelimited = 1
-    return Scene(world=world, model=spec.compile(), cell_size=cell_size)
+    model = spec.compile()
+    reach = posture_reach_m(model, mujoco.MjData(model), arm, np.array(arm.home))
+    check_footprint(world, cell_size, reach, "the Jaco carrying the tray on the disk",
+                    fix="choose a carrying posture within it (scripts/carry_posture.py "
+                    "finds them)")
+    return Scene(world=world, model=model, cell_size=cell_size)
 
 
 def tilt_deg(data: mujoco.MjData, body: int) -> float:

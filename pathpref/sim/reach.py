@@ -1,6 +1,6 @@
 """How far a robot reaches in plan from its base's centre: the footprint a body needs on a map
 (:func:`plan_reach_m`), for the arm-on-base at its carrying posture and along the postures its
-IK visits (:func:`carry_reach_m`).
+IK visits (:func:`carry_reach_m`, :func:`posture_reach_m`).
 
 A robot's part can touch a wall or an obstacle only below their height
 (:data:`~.scene.OBSTACLE_HEIGHT`, 0.6 m): its plan reach is the largest horizontal distance
@@ -14,10 +14,15 @@ for round geoms) is at or below the height.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import mujoco
 import numpy as np
 
 from .scene import OBSTACLE_HEIGHT
+
+if TYPE_CHECKING:
+    from .arm import ArmModel
 
 _ROUND = (int(mujoco.mjtGeom.mjGEOM_CAPSULE), int(mujoco.mjtGeom.mjGEOM_CYLINDER))
 _CORNERS = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], float)
@@ -46,15 +51,15 @@ def geom_points(model: mujoco.MjModel, data: mujoco.MjData, g: int
 
 
 def plan_reach_m(model: mujoco.MjModel, data: mujoco.MjData, root: int,
-                 height_m: float = OBSTACLE_HEIGHT) -> float:
+                 height_m: float = OBSTACLE_HEIGHT, exclude: tuple[int, ...] = ()) -> float:
     """The largest horizontal distance (m) from body ``root``'s origin to a point of a
     collision geom of ``root``'s tree at or below ``height_m`` (module docstring), in
-    ``data``'s pose (``mj_forward`` done)."""
+    ``data``'s pose (``mj_forward`` done); the geoms ``exclude`` (ids) left out."""
     centre = data.xpos[root, :2]
     tree = model.body_rootid[root]
     far = 0.0
     for g in range(model.ngeom):
-        if model.body_rootid[model.geom_bodyid[g]] != tree or \
+        if model.body_rootid[model.geom_bodyid[g]] != tree or g in exclude or \
                 not (model.geom_contype[g] or model.geom_conaffinity[g]):
             continue
         pts, r = geom_points(model, data, g)
@@ -64,27 +69,36 @@ def plan_reach_m(model: mujoco.MjModel, data: mujoco.MjData, root: int,
     return far
 
 
-def carry_reach_m(base, samples: int = 64, spread: float = 0.1, seed: int = 0) -> float:
-    """The carrying body's plan reach (m): :func:`plan_reach_m` of ``base`` (an
-    :class:`~.arm.ArmBase`, reset) at its carrying posture and at ``samples`` postures drawn
-    uniformly within ``spread`` rad of it on every arm joint, clipped to the joints' ranges
-    (the IK holds the arm near its carrying posture: its posture task and the tray's fixed
-    offset; ``spread`` bounds how far it may go); the largest. The base's pose is left as it
-    was."""
-    m, d = base.model, base.data
+def posture_reach_m(model: mujoco.MjModel, data: mujoco.MjData, arm: ArmModel,
+                    home: np.ndarray, samples: int = 64, spread: float = 0.1, seed: int = 0
+                    ) -> float:
+    """The largest :func:`plan_reach_m` of ``arm``'s base body (an
+    :class:`~.arm.ArmModel` of ``model``) in ``data`` with the arm's joints at ``home`` and at
+    ``samples`` postures drawn uniformly within ``spread`` rad of it on every arm joint,
+    clipped to the joints' ranges; the other joints as ``data`` has them. ``data``'s
+    configuration is left as it was."""
+    m, d = model, data
     q0 = d.qpos.copy()
-    root = m.body(base.arm.base_body).id
+    root = m.body(arm.base_body).id
+    ids = [m.joint(j).id for j in arm.joints]
+    adr = m.jnt_qposadr[ids]
+    lim, limited = m.jnt_range[ids], m.jnt_limited[ids].astype(bool)
     rng = np.random.default_rng(seed)
-    home = np.asarray(base.home, float)
+    home = np.asarray(home, float)
     far = 0.0
     for k in range(samples + 1):
         q = home if k == 0 else home + rng.uniform(-spread, spread, home.size)
-        lim = m.jnt_range[[m.joint(j).id for j in base.arm.joints]]
-        limited = m.jnt_limited[[m.joint(j).id for j in base.arm.joints]].astype(bool)
-        q = np.where(limited, np.clip(q, lim[:, 0], lim[:, 1]), q)
-        d.qpos[base.arm_qpos] = q
+        d.qpos[adr] = np.where(limited, np.clip(q, lim[:, 0], lim[:, 1]), q)
         mujoco.mj_forward(m, d)
         far = max(far, plan_reach_m(m, d, root))
     d.qpos[:] = q0
     mujoco.mj_forward(m, d)
     return far
+
+
+def carry_reach_m(base, samples: int = 64, spread: float = 0.1, seed: int = 0) -> float:
+    """The carrying body's plan reach (m): :func:`posture_reach_m` of ``base`` (an
+    :class:`~.arm.ArmBase`, reset) about its carrying posture ``base.home`` (the IK holds the
+    arm near it: its posture task and the tray's fixed offset; ``spread`` bounds how far it
+    may go), in the base's own data, whose pose is left as it was."""
+    return posture_reach_m(base.model, base.data, base.arm, base.home, samples, spread, seed)

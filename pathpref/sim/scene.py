@@ -281,13 +281,17 @@ def build_scene(world: World, cell_size: float = CELL_SIZE_M, base: BaseParams |
     return Scene(world=world, model=model, cell_size=cell_size)
 
 
-def check_footprint(world: World, cell_size: float, radius_m: float, what: str) -> None:
+def check_footprint(world: World, cell_size: float, radius_m: float, what: str,
+                    fix: str | None = None) -> None:
     """A ConfigError when the body's footprint (``radius_m`` from the base's centre) is larger
     than the footprint the world's moves were made for (``world.footprint``): its moves
-    would not be clear for this body."""
+    would not be clear for this body. ``fix``: the body's own remedy, named before the
+    world's (a footprint of that radius)."""
     fp = world.footprint
     if radius_m > fp.radius * cell_size + 1e-9:
+        remedy = "build the world with a footprint of that radius " \
+                 "(load_world(..., footprint=Footprint(r, c)))"
         raise ConfigError(
             f"{what} reaches {radius_m:.3f} m from the base's centre, more than the footprint "
-            f"the map's moves were made for ({fp.describe(cell_size)}); build the world with "
-            "a footprint of that radius (load_world(..., footprint=Footprint(r, c)))")
+            f"the map's moves were made for ({fp.describe(cell_size)}); "
+            f"{remedy if fix is None else f'{fix}, or {remedy}'}")
