@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -13,6 +14,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+#: the stored demo sweep's episodes, as the wheel ships its cells (package data)
+SWEEP_EPISODES = json.loads((ROOT / "pathpref" / "apps" / "demo_sweep.json").read_text())[
+    "episodes"]
 
 
 @pytest.fixture(scope="module")
@@ -174,7 +178,8 @@ def test_installed_wheel_runs_the_whole_demo(wheel, tmp_path):
     out = r.stdout
     p = DEFAULT_PRESET
     for section in (f"pathpref demo (preset {p}): where inferring the path preference matters",
-                    "stored sweep demo_sweep.json (shipped with pathpref): 1080 grid episodes, "
+                    "stored sweep demo_sweep.json (shipped with pathpref): "
+                    f"{SWEEP_EPISODES} grid episodes, "
                     f"30 per cell, preset {p}, made by `sh scripts/demo_sweep.sh "
                     f"docs/results/demo_sweep.sqlite {p}`",
                     "-> inferring the preference MATTERS",
