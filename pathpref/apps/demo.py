@@ -1,6 +1,6 @@
 """``pathpref demo`` (``make demo``): what inferring the human's path preference is for.
 
-The setting (found by ``scripts/demo_sweep.sh``, 1080 grid episodes stored with the command
+The setting (found by ``scripts/demo_sweep.sh``, 1260 grid episodes stored with the command
 and the preset that made them in :data:`SWEEP_JSON`, package data shipped in the wheel; every
 cell in ``docs/results.md``): map ``simple``, random instances (start, 10 goal candidates, true
 goal), a *corrective* human who pushes only when the robot leaves the preferred route
