@@ -224,68 +224,65 @@ def check_bit_generator() -> list[str]:
     return []
 
 
+def _numba_probe(probe: Callable[[], bool], wrong: str, what: str) -> list[str]:
+    """One line when ``probe()`` (a use of one of numba's internals) is False (``wrong`` says
+    how) or raises (its exception says how); ``what`` names the internal and what relies on
+    it. Any exception counts: a change of numba's internals is the finding."""
+    import numba
+
+    try:
+        ok, why = bool(probe()), wrong
+    except Exception as e:  # noqa: BLE001 - any change of numba's internals is the finding
+        ok, why = False, f"fails ({type(e).__name__}: {e})"
+    return [] if ok else [f"numba {numba.__version__}: {what} {why}: use numba 0.68"]
+
+
 def check_entry_point() -> list[str]:
     """:func:`~pathpref.sim.native.entry_point` (``Dispatcher.overloads[sig].entry_point``)
     gives a compiled function that answers (``hypot(3, 4) = 5``)."""
-    import numba
-
     from ..sim import native
 
-    try:
+    def probe() -> bool:
         fn = native.entry_point(native.hypot, (3.0, 4.0))
-        ok = fn is not native.hypot and fn(3.0, 4.0) == math.hypot(3.0, 4.0)
-        why = "answers wrongly"
-    except Exception as e:  # noqa: BLE001 - any change of numba's internals is the finding
-        ok, why = False, f"fails ({type(e).__name__}: {e})"
-    if ok:
-        return []
-    return [f"numba {numba.__version__}: Dispatcher.overloads[sig].entry_point, which the "
-            f"compiled steps call directly (pathpref.sim.native.entry_point), {why}: use numba "
-            "0.68"]
+        return fn is not native.hypot and fn(3.0, 4.0) == math.hypot(3.0, 4.0)
+
+    return _numba_probe(probe, "answers wrongly", "Dispatcher.overloads[sig].entry_point, "
+                        "which the compiled steps call directly "
+                        "(pathpref.sim.native.entry_point),")
 
 
 def check_no_nrt() -> list[str]:
     """``njit(_nrt=False)`` is still an option numba takes, and honours."""
-    import numba
     import numpy as np
 
-    try:
+    def probe() -> bool:
         from .doctor_probes import add_one
 
         x = np.zeros(3)
         add_one(x)
-        ok = bool(x.sum() == 3.0) and add_one.targetoptions.get("_nrt") is False
-        why = "is dropped"
-    except Exception as e:  # noqa: BLE001 - any change of numba's internals is the finding
-        ok, why = False, f"fails ({type(e).__name__}: {e})"
-    if ok:
-        return []
-    return [f"numba {numba.__version__}: the private option njit(_nrt=False) of the search and "
-            f"coasting kernels {why}: use numba 0.68"]
+        return bool(x.sum() == 3.0) and add_one.targetoptions.get("_nrt") is False
+
+    return _numba_probe(probe, "is dropped", "the private option njit(_nrt=False) of the "
+                        "search and coasting kernels")
 
 
 def check_cache_index() -> list[str]:
     """:func:`pathpref.kernels.cached_signatures` finds, in numba's cache index, the overload
     of the probe kernel ``add_one`` (``cache=True``) that its call just compiled or loaded."""
-    import numba
     import numpy as np
 
     from ..kernels import cached_signatures
 
-    try:
+    def probe() -> bool:
         from .doctor_probes import add_one
 
         add_one(np.zeros(3))
-        found = cached_signatures(add_one)
-        ok = any(tuple(sig) in add_one.overloads for sig in found)
-        why = "does not list the overload just compiled"
-    except Exception as e:  # noqa: BLE001 - any change of numba's internals is the finding
-        ok, why = False, f"fails ({type(e).__name__}: {e})"
-    if ok:
-        return []
-    return [f"numba {numba.__version__}: its private cache index, which pathpref reads to "
-            f"load the kernels before the first decision (pathpref.kernels.load_cached), {why}: "
-            "each kernel then loads at its first call; use numba 0.68"]
+        return any(tuple(sig) in add_one.overloads for sig in cached_signatures(add_one))
+
+    return _numba_probe(probe, "does not list the overload just compiled, so each kernel "
+                        "loads at its first call", "its private cache index, which pathpref "
+                        "reads to load the kernels before the first decision "
+                        "(pathpref.kernels.load_cached),")
 
 
 #: the checks in order (name, function, whether it needs the native module)
