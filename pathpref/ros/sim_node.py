@@ -34,7 +34,7 @@ from ..episode.runner import EpisodeRunner
 from ..episode.spec import EpisodeSpec
 from ..errors import ConfigError
 from ..geometry.grid import STAY
-from ..sim.grip import grip_offset, torque
+from ..sim.grip import grip_ids, grip_offset, torque
 from ..sim.path_record import sample_every
 from .streams import BadMessage, stamp_ns
 
@@ -66,7 +66,7 @@ class SimRobot:
         self.n_wrench = self.n_odom = 0
         self.step_index = 0
         self.mark_ns = 0
-        self._m, self._d = base.model, base.data
+        self._d, self._grip = base.data, grip_ids(base.model)
         self._wall0: float | None = None
         self.cells = [self.runner.cell]
         base.on_substep.append(self._after_step)
@@ -105,7 +105,7 @@ class SimRobot:
     def torque(self, f: np.ndarray) -> np.ndarray:
         """The wrench's torque about the sensor's origin of a horizontal force ``f`` at the
         grip (N m, ``map`` axes; :mod:`pathpref.sim.grip`)."""
-        return torque(grip_offset(self._m, self._d), f)
+        return torque(grip_offset(self._d, self._grip), f)
 
     def publish_odom(self) -> None:
         """The base's odometry now."""

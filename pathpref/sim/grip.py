@@ -20,10 +20,16 @@ import mujoco
 import numpy as np
 
 
-def grip_offset(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+def grip_ids(model: mujoco.MjModel) -> tuple[int, int]:
+    """The ``handle`` body's and the ``handle_site``'s ids (looked up once per model)."""
+    return int(model.body("handle").id), int(model.site("handle_site").id)
+
+
+def grip_offset(data: mujoco.MjData, ids: tuple[int, int]) -> np.ndarray:
     """``r = p_grip - p_sensor`` (m, world axes) in ``data``'s state (``mj_forward`` done): the
-    ``handle`` body's centre of mass less the ``handle_site``'s origin."""
-    return data.xipos[model.body("handle").id] - data.site_xpos[model.site("handle_site").id]
+    ``handle`` body's centre of mass less the ``handle_site``'s origin (``ids``:
+    :func:`grip_ids`)."""
+    return data.xipos[ids[0]] - data.site_xpos[ids[1]]
 
 
 @cache
@@ -38,7 +44,7 @@ def rest_offset(task: str = "navigate", robot_model: str = "disk") -> tuple[floa
                       None, robot_model)
     data = mujoco.MjData(scene.model)
     mujoco.mj_forward(scene.model, data)
-    return tuple(float(v) for v in grip_offset(scene.model, data))
+    return tuple(float(v) for v in grip_offset(data, grip_ids(scene.model)))
 
 
 def torque(r, f) -> np.ndarray:
